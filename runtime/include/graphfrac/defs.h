@@ -1,0 +1,109 @@
+// Plain descriptions the engine fills in to create a world and its bodies. Defaults come from
+// member initialisers; everything is checked when the world or body is created.
+#pragma once
+
+#include <cstdint>
+#include <glm/vec3.hpp>
+#include <vector>
+
+#include "mesh.h"
+#include "status.h"
+
+namespace gf {
+
+class JobSystem;
+
+/// Hyperelastic energy of a material (SPEC §1).
+enum class MaterialModel : uint8_t {
+  Corotated,         ///< Co-rotational linear (Müller & Gross 2004).
+  StVK,              ///< Saint Venant-Kirchhoff.
+  NeoHookean,        ///< Classic Neo-Hookean; log J continued quadratically below J = 0.1.
+  StableNeoHookean,  ///< Smith et al. 2018, with its Lamé reparametrisation; inversion safe.
+};
+
+/// Material parameters in SI units. Lamé parameters follow from E and nu (eq 4.29).
+struct Material {
+  MaterialModel model = MaterialModel::StableNeoHookean;
+  double youngsModulus = 1e6;  ///< E [Pa]
+  double poissonRatio = 0.3;   ///< nu, in (-1, 0.5)
+  double density = 1000;       ///< rho [kg/m^3]
+  /// Fibre stiffness mu_f [Pa] of the anisotropic term (eq 4.36) added to the isotropic
+  /// energy; 0 = isotropic (no fibre term is evaluated).
+  double fibreStiffness = 0;
+  glm::vec3 fibreDirection{1, 0, 0};  ///< Rest-space fibre direction (normalised on use).
+  double massDamping = 0;             ///< Rayleigh r1 [1/s]
+  double stiffnessDamping = 0;        ///< Rayleigh r2 [s]
+
+  static Material corotated(double E, double nu, double rho);
+  static Material stvk(double E, double nu, double rho);
+  static Material neoHookean(double E, double nu, double rho);
+  static Material stableNeoHookean(double E, double nu, double rho);
+  /// Empty when valid; otherwise names the field and the reason.
+  Result<void> check() const;
+};
+
+/// Linear solver of the implicit step.
+enum class LinearSolverKind : uint8_t {
+  PCG,     ///< Conjugate gradient, block-Jacobi preconditioned.
+  Direct,  ///< Sparse Cholesky; the reference for error measurements.
+};
+
+/// How the implicit backward Euler step (eq 2.7, 3.13) is solved.
+struct SolverSettings {
+  /// Newton iterations per substep: 1 = linearly implicit (the default, game speed);
+  /// more = full Newton with backtracking line search, stopping at newtonTolerance.
+  int newtonIterations = 1;
+  double newtonTolerance = 1e-6;  ///< Relative to the first Newton step's size.
+  LinearSolverKind linearSolver = LinearSolverKind::PCG;
+  int maxLinearIterations = 200;
+  double linearTolerance = 1e-6;  ///< Relative residual |r|/|b| for PCG.
+};
+
+/// Nodes whose velocity is prescribed: a pin (velocity 0) or a grip that pulls.
+struct Grip {
+  std::vector<int32_t> nodes;
+  glm::vec3 velocity{0, 0, 0};  ///< [m/s], world frame.
+};
+
+/// A constant force on one node [N].
+struct PointForce {
+  int32_t node = 0;
+  glm::vec3 force{0, 0, 0};
+};
+
+/// A body: its mesh, material, boundary conditions and solver settings.
+struct BodyDef {
+  TetMesh mesh;
+  Material material;
+  SolverSettings solver;
+  std::vector<Grip> grips;
+  std::vector<PointForce> forces;
+  glm::vec3 initialVelocity{0, 0, 0};
+};
+
+/// A static obstacle; contact is a one-sided penalty whose energy enters the implicit step.
+struct Collider {
+  enum class Kind : uint8_t { Plane, Box, Sphere };
+  Kind kind = Kind::Plane;
+  glm::vec3 point{0, 0, 0};                 ///< Plane: a point on it; Box/Sphere: centre.
+  glm::vec3 normal{0, 1, 0};                ///< Plane: outward normal.
+  glm::vec3 halfExtents{0.5f, 0.5f, 0.5f};  ///< Box (axis aligned).
+  float radius = 0.5f;                      ///< Sphere.
+  /// Penalty stiffness [N/m per node-mass kg]; 0 picks one from the time step so that a
+  /// node is pushed out within about one step.
+  double stiffness = 0;
+};
+
+/// Which backend runs the bodies.
+enum class Backend : uint8_t { Auto, Cpu, Cuda };
+
+/// A world: gravity, backend, threading, substeps and static colliders.
+struct WorldDef {
+  glm::vec3 gravity{0, -9.81f, 0};
+  Backend backend = Backend::Auto;
+  JobSystem* jobs = nullptr;  ///< Not owned; null = serial.
+  int substeps = 1;           ///< Fixed internal substeps per step(dt).
+  std::vector<Collider> colliders;
+};
+
+}  // namespace gf
