@@ -1,0 +1,77 @@
+// Linear tetrahedron: rest-shape precompute, deformation gradient, and the element energy,
+// gradient and Hessian (SPEC §1).
+//
+// Nodes 0..3; Ds = [x1-x0, x2-x0, x3-x0] (columns) and F = Ds Dm^-1 is constant over the
+// element. Position vectors of 12 entries are node-major: index 3*a + i is coordinate i of
+// node a. F is linear in x: dF(i,j)/dx(a,l) = delta_il B(a,j) with B the rest-space gradients
+// of the shape functions (rows 1..3 of B are the rows of Dm^-1, row 0 is minus their sum).
+// The element Hessian V D^T dPdF D therefore splits into 3x3 blocks (i,l) of dPdF, each
+// mapped by B: H(3a+i, 3b+l) = V sum_jm B(a,j) dPdF(3i+j, 3l+m) B(b,m), never forming D.
+#pragma once
+
+#include "materials.h"
+#include "math.h"
+
+namespace gf {
+
+/// Dm^-1 of a rest tetrahedron and its signed volume det(Dm)/6 (the caller rejects
+/// volume <= 0). Returns the zero matrix for a degenerate element instead of dividing by 0.
+GF_HD Mat3 restShapeInverse(const Vec3 X[4], double& volume) {
+  const Mat3 dm = fromColumns(X[1] - X[0], X[2] - X[0], X[3] - X[0]);
+  const double d = det(dm);
+  volume = d / 6.0;
+  if (d == 0) return Mat3{};
+  return inverse(dm);
+}
+
+/// F = Ds Dm^-1.
+GF_HD Mat3 deformationGradient(const Vec3 x[4], const Mat3& DmInv) {
+  return fromColumns(x[1] - x[0], x[2] - x[0], x[3] - x[0]) * DmInv;
+}
+
+/// Rest-space gradients of the four linear shape functions, B(a, j) = dN_a/dX_j.
+GF_HD Mat<4, 3> shapeGradients(const Mat3& DmInv) {
+  Mat<4, 3> b;
+  for (int j = 0; j < 3; ++j) {
+    b(1, j) = DmInv(0, j);
+    b(2, j) = DmInv(1, j);
+    b(3, j) = DmInv(2, j);
+    b(0, j) = -(DmInv(0, j) + DmInv(1, j) + DmInv(2, j));
+  }
+  return b;
+}
+
+/// Element elastic energy V psi(F). Fills grad = dE/dx (12, node-major; the internal force is
+/// -grad) and, when hessian is non-null, d2E/dx2 = V D^T dPdF D with D = dvec(F)/dx,
+/// projected to PSD when projectPsd.
+GF_HD double elementForces(const MaterialCoeffs& c, const Vec3 x[4], const Mat3& DmInv,
+                           double volume, double grad[12], Mat12* hessian, bool projectPsd) {
+  const Mat3 F = deformationGradient(x, DmInv);
+  const Mat<4, 3> B = shapeGradients(DmInv);
+  Mat3 P;
+  Mat9 dPdF;
+  const double psi = evaluateMaterial(c, F, P, hessian != nullptr ? &dPdF : nullptr, projectPsd);
+  if (hessian != nullptr) {
+    Mat12& h = *hessian;
+    for (int i = 0; i < 3; ++i)
+      for (int l = 0; l < 3; ++l) {
+        // K = dPdF block (i, l); T = B K (4x3); H block (i, l) = V T B^T (4x4).
+        Mat<4, 3> t;
+        for (int a = 0; a < 4; ++a)
+          for (int m = 0; m < 3; ++m)
+            t(a, m) = B(a, 0) * dPdF(3 * i + 0, 3 * l + m) + B(a, 1) * dPdF(3 * i + 1, 3 * l + m) +
+                      B(a, 2) * dPdF(3 * i + 2, 3 * l + m);
+        for (int a = 0; a < 4; ++a)
+          for (int b = 0; b < 4; ++b)
+            h(3 * a + i, 3 * b + l) =
+                volume * (t(a, 0) * B(b, 0) + t(a, 1) * B(b, 1) + t(a, 2) * B(b, 2));
+      }
+  }
+  // grad(3a + i) = V sum_j P(i,j) B(a,j)
+  for (int a = 0; a < 4; ++a)
+    for (int i = 0; i < 3; ++i)
+      grad[3 * a + i] = volume * (P(i, 0) * B(a, 0) + P(i, 1) * B(a, 1) + P(i, 2) * B(a, 2));
+  return volume * psi;
+}
+
+}  // namespace gf

@@ -1,0 +1,395 @@
+// Hyperelastic energy densities, first Piola-Kirchhoff stress and dP/dF (SPEC §1).
+//
+// Design. All four isotropic models are written as functions of four invariants of the
+// signed singular values s of F (svd3.h):
+//   I1 = s0 + s1 + s2 = tr S,  I2 = sum s_i^2 = I_C,  I3 = s0 s1 s2 = J,  I4 = sum s_i^4 = II_C.
+// Each model supplies only psi(I) with its first and second derivatives in I; one generic
+// code path turns them into dpsi/ds, d2psi/ds2, P = U diag(dpsi/ds) V^T and dP/dF through
+// the analytic eigen-system of isotropic energies (Smith et al. 2019 "Analytic eigensystems
+// for isotropic distortion energies"; Kim & Eberle "Dynamic Deformables" ch. 7):
+//   - 3 scaling modes U diag(e) V^T, e an eigenvector of the 3x3 d2psi/ds2;
+//   - per pair (i,j) with third index k, a twist mode U (e_i e_j^T - e_j e_i^T) V^T / sqrt2
+//     with eigenvalue (psi_i + psi_j)/(s_i + s_j) and a flip mode U (e_i e_j^T + e_j e_i^T)
+//     V^T / sqrt2 with eigenvalue (psi_i - psi_j)/(s_i - s_j).
+// Writing psi_i = psi_I1 + 2 s_i psi_I2 + psi_I3 s_j s_k + 4 s_i^3 psi_I4 makes both
+// quotients closed-form:
+//   flip  = 2 psi_I2 - psi_I3 s_k + 4 psi_I4 (s_i^2 + s_i s_j + s_j^2)
+//   twist = 2 psi_I1 / (s_i + s_j) + 2 psi_I2 + psi_I3 s_k + 4 psi_I4 (s_i^2 - s_i s_j + s_j^2)
+// so repeated singular values need no special case (the flip limit A_ii - A_ij comes out
+// exactly), and only a psi_I1 term (co-rotational) can divide by s_i + s_j -> 0, where that
+// energy really has a kink; there the denominator is bounded by kTwistDenominatorMin.
+// Clamping negative eigenvalues to zero gives the PSD projection that keeps the implicit
+// system SPD; without projection the sum of the modes is the exact Hessian.
+//
+// The anisotropic fibre term (Kim et al. 2019, eq 2.2/4.36) is added on top when
+// fibreMu > 0 with its own analytic eigen-system (see detail::addFibre). Each term is
+// projected on its own, as Kim et al. do: the sum of two PSD matrices is PSD and costs no 9x9
+// eigen-solve, but where one term is indefinite and the other compensates, the result is
+// stiffer than the nearest PSD matrix of the sum (projectPSD<9> would give that one).
+//
+// Vectorisation of 3x3 matrices is row-major throughout: vec(F)[3*i + j] = F(i, j).
+#pragma once
+
+#include "eigen_sym.h"
+#include "math.h"
+#include "svd3.h"
+
+namespace gf {
+
+/// Isotropic energy model; same order as gf::MaterialModel in graphfrac/defs.h.
+enum EnergyModel : int { kCorotated = 0, kStVK = 1, kNeoHookean = 2, kStableNeoHookean = 3 };
+
+/// Below this J the Neo-Hookean log J is replaced by its second-order Taylor expansion at
+/// J = kNeoHookeanJMin, so the energy is finite and C2 for degenerate and inverted elements.
+constexpr double kNeoHookeanJMin = 0.1;
+/// Lower bound on s_i + s_j in the co-rotational twist eigenvalue (see the file comment).
+constexpr double kTwistDenominatorMin = 1e-6;
+/// Lower bound on |F a| in the fibre Hessian, whose curvature grows like 1/|F a| near F a = 0.
+constexpr double kFibreStretchMin = 1e-8;
+
+/// Per-element material coefficients as the kernels use them. mu and lambda are the model's
+/// own parameters: for stable Neo-Hookean they are already reparametrised (eq 4.30).
+struct MaterialCoeffs {
+  int model = kStableNeoHookean;  ///< An EnergyModel.
+  double mu = 0;                  ///< Shear parameter [Pa].
+  double lambda = 0;              ///< Bulk parameter [Pa].
+  double fibreMu = 0;             ///< Fibre stiffness mu_f [Pa]; 0 = no fibre term.
+  Vec3 fibreDir{1, 0, 0};         ///< Unit rest-space fibre direction a.
+};
+
+/// Coefficients from Young's modulus E and Poisson ratio nu. Lamé parameters by eq 4.29;
+/// stable Neo-Hookean takes Smith et al. 2018's mu' = 4/3 mu, lambda' = lambda + 5/6 mu
+/// (sec 4.2.5.1) so its small-strain stress equals linear elasticity (eq 4.28). The fibre
+/// direction is normalised; a zero direction disables the fibre term rather than giving NaN.
+GF_HD MaterialCoeffs makeMaterialCoeffs(int model, double E, double nu, double fibreMu,
+                                        Vec3 fibreDir) {
+  MaterialCoeffs c;
+  c.model = model;
+  const double mu = E / (2.0 * (1.0 + nu));                        // eq 4.29
+  const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));  // eq 4.29
+  if (model == kStableNeoHookean) {
+    c.mu = 4.0 / 3.0 * mu;
+    c.lambda = lambda + 5.0 / 6.0 * mu;
+  } else {
+    c.mu = mu;
+    c.lambda = lambda;
+  }
+  const double len = norm(fibreDir);
+  if (fibreMu > 0 && len > 0) {
+    c.fibreMu = fibreMu;
+    c.fibreDir = (1.0 / len) * fibreDir;
+  }
+  return c;
+}
+
+namespace detail {
+
+/// psi and its first and second derivatives in the invariants (I1, I2, I3, I4) = (tr S,
+/// I_C, J, II_C).
+struct InvariantDerivs {
+  double psi = 0;
+  double d[4] = {};
+  double dd[4][4] = {};
+};
+
+/// Neo-Hookean log J, continued below kNeoHookeanJMin by its Taylor polynomial; returns the
+/// value and its first two derivatives in J.
+GF_HD double neoHookeanLog(double J, double& d1, double& d2) {
+  const double j0 = kNeoHookeanJMin;
+  if (J >= j0) {
+    d1 = 1.0 / J;
+    d2 = -1.0 / (J * J);
+    return log(J);
+  }
+  const double x = J - j0;
+  d1 = 1.0 / j0 - x / (j0 * j0);
+  d2 = -1.0 / (j0 * j0);
+  return log(j0) + x / j0 - 0.5 * x * x / (j0 * j0);
+}
+
+/// The isotropic model written in invariants of the signed singular values s.
+GF_HD InvariantDerivs isotropicInvariants(const MaterialCoeffs& c, Vec3 s) {
+  const double mu = c.mu, lambda = c.lambda;
+  const double i1 = s.x + s.y + s.z;
+  const double i2 = s.x * s.x + s.y * s.y + s.z * s.z;
+  const double i3 = s.x * s.y * s.z;
+  const double i4 = s.x * s.x * s.x * s.x + s.y * s.y * s.y * s.y + s.z * s.z * s.z * s.z;
+  InvariantDerivs r;
+  switch (c.model) {
+    case kCorotated: {
+      // mu sum (s_i - 1)^2 + lambda/2 (tr S - 3)^2 = mu |F - R|^2 + lambda/2 tr(S - I)^2
+      // (Müller & Gross 2004; the thesis lists no co-rotational energy).
+      r.psi = mu * (i2 - 2.0 * i1 + 3.0) + 0.5 * lambda * (i1 - 3.0) * (i1 - 3.0);
+      r.d[0] = -2.0 * mu + lambda * (i1 - 3.0);
+      r.d[1] = mu;
+      r.dd[0][0] = lambda;
+      break;
+    }
+    case kStVK: {
+      // lambda/8 (I_C - 3)^2 + mu/4 (II_C - 2 I_C + 3)  (eq 4.31; eq 2.1 drops the 2, which
+      // would leave stress at rest).
+      r.psi = 0.125 * lambda * (i2 - 3.0) * (i2 - 3.0) + 0.25 * mu * (i4 - 2.0 * i2 + 3.0);
+      r.d[1] = 0.25 * lambda * (i2 - 3.0) - 0.5 * mu;
+      r.d[3] = 0.25 * mu;
+      r.dd[1][1] = 0.25 * lambda;
+      break;
+    }
+    case kNeoHookean: {
+      // mu/2 (I_C - 3) - mu log J + lambda/2 (log J)^2 (eq 2.1), log J continued below J_min.
+      double l1, l2;
+      const double l = neoHookeanLog(i3, l1, l2);
+      r.psi = 0.5 * mu * (i2 - 3.0) - mu * l + 0.5 * lambda * l * l;
+      r.d[1] = 0.5 * mu;
+      r.d[2] = (lambda * l - mu) * l1;
+      r.dd[2][2] = lambda * l1 * l1 + (lambda * l - mu) * l2;
+      break;
+    }
+    default: {  // kStableNeoHookean
+      // mu/2 (I_C - 3) + lambda/2 (J - alpha)^2 - mu/2 log(I_C + 1)  (eq 2.1, 4.30), minus its
+      // value at F = I so that the rest energy is zero (forces are unchanged).
+      // alpha = 1 + 3 mu / (4 lambda) makes F = I stress-free; lambda > 0 always holds for
+      // the reparametrised coefficients with nu in (-1, 0.5).
+      const double alpha = lambda > 0 ? 1.0 + 0.75 * mu / lambda : 1.0;
+      const double rest = 0.5 * lambda * (1.0 - alpha) * (1.0 - alpha) - 0.5 * mu * log(4.0);
+      r.psi = 0.5 * mu * (i2 - 3.0) + 0.5 * lambda * (i3 - alpha) * (i3 - alpha) -
+              0.5 * mu * log(i2 + 1.0) - rest;
+      r.d[1] = 0.5 * mu - 0.5 * mu / (i2 + 1.0);
+      r.d[2] = lambda * (i3 - alpha);
+      r.dd[1][1] = 0.5 * mu / ((i2 + 1.0) * (i2 + 1.0));
+      r.dd[2][2] = lambda;
+      break;
+    }
+  }
+  return r;
+}
+
+/// dI/ds_a for the four invariants.
+GF_HD void invariantGradient(Vec3 s, int a, double g[4]) {
+  const double sa = s[a], sb = s[(a + 1) % 3], sc = s[(a + 2) % 3];
+  g[0] = 1.0;
+  g[1] = 2.0 * sa;
+  g[2] = sb * sc;
+  g[3] = 4.0 * sa * sa * sa;
+}
+
+GF_HD Vec3 gradientFromInvariants(const InvariantDerivs& r, Vec3 s) {
+  Vec3 g;
+  for (int a = 0; a < 3; ++a) {
+    double dI[4];
+    invariantGradient(s, a, dI);
+    g[a] = r.d[0] * dI[0] + r.d[1] * dI[1] + r.d[2] * dI[2] + r.d[3] * dI[3];
+  }
+  return g;
+}
+
+GF_HD Mat3 hessianFromInvariants(const InvariantDerivs& r, Vec3 s) {
+  double dI[3][4];
+  for (int a = 0; a < 3; ++a) invariantGradient(s, a, dI[a]);
+  Mat3 h;
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) {
+      double v = 0;
+      for (int p = 0; p < 4; ++p)
+        for (int q = 0; q < 4; ++q) v += r.dd[p][q] * dI[a][p] * dI[b][q];
+      // Second derivatives of the invariants themselves.
+      if (a == b) {
+        v += 2.0 * r.d[1] + 12.0 * s[a] * s[a] * r.d[3];
+      } else {
+        v += r.d[2] * s[3 - a - b];
+      }
+      h(a, b) = v;
+    }
+  return h;
+}
+
+/// H += lambda vec(q) vec(q)^T.
+GF_HD void addRank1(Mat9& h, double lambda, const Mat3& q) {
+  if (lambda == 0) return;
+  for (int a = 0; a < 9; ++a) {
+    const double la = lambda * q.m[a];
+    for (int b = 0; b < 9; ++b) h.m[a * 9 + b] += la * q.m[b];
+  }
+}
+
+/// u_a v_b^T for columns of U and V.
+GF_HD Mat3 outerUV(const Svd3& svd, int a, int b) {
+  Mat3 q;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) q(i, j) = svd.U(i, a) * svd.V(j, b);
+  return q;
+}
+
+/// Isotropic psi (returned), P = U diag(dpsi/ds) V^T (overwritten) and, when H is non-null,
+/// dP/dF (overwritten) from the analytic eigen-system.
+GF_HD double isotropicEvaluate(const MaterialCoeffs& c, const Svd3& svd, Mat3& P, Mat9* hOut,
+                               bool projectPsd) {
+  const Vec3 s = svd.s;
+  const InvariantDerivs r = isotropicInvariants(c, s);
+  const Vec3 g = gradientFromInvariants(r, s);
+
+  P = Mat3{};
+  Mat3 d[3];  // u_a v_a^T: the scaling directions
+  for (int a = 0; a < 3; ++a) {
+    d[a] = outerUV(svd, a, a);
+    P = P + g[a] * d[a];
+  }
+  if (hOut == nullptr) return r.psi;
+  Mat9& H = *hOut;
+  H = Mat9{};
+  const Mat3 A = hessianFromInvariants(r, s);
+
+  // Scaling modes: span{u_a v_a^T} carries the 3x3 d2psi/ds2.
+  if (projectPsd) {
+    double w[3];
+    Mat3 q;
+    symmetricEigen<3>(A, w, q);
+    for (int m = 0; m < 3; ++m) {
+      if (w[m] <= 0) continue;
+      const Mat3 mode = q(0, m) * d[0] + q(1, m) * d[1] + q(2, m) * d[2];
+      addRank1(H, w[m], mode);
+    }
+  } else {
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) {
+        const double aab = A(a, b);
+        for (int x = 0; x < 9; ++x) {
+          const double dx = aab * d[a].m[x];
+          for (int y = 0; y < 9; ++y) H.m[x * 9 + y] += dx * d[b].m[y];
+        }
+      }
+  }
+
+  // Twist and flip modes of each pair (i, j); k is the remaining index.
+  const double kInvSqrt2 = 0.70710678118654752440;
+  for (int k = 2; k >= 0; --k) {
+    const int i = k == 0 ? 1 : 0;
+    const int j = k == 2 ? 1 : 2;
+    const double si = s[i], sj = s[j], sk = s[k];
+    const double flip = 2.0 * r.d[1] - r.d[2] * sk + 4.0 * r.d[3] * (si * si + si * sj + sj * sj);
+    double twist = 2.0 * r.d[1] + r.d[2] * sk + 4.0 * r.d[3] * (si * si - si * sj + sj * sj);
+    if (r.d[0] != 0) {
+      double den = si + sj;
+      if (den < kTwistDenominatorMin) den = kTwistDenominatorMin;
+      twist += 2.0 * r.d[0] / den;
+    }
+    const Mat3 uij = outerUV(svd, i, j);
+    const Mat3 uji = outerUV(svd, j, i);
+    addRank1(H, projectPsd && twist < 0 ? 0.0 : twist, kInvSqrt2 * (uij - uji));
+    addRank1(H, projectPsd && flip < 0 ? 0.0 : flip, kInvSqrt2 * (uij + uji));
+  }
+  return r.psi;
+}
+
+/// I4 = a^T S a with S = V diag(s) V^T (eq 4.35); only its sign is used.
+GF_HD double fibreSign(const MaterialCoeffs& c, const Svd3& svd) {
+  double i4 = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double va = dot(column(svd.V, a), c.fibreDir);
+    i4 += svd.s[a] * va * va;
+  }
+  return i4 >= 0 ? 1.0 : -1.0;
+}
+
+/// psi_AA = mu_f/2 (sqrt(I5) - sign(I4))^2, I5 = |F a|^2 (eq 4.36).
+GF_HD double fibreEnergy(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd) {
+  const double sign = fibreSign(c, svd);
+  const double r = norm(F * c.fibreDir) - sign;
+  return 0.5 * c.fibreMu * r * r;
+}
+
+/// Adds the fibre term's P = mu_f (1 - sign/sqrt(I5)) F a a^T and, when H is non-null, its
+/// Hessian mu_f (1 - sign/sqrt(I5)) (I (x) a a^T) + mu_f sign I5^(-3/2) g g^T, g = vec(F a a^T).
+/// On the 3-D subspace {vec(w a^T)} its eigenvalues are mu_f on g and mu_f (1 - sign/sqrt(I5))
+/// on the two directions orthogonal to g, zero elsewhere, so the projection clamps only that
+/// one (Kim et al. 2019).
+GF_HD void addFibre(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd, Mat3& P, Mat9* H,
+                    bool projectPsd) {
+  const Vec3 a = c.fibreDir;
+  const Vec3 fa = F * a;
+  const double sign = fibreSign(c, svd);
+  const double len = norm(fa);
+  // F a / |F a|, zero at F a = 0 where the energy has a cone point (a subgradient).
+  const Vec3 dir = len > 0 ? (1.0 / len) * fa : Vec3{0, 0, 0};
+  const Vec3 pa = c.fibreMu * (fa - sign * dir);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) P(i, j) += pa[i] * a[j];
+  if (H == nullptr) return;
+
+  const double l = len > kFibreStretchMin ? len : kFibreStretchMin;
+  const double coefIso = c.fibreMu * (1.0 - sign / l);
+  Mat9& h = *H;
+  if (!projectPsd || coefIso >= 0) {
+    // coefIso (I (x) a a^T): entry ((i,j),(l,m)) = coefIso delta_il a_j a_m.
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        for (int m = 0; m < 3; ++m) h(3 * i + j, 3 * i + m) += coefIso * a[j] * a[m];
+    const double coefG = c.fibreMu * sign / (l * l * l);
+    Mat3 g;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) g(i, j) = fa[i] * a[j];
+    addRank1(h, coefG, g);
+  } else {
+    // Only the g direction (eigenvalue mu_f) survives: mu_f ghat ghat^T, ghat = vec(dir a^T).
+    Mat3 gh;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) gh(i, j) = dir[i] * a[j];
+    addRank1(h, c.fibreMu, gh);
+  }
+}
+
+}  // namespace detail
+
+/// Isotropic energy density psi(s) at signed singular values s.
+GF_HD double isotropicEnergy(const MaterialCoeffs& c, Vec3 s) {
+  return detail::isotropicInvariants(c, s).psi;
+}
+
+/// dpsi/ds at signed singular values s.
+GF_HD Vec3 isotropicGradient(const MaterialCoeffs& c, Vec3 s) {
+  return detail::gradientFromInvariants(detail::isotropicInvariants(c, s), s);
+}
+
+/// d2psi/ds2 (3x3, symmetric) at signed singular values s.
+GF_HD Mat3 isotropicHessian(const MaterialCoeffs& c, Vec3 s) {
+  return detail::hessianFromInvariants(detail::isotropicInvariants(c, s), s);
+}
+
+/// Energy density psi(F) [J/m^3], P = dpsi/dF and, when dPdF is non-null, dP/dF, all from
+/// one SVD; the isotropic model plus the fibre term when fibreMu > 0. See
+/// firstPiolaAndHessian for projectPsd.
+GF_HD double evaluateMaterial(const MaterialCoeffs& c, const Mat3& F, Mat3& P, Mat9* dPdF,
+                              bool projectPsd) {
+  const Svd3 svd = svd3(F);
+  double psi = detail::isotropicEvaluate(c, svd, P, dPdF, projectPsd);
+  if (c.fibreMu > 0) {
+    psi += detail::fibreEnergy(c, F, svd);
+    detail::addFibre(c, F, svd, P, dPdF, projectPsd);
+  }
+  return psi;
+}
+
+/// Energy density psi(F) [J/m^3]: the isotropic model plus the fibre term when fibreMu > 0.
+GF_HD double energyDensity(const MaterialCoeffs& c, const Mat3& F) {
+  const Svd3 svd = svd3(F);
+  double psi = isotropicEnergy(c, svd.s);
+  if (c.fibreMu > 0) psi += detail::fibreEnergy(c, F, svd);
+  return psi;
+}
+
+/// First Piola-Kirchhoff stress P = dpsi/dF.
+GF_HD Mat3 firstPiola(const MaterialCoeffs& c, const Mat3& F) {
+  Mat3 P;
+  evaluateMaterial(c, F, P, nullptr, false);
+  return P;
+}
+
+/// P and dP/dF (9x9, row-major vec: index 3*i+j is F(i,j)). With projectPsd every negative
+/// eigenvalue of each term's analytic eigen-system is clamped to zero, so dPdF is positive
+/// semi-definite (for an isotropic model it is then the nearest PSD matrix); without it dPdF
+/// is the exact Hessian of psi.
+GF_HD void firstPiolaAndHessian(const MaterialCoeffs& c, const Mat3& F, Mat3& P, Mat9& dPdF,
+                                bool projectPsd) {
+  evaluateMaterial(c, F, P, &dPdF, projectPsd);
+}
+
+}  // namespace gf

@@ -1,0 +1,142 @@
+// Rotation-variant SVD of a 3x3 deformation gradient: F = U diag(s) V^T with U and V proper
+// rotations (det = +1). Where F is inverted the sign of det F goes to the singular value of
+// smallest magnitude, so s0 >= s1 >= |s2| and sign(s2) = sign(det F) (Irving et al. 2004,
+// Kim & Eberle "Dynamic Deformables" sec 5.3). Inversion-safe energies are written in these
+// signed singular values.
+//
+// V comes from Jacobi rotations that diagonalise F^T F, applied one-sided (Hestenes): the
+// rotations are computed from the columns of B = F V instead of from a formed F^T F, which
+// gives the same V without squaring the condition number, so B's columns end up orthogonal
+// to full relative precision even when two singular values are tiny. U then follows from B by
+// Gram-Schmidt with fallbacks for zero columns (rank-deficient F).
+#pragma once
+
+#include "math.h"
+
+namespace gf {
+
+/// Result of svd3(): F = U diag(s) V^T, det U = det V = +1, s sorted s0 >= s1 >= |s2|.
+struct Svd3 {
+  Mat3 U;
+  Vec3 s;
+  Mat3 V;
+};
+
+namespace detail {
+
+/// A unit vector orthogonal to the unit vector u: cross u with the axis it is least
+/// aligned with, which keeps the cross product well away from zero.
+GF_HD Vec3 anyOrthogonal(Vec3 u) {
+  const double ax = fabs(u.x), ay = fabs(u.y), az = fabs(u.z);
+  Vec3 e{0, 0, 0};
+  if (ax <= ay && ax <= az) {
+    e.x = 1;
+  } else if (ay <= az) {
+    e.y = 1;
+  } else {
+    e.z = 1;
+  }
+  const Vec3 w = cross(u, e);
+  return (1.0 / norm(w)) * w;
+}
+
+GF_HD void swapColumns(Mat3& m, int i, int j) {
+  for (int r = 0; r < 3; ++r) {
+    const double t = m(r, i);
+    m(r, i) = m(r, j);
+    m(r, j) = t;
+  }
+}
+
+}  // namespace detail
+
+/// Rotation-variant SVD of F (see the file comment). Robust for rank-deficient, inverted and
+/// repeated-singular-value F; reconstructs F to round-off.
+GF_HD Svd3 svd3(const Mat3& F) {
+  Mat3 B = F;
+  Mat3 V = Mat3::identity();
+
+  // One-sided Jacobi: rotate column pairs of B (and V) until all are mutually orthogonal.
+  for (int sweep = 0; sweep < 30; ++sweep) {
+    bool rotated = false;
+    for (int p = 0; p < 2; ++p) {
+      for (int q = p + 1; q < 3; ++q) {
+        double alpha = 0, beta = 0, gamma = 0;  // (F^T F) entries pp, qq, pq in the basis V
+        for (int r = 0; r < 3; ++r) {
+          alpha += B(r, p) * B(r, p);
+          beta += B(r, q) * B(r, q);
+          gamma += B(r, p) * B(r, q);
+        }
+        // Orthogonal to working precision relative to the columns' own lengths.
+        if (fabs(gamma) <= 1e-15 * sqrt(alpha * beta) || fabs(gamma) < 1e-300) continue;
+        rotated = true;
+        const double zeta = (beta - alpha) / (2.0 * gamma);
+        double t;
+        if (fabs(zeta) > 1e150) {
+          t = 0.5 / zeta;
+        } else {
+          t = (zeta >= 0 ? 1.0 : -1.0) / (fabs(zeta) + sqrt(1.0 + zeta * zeta));
+        }
+        const double c = 1.0 / sqrt(1.0 + t * t);
+        const double s = c * t;
+        for (int r = 0; r < 3; ++r) {
+          const double bp = B(r, p), bq = B(r, q);
+          B(r, p) = c * bp - s * bq;
+          B(r, q) = s * bp + c * bq;
+          const double vp = V(r, p), vq = V(r, q);
+          V(r, p) = c * vp - s * vq;
+          V(r, q) = s * vp + c * vq;
+        }
+      }
+    }
+    if (!rotated) break;
+  }
+
+  // Sort columns by length (the singular magnitudes), descending.
+  double len[3];
+  for (int j = 0; j < 3; ++j) len[j] = dot(column(B, j), column(B, j));
+  for (int i = 0; i < 2; ++i) {
+    int best = i;
+    for (int j = i + 1; j < 3; ++j)
+      if (len[j] > len[best]) best = j;
+    if (best != i) {
+      const double t = len[i];
+      len[i] = len[best];
+      len[best] = t;
+      detail::swapColumns(B, i, best);
+      detail::swapColumns(V, i, best);
+    }
+  }
+  // Proper rotation V; flipping v2 flips b2 = F v2 with it, so F = B V^T still holds.
+  if (det(V) < 0) {
+    for (int r = 0; r < 3; ++r) {
+      V(r, 2) = -V(r, 2);
+      B(r, 2) = -B(r, 2);
+    }
+  }
+
+  const Vec3 b0 = column(B, 0), b1 = column(B, 1), b2 = column(B, 2);
+  Vec3 u0;
+  const double n0 = norm(b0);
+  if (n0 > 1e-300) {
+    u0 = (1.0 / n0) * b0;
+  } else {
+    u0 = Vec3{1, 0, 0};  // F = 0: any rotation U works
+  }
+  Vec3 u1 = b1 - dot(u0, b1) * u0;
+  const double n1 = norm(u1);
+  if (n1 > 1e-300) {
+    u1 = (1.0 / n1) * u1;
+  } else {
+    u1 = detail::anyOrthogonal(u0);  // rank <= 1
+  }
+  const Vec3 u2 = cross(u0, u1);  // proper U; the sign of det F lands on s2
+
+  Svd3 r;
+  r.U = fromColumns(u0, u1, u2);
+  r.V = V;
+  r.s = Vec3{dot(u0, b0), dot(u1, b1), dot(u2, b2)};
+  return r;
+}
+
+}  // namespace gf
