@@ -1,0 +1,129 @@
+// Generated meshes: every one must validate with no repairs, and its volume must be exact
+// (box, notched box, slab, the cylinder's inscribed polygon) or converge to the analytic
+// value at the expected second-order rate (cylinder, sphere).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "graphfrac/mesh.h"
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+double enclosedVolume(const gf::TetMesh& m) {
+  const std::vector<int32_t> f = m.boundaryFaces();
+  double s = 0;
+  for (size_t i = 0; i < f.size(); i += 3) {
+    const double* a = &m.positions[3 * static_cast<size_t>(f[i])];
+    const double* b = &m.positions[3 * static_cast<size_t>(f[i + 1])];
+    const double* c = &m.positions[3 * static_cast<size_t>(f[i + 2])];
+    s += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+         a[2] * (b[0] * c[1] - b[1] * c[0]);
+  }
+  return s / 6.0;
+}
+
+// Validates without repairs and checks the boundary encloses the tet volume.
+void expectValid(gf::TetMesh m, const std::string& what) {
+  int flipped = -1;
+  gf::Result<void> r = gf::validate(m, what, &flipped);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(flipped, 0) << what;
+  EXPECT_NEAR(enclosedVolume(m), m.volume(), 1e-12 * std::max(1.0, m.volume())) << what;
+}
+
+TEST(MeshGen, BoxIsExact) {
+  for (int n : {1, 2, 3, 7}) {
+    const gf::TetMesh m = gf::gen::box(3.0, 0.5, 0.25, 4 * n, n, n);
+    expectValid(m, "box");
+    EXPECT_EQ(m.nodeCount(), static_cast<size_t>((4 * n + 1) * (n + 1) * (n + 1)));
+    EXPECT_EQ(m.tetCount(), static_cast<size_t>(6 * 4 * n * n * n));
+    EXPECT_NEAR(m.volume(), 3.0 * 0.5 * 0.25, 1e-13);  // exact up to summation rounding
+  }
+}
+
+TEST(MeshGen, NotchedBoxCarvesAnExactV) {
+  const double sx = 4, sy = 1, sz = 0.5, depth = 0.3, angle = 60;
+  const double halfWidth = depth * std::tan(angle / 2 * kPi / 180);
+  for (int n : {40, 80, 160}) {
+    gf::gen::BoxOptions o;
+    o.notchDepth = depth;
+    o.notchAngleDeg = angle;
+    const gf::TetMesh m = gf::gen::box(sx, sy, sz, n, n / 8, 2, o);
+    expectValid(m, "notched box n=" + std::to_string(n));
+    // V cross-section area: half-width * depth.
+    EXPECT_NEAR(m.volume(), sx * sy * sz - halfWidth * depth * sz, 1e-12) << n;
+    // The tip is a node at (sx/2, sy - depth).
+    bool tip = false;
+    for (size_t i = 0; i < m.nodeCount(); ++i) {
+      tip |= std::abs(m.positions[3 * i] - 2.0) < 1e-15 &&
+             std::abs(m.positions[3 * i + 1] - 0.7) < 1e-15;
+    }
+    EXPECT_TRUE(tip) << n;
+  }
+  // Off-centre, wide and narrow notches on coarse grids still validate (the V is then only
+  // approximated where cells are coarser than it).
+  for (double a : {10.0, 90.0, 150.0}) {
+    for (int n : {3, 8, 21}) {
+      gf::gen::BoxOptions o;
+      o.notchDepth = 0.6;
+      o.notchAngleDeg = a;
+      o.notchX = 1.1;
+      expectValid(gf::gen::box(sx, sy, sz, n, 3, 2, o), "notch a=" + std::to_string(a));
+    }
+  }
+}
+
+TEST(MeshGen, SlabThicknessFromCellSize) {
+  const gf::TetMesh m = gf::gen::slab(2.0, 1.0, 0.3, 20, 10);  // cell 0.1 -> 3 layers
+  expectValid(m, "slab");
+  EXPECT_EQ(m.nodeCount(), static_cast<size_t>(21 * 4 * 11));
+  EXPECT_NEAR(m.volume(), 2.0 * 1.0 * 0.3, 1e-13);
+  const gf::TetMesh thin = gf::gen::slab(2.0, 1.0, 0.001, 4, 4);  // at least one layer
+  expectValid(thin, "thin slab");
+  EXPECT_EQ(thin.tetCount(), static_cast<size_t>(6 * 16));
+}
+
+TEST(MeshGen, CylinderConvergesToPiR2H) {
+  const double r = 0.4, h = 1.5;
+  double previous = 1;
+  for (int seg : {8, 16, 32, 64}) {
+    const gf::TetMesh m = gf::gen::cylinder(r, h, seg, seg / 4, seg / 8);
+    expectValid(m, "cylinder " + std::to_string(seg));
+    // The cross-section is exactly the inscribed polygon of the outer ring.
+    const double polygon = 0.5 * seg * r * r * std::sin(2 * kPi / seg);
+    EXPECT_NEAR(m.volume(), polygon * h, 1e-12);
+    // Polygon error (2pi/n)^2 / 6 relative: second order.
+    const double err = std::abs(m.volume() - kPi * r * r * h) / (kPi * r * r * h);
+    EXPECT_LT(err, 1.01 * std::pow(2 * kPi / seg, 2) / 6) << seg;
+    EXPECT_LT(err, 0.3 * previous) << seg;
+    previous = err;
+  }
+  expectValid(gf::gen::cylinder(1.0, 0.05, 24, 1, 4), "disc");
+  expectValid(gf::gen::cylinder(1.0, 2.0, 3, 1, 1), "triangular prism");
+}
+
+TEST(MeshGen, SphereConvergesToFourThirdsPiR3) {
+  const double r = 0.8, exact = 4.0 / 3.0 * kPi * r * r * r;
+  double previous = 1;
+  for (int n : {2, 4, 8, 16, 32}) {
+    const gf::TetMesh m = gf::gen::sphere(r, n);
+    expectValid(m, "sphere " + std::to_string(n));
+    const double err = std::abs(m.volume() - exact) / exact;
+    // Inscribed polyhedron with edge ~ pi r / n: error ~ C / n^2, halving h quarters it.
+    EXPECT_LT(err, 6.0 / (n * n)) << n;
+    if (n > 2) {
+      EXPECT_LT(err, 0.35 * previous) << n;
+    }
+    previous = err;
+    // All nodes inside the ball, and the surface nodes on the sphere.
+    for (size_t i = 0; i < m.nodeCount(); ++i) {
+      const double* p = &m.positions[3 * i];
+      EXPECT_LE(std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]), r * (1 + 1e-14));
+    }
+  }
+}
+
+}  // namespace
