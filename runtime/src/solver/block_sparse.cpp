@@ -1,0 +1,145 @@
+// Block-sparse pattern, deterministic gather assembly, Dirichlet rows and SpMV.
+#include "solver/block_sparse.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include "solver/vector_ops.h"
+
+namespace gf::detail {
+
+namespace {
+// Rows per SpMV/assembly range: a few hundred blocks of work, enough to hide scheduling cost.
+constexpr uint32_t kRowGrain = 128;
+}  // namespace
+
+BlockSparseMatrix BlockSparseMatrix::fromTets(const int32_t* tets, size_t tetCount,
+                                              size_t nodeCount) {
+  BlockSparseMatrix A;
+  A.n = static_cast<int32_t>(nodeCount);
+  auto valid = [&](int32_t v) { return v >= 0 && static_cast<size_t>(v) < nodeCount; };
+
+  // Count candidate entries per row (4 per tet incidence, plus the diagonal), fill, then sort
+  // and deduplicate each row in place.
+  std::vector<int64_t> offset(nodeCount + 1, 0);
+  for (size_t i = 0; i < nodeCount; ++i) offset[i + 1] = 1;
+  for (size_t t = 0; t < tetCount; ++t)
+    for (int a = 0; a < 4; ++a)
+      if (valid(tets[4 * t + a])) offset[tets[4 * t + a] + 1] += 4;
+  for (size_t i = 0; i < nodeCount; ++i) offset[i + 1] += offset[i];
+  std::vector<int32_t> cand(static_cast<size_t>(offset[nodeCount]));
+  std::vector<int64_t> fill(offset.begin(), offset.end() - 1);
+  for (size_t i = 0; i < nodeCount; ++i) cand[fill[i]++] = static_cast<int32_t>(i);
+  for (size_t t = 0; t < tetCount; ++t) {
+    const int32_t* v = tets + 4 * t;
+    for (int a = 0; a < 4; ++a) {
+      if (!valid(v[a])) continue;
+      for (int b = 0; b < 4; ++b) {
+        // A skipped (invalid) partner still takes a slot; it becomes a duplicate diagonal.
+        cand[fill[v[a]]++] = valid(v[b]) ? v[b] : v[a];
+      }
+    }
+  }
+
+  A.rowStart.assign(nodeCount + 1, 0);
+  A.col.reserve(cand.size() / 2);
+  for (size_t i = 0; i < nodeCount; ++i) {
+    auto first = cand.begin() + offset[i];
+    auto last = cand.begin() + offset[i + 1];
+    std::sort(first, last);
+    last = std::unique(first, last);
+    A.col.insert(A.col.end(), first, last);
+    A.rowStart[i + 1] = static_cast<int32_t>(A.col.size());
+  }
+  A.col.shrink_to_fit();
+  A.values.assign(9 * A.col.size(), 0.0);
+  return A;
+}
+
+int32_t BlockSparseMatrix::find(int32_t r, int32_t c) const {
+  if (r < 0 || r >= n) return -1;
+  const int32_t* first = col.data() + rowStart[r];
+  const int32_t* last = col.data() + rowStart[r + 1];
+  const int32_t* it = std::lower_bound(first, last, c);
+  return (it != last && *it == c) ? static_cast<int32_t>(it - col.data()) : -1;
+}
+
+void BlockSparseMatrix::setZero() { std::fill(values.begin(), values.end(), 0.0); }
+
+void BlockSparseMatrix::multiply(const double* x, double* y, JobSystem& jobs) const {
+  forRanges(jobs, static_cast<uint32_t>(n), kRowGrain, [&](uint32_t begin, uint32_t end) {
+    for (uint32_t r = begin; r < end; ++r) {
+      double s0 = 0, s1 = 0, s2 = 0;
+      for (int32_t k = rowStart[r]; k < rowStart[r + 1]; ++k) {
+        const double* m = values.data() + 9 * static_cast<size_t>(k);
+        const double* xc = x + 3 * static_cast<size_t>(col[k]);
+        s0 += m[0] * xc[0] + m[1] * xc[1] + m[2] * xc[2];
+        s1 += m[3] * xc[0] + m[4] * xc[1] + m[5] * xc[2];
+        s2 += m[6] * xc[0] + m[7] * xc[1] + m[8] * xc[2];
+      }
+      y[3 * r + 0] = s0;
+      y[3 * r + 1] = s1;
+      y[3 * r + 2] = s2;
+    }
+  });
+}
+
+ElementGather ElementGather::build(const int32_t* tets, size_t tetCount,
+                                   const BlockSparseMatrix& A) {
+  ElementGather g;
+  g.elementBlockIndex.resize(16 * tetCount);
+  g.start.assign(static_cast<size_t>(A.blockCount()) + 1, 0);
+  for (size_t t = 0; t < tetCount; ++t) {
+    for (int a = 0; a < 4; ++a) {
+      for (int b = 0; b < 4; ++b) {
+        int32_t k = A.find(tets[4 * t + a], tets[4 * t + b]);
+        g.elementBlockIndex[16 * t + 4 * a + b] = k;
+        if (k >= 0) ++g.start[k + 1];
+      }
+    }
+  }
+  for (size_t k = 0; k < static_cast<size_t>(A.blockCount()); ++k) g.start[k + 1] += g.start[k];
+  g.entry.resize(static_cast<size_t>(g.start.back()));
+  std::vector<int32_t> fill(g.start.begin(), g.start.end() - 1);
+  // Element-major traversal makes each block's list increasing: a fixed summation order.
+  for (size_t e = 0; e < 16 * tetCount; ++e) {
+    int32_t k = g.elementBlockIndex[e];
+    if (k >= 0) g.entry[fill[k]++] = static_cast<int32_t>(e);
+  }
+  return g;
+}
+
+void gatherElementBlocks(const ElementGather& gather, const double* elementMatrices, double scale,
+                         BlockSparseMatrix& A, JobSystem& jobs) {
+  const uint32_t blocks = static_cast<uint32_t>(A.blockCount());
+  forRanges(jobs, blocks, 4 * kRowGrain, [&](uint32_t begin, uint32_t end) {
+    for (uint32_t k = begin; k < end; ++k) {
+      double sum[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+      for (int32_t q = gather.start[k]; q < gather.start[k + 1]; ++q) {
+        const int32_t c = gather.entry[q];
+        const int32_t a = (c >> 2) & 3;
+        const int32_t b = c & 3;
+        // Row-major 12x12: entry (3a + i, 3b + j).
+        const double* m = elementMatrices + 144 * static_cast<size_t>(c >> 4) + 36 * a + 3 * b;
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) sum[3 * i + j] += m[12 * i + j];
+      }
+      double* out = A.values.data() + 9 * static_cast<size_t>(k);
+      for (int i = 0; i < 9; ++i) out[i] += scale * sum[i];
+    }
+  });
+}
+
+void applyDirichlet(BlockSparseMatrix& A, const uint8_t* fixedNode) {
+  for (int32_t r = 0; r < A.n; ++r) {
+    for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k) {
+      const int32_t c = A.col[k];
+      if (!fixedNode[r] && !fixedNode[c]) continue;
+      double* m = A.block(k);
+      std::memset(m, 0, 9 * sizeof(double));
+      if (r == c) m[0] = m[4] = m[8] = 1.0;
+    }
+  }
+}
+
+}  // namespace gf::detail

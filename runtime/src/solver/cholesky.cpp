@@ -1,0 +1,134 @@
+// Sparse Cholesky reference solver on the scalar expansion of a block-sparse matrix.
+//
+// Design: Eigen's SimplicialLLT reads only the lower triangle, so the scalar matrix holds the
+// lower triangle of A in compressed column form. analyze() builds that structure and a map from
+// each of its stored values to an entry of A.values, then runs the (AMD-ordered) symbolic
+// analysis once; solve() copies values through the map and refactorises. The pattern is fixed
+// for a body's life, so nothing is rebuilt per step.
+#include "solver/cholesky.h"
+
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "solver/vector_ops.h"
+
+namespace gf::detail {
+
+struct CholeskySolver::Impl {
+  using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+  SpMat lower;                    // lower triangle of the scalar expansion
+  std::vector<int64_t> valueMap;  // lower.valuePtr()[i] = A.values[valueMap[i]]
+  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> llt;
+  int32_t n = -1;
+  int32_t blocks = -1;
+  std::vector<double> work;  // 3 n, for the residual
+};
+
+CholeskySolver::CholeskySolver() : m_impl(std::make_unique<Impl>()) {}
+CholeskySolver::~CholeskySolver() = default;
+CholeskySolver::CholeskySolver(CholeskySolver&&) noexcept = default;
+CholeskySolver& CholeskySolver::operator=(CholeskySolver&&) noexcept = default;
+
+Result<void> CholeskySolver::analyze(const BlockSparseMatrix& A) {
+  Impl& s = *m_impl;
+  s.n = -1;
+  // The pattern must be a valid, symmetric block-CSR with every diagonal block present.
+  if (A.n < 0 || A.rowStart.size() != static_cast<size_t>(A.n) + 1 || A.rowStart[0] != 0 ||
+      static_cast<size_t>(A.rowStart[A.n]) != A.col.size() || A.values.size() != 9 * A.col.size())
+    return fail("cholesky: block matrix arrays have inconsistent sizes (n = ", std::to_string(A.n),
+                ", blocks = ", std::to_string(A.col.size()), ")");
+  for (int32_t r = 0; r < A.n; ++r) {
+    if (A.rowStart[r + 1] < A.rowStart[r])
+      return fail("cholesky: block row ", std::to_string(r), ": rowStart decreases");
+    for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k) {
+      const int32_t c = A.col[k];
+      if (c < 0 || c >= A.n || (k > A.rowStart[r] && A.col[k - 1] >= c))
+        return fail("cholesky: block row ", std::to_string(r), ": column ", std::to_string(c),
+                    " out of range or not sorted");
+      if (A.find(c, r) < 0)
+        return fail("cholesky: block (", std::to_string(r), ", ", std::to_string(c),
+                    ") has no transpose: pattern not symmetric");
+    }
+    if (A.diagonal(r) < 0)
+      return fail("cholesky: block row ", std::to_string(r), ": diagonal block missing");
+  }
+
+  // Column 3c + jj holds rows 3r + ii >= 3c + jj of the blocks (r, c), r >= c. Row c's sorted
+  // columns list the block rows r of block column c (symmetric pattern), ascending.
+  const int64_t size = 3 * static_cast<int64_t>(A.n);
+  Impl::SpMat& L = s.lower;
+  L.resize(size, size);
+  L.resizeNonZeros(0);
+  int64_t nnz = 0;
+  for (int32_t c = 0; c < A.n; ++c)
+    for (int32_t k = A.rowStart[c]; k < A.rowStart[c + 1]; ++k)
+      if (A.col[k] > c) nnz += 9;
+  nnz += 6 * static_cast<int64_t>(A.n);
+  L.reserve(nnz);
+  s.valueMap.clear();
+  s.valueMap.reserve(static_cast<size_t>(nnz));
+  for (int32_t c = 0; c < A.n; ++c) {
+    for (int jj = 0; jj < 3; ++jj) {
+      L.startVec(3 * c + jj);
+      for (int32_t k = A.rowStart[c]; k < A.rowStart[c + 1]; ++k) {
+        const int32_t r = A.col[k];
+        if (r < c) continue;
+        const int64_t blk = A.find(r, c);
+        for (int ii = 0; ii < 3; ++ii) {
+          if (r == c && ii < jj) continue;
+          L.insertBack(3 * r + ii, 3 * c + jj) = 0.0;
+          s.valueMap.push_back(9 * blk + 3 * ii + jj);
+        }
+      }
+    }
+  }
+  L.finalize();
+  s.llt.analyzePattern(L);
+  if (s.llt.info() != Eigen::Success) return fail("cholesky: symbolic analysis failed");
+  s.n = A.n;
+  s.blocks = A.blockCount();
+  s.work.assign(static_cast<size_t>(size), 0.0);
+  return {};
+}
+
+SolveReport CholeskySolver::solve(const BlockSparseMatrix& A, const double* b, double* x) {
+  Impl& s = *m_impl;
+  SolveReport report;
+  report.relativeResidual = std::numeric_limits<double>::infinity();
+  const size_t n3 = 3 * static_cast<size_t>(std::max(A.n, 0));
+  auto failWithZero = [&]() {
+    for (size_t i = 0; i < n3; ++i) x[i] = 0;
+    return report;
+  };
+  if (s.n != A.n || s.blocks != A.blockCount()) return failWithZero();
+
+  double* v = s.lower.valuePtr();
+  for (size_t i = 0; i < s.valueMap.size(); ++i) v[i] = A.values[s.valueMap[i]];
+  s.llt.factorize(s.lower);
+  if (s.llt.info() != Eigen::Success) return failWithZero();  // not positive definite
+
+  Eigen::Map<const Eigen::VectorXd> bm(b, static_cast<Eigen::Index>(n3));
+  Eigen::Map<Eigen::VectorXd> xm(x, static_cast<Eigen::Index>(n3));
+  xm = s.llt.solve(bm);
+  if (!allFinite(x, n3)) return failWithZero();
+
+  // |b - A x| / |b| with the block matrix itself (both triangles).
+  A.multiply(x, s.work.data(), serialJobs());
+  double rr = 0, bb = 0;
+  for (size_t i = 0; i < n3; ++i) {
+    const double d = b[i] - s.work[i];
+    rr += d * d;
+    bb += b[i] * b[i];
+  }
+  report.relativeResidual = bb > 0 ? std::sqrt(rr / bb) : std::sqrt(rr);
+  report.converged = std::isfinite(report.relativeResidual);
+  if (!report.converged) return failWithZero();
+  return report;
+}
+
+}  // namespace gf::detail

@@ -1,0 +1,152 @@
+// Job systems: the serial default and a small persistent thread pool.
+//
+// Design: one job at a time. parallelFor publishes the job (function, range size, range count)
+// under a mutex, bumps a generation counter and wakes the workers; every participant (the
+// caller included) claims ranges from an atomic counter until none are left. A worker may join
+// a job only while it is open, and the caller closes it only once every worker that joined has
+// left, so no worker can touch a job whose function has gone out of scope. Results never depend
+// on which thread ran a range because callers write disjoint outputs (see jobs.h).
+#include "graphfrac/jobs.h"
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace gf {
+
+void SerialJobSystem::parallelFor(uint32_t count, uint32_t /*grain*/,
+                                  const std::function<void(uint32_t, uint32_t)>& fn) {
+  if (count > 0) fn(0, count);
+}
+
+namespace {
+// Set on pool workers and on a caller while it runs a job, so that a nested parallelFor (from
+// inside a range) runs inline instead of waiting on a pool that is busy with its parent.
+thread_local bool t_insideJob = false;
+}  // namespace
+
+struct ThreadPoolJobSystem::Impl {
+  std::vector<std::thread> workers;
+  std::mutex mutex;
+  std::condition_variable wake;      // workers wait here for a new generation or stop
+  std::condition_variable finished;  // the caller waits here for active == 0
+  std::mutex callMutex;              // serialises parallelFor calls from different threads
+  uint64_t generation = 0;
+  bool stop = false;
+  bool open = false;  // workers may join the current job
+  int active = 0;     // workers that joined the current job and have not left yet
+
+  // The current job; written under `mutex` before `generation` is bumped.
+  const std::function<void(uint32_t, uint32_t)>* fn = nullptr;
+  uint32_t count = 0;
+  uint32_t rangeSize = 1;
+  uint32_t rangeCount = 0;
+  std::atomic<uint32_t> nextRange{0};
+
+  void runRanges(const std::function<void(uint32_t, uint32_t)>& f, uint32_t n, uint32_t size,
+                 uint32_t ranges) {
+    for (;;) {
+      uint32_t r = nextRange.fetch_add(1, std::memory_order_relaxed);
+      if (r >= ranges) return;
+      uint32_t begin = r * size;
+      uint32_t end = std::min(n, begin + size);
+      f(begin, end);
+    }
+  }
+
+  void workerLoop() {
+    t_insideJob = true;
+    uint64_t seen = 0;
+    for (;;) {
+      const std::function<void(uint32_t, uint32_t)>* f;
+      uint32_t n, size, ranges;
+      {
+        std::unique_lock<std::mutex> lock(mutex);
+        wake.wait(lock, [&] { return stop || (generation != seen && open); });
+        if (stop) return;
+        seen = generation;
+        ++active;
+        f = fn;
+        n = count;
+        size = rangeSize;
+        ranges = rangeCount;
+      }
+      runRanges(*f, n, size, ranges);
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (--active == 0) finished.notify_one();
+      }
+    }
+  }
+};
+
+ThreadPoolJobSystem::ThreadPoolJobSystem(int threads) : m_impl(std::make_unique<Impl>()) {
+  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  // The calling thread works too, so the pool starts threads - 1 workers.
+  m_impl->workers.reserve(static_cast<size_t>(threads - 1));
+  for (int i = 1; i < threads; ++i) m_impl->workers.emplace_back([this] { m_impl->workerLoop(); });
+}
+
+ThreadPoolJobSystem::~ThreadPoolJobSystem() {
+  {
+    std::lock_guard<std::mutex> lock(m_impl->mutex);
+    m_impl->stop = true;
+  }
+  m_impl->wake.notify_all();
+  for (std::thread& t : m_impl->workers) t.join();
+}
+
+int ThreadPoolJobSystem::threadCount() const {
+  return static_cast<int>(m_impl->workers.size()) + 1;
+}
+
+void ThreadPoolJobSystem::parallelFor(uint32_t count, uint32_t grain,
+                                      const std::function<void(uint32_t, uint32_t)>& fn) {
+  if (count == 0) return;
+  grain = std::max(grain, 1u);
+  // About four ranges per thread balances uneven rows without making ranges tiny.
+  const uint64_t threads = m_impl->workers.size() + 1;
+  const uint64_t target = (static_cast<uint64_t>(count) + threads * 4 - 1) / (threads * 4);
+  const uint32_t size = static_cast<uint32_t>(std::max<uint64_t>(grain, target));
+  const uint32_t ranges = static_cast<uint32_t>((static_cast<uint64_t>(count) + size - 1) / size);
+  if (ranges <= 1 || m_impl->workers.empty() || t_insideJob) {
+    fn(0, count);
+    return;
+  }
+
+  std::lock_guard<std::mutex> call(m_impl->callMutex);
+  Impl& p = *m_impl;
+  {
+    std::lock_guard<std::mutex> lock(p.mutex);
+    p.fn = &fn;
+    p.count = count;
+    p.rangeSize = size;
+    p.rangeCount = ranges;
+    p.nextRange.store(0, std::memory_order_relaxed);
+    p.open = true;
+    ++p.generation;
+  }
+  p.wake.notify_all();
+
+  const bool wasInside = t_insideJob;
+  t_insideJob = true;
+  p.runRanges(fn, count, size, ranges);
+  t_insideJob = wasInside;
+
+  // Every range has been claimed; wait for the workers still running theirs, then close the
+  // job so a late worker cannot pick up a stale function.
+  std::unique_lock<std::mutex> lock(p.mutex);
+  p.finished.wait(lock, [&] { return p.active == 0; });
+  p.open = false;
+  p.fn = nullptr;
+}
+
+JobSystem& serialJobs() {
+  static SerialJobSystem jobs;
+  return jobs;
+}
+
+}  // namespace gf
