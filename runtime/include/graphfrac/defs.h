@@ -54,6 +54,10 @@ struct SolverSettings {
   /// more = full Newton with backtracking line search, stopping at newtonTolerance.
   int newtonIterations = 1;
   double newtonTolerance = 1e-6;  ///< Relative to the first Newton step's size.
+  /// Backtracking line search on the incremental potential, also for the one-step default:
+  /// it guarantees the step never increases that energy (stiff and inverted cases) for the
+  /// price of one energy-only element pass per iteration.
+  bool lineSearch = true;
   LinearSolverKind linearSolver = LinearSolverKind::PCG;
   int maxLinearIterations = 200;
   double linearTolerance = 1e-6;  ///< Relative residual |r|/|b| for PCG.

@@ -57,6 +57,16 @@ Error fail(const Args&... parts) {
   return Error{std::move(s)};
 }
 
+/// Called when a GF_ASSERT fails. The default prints the message and aborts; tests install a
+/// handler that turns it into a test failure, engines one that logs and breaks.
+using AssertHandler = void (*)(const char* condition, const char* message, const char* file,
+                               int line);
+/// Replaces the assertion handler (nullptr restores the default); returns the previous one.
+AssertHandler setAssertHandler(AssertHandler handler);
+namespace detail {
+void assertFailed(const char* condition, const char* message, const char* file, int line);
+}  // namespace detail
+
 /// Flags a step raises; several may be set at once.
 enum StepFlag : uint32_t {
   kStepOk = 0,
@@ -78,3 +88,18 @@ struct [[nodiscard]] StepStatus {
 };
 
 }  // namespace gf
+
+/// Checks an internal invariant in every build type; a failure goes to the AssertHandler.
+#define GF_ASSERT(cond, msg)                                                 \
+  do {                                                                       \
+    if (!(cond)) ::gf::detail::assertFailed(#cond, msg, __FILE__, __LINE__); \
+  } while (0)
+
+/// Heavy checks, compiled only with -DGF_VALIDATE=ON.
+#if defined(GF_VALIDATE_ENABLED)
+#define GF_VALIDATE(cond, msg) GF_ASSERT(cond, msg)
+#else
+#define GF_VALIDATE(cond, msg) \
+  do {                         \
+  } while (0)
+#endif

@@ -56,6 +56,12 @@ class World {
   /// Overwrites the velocity of every node (e.g. an initial swing); error for a bad id or
   /// a non-finite value.
   Result<void> setVelocity(BodyId id, glm::dvec3 v);
+  /// Overwrites all node velocities (3 per node); error for a bad id, a wrong size or a
+  /// non-finite value.
+  Result<void> setVelocities(BodyId id, std::span<const double> v);
+  /// Overwrites all node positions (3 per node), e.g. to teleport a body or to start from a
+  /// deformed shape; error for a bad id, a wrong size or a non-finite value.
+  Result<void> setPositions(BodyId id, std::span<const double> x);
   /// Energies and momenta; zeroes for an invalid id.
   BodyStats stats(BodyId id) const;
   /// Timings of the last step.

@@ -1,0 +1,70 @@
+#include "fem/fem_body.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "kernels/element.h"
+
+namespace gf::detail {
+
+MaterialCoeffs toCoeffs(const Material& m) {
+  Vec3 a{m.fibreDirection.x, m.fibreDirection.y, m.fibreDirection.z};
+  const double len = norm(a);
+  a = len > 0 ? (1.0 / len) * a : Vec3{1, 0, 0};
+  return makeMaterialCoeffs(static_cast<int>(m.model), m.youngsModulus, m.poissonRatio,
+                            m.fibreStiffness, a);
+}
+
+FemModel buildFemModel(const BodyDef& def) {
+  FemModel m;
+  const TetMesh& mesh = def.mesh;
+  m.nodeCount = static_cast<int32_t>(mesh.nodeCount());
+  m.tetCount = static_cast<int32_t>(mesh.tetCount());
+  m.tets = mesh.tets;
+  m.restPositions = mesh.positions;
+  m.material = def.material;
+  m.solver = def.solver;
+  m.coeffs = toCoeffs(def.material);
+  m.restInverse.resize(m.tetCount);
+  m.restVolume.resize(m.tetCount);
+  m.nodeMass.assign(m.nodeCount, 0.0);
+  for (int32_t e = 0; e < m.tetCount; ++e) {
+    Vec3 X[4];
+    for (int a = 0; a < 4; ++a) {
+      const double* p = &mesh.positions[3 * mesh.tets[4 * e + a]];
+      X[a] = {p[0], p[1], p[2]};
+    }
+    double vol = 0;
+    m.restInverse[e] = restShapeInverse(X, vol);
+    m.restVolume[e] = vol;
+    // Lumped mass: a quarter of the tet's mass to each corner (eq 2.10, row-summed).
+    for (int a = 0; a < 4; ++a)
+      m.nodeMass[mesh.tets[4 * e + a]] += 0.25 * def.material.density * vol;
+  }
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  for (int32_t n = 0; n < m.nodeCount; ++n)
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = std::min(lo[i], mesh.positions[3 * n + i]);
+      hi[i] = std::max(hi[i], mesh.positions[3 * n + i]);
+    }
+  m.lengthScale = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                            (hi[2] - lo[2]) * (hi[2] - lo[2]));
+  m.fixedNode.assign(m.nodeCount, 0);
+  m.gripVelocity.assign(3 * m.nodeCount, 0.0);
+  for (const Grip& g : def.grips)
+    for (int32_t n : g.nodes) {
+      m.fixedNode[n] = 1;
+      m.gripVelocity[3 * n + 0] = g.velocity.x;
+      m.gripVelocity[3 * n + 1] = g.velocity.y;
+      m.gripVelocity[3 * n + 2] = g.velocity.z;
+    }
+  m.externalForce.assign(3 * m.nodeCount, 0.0);
+  for (const PointForce& f : def.forces) {
+    m.externalForce[3 * f.node + 0] += f.force.x;
+    m.externalForce[3 * f.node + 1] += f.force.y;
+    m.externalForce[3 * f.node + 2] += f.force.z;
+  }
+  return m;
+}
+
+}  // namespace gf::detail

@@ -1,0 +1,44 @@
+// FEM body data, MuJoCo style: a read-only model (rest data) and a mutable state, both flat
+// arrays that a CUDA backend copies to the device unchanged.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "graphfrac/defs.h"
+#include "kernels/materials.h"
+#include "kernels/math.h"
+
+namespace gf::detail {
+
+/// Rest data of a body; fixed for its lifetime (the mesh is never remeshed).
+struct FemModel {
+  int32_t nodeCount = 0;
+  int32_t tetCount = 0;
+  std::vector<int32_t> tets;          ///< 4 per tet
+  std::vector<double> restPositions;  ///< 3 per node
+  std::vector<Mat3> restInverse;      ///< Dm^-1 per tet
+  std::vector<double> restVolume;     ///< per tet
+  std::vector<double> nodeMass;       ///< lumped, rho V / 4 from each incident tet
+  double lengthScale = 1;             ///< rest bounding-box diagonal (round-off thresholds)
+  MaterialCoeffs coeffs;
+  Material material;
+  SolverSettings solver;
+  std::vector<uint8_t> fixedNode;     ///< 1 where a grip prescribes the velocity
+  std::vector<double> gripVelocity;   ///< 3 per node (zero where not fixed)
+  std::vector<double> externalForce;  ///< 3 per node, constant point forces
+};
+
+/// Mutable state of a body.
+struct FemState {
+  std::vector<double> x;  ///< positions, 3 per node
+  std::vector<double> v;  ///< velocities, 3 per node
+};
+
+/// Builds the model from a validated definition (mesh already checked by the caller).
+FemModel buildFemModel(const BodyDef& def);
+
+/// Lamé-based kernel coefficients of a public Material.
+MaterialCoeffs toCoeffs(const Material& m);
+
+}  // namespace gf::detail

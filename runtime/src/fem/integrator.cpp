@@ -1,0 +1,307 @@
+#include "fem/integrator.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+
+#include "kernels/element.h"
+
+namespace gf::detail {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+constexpr uint32_t kElementGrain = 128;
+constexpr uint32_t kNodeGrain = 512;
+// Armijo constant and the smallest step the backtracking line search tries.
+constexpr double kArmijo = 1e-4;
+constexpr double kMinLineSearchStep = 1.0 / 1024;
+// In the one-step mode, extra Newton iterations are spent only when a node entered a collider
+// that the linearisation did not see (an impact), at most this many.
+constexpr int kMaxContactIterations = 2;
+// Newton step, relative to the body's size, below which round-off dominates: converged
+// whatever the tolerance (a step that starts at equilibrium has nothing left to solve).
+constexpr double kNewtonRoundOff = 1e-12;
+// Round-off of the incremental potential relative to the summed size of its terms.
+constexpr double kEnergyRoundOff = 1e-11;
+
+Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i + 2]}; }
+
+bool allFinite(const std::vector<double>& a) {
+  for (double v : a)
+    if (!std::isfinite(v)) return false;
+  return true;
+}
+
+}  // namespace
+
+Integrator::Integrator(const FemModel& model) {
+  const size_t nt = model.tetCount, nn = model.nodeCount;
+  m_A = BlockSparseMatrix::fromTets(model.tets.data(), nt, nn);
+  m_gather = ElementGather::build(model.tets.data(), nt, m_A);
+  // Node -> (element, corner) references, in element order so sums are deterministic.
+  m_nodeRefStart.assign(nn + 1, 0);
+  for (int32_t t : model.tets) ++m_nodeRefStart[t + 1];
+  for (size_t i = 0; i < nn; ++i) m_nodeRefStart[i + 1] += m_nodeRefStart[i];
+  m_nodeRef.resize(model.tets.size());
+  std::vector<int32_t> fill(m_nodeRefStart.begin(), m_nodeRefStart.end() - 1);
+  for (size_t k = 0; k < model.tets.size(); ++k) m_nodeRef[fill[model.tets[k]]++] = int32_t(k);
+
+  m_elemEnergy.resize(nt);
+  m_elemGrad.resize(12 * nt);
+  m_elemHess.resize(144 * nt);
+  for (auto* v :
+       {&m_elasticGrad, &m_grad, &m_contactGrad, &m_x, &m_dx, &m_rhs, &m_tmp, &m_diff, &m_kdiff})
+    v->assign(3 * nn, 0.0);
+  m_contactHess.resize(nn);
+  m_contactSeen.assign(nn, 0);
+  if (model.solver.linearSolver == LinearSolverKind::Direct) {
+    m_cholesky = std::make_unique<CholeskySolver>();
+    // Symbolic analysis only fails on a corrupt pattern; PCG still solves the body then.
+    if (!m_cholesky->analyze(m_A).ok()) m_cholesky.reset();
+  }
+}
+
+double Integrator::elementPass(const FemModel& model, const double* x, bool withHessian,
+                               JobSystem& jobs) {
+  jobs.parallelFor(uint32_t(model.tetCount), kElementGrain, [&](uint32_t b, uint32_t e) {
+    for (uint32_t t = b; t < e; ++t) {
+      Vec3 xe[4];
+      for (int a = 0; a < 4; ++a) xe[a] = load3(x, model.tets[4 * t + a]);
+      Mat12* H = withHessian ? reinterpret_cast<Mat12*>(&m_elemHess[144 * t]) : nullptr;
+      m_elemEnergy[t] = elementForces(model.coeffs, xe, model.restInverse[t], model.restVolume[t],
+                                      &m_elemGrad[12 * t], H, /*projectPsd=*/true);
+    }
+  });
+  double psi = 0;  // serial sum: same order for any thread count
+  for (double e : m_elemEnergy) psi += e;
+  return psi;
+}
+
+void Integrator::gatherGradient(const FemModel& model, JobSystem& jobs) {
+  jobs.parallelFor(uint32_t(model.nodeCount), kNodeGrain, [&](uint32_t b, uint32_t e) {
+    for (uint32_t n = b; n < e; ++n) {
+      double g[3] = {0, 0, 0};
+      for (int32_t k = m_nodeRefStart[n]; k < m_nodeRefStart[n + 1]; ++k) {
+        const int32_t ref = m_nodeRef[k];  // elem * 4 + corner
+        const double* eg = &m_elemGrad[12 * (ref / 4) + 3 * (ref % 4)];
+        g[0] += eg[0];
+        g[1] += eg[1];
+        g[2] += eg[2];
+      }
+      std::memcpy(&m_elasticGrad[3 * n], g, sizeof g);
+    }
+  });
+}
+
+double Integrator::incrementalPotential(const FemModel& model, const double* xn, const double* x,
+                                        const StepContext& ctx, bool withGradient, bool withHessian,
+                                        JobSystem& jobs) {
+  const double dt = ctx.dt, dt2 = dt * dt;
+  const double r1 = model.material.massDamping, r2 = model.material.stiffnessDamping;
+  const double psi = elementPass(model, x, withHessian, jobs);
+  if (withGradient) gatherGradient(model, jobs);
+
+  // Contact, inertia, gravity and constant forces are per node.
+  double nodeTerms = 0, contact = 0, magnitude = 0, gradMagnitude = 0;
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    const double m = model.nodeMass[n];
+    const Vec3 xi = load3(x, n), xni = load3(xn, n), vni = load3(m_vStart.data(), n);
+    const Vec3 y = xni + dt * vni;
+    const Vec3 fext = load3(model.externalForce.data(), n) + m * ctx.gravity;
+    Vec3 cg;
+    Mat3 ch;
+    for (int c = 0; c < ctx.colliderCount; ++c)
+      contact += nodeContact(ctx.colliders[c], xi, m, cg, ch);
+    const Vec3 dy = xi - y, dn = xi - xni;
+    const double inertia = 0.5 * m * dot(dy, dy) + 0.5 * dt * r1 * m * dot(dn, dn);
+    const double work = dt2 * dot(fext, xi);
+    nodeTerms += inertia - work;
+    magnitude += inertia + std::abs(work);
+    if (withGradient) {
+      const Vec3 g = m * dy + (dt * r1 * m) * dn + dt2 * (cg - fext);
+      // Round-off of E from rounding x: |dE/dx| |x| eps, summed over the parts before they
+      // cancel (inertia against gravity against elasticity).
+      const Vec3 ge{m_elasticGrad[3 * n], m_elasticGrad[3 * n + 1], m_elasticGrad[3 * n + 2]};
+      gradMagnitude +=
+          (norm(m * dy) + dt * r1 * m * norm(dn) + dt2 * (norm(cg) + norm(fext)) + dt2 * norm(ge)) *
+          (norm(xi) + model.lengthScale);
+      for (int i = 0; i < 3; ++i) m_grad[3 * n + i] = g[i] + dt2 * m_elasticGrad[3 * n + i];
+      m_contactHess[n] = ch;
+      m_contactSeen[n] = frobeniusDot(ch, ch) > 0;
+    }
+  }
+  const double damping =
+      (r2 > 0 && m_dampKValid) ? dampingTerm(model, xn, x, dt, withGradient, jobs) : 0.0;
+  // The terms cancel (gravity work against elastic energy), so E's round-off follows the
+  // size of its parts, not of E itself.
+  if (withGradient)
+    m_energyMagnitude =
+        magnitude + gradMagnitude + std::abs(damping) + dt2 * (std::abs(psi) + contact);
+  return nodeTerms + damping + dt2 * (psi + contact);
+}
+
+double Integrator::dampingTerm(const FemModel& model, const double* xn, const double* x, double dt,
+                               bool withGradient, JobSystem& jobs) {
+  const double r2 = model.material.stiffnessDamping;
+  for (size_t i = 0; i < m_diff.size(); ++i) m_diff[i] = x[i] - xn[i];
+  m_dampK.multiply(m_diff.data(), m_kdiff.data(), jobs);
+  double e = 0;
+  for (size_t i = 0; i < m_diff.size(); ++i) {
+    e += 0.5 * dt * r2 * m_diff[i] * m_kdiff[i];
+    if (withGradient) m_grad[i] += dt * r2 * m_kdiff[i];
+  }
+  return e;
+}
+
+bool Integrator::enteredUnseenContact(const FemModel& model, const StepContext& ctx) const {
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    if (m_contactSeen[n] || model.fixedNode[n]) continue;
+    for (int c = 0; c < ctx.colliderCount; ++c) {
+      Vec3 normal;
+      if (penetration(ctx.colliders[c], load3(m_x.data(), n), normal) > 0) return true;
+    }
+  }
+  return false;
+}
+
+EnergyBreakdown Integrator::energies(const FemModel& model, const double* x, const StepContext& ctx,
+                                     JobSystem& jobs) {
+  EnergyBreakdown out;
+  out.elastic = elementPass(model, x, false, jobs);
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    Vec3 g;
+    Mat3 h;
+    for (int c = 0; c < ctx.colliderCount; ++c)
+      out.contact += nodeContact(ctx.colliders[c], load3(x, n), model.nodeMass[n], g, h);
+  }
+  return out;
+}
+
+BodyStepReport Integrator::step(const FemModel& model, FemState& state, const StepContext& ctx,
+                                JobSystem& jobs) {
+  BodyStepReport rep;
+  const double dt = ctx.dt, dt2 = dt * dt;
+  const double r1 = model.material.massDamping, r2 = model.material.stiffnessDamping;
+  const int maxNewton = model.solver.newtonIterations < 1 ? 1 : model.solver.newtonIterations;
+  const size_t n3 = state.x.size();
+  m_xStart = state.x;
+  m_vStart = state.v;
+
+  // Start at x_n with the prescribed nodes already moved; they stay put from here on.
+  m_x = state.x;
+  for (int32_t n = 0; n < model.nodeCount; ++n)
+    if (model.fixedNode[n])
+      for (int i = 0; i < 3; ++i) m_x[3 * n + i] += dt * model.gripVelocity[3 * n + i];
+
+  const double* start = m_xStart.data();  // x_n
+  const bool fullNewton = maxNewton > 1;
+  const int iterationCap = fullNewton ? maxNewton : 1 + kMaxContactIterations;
+  double firstStepNorm = 0;
+  bool converged = !fullNewton;
+  for (int it = 0; it < iterationCap; ++it) {
+    auto t0 = Clock::now();
+    if (it == 0) m_dampKValid = false;
+    double E = incrementalPotential(model, start, m_x.data(), ctx, true, true, jobs);
+    rep.elementsMs += msSince(t0);
+
+    // A = M (1 + dt r1) + dt r2 K(x_n) + dt^2 (K + K_contact)
+    t0 = Clock::now();
+    if (it == 0 && r2 > 0) {
+      if (m_dampK.n == 0) m_dampK = m_A;
+      m_dampK.setZero();
+      gatherElementBlocks(m_gather, m_elemHess.data(), 1.0, m_dampK, jobs);
+      m_dampKValid = true;
+      E += dampingTerm(model, start, m_x.data(), dt, true, jobs);
+    }
+    m_A.setZero();
+    gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs);
+    if (r2 > 0)
+      for (size_t k = 0; k < m_A.values.size(); ++k) m_A.values[k] += dt * r2 * m_dampK.values[k];
+    for (int32_t n = 0; n < model.nodeCount; ++n) {
+      double* blk = m_A.block(m_A.find(n, n));
+      const double md = model.nodeMass[n] * (1 + dt * r1);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          blk[3 * i + j] += (i == j ? md : 0.0) + dt2 * m_contactHess[n](i, j);
+    }
+    applyDirichlet(m_A, model.fixedNode.data());
+    for (size_t i = 0; i < n3; ++i) m_rhs[i] = model.fixedNode[i / 3] ? 0.0 : -m_grad[i];
+    rep.assemblyMs += msSince(t0);
+
+    t0 = Clock::now();
+    std::fill(m_dx.begin(), m_dx.end(), 0.0);
+    SolveReport sr;
+    if (m_cholesky)
+      sr = m_cholesky->solve(m_A, m_rhs.data(), m_dx.data());
+    else
+      sr = m_pcg.solve(m_A, m_rhs.data(), m_dx.data(), model.solver.maxLinearIterations,
+                       model.solver.linearTolerance, jobs);
+    rep.solveMs += msSince(t0);
+    rep.linearIterations += sr.iterations;
+    rep.residual = std::max(rep.residual, sr.relativeResidual);
+    if (!sr.converged) rep.flags |= kStepNotConverged;
+    ++rep.newtonIterations;
+
+    double stepNorm2 = 0, slope = 0;
+    for (size_t i = 0; i < n3; ++i) {
+      stepNorm2 += m_dx[i] * m_dx[i];
+      slope += m_grad[i] * m_dx[i];
+    }
+    const double stepNorm = std::sqrt(stepNorm2);
+    if (it == 0) firstStepNorm = stepNorm;
+
+    double alpha = 1.0;
+    // A predicted decrease below E's resolution cannot be judged by evaluating E: trust the
+    // Newton step then (it is at round-off level anyway).
+    if (model.solver.lineSearch && slope < 0 && -slope > kEnergyRoundOff * m_energyMagnitude) {
+      // Backtracking (Armijo) on the incremental potential: the step never raises it.
+      t0 = Clock::now();
+      for (;;) {
+        for (size_t i = 0; i < n3; ++i) m_tmp[i] = m_x[i] + alpha * m_dx[i];
+        const double Et = incrementalPotential(model, start, m_tmp.data(), ctx, false, false, jobs);
+        // Near convergence E changes below its round-off; accept a step that does not
+        // raise E beyond that.
+        if (std::isfinite(Et) &&
+            (Et <= E + kArmijo * alpha * slope || Et <= E + kEnergyRoundOff * m_energyMagnitude))
+          break;
+        if (alpha <= kMinLineSearchStep) {
+          rep.flags |= kStepLineSearchFailed;
+          break;
+        }
+        alpha *= 0.5;
+      }
+      rep.elementsMs += msSince(t0);
+    }
+    for (size_t i = 0; i < n3; ++i) m_x[i] += alpha * m_dx[i];
+    const double relStep = firstStepNorm > 0 ? alpha * stepNorm / firstStepNorm : 0.0;
+    if (fullNewton) {
+      if (relStep <= model.solver.newtonTolerance ||
+          alpha * stepNorm <= kNewtonRoundOff * model.lengthScale * std::sqrt(double(n3))) {
+        converged = true;
+        break;
+      }
+    } else if (!enteredUnseenContact(model, ctx)) {
+      break;
+    }
+  }
+  if (!converged) rep.flags |= kStepNotConverged;
+
+  // v_{n+1} = (x_{n+1} - x_n) / dt; prescribed nodes move at exactly their grip velocity.
+  for (size_t i = 0; i < n3; ++i) {
+    state.v[i] = model.fixedNode[i / 3] ? model.gripVelocity[i] : (m_x[i] - m_xStart[i]) / dt;
+    state.x[i] = m_x[i];
+  }
+  if (!allFinite(state.x) || !allFinite(state.v)) {
+    state.x = m_xStart;
+    state.v = m_vStart;
+    rep.flags |= kStepNanContained;
+  }
+  return rep;
+}
+
+}  // namespace gf::detail

@@ -1,0 +1,93 @@
+// Implicit backward Euler for one body (eq 2.7, 3.13), written as Newton's method on the
+// incremental potential
+//   E(x) = 1/2 (x-y)^T M (x-y) + dt/2 (x-x_n)^T D (x-x_n) + dt^2 (Psi(x) + Psi_c(x) - f^T x),
+//   y = x_n + dt v_n,  D = r1 M + r2 K(x_n)  (Rayleigh, lagged at the start of the step).
+// Started at x_n, the first Newton step is exactly the linearly implicit step
+//   (M + dt D + dt^2 K) dv = dt (f_ext + f_int - D v - dt K v)   (Baraff & Witkin),
+// which is the default (one Newton step, plus at most two more in a step where a node hits a
+// collider the linearisation did not see: otherwise that penetration would be stored as
+// penalty energy and released as a bounce). More iterations converge to the fully implicit
+// solution, the reference for error measurements. A backtracking line search on E keeps every
+// iteration from raising the incremental potential, which bounds the energy in stiff cases.
+// Nodes with a prescribed velocity are placed first and then held (zero rows/columns).
+// The sparse pattern, the gather plan and all work arrays are built once per body.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "fem/fem_body.h"
+#include "graphfrac/jobs.h"
+#include "graphfrac/status.h"
+#include "kernels/contact.h"
+#include "solver/block_sparse.h"
+#include "solver/cholesky.h"
+#include "solver/pcg.h"
+
+namespace gf::detail {
+
+/// What the world passes to a body step.
+struct StepContext {
+  double dt = 0;
+  Vec3 gravity;
+  const ColliderData* colliders = nullptr;
+  int colliderCount = 0;
+};
+
+/// What a body step reports.
+struct BodyStepReport {
+  uint32_t flags = 0;  // gf::StepFlag bits
+  int newtonIterations = 0;
+  int linearIterations = 0;
+  double residual = 0;
+  double elementsMs = 0, assemblyMs = 0, solveMs = 0;
+};
+
+/// Energies of a configuration (for diagnostics).
+struct EnergyBreakdown {
+  double elastic = 0, contact = 0;
+};
+
+class Integrator {
+ public:
+  explicit Integrator(const FemModel& model);
+  /// Advances `state` by ctx.dt. On a NaN/Inf the state is restored and flagged.
+  BodyStepReport step(const FemModel& model, FemState& state, const StepContext& ctx,
+                      JobSystem& jobs);
+  /// Elastic and contact energy at positions x.
+  EnergyBreakdown energies(const FemModel& model, const double* x, const StepContext& ctx,
+                           JobSystem& jobs);
+
+ private:
+  // Per-element pass: energies, gradients and (optionally) PSD Hessians into the buffers.
+  double elementPass(const FemModel& model, const double* x, bool withHessian, JobSystem& jobs);
+  // Node gradient of the elastic energy from the element gradients (deterministic gather).
+  void gatherGradient(const FemModel& model, JobSystem& jobs);
+  // Incremental potential at x (scaled by 1, see header comment); fills m_grad when asked.
+  double incrementalPotential(const FemModel& model, const double* xn, const double* x,
+                              const StepContext& ctx, bool withGradient, bool withHessian,
+                              JobSystem& jobs);
+  // True when a free node now penetrates a collider that the last linearisation missed.
+  bool enteredUnseenContact(const FemModel& model, const StepContext& ctx) const;
+  // Rayleigh stiffness-damping term dt/2 (x-x_n)^T r2 K(x_n) (x-x_n) (+ gradient into m_grad).
+  double dampingTerm(const FemModel& model, const double* xn, const double* x, double dt,
+                     bool withGradient, JobSystem& jobs);
+
+  BlockSparseMatrix m_A;
+  ElementGather m_gather;
+  std::vector<int32_t> m_nodeRefStart, m_nodeRef;  // node -> elem*4 + corner
+  std::vector<double> m_elemEnergy, m_elemGrad, m_elemHess;
+  std::vector<double> m_elasticGrad;   // dPsi/dx per node
+  std::vector<double> m_grad;          // gradient of the incremental potential
+  std::vector<double> m_contactGrad;   // per node
+  std::vector<Mat3> m_contactHess;     // per node
+  double m_energyMagnitude = 0;        // summed |terms| of the last potential (round-off scale)
+  std::vector<uint8_t> m_contactSeen;  // contact was in the last linearisation
+  BlockSparseMatrix m_dampK;           // K(x_n) for Rayleigh r2, only when r2 > 0
+  bool m_dampKValid = false;           // m_dampK belongs to the current step
+  std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
+  PcgSolver m_pcg;
+  std::unique_ptr<CholeskySolver> m_cholesky;
+};
+
+}  // namespace gf::detail

@@ -1,0 +1,46 @@
+// Small helpers shared by the physics tests: node selection, displacements, energy totals.
+#pragma once
+
+#include <graphfrac/world.h>
+
+#include <cmath>
+#include <functional>
+#include <vector>
+
+namespace gf::test {
+
+/// Nodes of `mesh` whose rest position satisfies `pred(x, y, z)`.
+inline std::vector<int32_t> selectNodes(const TetMesh& mesh,
+                                        const std::function<bool(double, double, double)>& pred) {
+  std::vector<int32_t> out;
+  for (size_t i = 0; i < mesh.nodeCount(); ++i) {
+    const double* p = &mesh.positions[3 * i];
+    if (pred(p[0], p[1], p[2])) out.push_back(int32_t(i));
+  }
+  return out;
+}
+
+/// Mean displacement component `axis` of `nodes`.
+inline double meanDisplacement(const World& world, BodyId id, const TetMesh& rest,
+                               const std::vector<int32_t>& nodes, int axis) {
+  const auto x = world.positions(id);
+  double s = 0;
+  for (int32_t n : nodes) s += x[3 * n + axis] - rest.positions[3 * n + axis];
+  return nodes.empty() ? 0.0 : s / double(nodes.size());
+}
+
+/// Total mechanical energy (kinetic + elastic + gravity + contact).
+inline double totalEnergy(const BodyStats& s) {
+  return s.kineticEnergy + s.elasticEnergy + s.gravityEnergy + s.contactEnergy;
+}
+
+/// True when every position and velocity is finite.
+inline bool stateFinite(const World& world, BodyId id) {
+  for (double v : world.positions(id))
+    if (!std::isfinite(v)) return false;
+  for (double v : world.velocities(id))
+    if (!std::isfinite(v)) return false;
+  return true;
+}
+
+}  // namespace gf::test
