@@ -1,0 +1,336 @@
+// JSON scene loader (tools/scene): good scenes load with exactly the values written in them,
+// node selections match an independent scan of the mesh, and every file of the bad corpus
+// (tests/data/scenes/bad/) fails with a message naming the JSON path and the reason.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <glm/geometric.hpp>
+#include <map>
+#include <numbers>
+#include <set>
+#include <string>
+
+#include "scene/scene.h"
+
+namespace gf::scene {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kSceneData = fs::path(GF_SOURCE_DIR) / "tests" / "data" / "scenes";
+
+Scene load(const fs::path& p) {
+  Result<Scene> r = loadScene(p.string());
+  EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.error().message);
+  if (!r.ok()) return {};
+  return std::move(r).value();
+}
+
+glm::dvec3 node(const TetMesh& m, int32_t i) {
+  return {m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]};
+}
+
+/// Nodes inside [lo, hi] by a plain scan with an absolute tolerance: the independent truth for
+/// the loader's region selection.
+std::vector<int32_t> nodesIn(const TetMesh& m, glm::dvec3 lo, glm::dvec3 hi) {
+  std::vector<int32_t> out;
+  for (size_t i = 0; i < m.nodeCount(); ++i) {
+    const glm::dvec3 p = node(m, static_cast<int32_t>(i));
+    bool in = true;
+    for (int k = 0; k < 3; ++k) in = in && p[k] > lo[k] - 1e-12 && p[k] < hi[k] + 1e-12;
+    if (in) out.push_back(static_cast<int32_t>(i));
+  }
+  return out;
+}
+
+std::vector<int32_t> sorted(std::vector<int32_t> v) {
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+TEST(Scene, FullSceneLoadsEveryValue) {
+  const Scene s = load(kSceneData / "good" / "full.json");
+  ASSERT_EQ(s.bodies.size(), 3u);
+  EXPECT_EQ(s.name, "full scene");
+  EXPECT_EQ(s.description, "every key");
+  EXPECT_DOUBLE_EQ(s.dt, 0.005);
+  EXPECT_EQ(s.frames, 7);
+  EXPECT_EQ(s.threads, 2);
+  EXPECT_EQ(s.world.substeps, 3);
+  EXPECT_EQ(s.world.gravity, glm::vec3(0, -3.5f, 1));
+  EXPECT_EQ(s.world.backend, Backend::Cpu);
+  EXPECT_EQ(s.world.jobs, nullptr);
+
+  // Colliders: the plane normal is normalised; the others keep their values.
+  ASSERT_EQ(s.world.colliders.size(), 3u);
+  const Collider& plane = s.world.colliders[0];
+  EXPECT_EQ(plane.kind, Collider::Kind::Plane);
+  EXPECT_EQ(plane.point, glm::vec3(0, -1, 0));
+  EXPECT_EQ(plane.normal, glm::vec3(0, 1, 0));
+  const Collider& box = s.world.colliders[1];
+  EXPECT_EQ(box.kind, Collider::Kind::Box);
+  EXPECT_EQ(box.point, glm::vec3(1, 2, 3));
+  EXPECT_EQ(box.halfExtents, glm::vec3(0.5f, 0.25f, 2));
+  EXPECT_DOUBLE_EQ(box.stiffness, 100);
+  const Collider& ball = s.world.colliders[2];
+  EXPECT_EQ(ball.kind, Collider::Kind::Sphere);
+  EXPECT_EQ(ball.point, glm::vec3(-1, 0, 0));
+  EXPECT_FLOAT_EQ(ball.radius, 0.3f);
+  EXPECT_DOUBLE_EQ(ball.stiffness, 0);
+
+  // Body 0: the unit cube of ../meshes/cube.msh (node i at (i&1, i>>1&1, i>>2&1)), moved by
+  // (1, 2, 3). The relative path resolved against the scene's directory, not the cwd.
+  const SceneBody& cube = s.bodies[0];
+  EXPECT_EQ(cube.name, "cube");
+  ASSERT_EQ(cube.def.mesh.nodeCount(), 8u);
+  EXPECT_EQ(cube.def.mesh.tetCount(), 6u);
+  for (int32_t i = 0; i < 8; ++i) {
+    EXPECT_EQ(node(cube.def.mesh, i), glm::dvec3(1 + (i & 1), 2 + ((i >> 1) & 1), 3 + (i >> 2)));
+  }
+  const Material& m = cube.def.material;
+  EXPECT_EQ(m.model, MaterialModel::NeoHookean);
+  EXPECT_DOUBLE_EQ(m.youngsModulus, 2.5e6);
+  EXPECT_DOUBLE_EQ(m.poissonRatio, 0.45);
+  EXPECT_DOUBLE_EQ(m.density, 1200);
+  EXPECT_DOUBLE_EQ(m.fibreStiffness, 3e5);
+  EXPECT_EQ(m.fibreDirection, glm::vec3(0, 0, 1));
+  EXPECT_DOUBLE_EQ(m.massDamping, 0.1);
+  EXPECT_DOUBLE_EQ(m.stiffnessDamping, 0.01);
+  const SolverSettings& sv = cube.def.solver;
+  EXPECT_EQ(sv.newtonIterations, 4);
+  EXPECT_DOUBLE_EQ(sv.newtonTolerance, 1e-9);
+  EXPECT_FALSE(sv.lineSearch);
+  EXPECT_EQ(sv.linearSolver, LinearSolverKind::Direct);
+  EXPECT_EQ(sv.maxLinearIterations, 50);
+  EXPECT_DOUBLE_EQ(sv.linearTolerance, 1e-8);
+  EXPECT_EQ(cube.def.initialVelocity, glm::vec3(0.25f, 0, -1));
+
+  // Pin: the region x = 1 after the move is the cube's x = 0 face, nodes 0, 2, 4, 6.
+  // Grip: node 1 at 0.5 m/s up.
+  ASSERT_EQ(cube.def.grips.size(), 2u);
+  EXPECT_EQ(sorted(cube.def.grips[0].nodes), (std::vector<int32_t>{0, 2, 4, 6}));
+  EXPECT_EQ(cube.def.grips[0].velocity, glm::vec3(0));
+  EXPECT_EQ(cube.def.grips[1].nodes, (std::vector<int32_t>{1}));
+  EXPECT_EQ(cube.def.grips[1].velocity, glm::vec3(0, 0.5f, 0));
+
+  // Forces: node 7 gets (0,-1,0); the top face y = 3 (nodes 2, 3, 6, 7) shares (0,-8,0), so
+  // -2 each; nodes 3 and 5 get (1,0,0) each (distribute = false). Sum per node to compare.
+  std::map<int32_t, glm::vec3> f;
+  for (const PointForce& pf : cube.def.forces) f[pf.node] += pf.force;
+  const std::map<int32_t, glm::vec3> want = {
+      {2, {0, -2, 0}}, {3, {1, -2, 0}}, {5, {1, 0, 0}}, {6, {0, -2, 0}}, {7, {0, -3, 0}}};
+  EXPECT_EQ(f, want);
+  EXPECT_EQ(cube.def.forces.size(), 7u);
+
+  // Body 1: generated 1 x 0.1 x 0.1 beam of 10 x 1 x 1 cells; the clamp holds exactly the four
+  // nodes at x = 0.
+  const SceneBody& beam = s.bodies[1];
+  EXPECT_EQ(beam.def.material.model, MaterialModel::Corotated);
+  EXPECT_DOUBLE_EQ(beam.def.material.density, 7800);
+  EXPECT_EQ(beam.def.mesh.nodeCount(), 11u * 2 * 2);
+  ASSERT_EQ(beam.def.grips.size(), 1u);
+  const std::vector<int32_t> clamp = sorted(beam.def.grips[0].nodes);
+  EXPECT_EQ(clamp, nodesIn(beam.def.mesh, {-1, -1, -1}, {0, 1, 1}));
+  EXPECT_EQ(clamp.size(), 4u);
+  EXPECT_NEAR(beam.def.mesh.volume(), 0.01, 1e-12);
+
+  // Body 2: "cells": 1 puts one cell along the shortest side (0.1), so 4 x 2 x 1 cells.
+  const SceneBody& block = s.bodies[2];
+  EXPECT_EQ(block.name, "block_2");
+  EXPECT_EQ(block.def.mesh.nodeCount(), 5u * 3 * 2);
+  EXPECT_NEAR(block.def.mesh.volume(), 0.4 * 0.2 * 0.1, 1e-12);
+  EXPECT_EQ(block.def.material.model, MaterialModel::StVK);
+  EXPECT_DOUBLE_EQ(block.def.material.poissonRatio, -0.2);
+  EXPECT_TRUE(block.def.grips.empty());
+}
+
+TEST(Scene, MinimalSceneTakesDefaults) {
+  const Scene s = load(kSceneData / "good" / "minimal.json");
+  ASSERT_EQ(s.bodies.size(), 1u);
+  const Scene defaults;
+  const BodyDef bodyDefaults;
+  EXPECT_EQ(s.name, "minimal");  // the file's stem
+  EXPECT_DOUBLE_EQ(s.dt, 1.0 / 60);
+  EXPECT_EQ(s.frames, defaults.frames);
+  EXPECT_EQ(s.threads, 1);
+  EXPECT_EQ(s.world.gravity, glm::vec3(0, -9.81f, 0));
+  EXPECT_EQ(s.world.substeps, 1);
+  EXPECT_TRUE(s.world.colliders.empty());
+  EXPECT_EQ(s.bodies[0].name, "body0");
+  const BodyDef& d = s.bodies[0].def;
+  EXPECT_EQ(d.material.model, MaterialModel::StableNeoHookean);
+  EXPECT_DOUBLE_EQ(d.material.youngsModulus, 1e5);
+  EXPECT_DOUBLE_EQ(d.material.fibreStiffness, 0);
+  EXPECT_EQ(d.solver.newtonIterations, bodyDefaults.solver.newtonIterations);
+  EXPECT_EQ(d.solver.linearSolver, bodyDefaults.solver.linearSolver);
+  EXPECT_EQ(d.solver.lineSearch, bodyDefaults.solver.lineSearch);
+  EXPECT_TRUE(d.grips.empty());
+  EXPECT_TRUE(d.forces.empty());
+  EXPECT_EQ(d.mesh.nodeCount(), 27u);
+}
+
+TEST(Scene, GeneratorsBuildTheRequestedShapes) {
+  const Scene s = load(kSceneData / "good" / "generators.json");
+  ASSERT_EQ(s.bodies.size(), 4u);
+  // The notch removes a V of depth 0.04 and opening 60 degrees over the full width:
+  // area d^2 tan(30deg), so the volume is (0.6*0.1 - 0.04^2 tan 30deg) * 0.05.
+  const double notchArea = 0.04 * 0.04 * std::tan(std::numbers::pi / 6);
+  EXPECT_NEAR(s.bodies[0].def.mesh.volume(), (0.6 * 0.1 - notchArea) * 0.05, 1e-9);
+  // The cylinder (moved to x = 2) is pinned on its base y = 0: a whole layer of nodes.
+  const SceneBody& cyl = s.bodies[1];
+  ASSERT_EQ(cyl.def.grips.size(), 1u);
+  EXPECT_EQ(sorted(cyl.def.grips[0].nodes), nodesIn(cyl.def.mesh, {1, 0, -1}, {3, 0, 1}));
+  EXPECT_EQ(cyl.def.mesh.nodeCount(), 6 * cyl.def.grips[0].nodes.size());  // 5 layers + base
+  for (size_t i = 0; i < cyl.def.mesh.nodeCount(); ++i) {
+    const glm::dvec3 p = node(cyl.def.mesh, static_cast<int32_t>(i));
+    EXPECT_LE(std::hypot(p.x - 2, p.z), 0.1 + 1e-12);
+  }
+  // Sphere inside its radius; slab 0.5 x 0.05 x 0.3.
+  for (size_t i = 0; i < s.bodies[2].def.mesh.nodeCount(); ++i) {
+    EXPECT_LE(glm::length(node(s.bodies[2].def.mesh, static_cast<int32_t>(i))), 0.2 + 1e-12);
+  }
+  EXPECT_NEAR(s.bodies[3].def.mesh.volume(), 0.5 * 0.05 * 0.3, 1e-12);
+}
+
+TEST(Scene, ShippedScenesLoad) {
+  int count = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(GF_SOURCE_DIR) / "scenes")) {
+    if (e.path().extension() != ".json") continue;
+    SCOPED_TRACE(e.path().string());
+    const Scene s = load(e.path());
+    EXPECT_FALSE(s.bodies.empty());
+    for (const SceneBody& b : s.bodies) EXPECT_GT(b.def.mesh.tetCount(), 0u) << b.name;
+    ++count;
+  }
+  EXPECT_GE(count, 3);
+}
+
+// Every bad file and the pieces its message must contain: the file, the JSON path (or line and
+// column for a syntax error) and the reason.
+const std::map<std::string, std::vector<std::string>> kBadScenes = {
+    {"syntax_trailing_comma.json",
+     {"syntax_trailing_comma.json:4:1: invalid JSON", "unexpected '}'"}},
+    {"syntax_truncated.json",
+     {"syntax_truncated.json:4:", "invalid JSON", "missing closing quote"}},
+    {"syntax_empty.json", {"syntax_empty.json:1:", "invalid JSON", "unexpected end of input"}},
+    {"nan_literal.json", {"nan_literal.json:2:", "invalid JSON", "invalid literal"}},
+    {"not_an_object.json", {"(top level): expected an object, got [1,2,3]"}},
+    {"wrong_type_dt.json", {"wrong_type_dt.json: dt: expected a positive number, got \"fast\""}},
+    {"wrong_type_E.json", {": bodies[0].material.E: expected a positive number, got \"abc\""}},
+    {"wrong_type_threads.json", {": threads: expected an integer in [0, 1024], got 1.5"}},
+    {"wrong_type_gravity.json", {": gravity: expected an array of 3 numbers, got [0,-9.81]"}},
+    {"wrong_type_bodies.json", {": bodies: expected an array of bodies, got an object"}},
+    {"unknown_key_top.json", {": frmaes: unknown key (did you mean \"frames\"?)"}},
+    {"unknown_key_material.json", {": bodies[0].material.youngs: unknown key", "E, damping"}},
+    {"unknown_key_mesh.json", {": bodies[0].mesh.fiel: unknown key (did you mean \"file\"?)"}},
+    {"negative_E.json", {": bodies[0].material.E: expected a positive number, got -1000000"}},
+    {"nu_half.json", {": bodies[0].material.nu: expected a number in (-1, 0.5), got 0.5"}},
+    {"bad_model.json",
+     {": bodies[0].material.model: expected one of \"stable_neo_hookean\"", "got \"rubber\""}},
+    {"missing_rho.json", {": bodies[0].material.rho: missing (required)"}},
+    {"empty_region.json",
+     {": bodies[0].pins[0].region: selects no node", "[0, 0, 0] to [1, 1, 1]"}},
+    {"region_min_above_max.json",
+     {": bodies[0].pins[0].region: min[0] = 1 is greater than max[0] = 0"}},
+    {"node_out_of_range.json",
+     {": bodies[0].pins[0].nodes[1]: expected a node index in [0, 7]", "got 8"}},
+    {"force_node_out_of_range.json",
+     {": bodies[0].forces[0].node: expected a node index in [0, 7]", "got 8"}},
+    {"region_and_nodes.json",
+     {": bodies[0].pins[0]: needs exactly one of \"region\" or \"nodes\""}},
+    {"conflicting_grips.json",
+     {": bodies[0].grips[0]: node 0 is also held by bodies[0].pins[0] with a different velocity"}},
+    {"missing_mesh_file.json",
+     {": bodies[0].mesh.file: no such file", "tests/data/scenes/meshes/missing.msh"}},
+    {"broken_mesh_file.json", {": bodies[0].mesh.file: ", "broken.msh", "42"}},
+    {"file_and_generator.json",
+     {": bodies[0].mesh: needs exactly one of \"file\" or \"generator\""}},
+    {"bad_generator_name.json",
+     {": bodies[0].mesh.generator: expected one of \"box\", \"cylinder\"", "got \"torus\""}},
+    {"bad_generator_cells.json",
+     {": bodies[0].mesh.cells[1]: expected an integer in [1, 2000], got 0"}},
+    {"bad_generator_size.json", {": bodies[0].mesh.size[1]: expected a positive number, got -1"}},
+    {"bad_generator_too_many_cells.json", {": bodies[0].mesh.cells: ", "too many"}},
+    {"bad_generator_key.json", {": bodies[0].mesh.segments: unknown key"}},
+    {"bad_notch_depth.json",
+     {": bodies[0].mesh.notch.depth: expected at most 0.95 * the box height", "got 0.2"}},
+    {"bad_notch_too_narrow.json",
+     {": bodies[0].mesh.notch: the notch is 0.046188 wide at the top, less than two cells"}},
+    {"bad_notch_outside.json",
+     {": bodies[0].mesh.notch.x: the notch, 0.046188 wide at the top, at x = 0.59 does not fit"}},
+    {"bad_collider_radius.json", {": colliders[0].radius: expected a positive number, got -0.3"}},
+    {"bad_collider_type.json", {": colliders[0].type: expected one of", "got \"cone\""}},
+    {"missing_bodies.json", {": bodies: missing (required)"}},
+    {"no_bodies.json", {": bodies: expected at least one body, got []"}},
+    {"duplicate_body_name.json", {": bodies[1].name: duplicate body name \"cube\""}},
+    {"bad_body_name.json", {": bodies[0].name: expected 1-64 letters", "got \"my beam/1\""}},
+    {"duplicate_key.json", {": bodies[0].material.E: duplicate key"}},
+};
+
+TEST(Scene, EveryBadSceneFailsNamingPathAndReason) {
+  std::set<std::string> seen;
+  for (const auto& e : fs::directory_iterator(kSceneData / "bad")) {
+    const std::string name = e.path().filename().string();
+    SCOPED_TRACE(name);
+    seen.insert(name);
+    const auto want = kBadScenes.find(name);
+    ASSERT_NE(want, kBadScenes.end()) << "add the expected message of " << name << " to kBadScenes";
+    const Result<Scene> r = loadScene(e.path().string());
+    ASSERT_FALSE(r.ok());
+    const std::string& msg = r.error().message;
+    EXPECT_EQ(msg.rfind(e.path().string(), 0), 0u) << msg;  // starts with the file
+    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;    // one line
+    for (const std::string& piece : want->second) {
+      EXPECT_NE(msg.find(piece), std::string::npos) << "message: " << msg << "\nmissing: " << piece;
+    }
+  }
+  for (const auto& [name, pieces] : kBadScenes) {
+    EXPECT_TRUE(seen.count(name) != 0) << name << " is expected in tests/data/scenes/bad/";
+  }
+}
+
+TEST(Scene, ParseFromTextUsesSourceAndBaseDir) {
+  // A missing file is reported against the scene, and a relative path joins the base dir.
+  const Result<Scene> missing = loadScene((kSceneData / "no_such_scene.json").string());
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("no_such_scene.json: cannot open"), std::string::npos);
+
+  const std::string text = R"({"bodies": [{"mesh": {"file": "cube.msh"},
+      "material": {"E": 1, "nu": 0, "rho": 1}, "pins": [{"nodes": [7, 7, 0]}]}]})";
+  const Result<Scene> r = parseScene(text, "inline", (kSceneData / "meshes").string());
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r.value().name, "inline");
+  // Repeated nodes are held once.
+  EXPECT_EQ(sorted(r.value().bodies[0].def.grips[0].nodes), (std::vector<int32_t>{0, 7}));
+
+  const Result<Scene> bad = parseScene(text, "inline", "/nonexistent");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("inline: bodies[0].mesh.file: no such file "
+                                     "\"/nonexistent/cube.msh\""),
+            std::string::npos)
+      << bad.error().message;
+}
+
+TEST(Scene, RegionToleranceIsRelativeToTheMesh) {
+  // The generator's x = 0.3 column may be 0.30000000000000004; a region edge at 0.3 still
+  // catches it, but one a millionth of the size beyond does not.
+  const std::string tmpl = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 0.1, 0.1],
+      "cells": [10, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},
+      "pins": [{"region": {"min": [XMIN, -1, -1], "max": [XMAX, 1, 1]}}]}]})";
+  auto pinned = [&](const char* lo, const char* hi) -> size_t {
+    std::string t = tmpl;
+    t.replace(t.find("XMIN"), 4, lo);
+    t.replace(t.find("XMAX"), 4, hi);
+    const Result<Scene> r = parseScene(t, "inline", "");
+    if (!r.ok()) return 0;
+    return r.value().bodies[0].def.grips[0].nodes.size();
+  };
+  EXPECT_EQ(pinned("0.3", "0.3"), 4u);
+  EXPECT_EQ(pinned("0.1", "0.3"), 12u);
+  EXPECT_EQ(pinned("0.300001", "0.35"), 0u);  // selects nothing: an error
+}
+
+}  // namespace
+}  // namespace gf::scene

@@ -1,0 +1,26 @@
+// Subcommands of the `graphfrac` executable and the exit codes they share.
+#pragma once
+
+namespace gf::cli {
+
+/// Exit codes of every subcommand (documented in `graphfrac --help`).
+enum ExitCode : int {
+  kExitOk = 0,       ///< Success.
+  kExitUsage = 1,    ///< Bad command line.
+  kExitScene = 2,    ///< The scene (or a mesh it names) could not be loaded or created.
+  kExitFlagged = 3,  ///< The simulation ran but some step raised a flag; results are written.
+  kExitOutput = 4,   ///< Results could not be written (directory, disk).
+};
+
+/// `graphfrac run SCENE [options]`; argv[0] is "run".
+int runCommand(int argc, char** argv);
+
+/// `graphfrac mesh SUBCOMMAND ...`; argv[0] is "mesh", argv[1] the subcommand:
+///   from-surface IN.obj OUT.msh [--max-volume V] [--quality Q] [--tetgen PATH] [--keep-temp]
+///     (tetrahedralises a closed OBJ surface with the tetgen program, run as a tool)
+///   info FILE
+///   convert IN OUT          (IN: .msh/.node/.ele; OUT: .msh/.obj/.ply)
+/// Returns kExitOk, kExitUsage, or kExitScene when an input cannot be read or meshed.
+int runMeshCommand(int argc, char** argv);
+
+}  // namespace gf::cli

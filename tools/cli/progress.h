@@ -1,0 +1,43 @@
+// Progress display of a long run: a bar redrawn in place on a terminal, occasional plain lines
+// when stderr is a file or a pipe (CI logs), nothing when quiet.
+#pragma once
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+
+namespace gf::cli {
+
+/// Reports frames done out of a total on a stream (stderr by default).
+class Progress {
+ public:
+  enum class Mode { Off, Bar, Lines };
+
+  /// Bar when `stream` is a terminal, Lines otherwise; Off when quiet.
+  static Mode detect(std::FILE* stream, bool quiet);
+
+  Progress(int total, Mode mode, std::FILE* stream = stderr);
+  /// `done` frames are complete; `note` is a short status shown after the counters.
+  void update(int done, const std::string& note);
+  /// Ends the bar line (or prints a last line) so that later output starts clean.
+  void finish();
+
+ private:
+  void draw(int done, const std::string& note, bool final);
+
+  using Clock = std::chrono::steady_clock;
+  int m_total;
+  Mode m_mode;
+  std::FILE* m_stream;
+  Clock::time_point m_start;
+  Clock::time_point m_lastDraw;
+  int m_lastPercentLine = -1;  // Lines mode: the last 10 % step printed
+  int m_lastDone = 0;
+  std::string m_lastNote;
+  bool m_drawn = false;
+};
+
+/// "1:05" or "12.3 s" style duration for humans.
+std::string formatDuration(double seconds);
+
+}  // namespace gf::cli

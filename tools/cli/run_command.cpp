@@ -1,0 +1,393 @@
+// `graphfrac run`: loads a scene, steps the world frame by frame, writes DIR/stats.csv (one row
+// per frame, frame 0 = the initial state) and optional boundary surfaces, shows progress and
+// ends with a summary. Results are written even when a step is flagged (exit code 3) so that a
+// failing run can be inspected.
+#include <graphfrac/jobs.h>
+#include <graphfrac/world.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <glm/geometric.hpp>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cli/commands.h"
+#include "cli/csv_writer.h"
+#include "cli/progress.h"
+#include "cli/surface_writer.h"
+#include "scene/scene.h"
+
+namespace gf::cli {
+namespace {
+
+constexpr const char* kRunUsage =
+    "usage: graphfrac run SCENE [options]\n"
+    "\n"
+    "Simulates a JSON scene (docs/scene_format.md) and writes DIR/stats.csv with one row per\n"
+    "frame (frame 0 is the initial state): frame,time,kinetic_energy,elastic_energy,\n"
+    "gravity_energy,total_energy,newton_iterations,linear_iterations,residual,flags,\n"
+    "ms_elements,ms_assembly,ms_solve,ms_total. Energies are summed over bodies [J];\n"
+    "total_energy also counts the collider penalty energy. Times are per frame [ms].\n"
+    "\n"
+    "options:\n"
+    "  --frames N         frames to run (default: the scene's \"frames\")\n"
+    "  --out DIR          output directory (default: out/<scene name>)\n"
+    "  --threads T        worker threads, 0 = all cores (default: the scene's \"threads\")\n"
+    "  --surface obj|ply  also write each body's boundary surface per frame to\n"
+    "                     DIR/surface/<body>_<frame:05>.<ext>\n"
+    "  --surface-every K  write surfaces every K-th frame only (default 1)\n"
+    "  --quiet            no progress and no summary (errors are still printed)\n"
+    "  -h, --help         this text\n"
+    "\n"
+    "exit codes: 0 ok, 1 usage, 2 scene error, 3 a step was flagged (results still written),\n"
+    "            4 results could not be written\n";
+
+struct RunOptions {
+  std::string scene;
+  std::optional<int> frames;
+  std::optional<int> threads;
+  std::string out;
+  std::optional<SurfaceFormat> surface;
+  int surfaceEvery = 1;
+  bool quiet = false;
+  bool help = false;
+};
+
+bool parseInt(std::string_view s, int lo, int hi, int& out) {
+  if (s.empty()) return false;
+  char* end = nullptr;
+  const std::string str(s);
+  const long v = std::strtol(str.c_str(), &end, 10);
+  if (end != str.c_str() + str.size() || v < lo || v > hi) return false;
+  out = static_cast<int>(v);
+  return true;
+}
+
+/// Parses argv (argv[0] = "run"); returns an error message or empty.
+std::string parseArgs(int argc, char** argv, RunOptions& o) {
+  for (int i = 1; i < argc; ++i) {
+    std::string arg = argv[i];
+    std::string value;
+    bool hasValue = false;
+    // Both "--frames 10" and "--frames=10".
+    if (arg.rfind("--", 0) == 0) {
+      const size_t eq = arg.find('=');
+      if (eq != std::string::npos) {
+        value = arg.substr(eq + 1);
+        arg = arg.substr(0, eq);
+        hasValue = true;
+      }
+    }
+    auto takeValue = [&]() -> bool {
+      if (hasValue) return true;
+      if (i + 1 >= argc) return false;
+      value = argv[++i];
+      return true;
+    };
+    if (arg == "-h" || arg == "--help") {
+      o.help = true;
+    } else if (arg == "--quiet" || arg == "-q") {
+      o.quiet = true;
+    } else if (arg == "--frames") {
+      int n = 0;
+      if (!takeValue() || !parseInt(value, 0, 100'000'000, n)) {
+        return "--frames needs an integer >= 0";
+      }
+      o.frames = n;
+    } else if (arg == "--threads") {
+      int n = 0;
+      if (!takeValue() || !parseInt(value, 0, 1024, n)) return "--threads needs an integer >= 0";
+      o.threads = n;
+    } else if (arg == "--out") {
+      if (!takeValue() || value.empty()) return "--out needs a directory";
+      o.out = value;
+    } else if (arg == "--surface") {
+      if (!takeValue() || (value != "obj" && value != "ply")) return "--surface needs obj or ply";
+      o.surface = value == "obj" ? SurfaceFormat::Obj : SurfaceFormat::Ply;
+    } else if (arg == "--surface-every") {
+      if (!takeValue() || !parseInt(value, 1, 100'000'000, o.surfaceEvery)) {
+        return "--surface-every needs an integer >= 1";
+      }
+    } else if (!arg.empty() && arg[0] == '-') {
+      return "unknown option '" + arg + "'";
+    } else if (o.scene.empty()) {
+      o.scene = arg;
+    } else {
+      return "more than one scene given ('" + o.scene + "' and '" + arg + "')";
+    }
+  }
+  if (!o.help && o.scene.empty()) return "no scene given";
+  return {};
+}
+
+/// What the run keeps per body besides the world's state.
+struct BodyRecord {
+  std::string name;
+  BodyId id;
+  std::vector<double> rest;  // initial positions, for displacements
+  size_t tets = 0;
+  SurfaceTopology surface;
+};
+
+struct FrameTotals {
+  BodyStats stats;  // summed over bodies (momenta unused)
+  double total() const {
+    return stats.kineticEnergy + stats.elasticEnergy + stats.gravityEnergy + stats.contactEnergy;
+  }
+};
+
+FrameTotals sumStats(const World& world, const std::vector<BodyRecord>& bodies) {
+  FrameTotals t;
+  for (const BodyRecord& b : bodies) {
+    const BodyStats s = world.stats(b.id);
+    t.stats.kineticEnergy += s.kineticEnergy;
+    t.stats.elasticEnergy += s.elasticEnergy;
+    t.stats.gravityEnergy += s.gravityEnergy;
+    t.stats.contactEnergy += s.contactEnergy;
+    t.stats.mass += s.mass;
+  }
+  return t;
+}
+
+const std::vector<std::string> kColumns = {
+    "frame",          "time",         "kinetic_energy",    "elastic_energy",
+    "gravity_energy", "total_energy", "newton_iterations", "linear_iterations",
+    "residual",       "flags",        "ms_elements",       "ms_assembly",
+    "ms_solve",       "ms_total"};
+
+/// Flag bits with the names the summary prints.
+struct FlagName {
+  StepFlag flag;
+  const char* name;
+};
+constexpr FlagName kFlagNames[] = {
+    {kStepNotConverged, "not converged"},
+    {kStepNanContained, "NaN contained"},
+    {kStepInvalidInput, "invalid input"},
+    {kStepLineSearchFailed, "line search failed"},
+};
+
+/// The step's message, or the names of its flags when it gave none.
+std::string describeStep(const StepStatus& st) {
+  if (!st.message.empty()) return st.message;
+  std::string s;
+  for (const FlagName& f : kFlagNames) {
+    if (st.has(f.flag)) s += (s.empty() ? "" : ", ") + std::string(f.name);
+  }
+  return s.empty() ? "flags " + std::to_string(st.flags) : s;
+}
+
+std::string surfacePath(const std::filesystem::path& dir, const std::string& body, int frame,
+                        SurfaceFormat format) {
+  char name[64];
+  std::snprintf(name, sizeof name, "_%05d.%s", frame, format == SurfaceFormat::Obj ? "obj" : "ply");
+  return (dir / (body + name)).string();
+}
+
+/// Prints the largest node displacement of each body (the tip of a cantilever, the lowest
+/// point of a dropped block).
+void printDisplacements(const World& world, const std::vector<BodyRecord>& bodies) {
+  for (const BodyRecord& b : bodies) {
+    const std::span<const double> x = world.positions(b.id);
+    double best = -1;
+    size_t node = 0;
+    glm::dvec3 d{0};
+    for (size_t i = 0; 3 * i + 2 < x.size() && 3 * i + 2 < b.rest.size(); ++i) {
+      const glm::dvec3 di(x[3 * i] - b.rest[3 * i], x[3 * i + 1] - b.rest[3 * i + 1],
+                          x[3 * i + 2] - b.rest[3 * i + 2]);
+      const double len = glm::length(di);
+      if (len > best) best = len, node = i, d = di;
+    }
+    std::printf("  %-16s max displacement %.6g m at node %zu (%.6g, %.6g, %.6g)\n", b.name.c_str(),
+                std::max(best, 0.0), node, d.x, d.y, d.z);
+  }
+}
+
+}  // namespace
+
+int runCommand(int argc, char** argv) {
+  RunOptions opt;
+  if (const std::string err = parseArgs(argc, argv, opt); !err.empty()) {
+    std::fprintf(stderr, "graphfrac run: %s\n(see graphfrac run --help)\n", err.c_str());
+    return kExitUsage;
+  }
+  if (opt.help) {
+    std::fputs(kRunUsage, stdout);
+    return kExitOk;
+  }
+
+  // ---- scene and world ----------------------------------------------------------------
+  Result<scene::Scene> loaded = scene::loadScene(opt.scene);
+  if (!loaded.ok()) {
+    std::fprintf(stderr, "%s\n", loaded.error().message.c_str());
+    return kExitScene;
+  }
+  scene::Scene sc = std::move(loaded).value();
+  const int frames = opt.frames.value_or(sc.frames);
+  const int threads = opt.threads.value_or(sc.threads);
+
+  std::unique_ptr<JobSystem> jobs;
+  if (threads != 1) jobs = std::make_unique<ThreadPoolJobSystem>(threads);
+  WorldDef wdef = sc.world;
+  wdef.jobs = jobs.get();
+  World world(wdef);
+
+  std::vector<BodyRecord> bodies;
+  for (size_t i = 0; i < sc.bodies.size(); ++i) {
+    scene::SceneBody& sb = sc.bodies[i];
+    BodyRecord rec;
+    rec.name = sb.name;
+    rec.rest = sb.def.mesh.positions;
+    rec.tets = sb.def.mesh.tetCount();
+    if (opt.surface) rec.surface = surfaceTopology(sb.def.mesh);
+    Result<BodyId> id = world.createBody(std::move(sb.def));
+    if (!id.ok()) {
+      std::fprintf(stderr, "%s: bodies[%zu] (\"%s\"): %s\n", opt.scene.c_str(), i, sb.name.c_str(),
+                   id.error().message.c_str());
+      return kExitScene;
+    }
+    rec.id = id.value();
+    bodies.push_back(std::move(rec));
+  }
+
+  // ---- output -------------------------------------------------------------------------
+  namespace fs = std::filesystem;
+  const fs::path outDir = opt.out.empty() ? fs::path("out") / sc.name : fs::path(opt.out);
+  const fs::path surfDir = outDir / "surface";
+  std::error_code ec;
+  fs::create_directories(opt.surface ? surfDir : outDir, ec);
+  if (ec) {
+    std::fprintf(stderr, "graphfrac run: cannot create %s: %s\n",
+                 (opt.surface ? surfDir : outDir).string().c_str(), ec.message().c_str());
+    return kExitOutput;
+  }
+  CsvWriter csv;
+  if (Result<void> r = csv.open((outDir / "stats.csv").string(), kColumns); !r.ok()) {
+    std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
+    return kExitOutput;
+  }
+  auto writeSurfaces = [&](int frame) -> bool {
+    if (!opt.surface || frame % opt.surfaceEvery != 0) return true;
+    for (const BodyRecord& b : bodies) {
+      const std::string path = surfacePath(surfDir, b.name, frame, *opt.surface);
+      if (Result<void> r = writeSurfaceFrame(path, b.surface, world.positions(b.id), *opt.surface);
+          !r.ok()) {
+        std::fprintf(stderr, "\ngraphfrac run: %s\n", r.error().message.c_str());
+        return false;
+      }
+    }
+    return true;
+  };
+
+  if (!opt.quiet) {
+    size_t nodes = 0, tets = 0;
+    for (const BodyRecord& b : bodies) nodes += b.rest.size() / 3, tets += b.tets;
+    const int workers = jobs ? jobs->threadCount() : 1;
+    std::printf(
+        "graphfrac run: %s: %zu bod%s, %zu nodes, %zu tets; %d frames of %.6g s on %d "
+        "thread%s\n",
+        sc.name.c_str(), bodies.size(), bodies.size() == 1 ? "y" : "ies", nodes, tets, frames,
+        sc.dt, workers, workers == 1 ? "" : "s");
+    std::printf("  output: %s\n", outDir.string().c_str());
+    std::fflush(stdout);
+  }
+
+  // ---- frames -------------------------------------------------------------------------
+  const FrameTotals initial = sumStats(world, bodies);
+  bool outputOk =
+      csv.row({int64_t{0}, world.time(), initial.stats.kineticEnergy, initial.stats.elasticEnergy,
+               initial.stats.gravityEnergy, initial.total(), int64_t{0}, int64_t{0}, 0.0,
+               int64_t{0}, 0.0, 0.0, 0.0, 0.0})
+          .ok() &&
+      writeSurfaces(0);
+
+  Progress progress(frames, Progress::detect(stderr, opt.quiet));
+  int flaggedFrames = 0;
+  int flagCounts[std::size(kFlagNames)] = {};
+  std::string firstFlagMessage;
+  int firstFlagFrame = 0;
+  long long newtonTotal = 0, linearTotal = 0;
+  double msTotal = 0;
+  const auto wallStart = std::chrono::steady_clock::now();
+
+  for (int frame = 1; frame <= frames && outputOk; ++frame) {
+    const StepStatus st = world.step(sc.dt);
+    const StepTimings& tm = world.timings();
+    const FrameTotals t = sumStats(world, bodies);
+    newtonTotal += st.newtonIterations;
+    linearTotal += st.linearIterations;
+    msTotal += tm.totalMs;
+    if (!st.ok()) {
+      if (flaggedFrames++ == 0) firstFlagMessage = describeStep(st), firstFlagFrame = frame;
+      for (size_t k = 0; k < std::size(kFlagNames); ++k) {
+        if (st.has(kFlagNames[k].flag)) ++flagCounts[k];
+      }
+    }
+    Result<void> r =
+        csv.row({int64_t{frame}, world.time(), t.stats.kineticEnergy, t.stats.elasticEnergy,
+                 t.stats.gravityEnergy, t.total(), int64_t{st.newtonIterations},
+                 int64_t{st.linearIterations}, st.residual, int64_t{st.flags}, tm.elementsMs,
+                 tm.assemblyMs, tm.solveMs, tm.totalMs});
+    if (!r.ok()) {
+      std::fprintf(stderr, "\ngraphfrac run: %s\n", r.error().message.c_str());
+      outputOk = false;
+      break;
+    }
+    outputOk = writeSurfaces(frame);
+    char note[96];
+    std::snprintf(note, sizeof note, "%.1f ms/frame  E=%.4g J%s", msTotal / frame, t.total(),
+                  flaggedFrames > 0 ? "  (flagged steps)" : "");
+    progress.update(frame, note);
+  }
+  progress.finish();
+  const double wall =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wallStart).count();
+  if (Result<void> r = csv.close(); !r.ok()) {
+    std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
+    outputOk = false;
+  }
+  if (!outputOk) return kExitOutput;
+
+  // ---- summary ------------------------------------------------------------------------
+  if (!opt.quiet) {
+    const FrameTotals t = sumStats(world, bodies);
+    const int n = std::max(frames, 1);
+    std::printf(
+        "done: %d frames, simulated %.6g s in %s wall (%.2f ms/frame, %.2f ms/frame in "
+        "the solver step)\n",
+        frames, world.time(), formatDuration(wall).c_str(), 1e3 * wall / n, msTotal / n);
+    std::printf("  iterations: %.2f Newton, %.1f linear per frame\n",
+                static_cast<double>(newtonTotal) / n, static_cast<double>(linearTotal) / n);
+    std::printf(
+        "  final energy [J]: kinetic %.6g, elastic %.6g, gravity %.6g, contact %.6g, "
+        "total %.6g (initial %.6g)\n",
+        t.stats.kineticEnergy, t.stats.elasticEnergy, t.stats.gravityEnergy, t.stats.contactEnergy,
+        t.total(), initial.total());
+    printDisplacements(world, bodies);
+    if (flaggedFrames > 0) {
+      std::printf("  flagged steps: %d of %d (", flaggedFrames, frames);
+      bool first = true;
+      for (size_t k = 0; k < std::size(kFlagNames); ++k) {
+        if (flagCounts[k] == 0) continue;
+        std::printf("%s%s: %d", first ? "" : ", ", kFlagNames[k].name, flagCounts[k]);
+        first = false;
+      }
+      std::printf(")\n  first at frame %d: %s\n", firstFlagFrame, firstFlagMessage.c_str());
+    } else {
+      std::printf("  all steps ok\n");
+    }
+    std::printf("  wrote %s\n", (outDir / "stats.csv").string().c_str());
+  } else if (flaggedFrames > 0) {
+    std::fprintf(stderr, "graphfrac run: %d of %d steps flagged; first at frame %d: %s\n",
+                 flaggedFrames, frames, firstFlagFrame, firstFlagMessage.c_str());
+  }
+  return flaggedFrames > 0 ? kExitFlagged : kExitOk;
+}
+
+}  // namespace gf::cli

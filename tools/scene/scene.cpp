@@ -1,0 +1,570 @@
+// Scene loader. Design: the JSON is parsed once (comments allowed, duplicate keys rejected) and
+// then walked by small readers that each know the JSON path they stand on, so every error can
+// say `file: bodies[0].material.E: reason`. Objects are read through ObjReader, which remembers
+// the keys it consumed; a key nobody consumed is a typo and is reported with the closest valid
+// key. Inside this file errors travel as a SceneError exception (the readers are deeply nested
+// and a Result at every level would bury the format's logic); loadScene/parseScene catch it and
+// everything else, so nothing crosses the API.
+#include "scene/scene.h"
+
+#include <graphfrac/mesh.h>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+#include <limits>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <set>
+#include <sstream>
+#include <string_view>
+
+#include "scene/json_reader.h"
+
+namespace gf::scene {
+namespace {
+
+using namespace detail;  // NOLINT: the readers are this file's vocabulary
+
+// Generous caps that keep a typo (cells: 10000) from exhausting memory.
+constexpr long long kMaxCells = 4'000'000;
+constexpr int kMaxCellsPerAxis = 2000;
+constexpr int kMaxThreads = 1024;
+constexpr int kMaxSubsteps = 10000;
+
+// ---- scene pieces -------------------------------------------------------------------------
+
+/// Resolves a mesh path against the scene's directory.
+std::string resolvePath(const std::string& file, const std::string& baseDir) {
+  namespace fs = std::filesystem;
+  fs::path p(file);
+  if (p.is_relative() && !baseDir.empty()) p = fs::path(baseDir) / p;
+  return p.lexically_normal().string();
+}
+
+/// Cells along each axis: an array of counts, or one count for the shortest side.
+template <size_t N>
+std::array<int, N> readCells(const json& v, const std::string& path,
+                             const std::array<double, N>& size) {
+  std::array<int, N> cells{};
+  if (v.is_array()) {
+    readArray(v, path, N, "integers");
+    for (size_t i = 0; i < N; ++i)
+      cells[i] = readInt(v[i], indexPath(path, i), 1, kMaxCellsPerAxis);
+  } else if (v.is_number()) {
+    const int n = readInt(v, path, 1, kMaxCellsPerAxis);
+    const double cell = *std::min_element(size.begin(), size.end()) / n;
+    for (size_t i = 0; i < N; ++i) {
+      const double c = std::max(1.0, std::round(size[i] / cell));
+      if (c > kMaxCellsPerAxis) {
+        throw SceneError{path, "gives " + fmt(c) + " cells along axis " + std::to_string(i) +
+                                   " (at most " + std::to_string(kMaxCellsPerAxis) + ")"};
+      }
+      cells[i] = static_cast<int>(c);
+    }
+  } else {
+    throw SceneError{path, "expected an integer or an array of " + std::to_string(N) +
+                               " integers, got " + describe(v)};
+  }
+  long long total = 1;
+  for (int c : cells) total *= c;
+  if (total > kMaxCells) {
+    throw SceneError{path, std::to_string(total) + " cells is too many (at most " +
+                               std::to_string(kMaxCells) + ")"};
+  }
+  return cells;
+}
+
+TetMesh readGenerator(ObjReader& o) {
+  const std::string kind =
+      readChoice(o.require("generator"), o.at("generator"), {"box", "cylinder", "sphere", "slab"});
+  if (kind == "box") {
+    o.keys({"generator", "size", "cells", "notch"});
+    const glm::dvec3 s = readPositiveVec3(o.require("size"), o.at("size"));
+    const auto cells = readCells<3>(o.require("cells"), o.at("cells"), {s.x, s.y, s.z});
+    gen::BoxOptions opt;
+    if (const json* n = o.find("notch")) {
+      ObjReader no(*n, o.at("notch"));
+      no.keys({"depth", "angle_deg", "x"});
+      opt.notchDepth = readPositive(no.require("depth"), no.at("depth"));
+      // The generator keeps at least 5 % of the height under the notch's tip.
+      if (opt.notchDepth > 0.95 * s.y) {
+        throw SceneError{no.at("depth"), "expected at most 0.95 * the box height (" +
+                                             fmt(0.95 * s.y) + "), got " + fmt(opt.notchDepth)};
+      }
+      if (const json* a = no.find("angle_deg")) {
+        opt.notchAngleDeg = readInRange(*a, no.at("angle_deg"), 1, 179, false, false);
+      }
+      opt.notchX = s.x / 2;
+      if (const json* x = no.find("x")) opt.notchX = readNumber(*x, no.at("x"));
+      const double halfWidth =
+          opt.notchDepth * std::tan(0.5 * opt.notchAngleDeg * std::numbers::pi / 180);
+      if (opt.notchX - halfWidth < 0 || opt.notchX + halfWidth > s.x) {
+        throw SceneError{no.at("x"), "the notch, " + fmt(2 * halfWidth) +
+                                         " wide at the top, at x = " + fmt(opt.notchX) +
+                                         " does not fit in the box length " + fmt(s.x)};
+      }
+      // The generator carves the V by moving the columns nearest its tip and shoulders onto
+      // them; a V narrower than two cells would lose its tip and silently vanish.
+      const double cellX = s.x / cells[0];
+      if (2 * halfWidth < 2 * cellX) {
+        throw SceneError{no.path(), "the notch is " + fmt(2 * halfWidth) +
+                                        " wide at the top, less than two cells (" + fmt(2 * cellX) +
+                                        "): use more cells along x or a " + "wider angle"};
+      }
+      no.finish();
+    }
+    return gen::box(s.x, s.y, s.z, cells[0], cells[1], cells[2], opt);
+  }
+  if (kind == "cylinder") {
+    o.keys({"generator", "radius", "height", "segments", "layers", "rings"});
+    const double r = readPositive(o.require("radius"), o.at("radius"));
+    const double h = readPositive(o.require("height"), o.at("height"));
+    int segments = 16, rings = 2;
+    if (const json* v = o.find("segments")) segments = readInt(*v, o.at("segments"), 3, 1000);
+    if (const json* v = o.find("rings")) rings = readInt(*v, o.at("rings"), 1, 1000);
+    // Default layers give roughly cubic cells at the rim.
+    const double rim = 2 * std::numbers::pi * r / segments;
+    int layers = static_cast<int>(std::clamp(std::round(h / rim), 1.0, 1000.0));
+    if (const json* v = o.find("layers")) layers = readInt(*v, o.at("layers"), 1, 10000);
+    if (static_cast<long long>(segments) * layers * rings > kMaxCells) {
+      throw SceneError{o.path(), "segments * layers * rings is too many cells (at most " +
+                                     std::to_string(kMaxCells) + ")"};
+    }
+    return gen::cylinder(r, h, segments, layers, rings);
+  }
+  if (kind == "sphere") {
+    o.keys({"generator", "radius", "cells"});
+    const double r = readPositive(o.require("radius"), o.at("radius"));
+    int n = 8;
+    if (const json* v = o.find("cells")) n = readInt(*v, o.at("cells"), 2, 150);
+    return gen::sphere(r, n);
+  }
+  // slab: thin in y, size in x and z.
+  o.keys({"generator", "size", "thickness", "cells"});
+  const json& sizeJ = readArray(o.require("size"), o.at("size"), 2, "positive numbers");
+  const double sx = readPositive(sizeJ[0], indexPath(o.at("size"), 0));
+  const double sz = readPositive(sizeJ[1], indexPath(o.at("size"), 1));
+  const double t = readPositive(o.require("thickness"), o.at("thickness"));
+  const auto cells = readCells<2>(o.require("cells"), o.at("cells"), {sx, sz});
+  if (static_cast<long long>(cells[0]) * cells[1] * std::max(1.0, std::round(t / (sx / cells[0]))) >
+      kMaxCells) {
+    throw SceneError{o.at("cells"), "too many cells (at most " + std::to_string(kMaxCells) + ")"};
+  }
+  return gen::slab(sx, sz, t, cells[0], cells[1]);
+}
+
+TetMesh readMesh(const json& v, const std::string& path, const std::string& baseDir) {
+  ObjReader o(v, path);
+  TetMesh mesh;
+  const bool hasFile = o.has("file"), hasGen = o.has("generator");
+  if (!hasFile && !hasGen) {
+    // Catches a misspelt "file"/"generator" as the typo it is.
+    o.keys({"file", "generator", "size", "cells", "notch", "radius", "height", "segments", "layers",
+            "rings", "thickness"});
+  }
+  if (hasFile == hasGen) {
+    throw SceneError{path, "needs exactly one of \"file\" or \"generator\""};
+  }
+  if (hasFile) {
+    o.keys({"file"});
+    const std::string file = readString(o.require("file"), o.at("file"));
+    const std::string resolved = resolvePath(file, baseDir);
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(resolved, ec)) {
+      throw SceneError{o.at("file"), "no such file \"" + resolved + "\""};
+    }
+    Result<TetMesh> r = TetMesh::fromFile(resolved);
+    if (!r.ok()) throw SceneError{o.at("file"), r.error().message};
+    mesh = std::move(r).value();
+  } else {
+    mesh = readGenerator(o);
+    if (mesh.tetCount() == 0) throw SceneError{path, "the generator produced an empty mesh"};
+  }
+  o.finish();
+  return mesh;
+}
+
+/// Nodes inside an axis-aligned box (inclusive, with a tolerance relative to the mesh size so
+/// that a face at exactly x = 0 is caught despite rounding in the generator).
+std::vector<int32_t> selectRegion(const json& v, const std::string& path, const TetMesh& mesh) {
+  ObjReader o(v, path);
+  o.keys({"min", "max"});
+  const glm::dvec3 lo = readVec3(o.require("min"), o.at("min"));
+  const glm::dvec3 hi = readVec3(o.require("max"), o.at("max"));
+  o.finish();
+  for (int i = 0; i < 3; ++i) {
+    if (lo[i] > hi[i]) {
+      throw SceneError{path, "min[" + std::to_string(i) + "] = " + fmt(lo[i]) +
+                                 " is greater than max[" + std::to_string(i) + "] = " + fmt(hi[i])};
+    }
+  }
+  glm::dvec3 bmin(std::numeric_limits<double>::max()), bmax(-std::numeric_limits<double>::max());
+  const size_t n = mesh.nodeCount();
+  for (size_t i = 0; i < n; ++i) {
+    const glm::dvec3 p(mesh.positions[3 * i], mesh.positions[3 * i + 1], mesh.positions[3 * i + 2]);
+    bmin = glm::min(bmin, p);
+    bmax = glm::max(bmax, p);
+  }
+  const glm::dvec3 ext = bmax - bmin;
+  const double tol = 1e-9 * std::max({ext.x, ext.y, ext.z, 1e-30});
+  std::vector<int32_t> nodes;
+  for (size_t i = 0; i < n; ++i) {
+    bool inside = true;
+    for (int k = 0; k < 3; ++k) {
+      const double x = mesh.positions[3 * i + k];
+      inside = inside && x >= lo[k] - tol && x <= hi[k] + tol;
+    }
+    if (inside) nodes.push_back(static_cast<int32_t>(i));
+  }
+  if (nodes.empty()) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "selects no node (mesh bounds [%g, %g, %g] to [%g, %g, %g])",
+                  bmin.x, bmin.y, bmin.z, bmax.x, bmax.y, bmax.z);
+    throw SceneError{path, buf};
+  }
+  return nodes;
+}
+
+std::vector<int32_t> readNodeList(const json& v, const std::string& path, const TetMesh& mesh) {
+  readArray(v, path, 0, "node indices");
+  if (v.empty()) throw SceneError{path, "expected at least one node index, got []"};
+  std::vector<int32_t> nodes;
+  const long long count = static_cast<long long>(mesh.nodeCount());
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string p = indexPath(path, i);
+    if (!v[i].is_number_integer() || v[i].get<long long>() < 0 || v[i].get<long long>() >= count) {
+      throw SceneError{p, "expected a node index in [0, " + std::to_string(count - 1) +
+                              "] (the mesh has " + std::to_string(count) + " nodes), got " +
+                              describe(v[i])};
+    }
+    nodes.push_back(static_cast<int32_t>(v[i].get<long long>()));
+  }
+  return nodes;
+}
+
+/// A node set given by exactly one of "region" or "nodes" (or "node" when allowed).
+std::vector<int32_t> readSelection(ObjReader& o, const TetMesh& mesh) {
+  const int given = int(o.has("region")) + int(o.has("nodes"));
+  if (given != 1) throw SceneError{o.path(), "needs exactly one of \"region\" or \"nodes\""};
+  if (const json* r = o.find("region")) return selectRegion(*r, o.at("region"), mesh);
+  return readNodeList(o.require("nodes"), o.at("nodes"), mesh);
+}
+
+Material readMaterial(const json& v, const std::string& path) {
+  ObjReader o(v, path);
+  o.keys({"model", "E", "nu", "rho", "fibre", "damping"});
+  Material m;
+  if (const json* model = o.find("model")) {
+    const std::string s = readChoice(*model, o.at("model"),
+                                     {"stable_neo_hookean", "neo_hookean", "stvk", "corotated"});
+    m.model = s == "stable_neo_hookean" ? MaterialModel::StableNeoHookean
+              : s == "neo_hookean"      ? MaterialModel::NeoHookean
+              : s == "stvk"             ? MaterialModel::StVK
+                                        : MaterialModel::Corotated;
+  }
+  m.youngsModulus = readPositive(o.require("E"), o.at("E"));
+  m.poissonRatio = readInRange(o.require("nu"), o.at("nu"), -1, 0.5, true, true);
+  m.density = readPositive(o.require("rho"), o.at("rho"));
+  if (const json* f = o.find("fibre")) {
+    ObjReader fo(*f, o.at("fibre"));
+    fo.keys({"stiffness", "direction"});
+    m.fibreStiffness = readNonNegative(fo.require("stiffness"), fo.at("stiffness"));
+    if (const json* d = fo.find("direction")) {
+      const glm::dvec3 dir = readVec3(*d, fo.at("direction"));
+      const double len = glm::length(dir);
+      if (!(len > 0)) throw SceneError{fo.at("direction"), "expected a non-zero vector"};
+      m.fibreDirection = glm::vec3(dir / len);
+    }
+    fo.finish();
+  }
+  if (const json* d = o.find("damping")) {
+    ObjReader dobj(*d, o.at("damping"));
+    dobj.keys({"mass", "stiffness"});
+    if (const json* r1 = dobj.find("mass")) m.massDamping = readNonNegative(*r1, dobj.at("mass"));
+    if (const json* r2 = dobj.find("stiffness")) {
+      m.stiffnessDamping = readNonNegative(*r2, dobj.at("stiffness"));
+    }
+    dobj.finish();
+  }
+  o.finish();
+  return m;
+}
+
+SolverSettings readSolver(const json& v, const std::string& path) {
+  ObjReader o(v, path);
+  o.keys({"newton_iterations", "newton_tolerance", "line_search", "linear", "max_linear_iterations",
+          "linear_tolerance"});
+  SolverSettings s;
+  if (const json* x = o.find("newton_iterations")) {
+    s.newtonIterations = readInt(*x, o.at("newton_iterations"), 1, 1000);
+  }
+  if (const json* x = o.find("newton_tolerance")) {
+    s.newtonTolerance = readPositive(*x, o.at("newton_tolerance"));
+  }
+  if (const json* x = o.find("line_search")) s.lineSearch = readBool(*x, o.at("line_search"));
+  if (const json* x = o.find("linear")) {
+    s.linearSolver = readChoice(*x, o.at("linear"), {"pcg", "direct"}) == "pcg"
+                         ? LinearSolverKind::PCG
+                         : LinearSolverKind::Direct;
+  }
+  if (const json* x = o.find("max_linear_iterations")) {
+    s.maxLinearIterations = readInt(*x, o.at("max_linear_iterations"), 1, 1'000'000);
+  }
+  if (const json* x = o.find("linear_tolerance")) {
+    s.linearTolerance = readPositive(*x, o.at("linear_tolerance"));
+  }
+  o.finish();
+  return s;
+}
+
+/// Records which entry holds each node so that contradictory grips are caught here, with
+/// both paths, rather than as a bare node index from createBody.
+class HeldNodes {
+ public:
+  /// Adds the nodes with a velocity; a node already held at the same velocity is skipped.
+  std::vector<int32_t> add(const std::vector<int32_t>& nodes, glm::vec3 vel,
+                           const std::string& path) {
+    std::vector<int32_t> fresh;
+    for (int32_t n : nodes) {
+      auto [it, inserted] = m_held.try_emplace(n, Entry{vel, path});
+      if (inserted) {
+        fresh.push_back(n);
+      } else if (it->second.velocity != vel) {
+        throw SceneError{path, "node " + std::to_string(n) + " is also held by " + it->second.path +
+                                   " with a different velocity"};
+      }
+    }
+    return fresh;
+  }
+
+ private:
+  struct Entry {
+    glm::vec3 velocity;
+    std::string path;
+  };
+  std::map<int32_t, Entry> m_held;
+};
+
+void readBoundaryConditions(ObjReader& body, BodyDef& def) {
+  HeldNodes held;
+  if (const json* pins = body.find("pins")) {
+    const std::string path = body.at("pins");
+    readArray(*pins, path, 0, "pins");
+    for (size_t i = 0; i < pins->size(); ++i) {
+      ObjReader o((*pins)[i], indexPath(path, i));
+      o.keys({"region", "nodes"});
+      Grip g;
+      g.nodes = held.add(readSelection(o, def.mesh), g.velocity, o.path());
+      o.finish();
+      if (!g.nodes.empty()) def.grips.push_back(std::move(g));
+    }
+  }
+  if (const json* grips = body.find("grips")) {
+    const std::string path = body.at("grips");
+    readArray(*grips, path, 0, "grips");
+    for (size_t i = 0; i < grips->size(); ++i) {
+      ObjReader o((*grips)[i], indexPath(path, i));
+      o.keys({"region", "nodes", "velocity"});
+      Grip g;
+      g.velocity = glm::vec3(readVec3(o.require("velocity"), o.at("velocity")));
+      g.nodes = held.add(readSelection(o, def.mesh), g.velocity, o.path());
+      o.finish();
+      if (!g.nodes.empty()) def.grips.push_back(std::move(g));
+    }
+  }
+  if (const json* forces = body.find("forces")) {
+    const std::string path = body.at("forces");
+    readArray(*forces, path, 0, "forces");
+    for (size_t i = 0; i < forces->size(); ++i) {
+      ObjReader o((*forces)[i], indexPath(path, i));
+      if (o.has("node")) {
+        o.keys({"node", "force"});
+      } else {
+        o.keys({"region", "nodes", "force", "distribute"});
+      }
+      const glm::dvec3 f = readVec3(o.require("force"), o.at("force"));
+      std::vector<int32_t> nodes;
+      bool distribute = true;
+      if (o.has("node")) {
+        if (o.has("region") || o.has("nodes")) {
+          throw SceneError{o.path(), "needs exactly one of \"node\", \"nodes\" or \"region\""};
+        }
+        json one = json::array({*o.find("node")});
+        try {
+          nodes = readNodeList(one, o.at("node"), def.mesh);
+        } catch (SceneError& e) {
+          e.path = o.at("node");  // not "node[0]": the file has a single number there
+          throw;
+        }
+      } else {
+        nodes = readSelection(o, def.mesh);
+        if (const json* d = o.find("distribute")) distribute = readBool(*d, o.at("distribute"));
+      }
+      o.finish();
+      // "distribute": the force is the total, shared equally; otherwise each node gets it.
+      const glm::dvec3 per = distribute ? f / static_cast<double>(nodes.size()) : f;
+      for (int32_t n : nodes) def.forces.push_back(PointForce{n, glm::vec3(per)});
+    }
+  }
+}
+
+bool validName(const std::string& s) {
+  if (s.empty() || s.size() > 64 || s[0] == '.') return false;
+  return std::all_of(s.begin(), s.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
+  });
+}
+
+SceneBody readBody(const json& v, const std::string& path, size_t index,
+                   const std::string& baseDir) {
+  ObjReader o(v, path);
+  o.keys({"name", "mesh", "translate", "material", "solver", "pins", "grips", "forces",
+          "initial_velocity"});
+  SceneBody body;
+  body.name = "body" + std::to_string(index);
+  if (const json* n = o.find("name")) {
+    body.name = readString(*n, o.at("name"));
+    if (!validName(body.name)) {
+      throw SceneError{o.at("name"),
+                       "expected 1-64 letters, digits, '_', '-' or '.' (it names output files), "
+                       "got " +
+                           describe(*n)};
+    }
+  }
+  body.def.mesh = readMesh(o.require("mesh"), o.at("mesh"), baseDir);
+  if (const json* t = o.find("translate")) {
+    const glm::dvec3 d = readVec3(*t, o.at("translate"));
+    for (size_t i = 0; i < body.def.mesh.nodeCount(); ++i) {
+      for (int k = 0; k < 3; ++k) body.def.mesh.positions[3 * i + k] += d[k];
+    }
+  }
+  body.def.material = readMaterial(o.require("material"), o.at("material"));
+  if (const json* s = o.find("solver")) body.def.solver = readSolver(*s, o.at("solver"));
+  readBoundaryConditions(o, body.def);
+  if (const json* iv = o.find("initial_velocity")) {
+    body.def.initialVelocity = glm::vec3(readVec3(*iv, o.at("initial_velocity")));
+  }
+  o.finish();
+  return body;
+}
+
+Collider readCollider(const json& v, const std::string& path) {
+  ObjReader o(v, path);
+  Collider c;
+  const std::string type = readChoice(o.require("type"), o.at("type"), {"plane", "box", "sphere"});
+  if (type == "plane") {
+    o.keys({"type", "point", "normal", "stiffness"});
+    c.kind = Collider::Kind::Plane;
+    if (const json* p = o.find("point")) c.point = glm::vec3(readVec3(*p, o.at("point")));
+    if (const json* n = o.find("normal")) {
+      const glm::dvec3 d = readVec3(*n, o.at("normal"));
+      const double len = glm::length(d);
+      if (!(len > 0)) throw SceneError{o.at("normal"), "expected a non-zero vector"};
+      c.normal = glm::vec3(d / len);
+    }
+  } else if (type == "box") {
+    o.keys({"type", "center", "half_extents", "stiffness"});
+    c.kind = Collider::Kind::Box;
+    c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
+    c.halfExtents = glm::vec3(readPositiveVec3(o.require("half_extents"), o.at("half_extents")));
+  } else {
+    o.keys({"type", "center", "radius", "stiffness"});
+    c.kind = Collider::Kind::Sphere;
+    c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
+    c.radius = static_cast<float>(readPositive(o.require("radius"), o.at("radius")));
+  }
+  if (const json* k = o.find("stiffness")) c.stiffness = readNonNegative(*k, o.at("stiffness"));
+  o.finish();
+  return c;
+}
+
+Scene readScene(const json& root, const std::string& source, const std::string& baseDir) {
+  ObjReader o(root, "");
+  o.keys({"name", "description", "dt", "frames", "substeps", "threads", "gravity", "backend",
+          "colliders", "bodies"});
+  Scene scene;
+  scene.source = source;
+  scene.name = std::filesystem::path(source).stem().string();
+  if (const json* v = o.find("name")) scene.name = readString(*v, o.at("name"));
+  if (const json* v = o.find("description"))
+    scene.description = readString(*v, o.at("description"));
+  if (const json* v = o.find("dt")) scene.dt = readPositive(*v, o.at("dt"));
+  if (const json* v = o.find("frames")) scene.frames = readInt(*v, o.at("frames"), 1, 100'000'000);
+  if (const json* v = o.find("substeps")) {
+    scene.world.substeps = readInt(*v, o.at("substeps"), 1, kMaxSubsteps);
+  }
+  if (const json* v = o.find("threads"))
+    scene.threads = readInt(*v, o.at("threads"), 0, kMaxThreads);
+  if (const json* v = o.find("gravity"))
+    scene.world.gravity = glm::vec3(readVec3(*v, o.at("gravity")));
+  if (const json* v = o.find("backend")) {
+    const std::string b = readChoice(*v, o.at("backend"), {"auto", "cpu", "cuda"});
+    scene.world.backend = b == "cpu" ? Backend::Cpu : b == "cuda" ? Backend::Cuda : Backend::Auto;
+  }
+  if (const json* v = o.find("colliders")) {
+    readArray(*v, o.at("colliders"), 0, "colliders");
+    for (size_t i = 0; i < v->size(); ++i) {
+      scene.world.colliders.push_back(readCollider((*v)[i], indexPath(o.at("colliders"), i)));
+    }
+  }
+  const json& bodies = readArray(o.require("bodies"), o.at("bodies"), 0, "bodies");
+  if (bodies.empty()) throw SceneError{"bodies", "expected at least one body, got []"};
+  for (size_t i = 0; i < bodies.size(); ++i) {
+    const std::string path = indexPath("bodies", i);
+    SceneBody b = readBody(bodies[i], path, i, baseDir);
+    for (size_t j = 0; j < scene.bodies.size(); ++j) {
+      if (scene.bodies[j].name == b.name) {
+        throw SceneError{path + ".name", "duplicate body name \"" + b.name + "\" (also bodies[" +
+                                             std::to_string(j) + "])"};
+      }
+    }
+    scene.bodies.push_back(std::move(b));
+  }
+  o.finish();
+  return scene;
+}
+
+}  // namespace
+
+Result<Scene> parseScene(const std::string& text, const std::string& source,
+                         const std::string& baseDir) {
+  try {
+    json root;
+    try {
+      root = json::parse(text, DuplicateKeyCheck{}, /*allow_exceptions=*/true,
+                         /*ignore_comments=*/true);
+    } catch (const json::parse_error& e) {
+      return fail(source, ":", syntaxError(e, text));
+    }
+    return readScene(root, source, baseDir);
+  } catch (const SceneError& e) {
+    return fail(source, ": ", e.path.empty() ? "(top level)" : e.path, ": ", e.reason);
+  } catch (const std::bad_alloc&) {
+    return fail(source, ": out of memory while building the scene");
+  } catch (const std::exception& e) {
+    return fail(source, ": ", e.what());
+  } catch (...) {
+    return fail(source, ": unexpected error while reading the scene");
+  }
+}
+
+Result<Scene> loadScene(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return fail(path, ": cannot open the scene file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) return fail(path, ": read error");
+  const std::string dir = std::filesystem::path(path).parent_path().string();
+  return parseScene(ss.str(), path, dir);
+}
+
+}  // namespace gf::scene
