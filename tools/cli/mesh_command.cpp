@@ -1,8 +1,6 @@
 // `graphfrac mesh`: from-surface runs the tetgen program as a subprocess (it is AGPL and never
 // linked), on a .smesh written from the OBJ, and reads its .node/.ele back through the
 // runtime's validated reader. info and convert are thin wrappers over gf::TetMesh.
-#include "cli/commands.h"
-
 #include <fcntl.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -24,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/commands.h"
 #include "graphfrac/mesh.h"
 
 extern char** environ;
