@@ -1,0 +1,17 @@
+# Optional parts are ON, OFF or AUTO (the default: on if found). gf_optional() resolves one
+# and says what it found; ON with the dependency missing is a configure error, not a surprise.
+function(gf_optional option found what)
+  string(TOUPPER "${${option}}" mode)
+  if(mode STREQUAL "OFF")
+    set(${option}_ENABLED OFF PARENT_SCOPE)
+    message(STATUS "graphfrac: ${what}: off (${option}=OFF)")
+  elseif(found)
+    set(${option}_ENABLED ON PARENT_SCOPE)
+    message(STATUS "graphfrac: ${what}: found, building it")
+  elseif(mode STREQUAL "ON")
+    message(FATAL_ERROR "graphfrac: ${option}=ON but ${what} was not found")
+  else()
+    set(${option}_ENABLED OFF PARENT_SCOPE)
+    message(STATUS "graphfrac: ${what}: not found, skipped")
+  endif()
+endfunction()
