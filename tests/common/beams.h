@@ -35,10 +35,9 @@ inline BeamResult cantilever(int nx, int nh) {
   World world(WorldDef{glm::vec3(0, -g, 0), Backend::Cpu, nullptr, 1, {}});
   auto id = world.createBody(def);
   EXPECT_TRUE(id.ok());
-  for (int s = 0; s < 2; ++s) {
-    const StepStatus st = world.step(1e3);
-    EXPECT_TRUE(st.ok()) << st.flags << " " << st.message << " newton " << st.newtonIterations;
-  }
+  // One step from rest: with this dt the step is the static solve (inertia weight < 1e-9).
+  const StepStatus st = world.step(1e3);
+  EXPECT_TRUE(st.ok()) << st.flags << " " << st.message;
   const auto tipNodes = selectNodes(rest, [&](double x, double, double) { return x > L - 1e-9; });
   BeamResult r;
   r.tip = -meanDisplacement(world, id.value(), rest, tipNodes, 1);
