@@ -41,16 +41,13 @@ GF_HD Mat<4, 3> shapeGradients(const Mat3& DmInv) {
   return b;
 }
 
-/// Element elastic energy V psi(F). Fills grad = dE/dx (12, node-major; the internal force is
-/// -grad) and, when hessian is non-null, d2E/dx2 = V D^T dPdF D with D = dvec(F)/dx,
-/// projected to PSD when projectPsd.
-GF_HD double elementForces(const MaterialCoeffs& c, const Vec3 x[4], const Mat3& DmInv,
-                           double volume, double grad[12], Mat12* hessian, bool projectPsd) {
-  const Mat3 F = deformationGradient(x, DmInv);
-  const Mat<4, 3> B = shapeGradients(DmInv);
-  Mat3 P;
-  Mat9 dPdF;
-  const double psi = evaluateMaterial(c, F, P, hessian != nullptr ? &dPdF : nullptr, projectPsd);
+namespace detail {
+
+/// grad = V D^T vec(P) and, when hessian is non-null, V D^T dPdF D for an element with shape
+/// gradients B (see the file comment). Shared by elementForces and the damaged-element kernels
+/// so all of them map P and dP/dF to nodes the same way.
+GF_HD void scatterElementDerivatives(const Mat<4, 3>& B, double volume, const Mat3& P,
+                                     const Mat9& dPdF, double grad[12], Mat12* hessian) {
   if (hessian != nullptr) {
     Mat12& h = *hessian;
     for (int i = 0; i < 3; ++i)
@@ -71,6 +68,21 @@ GF_HD double elementForces(const MaterialCoeffs& c, const Vec3 x[4], const Mat3&
   for (int a = 0; a < 4; ++a)
     for (int i = 0; i < 3; ++i)
       grad[3 * a + i] = volume * (P(i, 0) * B(a, 0) + P(i, 1) * B(a, 1) + P(i, 2) * B(a, 2));
+}
+
+}  // namespace detail
+
+/// Element elastic energy V psi(F). Fills grad = dE/dx (12, node-major; the internal force is
+/// -grad) and, when hessian is non-null, d2E/dx2 = V D^T dPdF D with D = dvec(F)/dx,
+/// projected to PSD when projectPsd.
+GF_HD double elementForces(const MaterialCoeffs& c, const Vec3 x[4], const Mat3& DmInv,
+                           double volume, double grad[12], Mat12* hessian, bool projectPsd) {
+  const Mat3 F = deformationGradient(x, DmInv);
+  const Mat<4, 3> B = shapeGradients(DmInv);
+  Mat3 P;
+  Mat9 dPdF;
+  const double psi = evaluateMaterial(c, F, P, hessian != nullptr ? &dPdF : nullptr, projectPsd);
+  detail::scatterElementDerivatives(B, volume, P, dPdF, grad, hessian);
   return volume * psi;
 }
 

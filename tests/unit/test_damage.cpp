@@ -1,0 +1,657 @@
+// Edge stresses and damaged-element energies (SPEC §2, thesis sec 4.2.3-4.2.5) against
+// independent truths: N^T s N computed directly, Eigen's inverse, edge lengths of the deformed
+// tet (appendix E), the StVK kernel of materials.h, linear elasticity at small strain
+// (eq 4.28), central finite differences of energies and stresses, and rotation invariance.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <random>
+
+#include "kernels/damage.h"
+#include "kernels/edge_stress.h"
+#include "kernels/element.h"
+#include "kernels/materials.h"
+
+namespace {
+
+using gf::Mat12;
+using gf::Mat3;
+using gf::Mat9;
+using gf::MaterialCoeffs;
+using gf::Vec3;
+using Mat6 = gf::Mat<6, 6>;
+
+constexpr double kE = 1e6;
+constexpr double kNu = 0.3;
+
+double frob(const Mat3& a) { return std::sqrt(gf::frobeniusDot(a, a)); }
+double frob9(const Mat9& a) { return std::sqrt(gf::frobeniusDot(a, a)); }
+
+/// Uniformly random rotation from a normalised Gaussian quaternion.
+Mat3 randomRotation(std::mt19937& rng) {
+  std::normal_distribution<double> n(0, 1);
+  double w = n(rng), x = n(rng), y = n(rng), z = n(rng);
+  const double l = std::sqrt(w * w + x * x + y * y + z * z);
+  w /= l;
+  x /= l;
+  y /= l;
+  z /= l;
+  Mat3 r;
+  r(0, 0) = 1 - 2 * (y * y + z * z);
+  r(0, 1) = 2 * (x * y - z * w);
+  r(0, 2) = 2 * (x * z + y * w);
+  r(1, 0) = 2 * (x * y + z * w);
+  r(1, 1) = 1 - 2 * (x * x + z * z);
+  r(1, 2) = 2 * (y * z - x * w);
+  r(2, 0) = 2 * (x * z - y * w);
+  r(2, 1) = 2 * (y * z + x * w);
+  r(2, 2) = 1 - 2 * (x * x + y * y);
+  return r;
+}
+
+/// A random rest tet of size ~0.1 with volume well away from zero.
+void randomRestTet(std::mt19937& rng, Vec3 X[4]) {
+  std::normal_distribution<double> n(0, 1);
+  const Vec3 base[4] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  for (;;) {
+    for (int a = 0; a < 4; ++a) X[a] = 0.1 * (base[a] + 0.25 * Vec3{n(rng), n(rng), n(rng)});
+    double vol = 0;
+    gf::restShapeInverse(X, vol);
+    if (vol > 0.3 * 1e-3 / 6.0) return;
+  }
+}
+
+struct EdgeFrame {
+  Vec3 N[6];
+  double L[6];
+  Mat6 T, Tinv;
+};
+
+EdgeFrame edgeFrame(const Vec3 X[4]) {
+  EdgeFrame f;
+  gf::restEdgeDirections(X, f.N, f.L);
+  f.T = gf::edgeMatrix(f.N);
+  EXPECT_TRUE(gf::invertEdgeMatrix(f.T, f.Tinv));
+  return f;
+}
+
+Mat3 randomSymmetric(std::mt19937& rng, double scale) {
+  std::normal_distribution<double> n(0, 1);
+  Mat3 s;
+  for (int i = 0; i < 3; ++i)
+    for (int j = i; j < 3; ++j) s(i, j) = s(j, i) = scale * n(rng);
+  return s;
+}
+
+/// Edge strains e_d = T Voigt(E) of the Green strain, for picking states away from kinks.
+void edgeStrains(const EdgeFrame& f, const Mat3& F, double ed[6]) {
+  double e[6];
+  gf::detail::greenStrainVoigt(F, e);
+  gf::apply6(f.T, e, ed);
+}
+
+// --- Edge matrix and edge stresses ---------------------------------------------------------
+
+TEST(EdgeStress, EdgeMatrixGivesEdgeNormalsAndIsInvertible) {
+  std::mt19937 rng(7);
+  double worstMap = 0, worstInv = 0, worstCond = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    Vec3 X[4];
+    randomRestTet(rng, X);
+    const EdgeFrame f = edgeFrame(X);
+    const Mat3 s = randomSymmetric(rng, 1.0);
+    double v[6], ts[6];
+    gf::toVoigt(s, v);
+    gf::apply6(f.T, v, ts);
+    for (int k = 0; k < 6; ++k) {
+      // Direct N^T s N, with no Voigt bookkeeping.
+      double direct = 0;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) direct += f.N[k][i] * s(i, j) * f.N[k][j];
+      worstMap = std::max(worstMap, std::fabs(ts[k] - direct));
+    }
+    // T^-1 against Eigen's LU inverse; also T^-1 T s = s.
+    Eigen::Matrix<double, 6, 6> te;
+    for (int i = 0; i < 6; ++i)
+      for (int j = 0; j < 6; ++j) te(i, j) = f.T(i, j);
+    const Eigen::Matrix<double, 6, 6> ref = te.inverse();
+    const Eigen::JacobiSVD<Eigen::Matrix<double, 6, 6>> svd(te);
+    const double cond = svd.singularValues()(0) / svd.singularValues()(5);
+    worstCond = std::max(worstCond, cond);
+    for (int i = 0; i < 6; ++i)
+      for (int j = 0; j < 6; ++j)
+        worstInv =
+            std::max(worstInv, std::fabs(f.Tinv(i, j) - ref(i, j)) / ref.cwiseAbs().maxCoeff());
+    double back[6];
+    gf::apply6(f.Tinv, ts, back);
+    for (int i = 0; i < 6; ++i) EXPECT_NEAR(back[i], v[i], 1e-10);
+  }
+  std::printf(
+      "  edge matrix: max |T s - N^T s N| %.2e, max rel |Tinv - Eigen| %.2e, cond <= %.1f\n",
+      worstMap, worstInv, worstCond);
+  EXPECT_LT(worstMap, 1e-14);
+  EXPECT_LT(worstInv, 1e-12);
+}
+
+TEST(EdgeStress, DegenerateTetIsSingular) {
+  // Flat: every edge has Nz = 0, so three columns of T vanish.
+  const Vec3 flat[4] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+  Vec3 N[6];
+  double L[6];
+  gf::restEdgeDirections(flat, N, L);
+  Mat6 inv;
+  EXPECT_FALSE(gf::invertEdgeMatrix(gf::edgeMatrix(N), inv));
+  // Coincident corners: a zero-length edge gives N = 0, not NaN, and T is singular.
+  const Vec3 pinched[4] = {{0, 0, 0}, {0, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  gf::restEdgeDirections(pinched, N, L);
+  EXPECT_EQ(L[0], 0);
+  EXPECT_EQ(N[0].x, 0);
+  EXPECT_FALSE(gf::invertEdgeMatrix(gf::edgeMatrix(N), inv));
+  // A sliver that is still a tet stays invertible.
+  const Vec3 thin[4] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.3, 0.3, 1e-2}};
+  gf::restEdgeDirections(thin, N, L);
+  EXPECT_TRUE(gf::invertEdgeMatrix(gf::edgeMatrix(N), inv));
+}
+
+TEST(EdgeStress, GreenEdgeStrainIsEdgeLengthRatio) {
+  // Appendix E: N^T C N = (l/L)^2, so (T E)_k = ((l_k/L_k)^2 - 1)/2 with the deformed lengths.
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n(0, 1);
+  for (int trial = 0; trial < 50; ++trial) {
+    Vec3 X[4];
+    randomRestTet(rng, X);
+    const EdgeFrame f = edgeFrame(X);
+    Mat3 F = Mat3::identity();
+    for (double& v : F.m) v += 0.3 * n(rng);
+    Vec3 x[4];
+    for (int a = 0; a < 4; ++a) x[a] = F * X[a];
+    double ed[6];
+    edgeStrains(f, F, ed);
+    for (int k = 0; k < 6; ++k) {
+      const double l = gf::norm(x[gf::tetEdgeCorner(k, 1)] - x[gf::tetEdgeCorner(k, 0)]);
+      EXPECT_NEAR(ed[k], 0.5 * (l * l / (f.L[k] * f.L[k]) - 1.0), 1e-13);
+    }
+  }
+}
+
+TEST(EdgeStress, NormalStressesEqualTTimesVoigt) {
+  std::mt19937 rng(3);
+  Vec3 X[4];
+  randomRestTet(rng, X);
+  const EdgeFrame f = edgeFrame(X);
+  const Mat3 s = randomSymmetric(rng, 1e5);
+  double v[6], ts[6], sn[6];
+  gf::toVoigt(s, v);
+  gf::apply6(f.T, v, ts);
+  gf::edgeNormalStresses(s, f.N, sn);
+  for (int k = 0; k < 6; ++k) EXPECT_NEAR(sn[k], ts[k], 1e-9);
+}
+
+std::vector<MaterialCoeffs> allMaterials(bool withFibre) {
+  std::vector<MaterialCoeffs> out;
+  for (int m = 0; m < 4; ++m)
+    out.push_back(gf::makeMaterialCoeffs(m, kE, kNu, withFibre ? 0.5 * kE : 0.0, Vec3{1, 2, -0.5}));
+  return out;
+}
+
+TEST(EdgeStress, MaterialStressIsRotationInvariantAndZeroForRotations) {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0, 1);
+  for (const MaterialCoeffs& c : allMaterials(true)) {
+    for (int trial = 0; trial < 20; ++trial) {
+      const Mat3 Q = randomRotation(rng);
+      const Mat3 s0 = gf::materialStress(c, Q);
+      EXPECT_LT(frob(s0), 1e-9 * kE) << "model " << c.model;
+      Mat3 F = Mat3::identity();
+      for (double& v : F.m) v += 0.25 * n(rng);
+      const Mat3 a = gf::materialStress(c, F);
+      const Mat3 b = gf::materialStress(c, Q * F);
+      EXPECT_LT(frob(a - b), 1e-9 * frob(a)) << "model " << c.model;
+      // Symmetric by construction.
+      EXPECT_EQ(a(0, 1), a(1, 0));
+    }
+  }
+}
+
+TEST(EdgeStress, MaterialStressAtSmallStrainIsLinearElastic) {
+  // eq 4.28 with the Lamé parameters of eq 4.29, also under a finite rotation.
+  std::mt19937 rng(9);
+  const double mu = kE / (2 * (1 + kNu)), lambda = kE * kNu / ((1 + kNu) * (1 - 2 * kNu));
+  const double scale = 1e-6;
+  for (const MaterialCoeffs& c : allMaterials(false)) {
+    for (int trial = 0; trial < 10; ++trial) {
+      const Mat3 eps = randomSymmetric(rng, scale);
+      const Mat3 F = randomRotation(rng) * (Mat3::identity() + eps);
+      const Mat3 lin = 2 * mu * eps + lambda * gf::trace(eps) * Mat3::identity();
+      const Mat3 S = gf::materialStress(c, F);
+      // The error is second order in the strain.
+      EXPECT_LT(frob(S - lin), 1e-4 * frob(lin)) << "model " << c.model;
+    }
+  }
+}
+
+TEST(EdgeStress, MaterialStressIsWorkConjugateToTheStretch) {
+  // Biot stress: dpsi(R (U + h dU)) / dh = S : dU for symmetric dU, including the fibre term.
+  std::mt19937 rng(13);
+  std::normal_distribution<double> n(0, 1);
+  double worst = 0;
+  for (const MaterialCoeffs& c : allMaterials(true)) {
+    for (int trial = 0; trial < 10; ++trial) {
+      Mat3 F = Mat3::identity();
+      for (double& v : F.m) v += 0.2 * n(rng);
+      const gf::Svd3 svd = gf::svd3(F);
+      const Mat3 R = svd.U * gf::transpose(svd.V);
+      const Mat3 U = gf::transpose(R) * F;
+      const Mat3 dU = randomSymmetric(rng, 1.0);
+      const double h = 1e-6;
+      const double fd =
+          (gf::energyDensity(c, R * (U + h * dU)) - gf::energyDensity(c, R * (U - h * dU))) /
+          (2 * h);
+      const double an = gf::frobeniusDot(gf::materialStress(c, F), dU);
+      const double err = std::fabs(fd - an) / (std::fabs(an) + 1e-3 * kE);
+      worst = std::max(worst, err);
+    }
+  }
+  std::printf("  Biot stress vs FD of psi(R U): max rel err %.2e\n", worst);
+  EXPECT_LT(worst, 1e-6);
+}
+
+// --- Projection model ----------------------------------------------------------------------
+
+TEST(Damage, ProjectionWithoutBrokenEdgesIsStVK) {
+  std::mt19937 rng(17);
+  std::normal_distribution<double> n(0, 1);
+  const MaterialCoeffs stvk = gf::makeMaterialCoeffs(gf::kStVK, kE, kNu, 0, Vec3{1, 0, 0});
+  const uint8_t none[6] = {0, 0, 0, 0, 0, 0};
+  for (int trial = 0; trial < 30; ++trial) {
+    Vec3 X[4];
+    randomRestTet(rng, X);
+    const EdgeFrame f = edgeFrame(X);
+    Mat3 F = Mat3::identity();
+    for (double& v : F.m) v += 0.3 * n(rng);
+    Mat3 Pref;
+    Mat9 Href;
+    const double psiRef = gf::evaluateMaterial(stvk, F, Pref, &Href, false);
+    const double psi = gf::projectionEnergy(stvk.mu, stvk.lambda, f.Tinv, f.T, none, F);
+    const Mat3 P = gf::projectionPiola(stvk.mu, stvk.lambda, f.Tinv, f.T, none, F);
+    const Mat9 H = gf::projectionHessian(stvk.mu, stvk.lambda, f.Tinv, f.T, none, F, false);
+    EXPECT_NEAR(psi, psiRef, 1e-12 * (std::fabs(psiRef) + kE * 1e-3));
+    EXPECT_LT(frob(P - Pref), 1e-12 * (frob(Pref) + kE * 1e-3));
+    EXPECT_LT(frob9(H - Href), 1e-12 * frob9(Href));
+  }
+}
+
+/// Random broken mask with at least one broken edge.
+void randomMask(std::mt19937& rng, uint8_t broken[6]) {
+  std::uniform_int_distribution<int> bits(1, 63);
+  const int m = bits(rng);
+  for (int k = 0; k < 6; ++k) broken[k] = static_cast<uint8_t>((m >> k) & 1);
+}
+
+/// A deformation gradient in the requested regime whose broken edge strains are at least
+/// `margin` away from the kink at 0.
+Mat3 stateAwayFromKinks(std::mt19937& rng, const EdgeFrame& f, const uint8_t broken[6], double base,
+                        double margin) {
+  std::normal_distribution<double> n(0, 1);
+  for (;;) {
+    Mat3 F = base * Mat3::identity();
+    for (double& v : F.m) v += 0.15 * n(rng);
+    F = randomRotation(rng) * F;
+    double ed[6];
+    edgeStrains(f, F, ed);
+    bool ok = gf::det(F) > 0.2;
+    for (int k = 0; k < 6; ++k)
+      if (broken[k] != 0 && std::fabs(ed[k]) < margin) ok = false;
+    if (ok) return F;
+  }
+}
+
+TEST(Damage, ProjectionFiniteDifferences) {
+  std::mt19937 rng(23);
+  const double mu = kE / (2 * (1 + kNu)), lambda = kE * kNu / ((1 + kNu) * (1 - 2 * kNu));
+  const double h = 1e-6;
+  double worstP = 0, worstH = 0;
+  int masked = 0;
+  for (int trial = 0; trial < 120; ++trial) {
+    Vec3 X[4];
+    randomRestTet(rng, X);
+    const EdgeFrame f = edgeFrame(X);
+    uint8_t broken[6];
+    randomMask(rng, broken);
+    const double base = trial % 3 == 0 ? 0.85 : (trial % 3 == 1 ? 1.0 : 1.15);  // compress..stretch
+    const Mat3 F = stateAwayFromKinks(rng, f, broken, base, 1e-3);
+    double ed[6];
+    edgeStrains(f, F, ed);
+    for (int k = 0; k < 6; ++k)
+      if (broken[k] != 0 && ed[k] > 0) ++masked;
+    const Mat3 P = gf::projectionPiola(mu, lambda, f.Tinv, f.T, broken, F);
+    const Mat9 H = gf::projectionHessian(mu, lambda, f.Tinv, f.T, broken, F, false);
+    Mat3 Pfd;
+    Mat9 Hfd;
+    for (int a = 0; a < 9; ++a) {
+      Mat3 fp = F, fm = F;
+      fp.m[a] += h;
+      fm.m[a] -= h;
+      Pfd.m[a] = (gf::projectionEnergy(mu, lambda, f.Tinv, f.T, broken, fp) -
+                  gf::projectionEnergy(mu, lambda, f.Tinv, f.T, broken, fm)) /
+                 (2 * h);
+      const Mat3 dp = gf::projectionPiola(mu, lambda, f.Tinv, f.T, broken, fp) -
+                      gf::projectionPiola(mu, lambda, f.Tinv, f.T, broken, fm);
+      for (int b = 0; b < 9; ++b) Hfd(b, a) = dp.m[b] / (2 * h);
+    }
+    const double eP = frob(P - Pfd) / (frob(P) + 1e-3 * kE);
+    const double eH = frob9(H - Hfd) / frob9(H);
+    worstP = std::max(worstP, eP);
+    worstH = std::max(worstH, eH);
+    EXPECT_LT(eP, 1e-6) << "trial " << trial;
+    EXPECT_LT(eH, 1e-6) << "trial " << trial;
+  }
+  std::printf("  projection model FD: max rel err P %.2e, dP/dF %.2e (%d masked tensile edges)\n",
+              worstP, worstH, masked);
+  EXPECT_GT(masked, 100);  // the tensile branch really was exercised
+}
+
+TEST(Damage, ProjectionHessianProjectionIsPSD) {
+  std::mt19937 rng(29);
+  const double mu = kE / (2 * (1 + kNu)), lambda = kE * kNu / ((1 + kNu) * (1 - 2 * kNu));
+  int indefinite = 0;
+  for (int trial = 0; trial < 60; ++trial) {
+    Vec3 X[4];
+    randomRestTet(rng, X);
+    const EdgeFrame f = edgeFrame(X);
+    uint8_t broken[6];
+    randomMask(rng, broken);
+    const Mat3 F = stateAwayFromKinks(rng, f, broken, trial % 2 == 0 ? 0.8 : 1.1, 1e-3);
+    const Mat9 H = gf::projectionHessian(mu, lambda, f.Tinv, f.T, broken, F, false);
+    const Mat9 Hp = gf::projectionHessian(mu, lambda, f.Tinv, f.T, broken, F, true);
+    Eigen::Matrix<double, 9, 9> a, b;
+    for (int i = 0; i < 9; ++i)
+      for (int j = 0; j < 9; ++j) {
+        a(i, j) = H(i, j);
+        b(i, j) = Hp(i, j);
+      }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 9, 9>> ea(a), eb(b);
+    if (ea.eigenvalues()(0) < -1e-9 * frob9(H)) ++indefinite;
+    EXPECT_GE(eb.eigenvalues()(0), -1e-9 * frob9(H));
+    // Projection only removes the negative part: positive eigenvalues are kept.
+    EXPECT_NEAR(eb.eigenvalues()(8), ea.eigenvalues()(8), 1e-9 * frob9(H));
+  }
+  EXPECT_GT(indefinite, 0);  // compression made some exact Hessians indefinite
+}
+
+TEST(Damage, ProjectionIsRotationInvariant) {
+  std::mt19937 rng(31);
+  const double mu = kE / (2 * (1 + kNu)), lambda = kE * kNu / ((1 + kNu) * (1 - 2 * kNu));
+  for (int trial = 0; trial < 40; ++trial) {
+    Vec3 X[4];
+    randomRestTet(rng, X);
+    const EdgeFrame f = edgeFrame(X);
+    uint8_t broken[6];
+    randomMask(rng, broken);
+    const Mat3 F = stateAwayFromKinks(rng, f, broken, 1.05, 1e-6);
+    const Mat3 Q = randomRotation(rng);
+    const double a = gf::projectionEnergy(mu, lambda, f.Tinv, f.T, broken, F);
+    const double b = gf::projectionEnergy(mu, lambda, f.Tinv, f.T, broken, Q * F);
+    EXPECT_NEAR(a, b, 1e-10 * (a + 1));
+    const Mat3 pa = gf::projectionPiola(mu, lambda, f.Tinv, f.T, broken, F);
+    const Mat3 pb = gf::projectionPiola(mu, lambda, f.Tinv, f.T, broken, Q * F);
+    EXPECT_LT(frob(Q * pa - pb), 1e-10 * (frob(pa) + 1));
+  }
+}
+
+TEST(Damage, ClosedCrackResistsCompressionAndOpensInTension) {
+  std::mt19937 rng(37);
+  const MaterialCoeffs stvk = gf::makeMaterialCoeffs(gf::kStVK, kE, kNu, 0, Vec3{1, 0, 0});
+  const double mu = stvk.mu, lambda = stvk.lambda;
+  const uint8_t all[6] = {1, 1, 1, 1, 1, 1};
+  Vec3 X[4];
+  randomRestTet(rng, X);
+  const EdgeFrame f = edgeFrame(X);
+  const Mat3 Q = randomRotation(rng);
+
+  // Compression in every direction: every edge shortens, nothing is masked, so the fully
+  // broken element is exactly StVK there and pushes back.
+  Mat3 Fc;
+  Fc(0, 0) = 0.9;
+  Fc(1, 1) = 0.93;
+  Fc(2, 2) = 0.95;
+  Fc(0, 1) = 0.01;
+  Fc = Q * Fc;
+  const double psiC = gf::projectionEnergy(mu, lambda, f.Tinv, f.T, all, Fc);
+  EXPECT_GT(psiC, 0);
+  EXPECT_NEAR(psiC, gf::energyDensity(stvk, Fc), 1e-10 * psiC);
+  const Mat3 Pc = gf::projectionPiola(mu, lambda, f.Tinv, f.T, all, Fc);
+  // Restoring: the energy decreases along the way back to the rest shape (Q).
+  EXPECT_GT(gf::frobeniusDot(Pc, Fc - Q), 0);
+
+  // Element level: the internal force -grad pushes the nodes outwards (back towards rest).
+  double vol = 0;
+  const Mat3 dmInv = gf::restShapeInverse(X, vol);
+  Vec3 xc[4];
+  Vec3 c0{0, 0, 0};
+  for (int a = 0; a < 4; ++a) c0 += 0.25 * X[a];
+  for (int a = 0; a < 4; ++a) xc[a] = Fc * (X[a] - c0);
+  double grad[12];
+  gf::damagedElementForces(gf::kDamageProjection, stvk, f.T, f.Tinv, 1.0, all, xc, dmInv, vol, grad,
+                           nullptr, false);
+  double work = 0;  // force . displacement-to-rest
+  for (int a = 0; a < 4; ++a) {
+    const Vec3 toRest = Q * (X[a] - c0) - xc[a];
+    for (int i = 0; i < 3; ++i) work += -grad[3 * a + i] * toRest[i];
+  }
+  EXPECT_GT(work, 0);
+
+  // Any stretch that lengthens every edge: no energy, no force (the crack is open).
+  Mat3 Ft;
+  Ft(0, 0) = 1.1;
+  Ft(1, 1) = 1.05;
+  Ft(2, 2) = 1.2;
+  Ft = Q * Ft;
+  // Zero up to the round-off of T^-1 T (~1e-27 J/m^3 here).
+  EXPECT_LT(gf::projectionEnergy(mu, lambda, f.Tinv, f.T, all, Ft), 1e-12 * mu);
+  EXPECT_LT(frob(gf::projectionPiola(mu, lambda, f.Tinv, f.T, all, Ft)), 1e-9 * mu);
+  // Uniaxial tension with the sides free to contract stays open too (no edge shortens).
+  Mat3 Fu = Mat3::identity();
+  Fu(0, 0) = 1.1;
+  EXPECT_LT(gf::projectionEnergy(mu, lambda, f.Tinv, f.T, all, Fu), 1e-9 * mu);
+}
+
+// --- Element level -------------------------------------------------------------------------
+
+double damagedEnergy(int model, const MaterialCoeffs& c, const EdgeFrame& f, double chi,
+                     const uint8_t broken[6], const Mat3& dmInv, double vol, const double* xs) {
+  Vec3 x[4];
+  for (int a = 0; a < 4; ++a) x[a] = Vec3{xs[3 * a], xs[3 * a + 1], xs[3 * a + 2]};
+  double g[12];
+  return gf::damagedElementForces(model, c, f.T, f.Tinv, chi, broken, x, dmInv, vol, g, nullptr,
+                                  false);
+}
+
+TEST(Damage, ElementFiniteDifferences) {
+  std::mt19937 rng(41);
+  std::normal_distribution<double> n(0, 1);
+  double worstG[2] = {0, 0}, worstH[2] = {0, 0};
+  for (int trial = 0; trial < 60; ++trial) {
+    const int model = trial % 2;
+    const MaterialCoeffs c =
+        gf::makeMaterialCoeffs(trial % 4 < 2 ? gf::kStableNeoHookean : gf::kNeoHookean, kE, kNu,
+                               trial % 3 == 0 ? 0.3 * kE : 0.0, Vec3{0.2, 1, 0.4});
+    Vec3 X[4];
+    randomRestTet(rng, X);
+    const EdgeFrame f = edgeFrame(X);
+    uint8_t broken[6];
+    randomMask(rng, broken);
+    const Mat3 F = stateAwayFromKinks(rng, f, broken, trial % 3 == 0 ? 0.9 : 1.1, 1e-3);
+    double vol = 0;
+    const Mat3 dmInv = gf::restShapeInverse(X, vol);
+    double xs[12];
+    Vec3 x[4];
+    for (int a = 0; a < 4; ++a) {
+      x[a] = F * X[a] + Vec3{0.1, -0.3, 0.2};
+      for (int i = 0; i < 3; ++i) xs[3 * a + i] = x[a][i];
+    }
+    const double chi = 0.37;
+    double grad[12];
+    Mat12 H;
+    gf::damagedElementForces(model, c, f.T, f.Tinv, chi, broken, x, dmInv, vol, grad, &H, false);
+    const double h = 1e-8;  // positions ~0.1 m
+    double gnorm = 0, gerr = 0;
+    Mat12 Hfd;
+    for (int d = 0; d < 12; ++d) {
+      double xp[12], xm[12];
+      std::copy(xs, xs + 12, xp);
+      std::copy(xs, xs + 12, xm);
+      xp[d] += h;
+      xm[d] -= h;
+      const double fd = (damagedEnergy(model, c, f, chi, broken, dmInv, vol, xp) -
+                         damagedEnergy(model, c, f, chi, broken, dmInv, vol, xm)) /
+                        (2 * h);
+      gerr += (fd - grad[d]) * (fd - grad[d]);
+      gnorm += grad[d] * grad[d];
+      Vec3 yp[4], ym[4];
+      for (int a = 0; a < 4; ++a) {
+        yp[a] = Vec3{xp[3 * a], xp[3 * a + 1], xp[3 * a + 2]};
+        ym[a] = Vec3{xm[3 * a], xm[3 * a + 1], xm[3 * a + 2]};
+      }
+      double gp[12], gm[12];
+      gf::damagedElementForces(model, c, f.T, f.Tinv, chi, broken, yp, dmInv, vol, gp, nullptr,
+                               false);
+      gf::damagedElementForces(model, c, f.T, f.Tinv, chi, broken, ym, dmInv, vol, gm, nullptr,
+                               false);
+      for (int e = 0; e < 12; ++e) Hfd(e, d) = (gp[e] - gm[e]) / (2 * h);
+    }
+    double herr = 0, hnorm = 0;
+    for (int k = 0; k < 144; ++k) {
+      herr += (H.m[k] - Hfd.m[k]) * (H.m[k] - Hfd.m[k]);
+      hnorm += H.m[k] * H.m[k];
+    }
+    const double eg = std::sqrt(gerr / gnorm), eh = std::sqrt(herr / hnorm);
+    worstG[model] = std::max(worstG[model], eg);
+    worstH[model] = std::max(worstH[model], eh);
+    EXPECT_LT(eg, 1e-5) << "trial " << trial;
+    EXPECT_LT(eh, 1e-5) << "trial " << trial;
+    if (model == gf::kDamageDegradation) {
+      // Lagged chi: exactly chi times the undamaged element.
+      double g0[12];
+      Mat12 H0;
+      const double e0 = gf::elementForces(c, x, dmInv, vol, g0, &H0, false);
+      EXPECT_NEAR(damagedEnergy(model, c, f, chi, broken, dmInv, vol, xs), chi * e0,
+                  1e-14 * std::fabs(e0));
+      for (int d = 0; d < 12; ++d) EXPECT_NEAR(grad[d], chi * g0[d], 1e-12 * std::sqrt(gnorm));
+    }
+  }
+  std::printf(
+      "  damaged element FD: projection grad %.2e hess %.2e; degradation grad %.2e "
+      "hess %.2e\n",
+      worstG[0], worstH[0], worstG[1], worstH[1]);
+}
+
+TEST(Damage, RotatedUndeformedElementHasZeroForce) {
+  // Issue 3 acceptance "rotation invariance", per element, for every mask and both models.
+  std::mt19937 rng(43);
+  Vec3 X[4];
+  randomRestTet(rng, X);
+  const EdgeFrame f = edgeFrame(X);
+  double vol = 0;
+  const Mat3 dmInv = gf::restShapeInverse(X, vol);
+  const MaterialCoeffs c =
+      gf::makeMaterialCoeffs(gf::kStableNeoHookean, kE, kNu, 0.5 * kE, Vec3{1, 1, 0});
+  // Force scale of a 1 % strain on this element: E * 0.01 * area ~ E * 0.01 * L^2.
+  const double forceScale = kE * 0.01 * f.L[0] * f.L[0];
+  double worst = 0;
+  for (int mask = 0; mask < 64; ++mask) {
+    uint8_t broken[6];
+    for (int k = 0; k < 6; ++k) broken[k] = static_cast<uint8_t>((mask >> k) & 1);
+    const Mat3 Q = randomRotation(rng);
+    Vec3 x[4];
+    for (int a = 0; a < 4; ++a) x[a] = Q * X[a] + Vec3{3, -1, 2};
+    for (int model = 0; model < 2; ++model) {
+      double grad[12];
+      Mat12 H;
+      const double e = gf::damagedElementForces(model, c, f.T, f.Tinv, 0.6, broken, x, dmInv, vol,
+                                                grad, &H, true);
+      EXPECT_LT(std::fabs(e), 1e-12 * kE * vol);
+      for (double g : grad) worst = std::max(worst, std::fabs(g) / forceScale);
+    }
+  }
+  std::printf("  rotated rest element: max |force| / (1%% strain force) %.2e\n", worst);
+  EXPECT_LT(worst, 1e-10);
+}
+
+// --- Degradation factor --------------------------------------------------------------------
+
+/// Independent connectivity check by depth-first search over the unbroken edges.
+bool disconnectedByDfs(const uint8_t broken[6]) {
+  bool seen[4] = {true, false, false, false};
+  int stack[4] = {0}, top = 1, count = 1;
+  while (top > 0) {
+    const int a = stack[--top];
+    for (int k = 0; k < 6; ++k) {
+      if (broken[k] != 0) continue;
+      const int u = gf::tetEdgeCorner(k, 0), v = gf::tetEdgeCorner(k, 1);
+      const int other = u == a ? v : (v == a ? u : -1);
+      if (other >= 0 && !seen[other]) {
+        seen[other] = true;
+        stack[top++] = other;
+        ++count;
+      }
+    }
+  }
+  return count < 4;
+}
+
+TEST(Damage, CornerConnectivity) {
+  int disconnected = 0;
+  for (int mask = 0; mask < 64; ++mask) {
+    uint8_t broken[6];
+    for (int k = 0; k < 6; ++k) broken[k] = static_cast<uint8_t>((mask >> k) & 1);
+    EXPECT_EQ(gf::cornersDisconnected(broken), disconnectedByDfs(broken)) << "mask " << mask;
+    EXPECT_EQ(gf::allCornersSeparated(broken), mask == 63);
+    disconnected += gf::cornersDisconnected(broken) ? 1 : 0;
+  }
+  // 38 of the 64 subgraphs of K4 (the kept edges) span it connected; 26 do not.
+  EXPECT_EQ(disconnected, 64 - 38);
+}
+
+TEST(Damage, DegradationFactor) {
+  std::mt19937 rng(47);
+  std::normal_distribution<double> n(0, 1);
+  const uint8_t none[6] = {0, 0, 0, 0, 0, 0};
+  const uint8_t all[6] = {1, 1, 1, 1, 1, 1};
+  double zero[6] = {0, 0, 0, 0, 0, 0};
+  EXPECT_EQ(gf::degradationFactor(zero, none), 1.0);
+  EXPECT_EQ(gf::degradationFactor(zero, all), 0.0);
+  const uint8_t one[6] = {0, 0, 0, 1, 0, 0};
+  EXPECT_DOUBLE_EQ(gf::degradationFactor(zero, one), 5.0 / 6.0);  // 0/0: unbroken fraction
+  const uint8_t cornerOff[6] = {1, 1, 1, 0, 0, 0};                // corner 0 cut off from 1, 2, 3
+  for (int trial = 0; trial < 200; ++trial) {
+    double s[6];
+    for (double& v : s) v = 1e5 * n(rng);
+    EXPECT_EQ(gf::degradationFactor(s, none), 1.0);
+    EXPECT_EQ(gf::degradationFactor(s, all), 0.0);
+    EXPECT_EQ(gf::degradationFactor(s, cornerOff), 0.0);
+    const double chiOne = gf::degradationFactor(s, one);
+    double sum = 0;
+    for (double v : s) sum += std::fabs(v);
+    EXPECT_NEAR(chiOne, 1.0 - std::fabs(s[3]) / sum, 1e-15);  // eq 4.33 by hand
+    uint8_t broken[6];
+    randomMask(rng, broken);
+    const double chi = gf::degradationFactor(s, broken);
+    EXPECT_GE(chi, 0.0);
+    EXPECT_LE(chi, 1.0);
+    // Monotone: breaking one more edge never raises chi.
+    for (int k = 0; k < 6; ++k) {
+      if (broken[k] != 0) continue;
+      uint8_t more[6];
+      std::copy(broken, broken + 6, more);
+      more[k] = 1;
+      EXPECT_LE(gf::degradationFactor(s, more), chi + 1e-15);
+    }
+  }
+}
+
+}  // namespace
