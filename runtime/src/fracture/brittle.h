@@ -1,0 +1,56 @@
+// Brittle mode (thesis sec 4.5.1.2, fig 4.19): when the criterion first fires in a brittle
+// body, the `regions` most stressed regions each start one planar crack normal to their
+// maximum principal stress, and the plane runs to the boundary, breaking every edge it
+// crosses.
+//
+// Design: everything happens in REST space. The stress is material-frame (rotation
+// invariant), so its principal direction is a rest-space direction, and rest positions make
+// the planes independent of the current pose and of round-off in it. Seeds: tets sorted by
+// maximum principal stress (ties by id), taken greedily when farther than 2 R_seed from every
+// seed already taken. Propagation: a flood fill over face-adjacent tets that the plane cuts
+// (nodes on both sides, a node on the plane counting as the positive side), breaking the
+// edges whose endpoints lie on opposite sides; the fill stops where the plane leaves the body,
+// so on a non-convex body a plane only cuts the sheet that contains its seed. Planes do not
+// stop at earlier cracks. Serial apart from the principal stresses; events sorted by edge id.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "fracture/fracture_model.h"
+#include "graphfrac/jobs.h"
+#include "graphfrac/status.h"
+#include "kernels/math.h"
+#include "mesh/edge_graph.h"
+
+namespace gf::detail {
+
+/// Tuning of the seed choice.
+struct BrittleOptions {
+  /// Radius of a seed region in mean edge lengths (at least R_d is used); seeds are more than
+  /// twice this apart.
+  double seedRadius = 2;
+};
+
+/// One crack plane started by startBrittleCracks.
+struct BrittleSeed {
+  int32_t tet = -1;         ///< Seed tet.
+  double principal = 0;     ///< Its maximum principal stress [Pa].
+  Vec3 point;               ///< Rest centroid of the seed tet: a point of the plane.
+  Vec3 normal;              ///< Unit rest-space normal (maximum principal direction).
+  int32_t tetsCut = 0;      ///< Tets the plane crossed.
+  int32_t edgesBroken = 0;  ///< Edges this plane broke that were not broken before.
+};
+
+/// Starts up to model.settings.regions crack planes from the tets of highest maximum
+/// principal stress of `tetStress` (6 per tet, Voigt, material frame; pass the criterion's
+/// averaged stress when R_d > 0). Only tensile tets (principal > 0) seed. Sets broken flags,
+/// appends events sorted by edge id (position from `positions` when given, else rest), and
+/// returns the seeds in the order chosen. Fails when the model has no face adjacency (build
+/// it with settings.brittle or FractureModel::buildFaceAdjacency) or the sizes disagree.
+Result<std::vector<BrittleSeed>> startBrittleCracks(
+    const FractureModel& model, const EdgeGraph& graph, const RestMeshView& rest,
+    const double* tetStress, std::vector<uint8_t>& broken, std::vector<EdgeBreak>& events,
+    JobSystem& jobs, const double* positions = nullptr, const BrittleOptions& options = {});
+
+}  // namespace gf::detail

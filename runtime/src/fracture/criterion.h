@@ -1,0 +1,86 @@
+// The fracture criterion of graph-based FEM (thesis eq 4.10-4.12, SPEC §2): average the
+// material-frame element stress over a radius R_d, project it on every edge's rest direction,
+// and break each unbroken edge whose tensile normal stress from ANY incident tet reaches its
+// strength. Damage never heals.
+//
+// Design: one parallel pass over tets writes, per tet, a 6-bit mask of the (tet, local edge)
+// pairs at or above strength; a serial pass over those few candidates, in edge-id order,
+// picks the reporting tet (largest normal stress, lowest tet id on ties), sets the flag and
+// emits the event. Nothing depends on the thread count.
+// Cost: the non-local average is the expensive part (at R_d = 5 mean edge lengths a tet of a
+// solid mesh has ~4k neighbours), so it is computed only where it could matter: a weighted
+// mean of normal stresses never exceeds the largest principal stress among the neighbours,
+// and all neighbours lie in the 27 grid cells around the tet, so a tet whose cells' largest
+// Gershgorin bound stays below its edges' strengths is skipped exactly. When no tet comes
+// near its strength the whole call is a bound per tet, a max per cell and a byte scan.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "fracture/fracture_model.h"
+#include "graphfrac/jobs.h"
+#include "mesh/edge_graph.h"
+
+namespace gf::detail {
+
+/// Normal stress N^T S N of a symmetric tensor in Voigt order [xx yy zz xy xz yz] (tensor
+/// shear) along unit direction n: one row of T (eq 4.9, SPEC §2) applied to S (eq 4.8).
+inline double edgeNormalStress(const double* s, const double* n) {
+  return s[0] * n[0] * n[0] + s[1] * n[1] * n[1] + s[2] * n[2] * n[2] +
+         2.0 * (s[3] * n[0] * n[1] + s[4] * n[0] * n[2] + s[5] * n[1] * n[2]);
+}
+
+/// Scratch of the criterion, sized on first use and reused, so a step allocates nothing
+/// after warm-up.
+struct CriterionWorkspace {
+  /// 6 per tet: S averaged over R_d (non-local only), computed only for the tets whose bound
+  /// could reach a strength (bit 7 of `candidates`); call averageStress for all of them.
+  std::vector<double> averaged;
+  /// Per tet: bit k set when local edge k reached strength; bit 7 when `averaged` holds it.
+  std::vector<uint8_t> candidates;
+  std::vector<double> bound;            ///< Per tet: Gershgorin bound of max principal stress.
+  std::vector<double> cellMax;          ///< Per grid cell: largest bound of its tets.
+  std::vector<int32_t> candidateEdges;  ///< Unique candidate edges of the last call, sorted.
+};
+
+/// Non-local average of eq 4.10 with the model's linear weights, normalised by their sum:
+/// out[6 t..] = sum_j w_tj S_j / sum_j w_tj. `out` holds 6 per tet. Parallel over tets.
+/// The brittle seed choice wants it for every tet; the criterion computes it only where needed.
+void averageStress(const FractureModel& model, const double* tetStress, double* out,
+                   JobSystem& jobs);
+
+/// Upper bound of the largest eigenvalue of a symmetric Voigt tensor (Gershgorin): no normal
+/// stress n^T S n exceeds it, nor any weighted mean of such tensors' normal stresses.
+inline double maxPrincipalBound(const double* s) {
+  const double a = s[0] + std::fabs(s[3]) + std::fabs(s[4]);
+  const double b = s[1] + std::fabs(s[3]) + std::fabs(s[5]);
+  const double c = s[2] + std::fabs(s[4]) + std::fabs(s[5]);
+  return a > b ? (a > c ? a : c) : (b > c ? b : c);
+}
+
+/// Runs the criterion (eq 4.11-4.12) on per-tet material-frame stresses (6 per tet, Voigt).
+/// Sets broken[e] = 1 for every newly broken edge and appends one EdgeBreak per such edge to
+/// `events`, sorted by edge id. `positions` (current, 3 per node) is optional and only used
+/// for the events' split points (left at 0 when null). Returns the number of edges broken.
+int32_t evaluateCriterion(const FractureModel& model, const EdgeGraph& graph,
+                          const double* tetStress, std::vector<uint8_t>& broken,
+                          std::vector<EdgeBreak>& events, CriterionWorkspace& ws, JobSystem& jobs,
+                          const double* positions = nullptr);
+
+/// Per-tet 6-bit mask of broken local edges (bit k = kTetEdgeNodes[k]); `masks` holds one
+/// byte per tet. A tet with a non-zero mask is damaged (fig 4.5).
+void brokenEdgeMasks(const EdgeGraph& graph, const uint8_t* broken, uint8_t* masks,
+                     JobSystem& jobs);
+
+/// Incremental form of brokenEdgeMasks: sets the bits of the tets around each event's edge.
+/// O(events), for the steps in which something broke.
+void applyBreaksToMasks(const EdgeGraph& graph, const EdgeBreak* events, size_t count,
+                        uint8_t* masks);
+
+/// Tets with at least one broken edge, sorted by id (every element sharing a broken edge is
+/// damaged, fig 4.5).
+std::vector<int32_t> damagedTets(const EdgeGraph& graph, const uint8_t* broken);
+
+}  // namespace gf::detail

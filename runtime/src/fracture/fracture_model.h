@@ -1,0 +1,131 @@
+// Rest data of graph-based fracture (thesis sec 4.2.3, SPEC §2), built once per body and
+// read-only afterwards, MuJoCo style: flat arrays a CUDA backend can copy unchanged.
+//
+// Design: the criterion needs, per tet, the unit REST direction of each of its 6 edges (the
+// edge matrix T of eq 4.9 is built from them, so the normal stress is evaluated in the
+// material frame and is rotation invariant), per-edge strengths, and for the non-local
+// criterion (eq 4.10-4.12) the list of tets whose rest centroids lie within R_d. Those lists
+// are found with a uniform hash grid of cell size >= R_d (27 cells per query), never O(n^2),
+// and stored CSR with float weights: at R_d = 5 mean edge lengths a tet has thousands of
+// neighbours, so the lists dominate the memory and float halves it at no visible cost.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "graphfrac/defs.h"
+#include "graphfrac/jobs.h"
+#include "graphfrac/mesh.h"
+#include "graphfrac/status.h"
+#include "kernels/math.h"
+#include "mesh/edge_graph.h"
+
+namespace gf::detail {
+
+/// Non-owning view of a body's rest mesh (positions 3 per node, 4 node indices per tet).
+struct RestMeshView {
+  const double* positions = nullptr;
+  const int32_t* tets = nullptr;
+  int32_t nodeCount = 0;
+  int32_t tetCount = 0;
+};
+
+/// View of a TetMesh (valid while the mesh lives).
+inline RestMeshView restView(const TetMesh& m) {
+  return {m.positions.data(), m.tets.data(), int32_t(m.nodeCount()), int32_t(m.tetCount())};
+}
+
+/// One edge broken by the criterion, a brittle crack plane or a cut (issue 3 item 10).
+struct EdgeBreak {
+  int32_t edge = -1;  ///< Edge id in the EdgeGraph.
+  int32_t tet = -1;   ///< Tet that reported it (criterion, brittle seed); -1 for a cut.
+  double stress = 0;  ///< Normal stress that broke it [Pa]; brittle: seed's principal; cut: 0.
+  /// Where the edge splits, as the parameter from edgeNodes[2e] (0) to edgeNodes[2e+1] (1):
+  /// 0.5 for the criterion, the plane or blade crossing for brittle planes and cuts.
+  double split = 0.5;
+  /// The split point in the positions the call was given: current positions when passed;
+  /// otherwise rest positions (brittle) or (0, 0, 0) (criterion, which sees no mesh).
+  Vec3 position;
+};
+
+/// Uniform grid over rest centroids with cells no smaller than R: every tet within R of a
+/// point lies in the 27 cells around the point's cell.
+struct CentroidGrid {
+  double lo[3] = {0, 0, 0};
+  double cell = 1;
+  int32_t dims[3] = {0, 0, 0};
+  std::vector<int32_t> start, items;  ///< CSR: tets per cell, in id order.
+  std::vector<int32_t> tetCell;       ///< Cell of each tet.
+
+  /// Buckets `count` centroids (3 each) into cells of size >= radius (larger when the mesh
+  /// would need more than 4 cells per tet).
+  void build(const std::vector<double>& centroids, int32_t count, double radius);
+  /// Cell coordinate along `axis`, clamped to the grid.
+  int32_t coord(double v, int axis) const {
+    const double c = std::floor((v - lo[axis]) / cell);
+    if (!(c > 0)) return 0;
+    return c >= double(dims[axis] - 1) ? dims[axis] - 1 : int32_t(c);
+  }
+  /// Calls fn(cell) for the (up to) 27 cells around cell `id`.
+  template <class Fn>
+  void forEachCellAround(int32_t id, Fn&& fn) const {
+    const int32_t ix = id % dims[0], iy = (id / dims[0]) % dims[1], iz = id / (dims[0] * dims[1]);
+    for (int32_t z = iz > 0 ? iz - 1 : 0; z <= iz + 1 && z < dims[2]; ++z)
+      for (int32_t y = iy > 0 ? iy - 1 : 0; y <= iy + 1 && y < dims[1]; ++y)
+        for (int32_t x = ix > 0 ? ix - 1 : 0; x <= ix + 1 && x < dims[0]; ++x)
+          fn((z * dims[1] + y) * dims[0] + x);
+  }
+  /// Calls fn(tet) for every tet in the 27 cells around point c.
+  template <class Fn>
+  void forEachNear(const double* c, Fn&& fn) const {
+    const int32_t id = (coord(c[2], 2) * dims[1] + coord(c[1], 1)) * dims[0] + coord(c[0], 0);
+    forEachCellAround(id, [&](int32_t cellId) {
+      for (int32_t s = start[size_t(cellId)]; s < start[size_t(cellId) + 1]; ++s)
+        fn(items[size_t(s)]);
+    });
+  }
+};
+
+/// Read-only fracture data of one body.
+struct FractureModel {
+  FractureSettings settings;
+  int32_t tetCount = 0;
+  int32_t edgeCount = 0;
+  /// Unit rest direction of local edge k of tet t (from node kTetEdgeNodes[k][0] to [1]) at
+  /// [18 t + 3 k]; the sign is irrelevant to N^T S N.
+  std::vector<double> edgeDirections;
+  std::vector<double> strength;   ///< sigma_th per edge [Pa]; overridable (impurities, maps).
+  std::vector<double> centroids;  ///< Rest centroid, 3 per tet.
+  double meanEdgeLength = 0;      ///< Mean rest length over unique edges.
+  double radiusAbs = 0;           ///< R = settings.radius * meanEdgeLength (eq 4.10).
+  /// Non-local neighbours (eq 4.10): tets with |c_j - c_i| < R, self included, sorted by id,
+  /// weight w = 1 - d / R. Empty when R = 0 (local criterion).
+  std::vector<int32_t> neighbourStart, neighbourIndex;
+  std::vector<float> neighbourWeight;
+  /// The grid the lists were built with (non-local only); the criterion also uses it to
+  /// bound each tet's averaged stress by the largest stress in the cells around it.
+  CentroidGrid grid;
+  /// Face-adjacent tet across the face opposite local node f at [4 t + f], -1 on the
+  /// boundary. Built only for brittle bodies (or by buildFaceAdjacency).
+  std::vector<int32_t> faceNeighbours;
+
+  /// Builds the model. `jobs` parallelises the neighbour search (null = serial). Errors name
+  /// the field: a non-positive or non-finite strength or radius, mismatched graph and mesh,
+  /// a degenerate edge, or neighbour lists over 2^31 entries (R_d too large for the mesh).
+  static Result<FractureModel> build(const RestMeshView& rest, const EdgeGraph& graph,
+                                     const FractureSettings& settings, JobSystem* jobs = nullptr);
+  /// Fills faceNeighbours (brittle mode needs it); O(T log T).
+  void buildFaceAdjacency(const RestMeshView& rest);
+  /// True when the criterion averages over neighbours (R_d > 0).
+  bool nonLocal() const { return radiusAbs > 0; }
+};
+
+/// Squared-distance rule of the neighbour lists, shared with the tests' brute-force check.
+inline bool withinRadius(const double* ci, const double* cj, double radius2, double& d2) {
+  const double dx = ci[0] - cj[0], dy = ci[1] - cj[1], dz = ci[2] - cj[2];
+  d2 = dx * dx + dy * dy + dz * dz;
+  return d2 < radius2;
+}
+
+}  // namespace gf::detail
