@@ -63,6 +63,38 @@ struct SolverSettings {
   double linearTolerance = 1e-6;  ///< Relative residual |r|/|b| for PCG.
 };
 
+/// How a damaged element's energy follows from its broken edges (SPEC §2).
+enum class DamageModel : uint8_t {
+  /// eq 4.25-4.27 on the material-frame (Green) strain: broken edges lose only their tensile
+  /// part, so a closed crack still resists compression.
+  Projection,
+  /// eq 4.32-4.33: the energy scaled by chi, the ratio of summed absolute edge stresses after
+  /// and before masking, lagged one step.
+  Degradation,
+};
+
+/// Graph-based fracture of a body (thesis ch. 4). Disabled by default: a body without
+/// fracture computes no edge stresses.
+struct FractureSettings {
+  bool enabled = false;
+  double strength = 1e6;  ///< sigma_th [Pa]: an edge breaks at this tensile normal stress.
+  /// Non-local averaging radius R_d in mean edge lengths (eq 4.10-4.12); 0 = local.
+  double radius = 0;
+  DamageModel model = DamageModel::Degradation;
+  /// Brittle mode (sec 4.5.1.2): when the criterion first fires, the `regions` most stressed
+  /// regions each start a crack plane normal to the maximum principal stress.
+  bool brittle = false;
+  int regions = 1;
+};
+
+/// Multiplicative plasticity F = Fe Fp (eq 2.3-2.5). Disabled by default: no Fp is stored.
+struct PlasticitySettings {
+  bool enabled = false;
+  double yieldStress = 1e5;  ///< sigma_p [Pa]
+  double flowRate = 1;       ///< v in eq 2.5, in [0, 1]
+  double hardening = 0;      ///< K in eq 2.5 [1/s]
+};
+
 /// Nodes whose velocity is prescribed: a pin (velocity 0) or a grip that pulls.
 struct Grip {
   std::vector<int32_t> nodes;
@@ -83,6 +115,11 @@ struct BodyDef {
   std::vector<Grip> grips;
   std::vector<PointForce> forces;
   glm::vec3 initialVelocity{0, 0, 0};
+  FractureSettings fracture;
+  PlasticitySettings plasticity;
+  /// Optional per-tet rest-space fibre directions (one per tet) overriding
+  /// material.fibreDirection; used only when material.fibreStiffness > 0.
+  std::vector<glm::vec3> fibreField;
 };
 
 /// A static obstacle; contact is a one-sided penalty whose energy enters the implicit step.

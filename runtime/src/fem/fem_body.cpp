@@ -58,6 +58,16 @@ FemModel buildFemModel(const BodyDef& def) {
       m.gripVelocity[3 * n + 1] = g.velocity.y;
       m.gripVelocity[3 * n + 2] = g.velocity.z;
     }
+  m.fracture = def.fracture;
+  m.plasticity = def.plasticity;
+  if (def.material.fibreStiffness > 0 && !def.fibreField.empty()) {
+    m.fibreDir.resize(m.tetCount);
+    for (int32_t t = 0; t < m.tetCount; ++t) {
+      const glm::vec3 f = def.fibreField[t];
+      const Vec3 a{f.x, f.y, f.z};
+      m.fibreDir[t] = (1.0 / norm(a)) * a;  // validated non-zero by World::createBody
+    }
+  }
   m.externalForce.assign(3 * m.nodeCount, 0.0);
   for (const PointForce& f : def.forces) {
     m.externalForce[3 * f.node + 0] += f.force.x;

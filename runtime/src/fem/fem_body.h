@@ -27,12 +27,19 @@ struct FemModel {
   std::vector<uint8_t> fixedNode;     ///< 1 where a grip prescribes the velocity
   std::vector<double> gripVelocity;   ///< 3 per node (zero where not fixed)
   std::vector<double> externalForce;  ///< 3 per node, constant point forces
+  FractureSettings fracture;
+  PlasticitySettings plasticity;
+  std::vector<Vec3> fibreDir;  ///< per tet, only with a fibre field (else empty)
 };
 
 /// Mutable state of a body.
 struct FemState {
   std::vector<double> x;  ///< positions, 3 per node
   std::vector<double> v;  ///< velocities, 3 per node
+  // Plasticity (eq 2.3-2.5), only when enabled: per tet Fp, its inverse, the hardening
+  // accumulator delta and the effective rest inverse Dm^-1 Fp^-1 the elements use.
+  std::vector<Mat3> Fp, FpInv, plasticInverse;
+  std::vector<double> plasticDelta;
 };
 
 /// Builds the model from a validated definition (mesh already checked by the caller).

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "kernels/damage.h"
 #include "kernels/element.h"
 
 namespace gf::detail {
@@ -68,13 +69,29 @@ Integrator::Integrator(const FemModel& model) {
 
 double Integrator::elementPass(const FemModel& model, const double* x, bool withHessian,
                                JobSystem& jobs) {
+  // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
+  const Mat3* restInverse = m_plasticInverse ? m_plasticInverse->data() : model.restInverse.data();
+  const FractureBody* fb = m_fracture;
   jobs.parallelFor(uint32_t(model.tetCount), kElementGrain, [&](uint32_t b, uint32_t e) {
     for (uint32_t t = b; t < e; ++t) {
       Vec3 xe[4];
       for (int a = 0; a < 4; ++a) xe[a] = load3(x, model.tets[4 * t + a]);
       Mat12* H = withHessian ? reinterpret_cast<Mat12*>(&m_elemHess[144 * t]) : nullptr;
-      m_elemEnergy[t] = elementForces(model.coeffs, xe, model.restInverse[t], model.restVolume[t],
-                                      &m_elemGrad[12 * t], H, /*projectPsd=*/true);
+      MaterialCoeffs c = model.coeffs;
+      if (!model.fibreDir.empty()) c.fibreDir = model.fibreDir[t];
+      const uint8_t mask = fb ? fb->tetMask()[t] : 0;
+      if (mask == 0) {
+        m_elemEnergy[t] = elementForces(c, xe, restInverse[t], model.restVolume[t],
+                                        &m_elemGrad[12 * t], H, /*projectPsd=*/true);
+      } else {
+        // A damaged element (one of its edges broke, fig 4.5): eq 4.25-4.27 or 4.32-4.33.
+        uint8_t brokenLocal[6];
+        for (int k = 0; k < 6; ++k) brokenLocal[k] = (mask >> k) & 1;
+        m_elemEnergy[t] = damagedElementForces(fb->damageModel(), c, fb->edgeMatrix(int32_t(t)),
+                                               fb->edgeMatrixInverse(int32_t(t)), fb->chi()[t],
+                                               brokenLocal, xe, restInverse[t], model.restVolume[t],
+                                               &m_elemGrad[12 * t], H, /*projectPsd=*/true);
+      }
     }
   });
   double psi = 0;  // serial sum: same order for any thread count

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "fem/fem_body.h"
+#include "fracture/fracture_body.h"
 #include "graphfrac/jobs.h"
 #include "graphfrac/status.h"
 #include "kernels/contact.h"
@@ -51,6 +52,12 @@ struct EnergyBreakdown {
 class Integrator {
  public:
   explicit Integrator(const FemModel& model);
+  /// Damage state the element pass reads (null: no fracture) and the effective rest inverses
+  /// of plastic elements (null: no plasticity). Both outlive the integrator's use.
+  void attach(const FractureBody* fracture, const std::vector<Mat3>* plasticInverse) {
+    m_fracture = fracture;
+    m_plasticInverse = plasticInverse;
+  }
   /// Advances `state` by ctx.dt. On a NaN/Inf the state is restored and flagged.
   BodyStepReport step(const FemModel& model, FemState& state, const StepContext& ctx,
                       JobSystem& jobs);
@@ -86,6 +93,8 @@ class Integrator {
   BlockSparseMatrix m_dampK;           // K(x_n) for Rayleigh r2, only when r2 > 0
   bool m_dampKValid = false;           // m_dampK belongs to the current step
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
+  const FractureBody* m_fracture = nullptr;
+  const std::vector<Mat3>* m_plasticInverse = nullptr;
   PcgSolver m_pcg;
   std::unique_ptr<CholeskySolver> m_cholesky;
 };

@@ -9,7 +9,12 @@
 
 #include "fem/fem_body.h"
 #include "fem/integrator.h"
+#include "fracture/fracture_body.h"
 #include "graphfrac/jobs.h"
+#include "kernels/edge_stress.h"
+#include "kernels/element.h"
+#include "kernels/plasticity.h"
+#include "surface/crack_surface.h"
 
 namespace gf {
 
@@ -21,11 +26,38 @@ constexpr double kAutoContactStiffnessDt2 = 100.0;
 
 bool finite3(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
+// The render surface of a body, created on the first World::surface() call.
+struct SurfaceRecord {
+  TetMesh rest;                      // CrackSurface keeps references to these two
+  detail::EdgeGraph ownGraph;        // for bodies without fracture
+  std::vector<uint8_t> noBreaks;     // idem
+  std::vector<int32_t> oneFragment;  // idem
+  detail::CrackSurface surface;
+  uint64_t brokenCount = 0;
+};
+
 struct BodyRecord {
   detail::FemModel model;
   detail::FemState state;
   std::unique_ptr<detail::Integrator> integrator;
+  std::unique_ptr<detail::FractureBody> fracture;  // null: no fracture, no edge stresses
+  std::unique_ptr<SurfaceRecord> surface;          // null until somebody asks for it
 };
+
+detail::BladePose toPose(const glm::mat4& m) {
+  detail::BladePose p;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) p.rotation(i, j) = m[j][i];  // glm is column-major
+  p.translation = {m[3][0], m[3][1], m[3][2]};
+  return p;
+}
+
+bool finiteMat(const glm::mat4& m) {
+  for (int j = 0; j < 4; ++j)
+    for (int i = 0; i < 4; ++i)
+      if (!std::isfinite(m[j][i])) return false;
+  return true;
+}
 
 struct Slot {
   uint32_t generation = 1;
@@ -39,6 +71,8 @@ struct World::Impl {
   std::vector<Slot> slots;
   std::vector<ColliderData> colliders;
   StepTimings timings;
+  std::vector<FractureEvent> fractureEvents;
+  std::vector<FragmentEvent> fragmentEvents;
   double time = 0;
   double lastSubstep = 1.0 / 60;  // contact stiffness of stats() follows the last step
   std::string pendingWarning;
@@ -48,6 +82,80 @@ struct World::Impl {
     const Slot& s = slots[id.index - 1];
     return (s.body && s.generation == id.generation) ? s.body.get() : nullptr;
   }
+  // Converts a body's breaks and splits of the last detect() into public events.
+  void collectEvents(BodyId id, const BodyRecord& b) {
+    const detail::FractureBody& f = *b.fracture;
+    const auto& g = f.graph();
+    for (size_t i = 0; i < f.breaks().size(); ++i) {
+      const detail::EdgeBreak& e = f.breaks()[i];
+      FractureEvent ev;
+      ev.body = id;
+      ev.edge = e.edge;
+      ev.nodeA = g.edgeNodes[2 * e.edge];
+      ev.nodeB = g.edgeNodes[2 * e.edge + 1];
+      const double* xa = &b.state.x[3 * ev.nodeA];
+      const double* xb = &b.state.x[3 * ev.nodeB];
+      ev.position = glm::vec3(float(0.5 * (xa[0] + xb[0])), float(0.5 * (xa[1] + xb[1])),
+                              float(0.5 * (xa[2] + xb[2])));
+      ev.stress = float(e.stress);
+      ev.cause = static_cast<FractureEvent::Cause>(f.breakCause()[i]);
+      fractureEvents.push_back(ev);
+    }
+    const detail::FragmentProperties& p = f.splitProperties();
+    for (const detail::FragmentSplit& s : f.splits()) {
+      FragmentEvent ev;
+      ev.body = id;
+      ev.fragment = s.created;
+      ev.parent = s.parent;
+      ev.nodeCount = int32_t(f.fragments().nodes(s.created).size());
+      ev.volume = p.volume[s.created];
+      ev.mass = p.mass[s.created];
+      ev.centreOfMass =
+          glm::vec3(float(p.centre[3 * s.created]), float(p.centre[3 * s.created + 1]),
+                    float(p.centre[3 * s.created + 2]));
+      ev.velocity =
+          glm::vec3(float(p.velocity[3 * s.created]), float(p.velocity[3 * s.created + 1]),
+                    float(p.velocity[3 * s.created + 2]));
+      fragmentEvents.push_back(ev);
+    }
+  }
+
+  // Multiplicative plasticity after the step (eq 2.3-2.5): only yielding elements change.
+  void plasticUpdate(BodyRecord& b, double h) {
+    const detail::FemModel& m = b.model;
+    detail::FemState& s = b.state;
+    const PlasticParams params{m.plasticity.yieldStress, m.plasticity.flowRate,
+                               m.plasticity.hardening};
+    jobs->parallelFor(uint32_t(m.tetCount), 256, [&](uint32_t lo, uint32_t hi) {
+      for (uint32_t t = lo; t < hi; ++t) {
+        Vec3 xe[4];
+        for (int a = 0; a < 4; ++a) {
+          const double* p = &s.x[3 * m.tets[4 * t + a]];
+          xe[a] = {p[0], p[1], p[2]};
+        }
+        MaterialCoeffs c = m.coeffs;
+        if (!m.fibreDir.empty()) c.fibreDir = m.fibreDir[t];
+        const Mat3 Fe = deformationGradient(xe, s.plasticInverse[t]);
+        if (gf::plasticUpdate(params, materialStress(c, Fe), Fe, h, s.Fp[t], s.FpInv[t],
+                              s.plasticDelta[t]))
+          s.plasticInverse[t] = m.restInverse[t] * s.FpInv[t];
+      }
+    });
+  }
+
+  // Keeps a requested render surface in step with the body: topology only after fractures.
+  void updateSurface(BodyRecord& b) {
+    SurfaceRecord& r = *b.surface;
+    // Partial cracks are rendered too, so every newly broken edge changes the topology.
+    if (b.fracture && uint64_t(b.fracture->brokenCount()) != r.brokenCount) {
+      r.brokenCount = uint64_t(b.fracture->brokenCount());
+      r.surface.rebuild(b.fracture->broken().data(), b.fracture->fragments().nodeFragment().data(),
+                        b.state.x.data());
+    } else {
+      r.surface.updatePositions(b.state.x.data());
+    }
+  }
+
   detail::StepContext context(double dt) {
     for (size_t c = 0; c < colliders.size(); ++c) {
       const double k = def.colliders[c].stiffness;
@@ -114,6 +222,28 @@ Result<BodyId> World::createBody(BodyDef def) {
       return fail("BodyDef.forces[", std::to_string(f), "].force: not finite");
   }
   if (!finite3(def.initialVelocity)) return fail("BodyDef.initialVelocity: not finite");
+  if (def.plasticity.enabled) {
+    const PlasticitySettings& p = def.plasticity;
+    if (!(std::isfinite(p.yieldStress) && p.yieldStress > 0))
+      return fail("BodyDef.plasticity.yieldStress: must be positive and finite");
+    if (!(p.flowRate >= 0 && p.flowRate <= 1))
+      return fail("BodyDef.plasticity.flowRate: must lie in [0, 1]");
+    if (!(std::isfinite(p.hardening) && p.hardening >= 0))
+      return fail("BodyDef.plasticity.hardening: must be >= 0 and finite");
+  }
+  if (!def.fibreField.empty()) {
+    if (def.fibreField.size() != def.mesh.tetCount())
+      return fail("BodyDef.fibreField: expected one direction per tet (",
+                  std::to_string(def.mesh.tetCount()), "), got ",
+                  std::to_string(def.fibreField.size()));
+    for (size_t t = 0; t < def.fibreField.size(); ++t) {
+      const glm::vec3 f = def.fibreField[t];
+      if (!finite3(f) || double(f.x) * f.x + double(f.y) * f.y + double(f.z) * f.z < 1e-12)
+        return fail("BodyDef.fibreField[", std::to_string(t), "]: must be finite and non-zero");
+    }
+  }
+  if (def.fracture.enabled && (def.fracture.regions < 1))
+    return fail("BodyDef.fracture.regions: must be >= 1");
   const SolverSettings& s = def.solver;
   if (s.newtonIterations < 1) return fail("BodyDef.solver.newtonIterations: must be >= 1");
   if (!(s.newtonTolerance > 0)) return fail("BodyDef.solver.newtonTolerance: must be > 0");
@@ -127,6 +257,21 @@ Result<BodyId> World::createBody(BodyDef def) {
   for (size_t i = 0; i < body->state.v.size(); ++i)
     body->state.v[i] = def.initialVelocity[int(i % 3)];
   body->integrator = std::make_unique<detail::Integrator>(body->model);
+  Impl& w0 = *m_impl;
+  if (def.fracture.enabled) {
+    auto fb = detail::FractureBody::create(body->model, *w0.jobs);
+    if (!fb) return fb.error();
+    body->fracture = std::move(fb.value());
+  }
+  if (def.plasticity.enabled) {
+    const size_t nt = body->model.tetCount;
+    body->state.Fp.assign(nt, Mat3::identity());
+    body->state.FpInv.assign(nt, Mat3::identity());
+    body->state.plasticDelta.assign(nt, 0.0);
+    body->state.plasticInverse = body->model.restInverse;
+  }
+  body->integrator->attach(body->fracture.get(),
+                           def.plasticity.enabled ? &body->state.plasticInverse : nullptr);
 
   Impl& w = *m_impl;
   size_t slot = 0;
@@ -159,15 +304,28 @@ StepStatus World::step(double dt) {
     w.pendingWarning.clear();
   }
   const auto t0 = std::chrono::steady_clock::now();
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::time_point a) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - a).count();
+  };
   w.timings = {};
+  w.fractureEvents.clear();
+  w.fragmentEvents.clear();
   const double h = dt / w.def.substeps;
   w.lastSubstep = h;
   const detail::StepContext ctx = w.context(h);
   for (int sub = 0; sub < w.def.substeps; ++sub) {
-    for (Slot& s : w.slots) {
-      if (!s.body) continue;
-      const detail::BodyStepReport r =
-          s.body->integrator->step(s.body->model, s.body->state, ctx, *w.jobs);
+    for (size_t si = 0; si < w.slots.size(); ++si) {
+      BodyRecord* b = w.slots[si].body.get();
+      if (!b) continue;
+      const BodyId id{uint32_t(si + 1), w.slots[si].generation};
+      if (b->fracture) {
+        const auto tf = Clock::now();
+        b->fracture->detect(b->model, b->state.x.data(), b->state.v.data(), *w.jobs);
+        w.collectEvents(id, *b);
+        w.timings.fractureMs += ms(tf);
+      }
+      const detail::BodyStepReport r = b->integrator->step(b->model, b->state, ctx, *w.jobs);
       st.flags |= r.flags;
       st.newtonIterations += r.newtonIterations;
       st.linearIterations += r.linearIterations;
@@ -175,8 +333,28 @@ StepStatus World::step(double dt) {
       w.timings.elementsMs += r.elementsMs;
       w.timings.assemblyMs += r.assemblyMs;
       w.timings.solveMs += r.solveMs;
+      if (b->model.plasticity.enabled) {
+        const auto tp = Clock::now();
+        w.plasticUpdate(*b, h);
+        w.timings.fractureMs += ms(tp);
+      }
     }
   }
+  // Events sorted by body, then edge / fragment (ARCHITECTURE.md: determinism).
+  std::stable_sort(w.fractureEvents.begin(), w.fractureEvents.end(),
+                   [](const FractureEvent& a, const FractureEvent& b) {
+                     return a.body.index != b.body.index ? a.body.index < b.body.index
+                                                         : a.edge < b.edge;
+                   });
+  std::stable_sort(w.fragmentEvents.begin(), w.fragmentEvents.end(),
+                   [](const FragmentEvent& a, const FragmentEvent& b) {
+                     return a.body.index != b.body.index ? a.body.index < b.body.index
+                                                         : a.fragment < b.fragment;
+                   });
+  const auto ts = Clock::now();
+  for (Slot& s : w.slots)
+    if (s.body && s.body->surface) w.updateSurface(*s.body);
+  w.timings.surfaceMs = ms(ts);
   w.time += dt;
   w.timings.totalMs =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -254,6 +432,96 @@ BodyStats World::stats(BodyId id) const {
   s.elasticEnergy = e.elastic;
   s.contactEnergy = e.contact;
   return s;
+}
+
+Result<void> World::cut(BodyId id, const Blade& blade) {
+  BodyRecord* b = m_impl->get(id);
+  if (!b) return fail("cut: stale or null BodyId");
+  if (!b->fracture) return fail("cut: the body was created without fracture (BodyDef.fracture)");
+  if (blade.triangles.empty() || blade.triangles.size() % 3 != 0)
+    return fail("cut: blade.triangles must hold 3 indices per triangle, got ",
+                std::to_string(blade.triangles.size()));
+  for (size_t i = 0; i < blade.vertices.size(); ++i)
+    if (!finite3(blade.vertices[i]))
+      return fail("cut: blade.vertices[", std::to_string(i), "] is not finite");
+  for (size_t i = 0; i < blade.triangles.size(); ++i)
+    if (blade.triangles[i] >= blade.vertices.size())
+      return fail("cut: blade.triangles[", std::to_string(i),
+                  "] = ", std::to_string(blade.triangles[i]), " is out of range");
+  if (!finiteMat(blade.from) || !finiteMat(blade.to))
+    return fail("cut: blade.from/to must be finite transforms");
+  detail::PendingCut pc;
+  for (const glm::vec3& v : blade.vertices) {
+    pc.blade.vertices.push_back(v.x);
+    pc.blade.vertices.push_back(v.y);
+    pc.blade.vertices.push_back(v.z);
+  }
+  for (uint32_t i : blade.triangles) pc.blade.triangles.push_back(int32_t(i));
+  pc.from = toPose(blade.from);
+  pc.to = toPose(blade.to);
+  b->fracture->queueCut(std::move(pc));
+  return {};
+}
+
+std::span<const FractureEvent> World::fractureEvents() const { return m_impl->fractureEvents; }
+
+std::span<const FragmentEvent> World::fragmentEvents() const { return m_impl->fragmentEvents; }
+
+FractureStats World::fractureStats(BodyId id) const {
+  FractureStats s;
+  const BodyRecord* b = m_impl->get(id);
+  if (!b) return s;
+  if (!b->fracture) return {0, 0, 1};
+  s.edgeCount = b->fracture->graph().edgeCount;
+  s.brokenEdges = b->fracture->brokenCount();
+  s.fragments = b->fracture->fragments().count();
+  return s;
+}
+
+std::span<const int32_t> World::nodeFragments(BodyId id) const {
+  const BodyRecord* b = m_impl->get(id);
+  if (!b || !b->fracture) return {};
+  return b->fracture->fragments().nodeFragment();
+}
+
+SurfaceView World::surface(BodyId id) {
+  BodyRecord* b = m_impl->get(id);
+  if (!b) return {};
+  if (!b->surface) {
+    auto r = std::make_unique<SurfaceRecord>();
+    r->rest.positions = b->model.restPositions;
+    r->rest.tets = b->model.tets;
+    const detail::EdgeGraph* graph = nullptr;
+    if (b->fracture) {
+      graph = &b->fracture->graph();
+    } else {
+      r->ownGraph =
+          detail::EdgeGraph::build(b->model.tets.data(), b->model.tetCount, b->model.nodeCount);
+      r->noBreaks.assign(r->ownGraph.edgeCount, 0);
+      r->oneFragment.assign(b->model.nodeCount, 0);
+      graph = &r->ownGraph;
+    }
+    r->surface.init(r->rest, *graph);
+    if (b->fracture) {
+      r->brokenCount = uint64_t(b->fracture->brokenCount());
+      r->surface.rebuild(b->fracture->broken().data(),
+                         b->fracture->fragments().nodeFragment().data(), b->state.x.data());
+    } else {
+      r->surface.rebuild(r->noBreaks.data(), r->oneFragment.data(), b->state.x.data());
+    }
+    b->surface = std::move(r);
+  }
+  const detail::CrackSurface& s = b->surface->surface;
+  SurfaceView v;
+  v.positions = s.positions();
+  v.normals = s.normals();
+  v.indices = s.indices();
+  v.crackMask = s.crackFlags();
+  v.vertexFragment = s.vertexFragment();
+  v.topologyVersion = s.topologyVersion();
+  v.dirtyBegin = s.dirty().begin;
+  v.dirtyEnd = s.dirty().end;
+  return v;
 }
 
 const StepTimings& World::timings() const { return m_impl->timings; }

@@ -1,0 +1,34 @@
+// What happened during a step, reported as arrays sorted for determinism (Box2D style). The
+// spans World returns stay valid until the next step or body creation/destruction.
+#pragma once
+
+#include <cstdint>
+#include <glm/vec3.hpp>
+
+#include "ids.h"
+
+namespace gf {
+
+/// An edge of a body's mesh broke (by the stress criterion, a brittle crack plane or a cut).
+struct FractureEvent {
+  BodyId body;
+  int32_t edge = -1;               ///< Edge index in the body's edge graph.
+  int32_t nodeA = -1, nodeB = -1;  ///< Its end nodes.
+  glm::vec3 position{0, 0, 0};     ///< World-space midpoint of the edge when it broke.
+  float stress = 0;                ///< Tensile normal stress that broke it [Pa]; 0 for cuts.
+  enum class Cause : uint8_t { Stress, BrittlePlane, Cut } cause = Cause::Stress;
+};
+
+/// A body's node graph split: a new fragment appeared (the old one keeps its id).
+struct FragmentEvent {
+  BodyId body;
+  int32_t fragment = -1;  ///< New fragment id (0 is the piece holding node 0 at creation).
+  int32_t parent = -1;    ///< Fragment it split from.
+  int32_t nodeCount = 0;
+  double volume = 0;  ///< [m^3]
+  double mass = 0;    ///< [kg]
+  glm::vec3 centreOfMass{0, 0, 0};
+  glm::vec3 velocity{0, 0, 0};  ///< Momentum / mass [m/s].
+};
+
+}  // namespace gf

@@ -1,0 +1,23 @@
+// Read-only view of a body's render surface (SPEC §3): the boundary plus the crack faces of
+// broken edges, watertight per fragment. A renderer copies from it without knowing the
+// internals: rebuild index buffers when topologyVersion changes, otherwise upload the dirty
+// vertex range.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+namespace gf {
+
+/// Valid until the next World::step or body creation/destruction.
+struct SurfaceView {
+  std::span<const float> positions;         ///< 3 per vertex, world space
+  std::span<const float> normals;           ///< 3 per vertex, unit, outward
+  std::span<const uint32_t> indices;        ///< 3 per triangle, counter-clockwise seen from outside
+  std::span<const uint8_t> crackMask;       ///< per triangle: 1 = crack face, 0 = original boundary
+  std::span<const int32_t> vertexFragment;  ///< per vertex: the fragment it belongs to
+  uint64_t topologyVersion = 0;             ///< changes only when fractures change the triangles
+  uint32_t dirtyBegin = 0, dirtyEnd = 0;    ///< vertices whose positions changed since last step
+};
+
+}  // namespace gf

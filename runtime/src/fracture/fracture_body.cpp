@@ -1,0 +1,158 @@
+#include "fracture/fracture_body.h"
+
+#include <algorithm>
+
+#include "fracture/brittle.h"
+#include "graphfrac/events.h"
+#include "kernels/damage.h"
+#include "kernels/edge_stress.h"
+#include "kernels/element.h"
+
+namespace gf::detail {
+
+namespace {
+constexpr uint32_t kTetGrain = 256;
+
+Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i + 2]}; }
+
+uint8_t cause(FractureEvent::Cause c) { return static_cast<uint8_t>(c); }
+}  // namespace
+
+Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem, JobSystem& jobs) {
+  auto fb = std::make_unique<FractureBody>();
+  const size_t nt = fem.tetCount, nn = fem.nodeCount;
+  fb->m_graph = EdgeGraph::build(fem.tets.data(), nt, nn);
+  const RestMeshView rest{fem.restPositions.data(), fem.tets.data(), fem.nodeCount, fem.tetCount};
+  auto model = FractureModel::build(rest, fb->m_graph, fem.fracture, &jobs);
+  if (!model) return fail("BodyDef.fracture: ", model.error().message);
+  fb->m_model = std::move(model.value());
+  fb->m_damageModel = fem.fracture.model == DamageModel::Projection ? 0 : 1;
+
+  fb->m_restDir.resize(6 * nt);
+  if (fb->m_damageModel == 0) {
+    fb->m_T.resize(nt);
+    fb->m_Tinv.resize(nt);
+  }
+  for (size_t t = 0; t < nt; ++t) {
+    Vec3 X[4];
+    for (int a = 0; a < 4; ++a) X[a] = load3(fem.restPositions.data(), fem.tets[4 * t + a]);
+    double L[6];
+    restEdgeDirections(X, &fb->m_restDir[6 * t], L);
+    if (fb->m_damageModel == 0) {
+      fb->m_T[t] = gf::edgeMatrix(&fb->m_restDir[6 * t]);
+      if (!invertEdgeMatrix(fb->m_T[t], fb->m_Tinv[t]))
+        return fail("BodyDef.mesh: tet ", std::to_string(t),
+                    ": too flat for the projection damage model (its edge matrix T is singular)");
+    }
+  }
+  fb->m_broken.assign(fb->m_graph.edgeCount, 0);
+  fb->m_tetMask.assign(nt, 0);
+  fb->m_chi.assign(nt, 1.0);
+  fb->m_stress.assign(6 * nt, 0.0);
+  fb->m_sigmaN.assign(6 * nt, 0.0);
+  fb->m_nodeVolume = Fragments::nodeVolumes(fem.tets.data(), nt, fem.restPositions.data(), nn);
+  fb->m_fragments.build(fb->m_graph, fb->m_broken.data());
+  return fb;
+}
+
+void FractureBody::computeStresses(const FemModel& fem, const double* x, JobSystem& jobs) {
+  const Mat3* restInverse = fem.restInverse.data();
+  jobs.parallelFor(uint32_t(fem.tetCount), kTetGrain, [&](uint32_t b, uint32_t e) {
+    for (uint32_t t = b; t < e; ++t) {
+      double* s = &m_stress[6 * t];
+      const uint8_t mask = m_tetMask[t];
+      uint8_t brokenLocal[6];
+      for (int k = 0; k < 6; ++k) brokenLocal[k] = (mask >> k) & 1;
+      // A tet already split into pieces carries no stress between them.
+      if (mask && cornersDisconnected(brokenLocal)) {
+        for (int k = 0; k < 6; ++k) s[k] = m_sigmaN[6 * t + k] = 0;
+        continue;
+      }
+      Vec3 xe[4];
+      for (int a = 0; a < 4; ++a) xe[a] = load3(x, fem.tets[4 * t + a]);
+      MaterialCoeffs c = fem.coeffs;
+      if (!fem.fibreDir.empty()) c.fibreDir = fem.fibreDir[t];
+      const Mat3 S = materialStress(c, deformationGradient(xe, restInverse[t]));
+      edgeNormalStresses(S, &m_restDir[6 * t], &m_sigmaN[6 * t]);
+      // Degradation scales the whole stress by chi (eq 4.32).
+      const double scale = (mask && m_damageModel == 1) ? m_chi[t] : 1.0;
+      toVoigt(S, s);
+      for (int k = 0; k < 6; ++k) s[k] *= scale;
+    }
+  });
+}
+
+void FractureBody::applyBreaks(size_t first, const FemModel& fem, const double* x,
+                               const double* v) {
+  if (first == m_breaks.size()) return;
+  std::sort(m_breaks.begin() + long(first), m_breaks.end(),
+            [](const EdgeBreak& a, const EdgeBreak& b) { return a.edge < b.edge; });
+  applyBreaksToMasks(m_graph, m_breaks.data() + first, m_breaks.size() - first, m_tetMask.data());
+  m_newEdges.clear();
+  for (size_t i = first; i < m_breaks.size(); ++i) {
+    m_newEdges.push_back(m_breaks[i].edge);
+    // The lagged chi of every tet around the edge follows its new mask (eq 4.33).
+    const int32_t e = m_breaks[i].edge;
+    for (int32_t q = m_graph.edgeTetStart[e]; q < m_graph.edgeTetStart[e + 1]; ++q) {
+      const int32_t t = m_graph.edgeTets[q] / 6;
+      uint8_t brokenLocal[6];
+      for (int k = 0; k < 6; ++k) brokenLocal[k] = (m_tetMask[t] >> k) & 1;
+      m_chi[t] = degradationFactor(&m_sigmaN[6 * t], brokenLocal);
+    }
+  }
+  m_brokenCount += int32_t(m_breaks.size() - first);
+  if (m_fragments.update(m_graph, m_broken.data(), m_newEdges)) {
+    const auto s = m_fragments.splits();
+    m_splits.insert(m_splits.end(), s.begin(), s.end());
+    m_fragments.compute(m_nodeVolume, fem.nodeMass, x, v, m_props);
+  }
+}
+
+int32_t FractureBody::detect(const FemModel& fem, const double* x, const double* v,
+                             JobSystem& jobs) {
+  m_breaks.clear();
+  m_breakCause.clear();
+  m_splits.clear();
+  for (PendingCut& cut : m_pendingCuts) {
+    const size_t first = m_breaks.size();
+    // Validated by World::cut, so the result cannot fail here.
+    (void)cutEdges(m_graph, x, cut.blade, cut.from, cut.to, m_broken, m_breaks, m_cutWs, jobs);
+    m_breakCause.resize(m_breaks.size(), cause(FractureEvent::Cause::Cut));
+    applyBreaks(first, fem, x, v);
+  }
+  m_pendingCuts.clear();
+
+  computeStresses(fem, x, jobs);
+  size_t first = m_breaks.size();
+  const int32_t n =
+      evaluateCriterion(m_model, m_graph, m_stress.data(), m_broken, m_breaks, m_ws, jobs, x);
+  m_breakCause.resize(m_breaks.size(), cause(FractureEvent::Cause::Stress));
+  if (n > 0 && fem.fracture.brittle && !m_brittleFired) {
+    // Brittle mode: the first time the criterion fires, the most stressed regions start
+    // crack planes through the whole body (sec 4.5.1.2).
+    m_brittleFired = true;
+    const RestMeshView rest{fem.restPositions.data(), fem.tets.data(), fem.nodeCount, fem.tetCount};
+    const double* seedStress = m_stress.data();
+    if (m_model.nonLocal()) {
+      std::vector<double> averaged(m_stress.size());  // once per body: no need to keep it
+      averageStress(m_model, m_stress.data(), averaged.data(), jobs);
+      (void)startBrittleCracks(m_model, m_graph, rest, averaged.data(), m_broken, m_breaks, jobs,
+                               x);
+    } else {
+      (void)startBrittleCracks(m_model, m_graph, rest, seedStress, m_broken, m_breaks, jobs, x);
+    }
+    m_breakCause.resize(m_breaks.size(), cause(FractureEvent::Cause::BrittlePlane));
+  }
+  // Keep each cause with its break through the sort in applyBreaks.
+  if (m_breaks.size() > first) {
+    std::vector<std::pair<int32_t, uint8_t>> causes;
+    for (size_t i = first; i < m_breaks.size(); ++i)
+      causes.push_back({m_breaks[i].edge, m_breakCause[i]});
+    std::sort(causes.begin(), causes.end());
+    applyBreaks(first, fem, x, v);
+    for (size_t i = first; i < m_breaks.size(); ++i) m_breakCause[i] = causes[i - first].second;
+  }
+  return int32_t(m_breaks.size());
+}
+
+}  // namespace gf::detail

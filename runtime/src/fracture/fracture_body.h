@@ -1,0 +1,88 @@
+// Per-body fracture at run time (thesis ch. 4, SPEC §2): the edge graph, the damage state and
+// what a step does with them. Design: fracture is detected once per step, at its start, from
+// the material-frame stress of x_n (the state the previous step ended in); newly broken edges
+// change the element masks and the lagged chi before the implicit solve, so the solve and its
+// Hessian see one consistent energy. The sparse pattern never changes: a broken edge only
+// changes element values. Bodies without fracture have no FractureBody at all.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "fem/fem_body.h"
+#include "fracture/criterion.h"
+#include "fracture/cutting.h"
+#include "fracture/fracture_model.h"
+#include "graphfrac/jobs.h"
+#include "kernels/math.h"
+#include "mesh/edge_graph.h"
+#include "surface/fragments.h"
+
+namespace gf::detail {
+
+/// A cut waiting for the next step (World::cut).
+struct PendingCut {
+  Blade blade;
+  BladePose from, to;
+};
+
+class FractureBody {
+ public:
+  /// Builds the graph, the fracture model and the per-tet edge matrices. Errors name the
+  /// field (e.g. a strength that is not positive).
+  static Result<std::unique_ptr<FractureBody>> create(const FemModel& fem, JobSystem& jobs);
+
+  /// Start of a step: pending cuts, then the stress criterion (and brittle planes) on the
+  /// state x. Fills breaks() and splits(); returns the number of edges broken.
+  int32_t detect(const FemModel& fem, const double* x, const double* v, JobSystem& jobs);
+
+  /// Kernel inputs of the element pass.
+  int damageModel() const { return m_damageModel; }
+  const uint8_t* tetMask() const { return m_tetMask.data(); }
+  const double* chi() const { return m_chi.data(); }
+  const Mat<6, 6>& edgeMatrix(int32_t t) const { return m_T.empty() ? m_identity : m_T[t]; }
+  const Mat<6, 6>& edgeMatrixInverse(int32_t t) const {
+    return m_Tinv.empty() ? m_identity : m_Tinv[t];
+  }
+
+  void queueCut(PendingCut cut) { m_pendingCuts.push_back(std::move(cut)); }
+
+  const EdgeGraph& graph() const { return m_graph; }
+  const std::vector<uint8_t>& broken() const { return m_broken; }
+  const Fragments& fragments() const { return m_fragments; }
+  /// Edges broken by the last detect(), sorted by edge id, with what broke them.
+  const std::vector<EdgeBreak>& breaks() const { return m_breaks; }
+  const std::vector<uint8_t>& breakCause() const { return m_breakCause; }  // FractureEvent::Cause
+  /// Fragments created by the last detect() and their properties at that moment.
+  const std::vector<FragmentSplit>& splits() const { return m_splits; }
+  const FragmentProperties& splitProperties() const { return m_props; }
+  int32_t brokenCount() const { return m_brokenCount; }
+
+ private:
+  // Material-frame stress of every tet at x (6 per tet), zero for split-apart tets.
+  void computeStresses(const FemModel& fem, const double* x, JobSystem& jobs);
+  // Masks, chi and fragments after edges in m_breaks[first..] broke.
+  void applyBreaks(size_t first, const FemModel& fem, const double* x, const double* v);
+
+  EdgeGraph m_graph;
+  FractureModel m_model;
+  int m_damageModel = 1;
+  std::vector<Vec3> m_restDir;         // 6 per tet, unit rest edge directions
+  std::vector<Mat<6, 6>> m_T, m_Tinv;  // projection model only
+  Mat<6, 6> m_identity = Mat<6, 6>::identity();
+  std::vector<uint8_t> m_broken, m_tetMask, m_breakCause;
+  std::vector<double> m_chi, m_stress, m_sigmaN;
+  std::vector<double> m_nodeVolume;
+  std::vector<EdgeBreak> m_breaks;
+  std::vector<int32_t> m_newEdges;
+  std::vector<FragmentSplit> m_splits;
+  FragmentProperties m_props;
+  CriterionWorkspace m_ws;
+  CutWorkspace m_cutWs;
+  Fragments m_fragments;
+  std::vector<PendingCut> m_pendingCuts;
+  int32_t m_brokenCount = 0;
+  bool m_brittleFired = false;
+};
+
+}  // namespace gf::detail
