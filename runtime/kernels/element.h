@@ -75,13 +75,23 @@ GF_HD void scatterElementDerivatives(const Mat<4, 3>& B, double volume, const Ma
 /// Element elastic energy V psi(F). Fills grad = dE/dx (12, node-major; the internal force is
 /// -grad) and, when hessian is non-null, d2E/dx2 = V D^T dPdF D with D = dvec(F)/dx,
 /// projected to PSD when projectPsd.
+/// When materialStress is non-null it also receives the material-frame (Biot) stress
+/// sym(R^T P) that drives fracture, from the same SVD.
 GF_HD double elementForces(const MaterialCoeffs& c, const Vec3 x[4], const Mat3& DmInv,
-                           double volume, double grad[12], Mat12* hessian, bool projectPsd) {
+                           double volume, double grad[12], Mat12* hessian, bool projectPsd,
+                           Mat3* materialStress = nullptr) {
   const Mat3 F = deformationGradient(x, DmInv);
   const Mat<4, 3> B = shapeGradients(DmInv);
   Mat3 P;
   Mat9 dPdF;
-  const double psi = evaluateMaterial(c, F, P, hessian != nullptr ? &dPdF : nullptr, projectPsd);
+  Svd3 svd;
+  const double psi = evaluateMaterial(c, F, P, hessian != nullptr ? &dPdF : nullptr, projectPsd,
+                                      materialStress != nullptr ? &svd : nullptr);
+  if (materialStress != nullptr) {
+    const Mat3 rp = transpose(svd.U * transpose(svd.V)) * P;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) (*materialStress)(i, j) = 0.5 * (rp(i, j) + rp(j, i));
+  }
   detail::scatterElementDerivatives(B, volume, P, dPdF, grad, hessian);
   return volume * psi;
 }

@@ -358,8 +358,9 @@ GF_HD Mat3 isotropicHessian(const MaterialCoeffs& c, Vec3 s) {
 /// one SVD; the isotropic model plus the fibre term when fibreMu > 0. See
 /// firstPiolaAndHessian for projectPsd.
 GF_HD double evaluateMaterial(const MaterialCoeffs& c, const Mat3& F, Mat3& P, Mat9* dPdF,
-                              bool projectPsd) {
+                              bool projectPsd, Svd3* svdOut = nullptr) {
   const Svd3 svd = svd3(F);
+  if (svdOut != nullptr) *svdOut = svd;
   double psi = detail::isotropicEvaluate(c, svd, P, dPdF, projectPsd);
   if (c.fibreMu > 0) {
     psi += detail::fibreEnergy(c, F, svd);

@@ -35,7 +35,7 @@ double tensionBreakStress(DamageModel model, double strength, double* stressBefo
   const double dt = 1e-2;
   double lastStress = 0;
   for (int s = 1; s < 2000; ++s) {
-    // The criterion at the start of step s sees the state after s - 1 steps.
+    // The criterion at the start of step s judges the state after s - 1 steps.
     const double stress = E * (2 * speed * (s - 1) * dt) / L;
     (void)world.step(dt);
     if (!world.fractureEvents().empty()) {

@@ -57,6 +57,7 @@ FemModel buildFemModel(const BodyDef& def) {
       m.gripVelocity[3 * n + 0] = g.velocity.x;
       m.gripVelocity[3 * n + 1] = g.velocity.y;
       m.gripVelocity[3 * n + 2] = g.velocity.z;
+      m.movingGrips |= g.velocity != glm::vec3(0);
     }
   m.fracture = def.fracture;
   m.plasticity = def.plasticity;

@@ -26,6 +26,7 @@ struct FemModel {
   SolverSettings solver;
   std::vector<uint8_t> fixedNode;     ///< 1 where a grip prescribes the velocity
   std::vector<double> gripVelocity;   ///< 3 per node (zero where not fixed)
+  bool movingGrips = false;           ///< some grip has a non-zero velocity
   std::vector<double> externalForce;  ///< 3 per node, constant point forces
   FractureSettings fracture;
   PlasticitySettings plasticity;

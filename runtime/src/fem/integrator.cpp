@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "kernels/damage.h"
+#include "kernels/edge_stress.h"
 #include "kernels/element.h"
 
 namespace gf::detail {
@@ -72,6 +73,7 @@ double Integrator::elementPass(const FemModel& model, const double* x, bool with
   // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
   const Mat3* restInverse = m_plasticInverse ? m_plasticInverse->data() : model.restInverse.data();
   const FractureBody* fb = m_fracture;
+  double* stressOut = m_stressOut;
   jobs.parallelFor(uint32_t(model.tetCount), kElementGrain, [&](uint32_t b, uint32_t e) {
     for (uint32_t t = b; t < e; ++t) {
       Vec3 xe[4];
@@ -81,8 +83,11 @@ double Integrator::elementPass(const FemModel& model, const double* x, bool with
       if (!model.fibreDir.empty()) c.fibreDir = model.fibreDir[t];
       const uint8_t mask = fb ? fb->tetMask()[t] : 0;
       if (mask == 0) {
-        m_elemEnergy[t] = elementForces(c, xe, restInverse[t], model.restVolume[t],
-                                        &m_elemGrad[12 * t], H, /*projectPsd=*/true);
+        Mat3 S;
+        m_elemEnergy[t] =
+            elementForces(c, xe, restInverse[t], model.restVolume[t], &m_elemGrad[12 * t], H,
+                          /*projectPsd=*/true, stressOut ? &S : nullptr);
+        if (stressOut) toVoigt(S, stressOut + 6 * t);
       } else {
         // A damaged element (one of its edges broke, fig 4.5): eq 4.25-4.27 or 4.32-4.33.
         uint8_t brokenLocal[6];
@@ -209,6 +214,12 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   m_xStart = state.x;
   m_vStart = state.v;
 
+  // Moving grips shift the start point away from x_n, so fracture is judged on x_n first.
+  if (m_fracture && model.movingGrips) {
+    const auto tf = Clock::now();
+    m_fracture->detect(model, state.x.data(), state.v.data(), jobs, /*stressesReady=*/false);
+    rep.fractureMs += msSince(tf);
+  }
   // Start at x_n with the prescribed nodes already moved; they stay put from here on.
   m_x = state.x;
   for (int32_t n = 0; n < model.nodeCount; ++n)
@@ -223,8 +234,24 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   for (int it = 0; it < iterationCap; ++it) {
     auto t0 = Clock::now();
     if (it == 0) m_dampKValid = false;
+    // Fracture is judged on the first pass's stresses when that pass sees x_n (no grip has
+    // moved the start point); if edges broke, the damaged elements change and the pass is
+    // repeated once.
+    const bool fusedFracture = it == 0 && m_fracture && !model.movingGrips;
+    if (fusedFracture) m_stressOut = m_fracture->stressBuffer();
     double E = incrementalPotential(model, start, m_x.data(), ctx, true, true, jobs);
+    m_stressOut = nullptr;
     rep.elementsMs += msSince(t0);
+    if (fusedFracture) {
+      t0 = Clock::now();
+      const int32_t broke = m_fracture->detect(model, m_x.data(), state.v.data(), jobs);
+      rep.fractureMs += msSince(t0);
+      if (broke > 0) {
+        t0 = Clock::now();
+        E = incrementalPotential(model, start, m_x.data(), ctx, true, true, jobs);
+        rep.elementsMs += msSince(t0);
+      }
+    }
 
     // A = M (1 + dt r1) + dt r2 K(x_n) + dt^2 (K + K_contact)
     t0 = Clock::now();

@@ -41,7 +41,7 @@ struct BodyStepReport {
   int newtonIterations = 0;
   int linearIterations = 0;
   double residual = 0;
-  double elementsMs = 0, assemblyMs = 0, solveMs = 0;
+  double elementsMs = 0, assemblyMs = 0, solveMs = 0, fractureMs = 0;
 };
 
 /// Energies of a configuration (for diagnostics).
@@ -54,11 +54,13 @@ class Integrator {
   explicit Integrator(const FemModel& model);
   /// Damage state the element pass reads (null: no fracture) and the effective rest inverses
   /// of plastic elements (null: no plasticity). Both outlive the integrator's use.
-  void attach(const FractureBody* fracture, const std::vector<Mat3>* plasticInverse) {
+  void attach(FractureBody* fracture, const std::vector<Mat3>* plasticInverse) {
     m_fracture = fracture;
     m_plasticInverse = plasticInverse;
   }
-  /// Advances `state` by ctx.dt. On a NaN/Inf the state is restored and flagged.
+  /// Advances `state` by ctx.dt. With fracture attached, the first element pass also yields
+  /// the stresses of the fracture criterion, which runs before the solve (FractureBody::detect).
+  /// On a NaN/Inf the state is restored and flagged.
   BodyStepReport step(const FemModel& model, FemState& state, const StepContext& ctx,
                       JobSystem& jobs);
   /// Elastic and contact energy at positions x.
@@ -93,7 +95,8 @@ class Integrator {
   BlockSparseMatrix m_dampK;           // K(x_n) for Rayleigh r2, only when r2 > 0
   bool m_dampKValid = false;           // m_dampK belongs to the current step
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
-  const FractureBody* m_fracture = nullptr;
+  FractureBody* m_fracture = nullptr;
+  double* m_stressOut = nullptr;  // 6 per tet: the element pass also writes Biot stresses
   const std::vector<Mat3>* m_plasticInverse = nullptr;
   PcgSolver m_pcg;
   std::unique_ptr<CholeskySolver> m_cholesky;

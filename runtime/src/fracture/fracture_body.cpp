@@ -49,33 +49,40 @@ Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem, 
   fb->m_tetMask.assign(nt, 0);
   fb->m_chi.assign(nt, 1.0);
   fb->m_stress.assign(6 * nt, 0.0);
-  fb->m_sigmaN.assign(6 * nt, 0.0);
   fb->m_nodeVolume = Fragments::nodeVolumes(fem.tets.data(), nt, fem.restPositions.data(), nn);
   fb->m_fragments.build(fb->m_graph, fb->m_broken.data());
   return fb;
 }
 
-void FractureBody::computeStresses(const FemModel& fem, const double* x, JobSystem& jobs) {
-  const Mat3* restInverse = fem.restInverse.data();
+Mat3 FractureBody::undamagedStress(const FemModel& fem, const double* x, int32_t t) const {
+  Vec3 xe[4];
+  for (int a = 0; a < 4; ++a) xe[a] = load3(x, fem.tets[4 * t + a]);
+  MaterialCoeffs c = fem.coeffs;
+  if (!fem.fibreDir.empty()) c.fibreDir = fem.fibreDir[t];
+  return materialStress(c, deformationGradient(xe, fem.restInverse[t]));
+}
+
+void FractureBody::computeStresses(const FemModel& fem, const double* x, bool undamagedToo,
+                                   JobSystem& jobs) {
+  // Undamaged tets usually hold the element pass's stress already (undamagedToo false).
   jobs.parallelFor(uint32_t(fem.tetCount), kTetGrain, [&](uint32_t b, uint32_t e) {
     for (uint32_t t = b; t < e; ++t) {
-      double* s = &m_stress[6 * t];
       const uint8_t mask = m_tetMask[t];
+      if (mask == 0) {
+        if (undamagedToo) toVoigt(undamagedStress(fem, x, int32_t(t)), &m_stress[6 * t]);
+        continue;
+      }
+      double* s = &m_stress[6 * t];
       uint8_t brokenLocal[6];
       for (int k = 0; k < 6; ++k) brokenLocal[k] = (mask >> k) & 1;
       // A tet already split into pieces carries no stress between them.
-      if (mask && cornersDisconnected(brokenLocal)) {
-        for (int k = 0; k < 6; ++k) s[k] = m_sigmaN[6 * t + k] = 0;
+      if (cornersDisconnected(brokenLocal)) {
+        for (int k = 0; k < 6; ++k) s[k] = 0;
         continue;
       }
-      Vec3 xe[4];
-      for (int a = 0; a < 4; ++a) xe[a] = load3(x, fem.tets[4 * t + a]);
-      MaterialCoeffs c = fem.coeffs;
-      if (!fem.fibreDir.empty()) c.fibreDir = fem.fibreDir[t];
-      const Mat3 S = materialStress(c, deformationGradient(xe, restInverse[t]));
-      edgeNormalStresses(S, &m_restDir[6 * t], &m_sigmaN[6 * t]);
+      const Mat3 S = undamagedStress(fem, x, int32_t(t));
       // Degradation scales the whole stress by chi (eq 4.32).
-      const double scale = (mask && m_damageModel == 1) ? m_chi[t] : 1.0;
+      const double scale = m_damageModel == 1 ? m_chi[t] : 1.0;
       toVoigt(S, s);
       for (int k = 0; k < 6; ++k) s[k] *= scale;
     }
@@ -97,7 +104,9 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const double* 
       const int32_t t = m_graph.edgeTets[q] / 6;
       uint8_t brokenLocal[6];
       for (int k = 0; k < 6; ++k) brokenLocal[k] = (m_tetMask[t] >> k) & 1;
-      m_chi[t] = degradationFactor(&m_sigmaN[6 * t], brokenLocal);
+      double sigmaN[6];
+      edgeNormalStresses(undamagedStress(fem, x, t), &m_restDir[6 * t], sigmaN);
+      m_chi[t] = degradationFactor(sigmaN, brokenLocal);
     }
   }
   m_brokenCount += int32_t(m_breaks.size() - first);
@@ -108,8 +117,8 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const double* 
   }
 }
 
-int32_t FractureBody::detect(const FemModel& fem, const double* x, const double* v,
-                             JobSystem& jobs) {
+int32_t FractureBody::detect(const FemModel& fem, const double* x, const double* v, JobSystem& jobs,
+                             bool stressesReady) {
   m_breaks.clear();
   m_breakCause.clear();
   m_splits.clear();
@@ -122,7 +131,7 @@ int32_t FractureBody::detect(const FemModel& fem, const double* x, const double*
   }
   m_pendingCuts.clear();
 
-  computeStresses(fem, x, jobs);
+  computeStresses(fem, x, !stressesReady, jobs);
   size_t first = m_breaks.size();
   const int32_t n =
       evaluateCriterion(m_model, m_graph, m_stress.data(), m_broken, m_breaks, m_ws, jobs, x);

@@ -33,8 +33,14 @@ class FractureBody {
   static Result<std::unique_ptr<FractureBody>> create(const FemModel& fem, JobSystem& jobs);
 
   /// Start of a step: pending cuts, then the stress criterion (and brittle planes) on the
-  /// state x. Fills breaks() and splits(); returns the number of edges broken.
-  int32_t detect(const FemModel& fem, const double* x, const double* v, JobSystem& jobs);
+  /// state x. stressBuffer() must hold the material-frame stress of every undamaged tet at x
+  /// (the integrator's first element pass writes it); damaged tets are evaluated here. Fills
+  /// breaks() and splits(); returns the number of edges broken.
+  /// With stressesReady false, the stresses of undamaged tets are computed here too.
+  int32_t detect(const FemModel& fem, const double* x, const double* v, JobSystem& jobs,
+                 bool stressesReady = true);
+  /// 6 per tet (Voigt), written by the element pass.
+  double* stressBuffer() { return m_stress.data(); }
 
   /// Kernel inputs of the element pass.
   int damageModel() const { return m_damageModel; }
@@ -59,8 +65,10 @@ class FractureBody {
   int32_t brokenCount() const { return m_brokenCount; }
 
  private:
-  // Material-frame stress of every tet at x (6 per tet), zero for split-apart tets.
-  void computeStresses(const FemModel& fem, const double* x, JobSystem& jobs);
+  // Completes m_stress at x: damaged tets (scaled or zero) and the edge stresses chi needs.
+  void computeStresses(const FemModel& fem, const double* x, bool undamagedToo, JobSystem& jobs);
+  // Material-frame stress of tet t at x as if it were intact.
+  Mat3 undamagedStress(const FemModel& fem, const double* x, int32_t t) const;
   // Masks, chi and fragments after edges in m_breaks[first..] broke.
   void applyBreaks(size_t first, const FemModel& fem, const double* x, const double* v);
 
@@ -71,7 +79,7 @@ class FractureBody {
   std::vector<Mat<6, 6>> m_T, m_Tinv;  // projection model only
   Mat<6, 6> m_identity = Mat<6, 6>::identity();
   std::vector<uint8_t> m_broken, m_tetMask, m_breakCause;
-  std::vector<double> m_chi, m_stress, m_sigmaN;
+  std::vector<double> m_chi, m_stress;
   std::vector<double> m_nodeVolume;
   std::vector<EdgeBreak> m_breaks;
   std::vector<int32_t> m_newEdges;

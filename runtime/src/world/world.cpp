@@ -319,13 +319,9 @@ StepStatus World::step(double dt) {
       BodyRecord* b = w.slots[si].body.get();
       if (!b) continue;
       const BodyId id{uint32_t(si + 1), w.slots[si].generation};
-      if (b->fracture) {
-        const auto tf = Clock::now();
-        b->fracture->detect(b->model, b->state.x.data(), b->state.v.data(), *w.jobs);
-        w.collectEvents(id, *b);
-        w.timings.fractureMs += ms(tf);
-      }
       const detail::BodyStepReport r = b->integrator->step(b->model, b->state, ctx, *w.jobs);
+      if (b->fracture) w.collectEvents(id, *b);
+      w.timings.fractureMs += r.fractureMs;
       st.flags |= r.flags;
       st.newtonIterations += r.newtonIterations;
       st.linearIterations += r.linearIterations;
