@@ -1,11 +1,22 @@
 // `graphfrac run` end to end: the CSV it writes must hold the physics of a case with a known
 // answer (free fall: backward Euler gives v_n = n g dt exactly), and the surface frames must
-// be closed meshes of the body's boundary.
+// be closed meshes of the body's boundary. With fracture: a bar pulled apart and a cylinder
+// cut by a plane must end in two pieces, the event log must agree with the CSV edge for edge,
+// and the render surface must be closed with its crack faces marked and enclose the body's
+// volume.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numbers>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -97,6 +108,276 @@ TEST(Cli, FreeFallCsvMatchesBackwardEuler) {
     EXPECT_EQ(count, 1);
     EXPECT_EQ(directedEdges.count({e.second, e.first}), 1u);
   }
+}
+
+/// A triangle mesh read back from an OBJ frame, with the group of each face.
+struct ObjMesh {
+  std::vector<std::array<double, 3>> vertices;
+  std::vector<std::array<int, 3>> faces;  // 0-based
+  std::vector<std::string> groups;        // per face
+};
+
+ObjMesh readObj(const fs::path& path) {
+  ObjMesh m;
+  std::ifstream in(path);
+  EXPECT_TRUE(in.good()) << path;
+  std::string group;
+  for (std::string line; std::getline(in, line);) {
+    std::stringstream ls(line);
+    std::string tag;
+    ls >> tag;
+    if (tag == "v") {
+      std::array<double, 3> p{};
+      ls >> p[0] >> p[1] >> p[2];
+      m.vertices.push_back(p);
+    } else if (tag == "g") {
+      ls >> group;
+    } else if (tag == "f") {
+      std::array<int, 3> f{};
+      for (int& i : f) {
+        std::string tok;
+        ls >> tok;
+        i = std::stoi(tok.substr(0, tok.find('/'))) - 1;
+      }
+      m.faces.push_back(f);
+      m.groups.push_back(group);
+    }
+  }
+  return m;
+}
+
+/// True when every directed edge appears once and its reverse once: closed, 2-manifold along
+/// edges and consistently oriented.
+bool closedAndOriented(const ObjMesh& m) {
+  std::map<std::pair<int, int>, int> directed;
+  for (const auto& f : m.faces) {
+    for (int k = 0; k < 3; ++k) ++directed[{f[k], f[(k + 1) % 3]}];
+  }
+  for (const auto& [e, count] : directed) {
+    if (count != 1) return false;
+    const auto back = directed.find({e.second, e.first});
+    if (back == directed.end() || back->second != 1) return false;
+  }
+  return true;
+}
+
+/// Signed volumes of the connected pieces of a closed mesh (divergence theorem), largest first.
+std::vector<double> pieceVolumes(const ObjMesh& m) {
+  std::vector<int> parent(m.vertices.size());
+  for (size_t i = 0; i < parent.size(); ++i) parent[i] = int(i);
+  auto find = [&](int x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (const auto& f : m.faces) {
+    parent[find(f[1])] = find(f[0]);
+    parent[find(f[2])] = find(f[0]);
+  }
+  std::map<int, double> volume;
+  for (const auto& f : m.faces) {
+    const auto& a = m.vertices[f[0]];
+    const auto& b = m.vertices[f[1]];
+    const auto& c = m.vertices[f[2]];
+    volume[find(f[0])] += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+                           a[2] * (b[0] * c[1] - b[1] * c[0])) /
+                          6;
+  }
+  std::vector<double> out;
+  for (const auto& [root, v] : volume) out.push_back(v);
+  std::sort(out.rbegin(), out.rend());
+  return out;
+}
+
+/// Rows of the event log as strings (it holds names and causes).
+std::vector<std::vector<std::string>> readEvents(const fs::path& path) {
+  std::ifstream in(path);
+  std::vector<std::vector<std::string>> rows;
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "frame,body,edge,nodeA,nodeB,x,y,z,stress,cause");
+  while (std::getline(in, line)) {
+    std::vector<std::string> row;
+    std::stringstream ls(line);
+    for (std::string v; std::getline(ls, v, ',');) row.push_back(v);
+    EXPECT_EQ(row.size(), 10u) << line;
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+/// Checks that the event log and the CSV agree: each edge reported once, and the events up to
+/// frame n add up to the CSV's broken_edges of frame n.
+void expectEventsMatchCsv(const std::vector<std::vector<std::string>>& events,
+                          const std::vector<std::map<std::string, double>>& rows,
+                          const std::set<std::string>& causes) {
+  std::set<int> edges;
+  std::map<int, int> perFrame;
+  for (const auto& e : events) {
+    EXPECT_TRUE(edges.insert(std::stoi(e[2])).second) << "edge " << e[2] << " reported twice";
+    EXPECT_TRUE(causes.count(e[9]) != 0) << e[9];
+    ++perFrame[std::stoi(e[0])];
+  }
+  int cumulative = 0;
+  for (const auto& row : rows) {
+    cumulative += perFrame[int(row.at("frame"))];
+    EXPECT_EQ(row.at("broken_edges"), cumulative) << "frame " << row.at("frame");
+  }
+}
+
+TEST(Cli, BarPulledApartEndsInTwoClosedPieces) {
+  // A V-notched bar (brittle mode, one crack region) pulled at both ends: the stress peaks at
+  // the notch tip and one crack plane runs from there through the section.
+  const fs::path dir = scratch("bar");
+  std::ofstream(dir / "bar.json") << R"({
+    "dt": 0.01, "frames": 80, "gravity": [0, 0, 0],
+    "bodies": [{"name": "bar",
+      "mesh": {"generator": "box", "size": [0.4, 0.1, 0.1], "cells": [16, 4, 2],
+               "notch": {"depth": 0.05, "angle_deg": 60}},
+      "material": {"model": "stable_neo_hookean", "E": 1e5, "nu": 0.3, "rho": 1000},
+      "fracture": {"strength": 2e4, "brittle": true},
+      "grips": [
+        {"region": {"min": [0, 0, 0], "max": [0, 0.1, 0.1]}, "velocity": [-0.2, 0, 0]},
+        {"region": {"min": [0.4, 0, 0], "max": [0.4, 0.1, 0.1]}, "velocity": [0.2, 0, 0]}]}]})";
+  ASSERT_EQ(
+      run({"run", (dir / "bar.json").string(), "--out", (dir / "out").string(), "--surface", "obj",
+           "--surface-every", "80", "--events", (dir / "events.csv").string(), "--quiet"}),
+      gf::cli::kExitOk);
+  const auto rows = readCsv(dir / "out" / "stats.csv");
+  ASSERT_EQ(rows.size(), 81u);
+  EXPECT_EQ(rows.front().at("broken_edges"), 0);
+  EXPECT_EQ(rows.front().at("fragments"), 1);
+  EXPECT_GT(rows.back().at("broken_edges"), 0);
+  EXPECT_EQ(rows.back().at("fragments"), 2);
+  for (size_t i = 1; i < rows.size(); ++i) {
+    EXPECT_GE(rows[i].at("broken_edges"), rows[i - 1].at("broken_edges")) << "edges healed";
+    EXPECT_GE(rows[i].at("ms_fracture"), 0);
+  }
+  expectEventsMatchCsv(readEvents(dir / "events.csv"), rows, {"stress", "brittle"});
+
+  // Frame 0: no crack group yet. Last frame: crack faces in their own group, every edge used
+  // twice (once per direction), and two solid pieces whose volumes add up to the bar's
+  // (0.4 x 0.1 x 0.1 less the notch, d^2 tan 30deg x 0.1); a crack inside a piece may add a
+  // closed zero-volume slit, which is no piece.
+  const ObjMesh first = readObj(dir / "out" / "surface" / "bar_00000.obj");
+  EXPECT_EQ(std::count(first.groups.begin(), first.groups.end(), "crack"), 0);
+  const ObjMesh last = readObj(dir / "out" / "surface" / "bar_00080.obj");
+  EXPECT_GT(std::count(last.groups.begin(), last.groups.end(), "crack"), 0);
+  EXPECT_GT(std::count(last.groups.begin(), last.groups.end(), "surface"), 0);
+  EXPECT_TRUE(closedAndOriented(last));
+  const double volume = 0.4 * 0.1 * 0.1 - 0.05 * 0.05 * std::tan(std::numbers::pi / 6) * 0.1;
+  std::vector<double> pieces = pieceVolumes(last);
+  std::erase_if(pieces, [&](double v) { return std::abs(v) < 1e-6 * volume; });
+  ASSERT_EQ(pieces.size(), 2u);
+  EXPECT_GT(pieces[1], 0.2 * volume);  // two real halves, not a chip
+  EXPECT_NEAR(pieces[0] + pieces[1], volume, 0.01 * volume);
+}
+
+/// Reads a binary little/big-endian PLY frame of the render surface (the host's order).
+struct PlyMesh {
+  std::vector<int32_t> vertexFragment;
+  std::vector<std::array<int32_t, 3>> faces;
+  std::vector<std::array<uint8_t, 3>> colours;
+};
+
+PlyMesh readPly(const fs::path& path) {
+  PlyMesh m;
+  std::ifstream in(path, std::ios::binary);
+  size_t nv = 0, nf = 0;
+  std::string header;
+  for (std::string line; std::getline(in, line) && line != "end_header";) {
+    header += line + "\n";
+    std::sscanf(line.c_str(), "element vertex %zu", &nv);
+    std::sscanf(line.c_str(), "element face %zu", &nf);
+  }
+  EXPECT_NE(header.find("property int fragment"), std::string::npos) << header;
+  EXPECT_NE(header.find("property uchar red"), std::string::npos) << header;
+  for (size_t i = 0; i < nv; ++i) {
+    char buf[7 * 4];
+    in.read(buf, sizeof buf);
+    int32_t fragment = 0;
+    std::memcpy(&fragment, buf + 6 * 4, 4);
+    m.vertexFragment.push_back(fragment);
+  }
+  for (size_t i = 0; i < nf; ++i) {
+    char buf[1 + 12 + 3];
+    in.read(buf, sizeof buf);
+    EXPECT_EQ(buf[0], 3);
+    std::array<int32_t, 3> f{};
+    std::memcpy(f.data(), buf + 1, 12);
+    std::array<uint8_t, 3> c{};
+    std::memcpy(c.data(), buf + 13, 3);
+    m.faces.push_back(f);
+    m.colours.push_back(c);
+  }
+  EXPECT_TRUE(in.good()) << path << " is shorter than its header says";
+  return m;
+}
+
+TEST(Cli, PlanarCutSplitsACylinderInTwo) {
+  // The strength is far above anything the (weightless, still) cylinder feels: only the cut,
+  // applied before frame 2 at y = 0.13 (between node layers), breaks edges.
+  const fs::path dir = scratch("cut");
+  std::ofstream(dir / "cut.json") << R"({
+    "dt": 0.01, "frames": 3, "gravity": [0, 0, 0],
+    "bodies": [{"name": "cyl",
+      "mesh": {"generator": "cylinder", "radius": 0.1, "height": 0.3, "segments": 12,
+               "rings": 2, "layers": 6},
+      "material": {"E": 1e6, "nu": 0.3, "rho": 1000},
+      "fracture": {"strength": 1e12}}],
+    "cuts": [{"frame": 2, "body": "cyl",
+              "blade": {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "size": 0.5},
+              "from": {"translate": [0, 0.13, 0]}}]})";
+  for (const char* format : {"obj", "ply"}) {
+    ASSERT_EQ(run({"run", (dir / "cut.json").string(), "--out", (dir / format).string(),
+                   "--surface", format, "--events", (dir / "events.csv").string(), "--quiet"}),
+              gf::cli::kExitOk)
+        << format;
+  }
+  const auto rows = readCsv(dir / "obj" / "stats.csv");
+  ASSERT_EQ(rows.size(), 4u);
+  EXPECT_EQ(rows[1].at("fragments"), 1);
+  EXPECT_EQ(rows[1].at("broken_edges"), 0);
+  EXPECT_EQ(rows[2].at("fragments"), 2);
+  EXPECT_GT(rows[2].at("broken_edges"), 0);
+  EXPECT_EQ(rows[3].at("broken_edges"), rows[2].at("broken_edges"));
+  const auto events = readEvents(dir / "events.csv");
+  expectEventsMatchCsv(events, rows, {"cut"});
+  for (const auto& e : events) {
+    EXPECT_EQ(e[0], "2");
+    EXPECT_EQ(e[1], "cyl");
+    EXPECT_EQ(std::stod(e[8]), 0.0);  // a cut carries no stress
+    // The break lies on an edge that straddles the blade: between the node layers y = 0.10
+    // and y = 0.15.
+    EXPECT_GT(std::stod(e[6]), 0.1 - 1e-6);
+    EXPECT_LT(std::stod(e[6]), 0.15 + 1e-6);
+  }
+
+  // The two pieces are closed and together enclose the whole cylinder (a 12-gon prism).
+  const ObjMesh obj = readObj(dir / "obj" / "surface" / "cyl_00003.obj");
+  EXPECT_TRUE(closedAndOriented(obj));
+  const double volume = 0.5 * 12 * 0.01 * std::sin(2 * std::numbers::pi / 12) * 0.3;
+  std::vector<double> pieces = pieceVolumes(obj);
+  std::erase_if(pieces, [&](double v) { return std::abs(v) < 1e-6 * volume; });
+  ASSERT_EQ(pieces.size(), 2u);
+  EXPECT_NEAR(pieces[0] + pieces[1], volume, 1e-3 * volume);
+
+  // The PLY of the same frame: as many red faces as the OBJ has crack faces, and the crack
+  // faces' vertices belong to two fragments.
+  const PlyMesh ply = readPly(dir / "ply" / "surface" / "cyl_00003.ply");
+  ASSERT_EQ(ply.faces.size(), obj.faces.size());
+  size_t red = 0;
+  std::set<int32_t> crackFragments;
+  for (size_t i = 0; i < ply.faces.size(); ++i) {
+    const std::array<uint8_t, 3> kRed{214, 64, 44}, kGrey{200, 200, 200};
+    const bool crack = ply.colours[i] == kRed;
+    EXPECT_TRUE(crack || ply.colours[i] == kGrey);
+    if (!crack) continue;
+    ++red;
+    for (int32_t v : ply.faces[i]) crackFragments.insert(ply.vertexFragment.at(v));
+  }
+  EXPECT_EQ(red, size_t(std::count(obj.groups.begin(), obj.groups.end(), "crack")));
+  EXPECT_GT(red, 0u);
+  EXPECT_EQ(crackFragments.size(), 2u);
 }
 
 TEST(Cli, SceneErrorsExitWithCodeTwoAndWriteNothing) {

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <filesystem>
 #include <glm/geometric.hpp>
+#include <glm/mat4x4.hpp>
+#include <glm/vec4.hpp>
 #include <map>
 #include <numbers>
 #include <set>
@@ -207,6 +209,134 @@ TEST(Scene, ShippedScenesLoad) {
   EXPECT_GE(count, 3);
 }
 
+/// Bounding box of a mesh's nodes.
+std::pair<glm::dvec3, glm::dvec3> bounds(const TetMesh& m) {
+  glm::dvec3 lo(1e300), hi(-1e300);
+  for (size_t i = 0; i < m.nodeCount(); ++i) {
+    lo = glm::min(lo, node(m, static_cast<int32_t>(i)));
+    hi = glm::max(hi, node(m, static_cast<int32_t>(i)));
+  }
+  return {lo, hi};
+}
+
+glm::dvec3 applyPose(const glm::mat4& m, glm::dvec3 p) {
+  return glm::dvec3(m * glm::vec4(glm::vec3(p), 1.0f));
+}
+
+void expectNear(glm::dvec3 a, glm::dvec3 b, double tol, const std::string& what) {
+  EXPECT_LT(glm::length(a - b), tol) << what << ": (" << a.x << ", " << a.y << ", " << a.z
+                                     << ") vs (" << b.x << ", " << b.y << ", " << b.z << ")";
+}
+
+TEST(Scene, FractureKeysLoadEveryValue) {
+  const Scene s = load(kSceneData / "good" / "fracture.json");
+  ASSERT_EQ(s.bodies.size(), 3u);
+
+  // Bar: 0.4 x 0.1 x 0.1 scaled by (2, 1, 0.5) about the origin, then moved by (1, 0, 0).
+  const BodyDef& bar = s.bodies[0].def;
+  const auto [lo, hi] = bounds(bar.mesh);
+  expectNear(lo, {1, 0, 0}, 1e-12, "bar min");
+  expectNear(hi, {1.8, 0.1, 0.05}, 1e-12, "bar max");
+  EXPECT_NEAR(bar.mesh.volume(), 0.8 * 0.1 * 0.05, 1e-12);
+  const FractureSettings& f = bar.fracture;
+  EXPECT_TRUE(f.enabled);
+  EXPECT_DOUBLE_EQ(f.strength, 2e5);
+  EXPECT_DOUBLE_EQ(f.radius, 2.5);
+  EXPECT_EQ(f.model, DamageModel::Projection);
+  EXPECT_TRUE(f.brittle);
+  EXPECT_EQ(f.regions, 3);
+  const PlasticitySettings& p = bar.plasticity;
+  EXPECT_TRUE(p.enabled);
+  EXPECT_DOUBLE_EQ(p.yieldStress, 1e4);
+  EXPECT_DOUBLE_EQ(p.flowRate, 0.25);
+  EXPECT_DOUBLE_EQ(p.hardening, 2);
+
+  // Radial field about the line through (1.41, 0.05, 7) along z: each tet's direction is its
+  // rest centroid's offset from that line, without the z part, normalised.
+  ASSERT_EQ(bar.fibreField.size(), bar.mesh.tetCount());
+  for (size_t t = 0; t < bar.mesh.tetCount(); ++t) {
+    glm::dvec3 c(0);
+    for (int k = 0; k < 4; ++k) c += node(bar.mesh, bar.mesh.tets[4 * t + k]) / 4.0;
+    const glm::dvec3 r(c.x - 1.41, c.y - 0.05, 0);
+    expectNear(glm::dvec3(bar.fibreField[t]), r / glm::length(r), 1e-6,
+               "radial fibre of tet " + std::to_string(t));
+  }
+
+  // Slab: fracture defaults; the rotated field turns (1, 0, 0) by +90 degrees about y.
+  const BodyDef& slab = s.bodies[1].def;
+  EXPECT_TRUE(slab.fracture.enabled);
+  EXPECT_DOUBLE_EQ(slab.fracture.strength, 1e5);
+  EXPECT_DOUBLE_EQ(slab.fracture.radius, 0);
+  EXPECT_EQ(slab.fracture.model, DamageModel::Degradation);
+  EXPECT_FALSE(slab.fracture.brittle);
+  EXPECT_EQ(slab.fracture.regions, 1);
+  EXPECT_FALSE(slab.plasticity.enabled);
+  ASSERT_EQ(slab.fibreField.size(), slab.mesh.tetCount());
+  for (const glm::vec3& d : slab.fibreField) expectNear(glm::dvec3(d), {0, 0, -1}, 1e-7, "rotated");
+
+  // Cube: uniform scale 3 of the unit cube; no fracture; constant field normalised.
+  const BodyDef& cube = s.bodies[2].def;
+  expectNear(bounds(cube.mesh).second, {3, 3, 3}, 1e-12, "cube max");
+  EXPECT_NEAR(cube.mesh.volume(), 27, 1e-12);
+  EXPECT_FALSE(cube.fracture.enabled);
+  ASSERT_EQ(cube.fibreField.size(), 6u);
+  for (const glm::vec3& d : cube.fibreField) EXPECT_EQ(d, glm::vec3(0, 0, 1));
+
+  // Cuts come back sorted by frame.
+  ASSERT_EQ(s.cuts.size(), 2u);
+  const SceneCut& plane = s.cuts[0];
+  EXPECT_EQ(plane.frame, 3);
+  EXPECT_EQ(plane.body, "bar");
+  EXPECT_EQ(plane.bodyIndex, 0u);
+  // A plane blade: a square of half-extent 0.2 in the plane x = 1.4 around the point, two
+  // triangles whose normals both point along the given normal; a static cut (identity poses).
+  ASSERT_EQ(plane.blade.vertices.size(), 4u);
+  ASSERT_EQ(plane.blade.triangles.size(), 6u);
+  const glm::dvec3 centre(1.4, 0.05, 0.025);
+  for (const glm::vec3& v : plane.blade.vertices) {
+    EXPECT_NEAR(v.x, 1.4, 1e-6);
+    EXPECT_NEAR(glm::length(glm::dvec3(v) - centre), 0.2 * std::sqrt(2.0), 1e-6);
+  }
+  double area = 0;
+  for (size_t t = 0; t < 2; ++t) {
+    const glm::dvec3 a(plane.blade.vertices[plane.blade.triangles[3 * t]]);
+    const glm::dvec3 b(plane.blade.vertices[plane.blade.triangles[3 * t + 1]]);
+    const glm::dvec3 c(plane.blade.vertices[plane.blade.triangles[3 * t + 2]]);
+    const glm::dvec3 n = glm::cross(b - a, c - a);
+    EXPECT_GT(n.x, 0) << "triangle " << t << " faces against the normal";
+    area += 0.5 * glm::length(n);
+  }
+  EXPECT_NEAR(area, 0.4 * 0.4, 1e-6);
+  EXPECT_EQ(plane.blade.from, glm::mat4(1.0f));
+  EXPECT_EQ(plane.blade.to, glm::mat4(1.0f));
+
+  // A mesh blade keeps its vertices and triangles; poses rotate about x, then y, then z, then
+  // translate: (0, 1, 0) -> x 90 -> (0, 0, 1) -> y 90 -> (1, 0, 0), plus (1, 2, 3).
+  const SceneCut& mesh = s.cuts[1];
+  EXPECT_EQ(mesh.frame, 12);
+  EXPECT_EQ(mesh.bodyIndex, 1u);
+  EXPECT_EQ(mesh.blade.vertices[3], glm::vec3(1, 1, 0));
+  EXPECT_EQ(mesh.blade.triangles, (std::vector<uint32_t>{0, 1, 2, 1, 3, 2}));
+  expectNear(applyPose(mesh.blade.from, {0, 1, 0}), {2, 2, 3}, 1e-6, "from");
+  expectNear(applyPose(mesh.blade.from, {0, 0, 0}), {1, 2, 3}, 1e-6, "from origin");
+  expectNear(applyPose(mesh.blade.to, {1, 0, 0}), {0, 0, -1}, 1e-6, "to");
+}
+
+TEST(Scene, RadialFibreFieldOnTheAxisStaysPerpendicular) {
+  // Tets centred on the axis have no radial direction; they still get a unit vector
+  // perpendicular to the axis (never a NaN).
+  const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [2, 2, 2],
+      "cells": [2, 2, 2]}, "material": {"E": 1, "nu": 0, "rho": 1, "fibre": {"stiffness": 1}},
+      "fibre_field": {"type": "radial", "axis_point": [1, 1, 1], "axis": [1, 1, 0]}}]})";
+  const Result<Scene> r = parseScene(text, "inline", "");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const glm::dvec3 axis = glm::normalize(glm::dvec3(1, 1, 0));
+  for (const glm::vec3& d : r.value().bodies[0].def.fibreField) {
+    EXPECT_NEAR(glm::length(glm::dvec3(d)), 1, 1e-6);
+    EXPECT_NEAR(glm::dot(glm::dvec3(d), axis), 0, 1e-6);
+  }
+}
+
 // Every bad file and the pieces its message must contain: the file, the JSON path (or line and
 // column for a syntax error) and the reason.
 const std::map<std::string, std::vector<std::string>> kBadScenes = {
@@ -267,6 +397,55 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
     {"duplicate_body_name.json", {": bodies[1].name: duplicate body name \"cube\""}},
     {"bad_body_name.json", {": bodies[0].name: expected 1-64 letters", "got \"my beam/1\""}},
     {"duplicate_key.json", {": bodies[0].material.E: duplicate key"}},
+    // Fracture, plasticity, fibre fields, scale and cuts.
+    {"bad_fracture_strength.json",
+     {": bodies[0].fracture.strength: expected a positive number, got -5"}},
+    {"bad_fracture_model.json",
+     {": bodies[0].fracture.model: expected one of \"projection\", \"degradation\", got "
+      "\"linear\""}},
+    {"bad_fracture_regions.json",
+     {": bodies[0].fracture.regions: expected an integer in [1, 1000000], got 0"}},
+    {"bad_fracture_brittle.json",
+     {": bodies[0].fracture.brittle: expected true or false, got \"yes\""}},
+    {"bad_fracture_radius.json",
+     {": bodies[0].fracture.radius: expected a number in [0, 100], got -1"}},
+    {"missing_fracture_strength.json", {": bodies[0].fracture.strength: missing (required)"}},
+    {"unknown_key_fracture.json", {": bodies[0].fracture.treshold: unknown key"}},
+    {"wrong_type_fracture.json", {": bodies[0].fracture: expected an object, got true"}},
+    {"bad_plasticity_flow_rate.json",
+     {": bodies[0].plasticity.flow_rate: expected a number in [0, 1], got 1.5"}},
+    {"bad_plasticity_yield.json",
+     {": bodies[0].plasticity.yield: expected a positive number, got \"high\""}},
+    {"bad_plasticity_hardening.json",
+     {": bodies[0].plasticity.hardening: expected a number >= 0, got -1"}},
+    {"bad_fibre_field_type.json",
+     {": bodies[0].fibre_field.type: expected one of \"constant\", \"radial\", \"rotated\"",
+      "got \"spiral\""}},
+    {"bad_fibre_field_zero.json",
+     {": bodies[0].fibre_field.direction: expected a non-zero vector, got [0,0,0]"}},
+    {"fibre_field_without_fibre.json",
+     {": bodies[0].fibre_field: needs \"material.fibre\" with a stiffness > 0"}},
+    {"bad_fibre_field_key.json", {": bodies[0].fibre_field.direction: unknown key"}},
+    {"bad_fibre_field_rotation.json",
+     {": bodies[0].fibre_field.rotation_deg: expected a number, got \"ninety\""}},
+    {"bad_mesh_scale.json", {": bodies[0].mesh.scale: expected a positive number, got 0"}},
+    {"bad_mesh_scale_axis.json", {": bodies[0].mesh.scale[1]: expected a positive number, got -1"}},
+    {"bad_cut_body.json", {": cuts[0].body: no body named \"nope\" (bodies: \"cube\")"}},
+    {"cut_without_fracture.json", {": cuts[0].body: body \"cube\" has no \"fracture\" block"}},
+    {"bad_cut_frame.json", {": cuts[0].frame: expected an integer in [1, 10], got 11"}},
+    {"bad_cut_blade_type.json",
+     {": cuts[0].blade.type: expected one of \"plane\", \"mesh\", got \"disc\""}},
+    {"bad_cut_triangle_index.json",
+     {": cuts[0].blade.triangles[1][2]: expected an integer in [0, 3], got 4"}},
+    {"bad_cut_degenerate_triangle.json",
+     {": cuts[0].blade.triangles[0]: a triangle needs 3 different vertices, got [0,0,1]"}},
+    {"bad_cut_mesh_vertices.json",
+     {": cuts[0].blade.vertices: expected at least 3 vertices, got 2"}},
+    {"bad_cut_plane_size.json", {": cuts[0].blade.size: expected a positive number, got 0"}},
+    {"bad_cut_pose.json",
+     {": cuts[0].from.rotate_deg: expected an array of 3 numbers, got [0,90]"}},
+    {"bad_cut_pose_key.json", {": cuts[0].to.translte: unknown key (did you mean \"translate\"?)"}},
+    {"wrong_type_cuts.json", {": cuts: expected an array of cuts, got an object"}},
 };
 
 TEST(Scene, EveryBadSceneFailsNamingPathAndReason) {

@@ -15,6 +15,9 @@ enum ExitCode : int {
 /// `graphfrac run SCENE [options]`; argv[0] is "run".
 int runCommand(int argc, char** argv);
 
+/// `graphfrac bench NAME [options]`; argv[0] is "bench". Prints CSV figures.
+int runBenchCommand(int argc, char** argv);
+
 /// `graphfrac mesh SUBCOMMAND ...`; argv[0] is "mesh", argv[1] the subcommand:
 ///   from-surface IN.obj OUT.msh [--max-volume V] [--quality Q] [--tetgen PATH] [--keep-temp]
 ///     (tetrahedralises a closed OBJ surface with the tetgen program, run as a tool)

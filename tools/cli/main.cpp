@@ -13,6 +13,7 @@ constexpr const char* kUsage =
     "commands:\n"
     "  run SCENE [options]   simulate a JSON scene, write per-frame statistics and surfaces\n"
     "  mesh ...              tet-mesh tools (generate, convert, tetrahedralise an OBJ)\n"
+    "  bench fracture        cost of fracture per step (CSV figures)\n"
     "\n"
     "  graphfrac <command> --help   options of a command\n"
     "  graphfrac --version          print the version\n"
@@ -40,6 +41,7 @@ int main(int argc, char** argv) {
   // Subcommands see their own name as argv[0].
   if (cmd == "run") return gf::cli::runCommand(argc - 1, argv + 1);
   if (cmd == "mesh") return gf::cli::runMeshCommand(argc - 1, argv + 1);
+  if (cmd == "bench") return gf::cli::runBenchCommand(argc - 1, argv + 1);
   std::fprintf(stderr, "graphfrac: unknown command '%s'\n\n%s", argv[1], kUsage);
   return gf::cli::kExitUsage;
 }

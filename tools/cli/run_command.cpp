@@ -1,18 +1,22 @@
-// `graphfrac run`: loads a scene, steps the world frame by frame, writes DIR/stats.csv (one row
-// per frame, frame 0 = the initial state) and optional boundary surfaces, shows progress and
-// ends with a summary. Results are written even when a step is flagged (exit code 3) so that a
-// failing run can be inspected.
+// `graphfrac run`: loads a scene, steps the world frame by frame (applying the scene's cuts
+// before their frames), writes DIR/stats.csv (one row per frame, frame 0 = the initial state),
+// optional surfaces (the render surface with crack faces for fracturing bodies) and an optional
+// fracture-event log, shows progress and ends with a summary. Results are written even when a
+// step is flagged (exit code 3) so that a failing run can be inspected.
 #include <graphfrac/jobs.h>
 #include <graphfrac/world.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <glm/geometric.hpp>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -32,16 +36,21 @@ constexpr const char* kRunUsage =
     "Simulates a JSON scene (docs/scene_format.md) and writes DIR/stats.csv with one row per\n"
     "frame (frame 0 is the initial state): frame,time,kinetic_energy,elastic_energy,\n"
     "gravity_energy,total_energy,newton_iterations,linear_iterations,residual,flags,\n"
-    "ms_elements,ms_assembly,ms_solve,ms_total. Energies are summed over bodies [J];\n"
+    "ms_elements,ms_assembly,ms_solve,ms_total,broken_edges,fragments,ms_fracture,\n"
+    "ms_surface. Energies [J], broken edges and fragments are summed over bodies;\n"
     "total_energy also counts the collider penalty energy. Times are per frame [ms].\n"
     "\n"
     "options:\n"
     "  --frames N         frames to run (default: the scene's \"frames\")\n"
     "  --out DIR          output directory (default: out/<scene name>)\n"
     "  --threads T        worker threads, 0 = all cores (default: the scene's \"threads\")\n"
-    "  --surface obj|ply  also write each body's boundary surface per frame to\n"
-    "                     DIR/surface/<body>_<frame:05>.<ext>\n"
+    "  --surface obj|ply  also write each body's surface per frame to\n"
+    "                     DIR/surface/<body>_<frame:05>.<ext>: the render surface with its\n"
+    "                     crack faces (OBJ group \"crack\", red PLY faces) for fracturing\n"
+    "                     bodies, the plain boundary for the others\n"
     "  --surface-every K  write surfaces every K-th frame only (default 1)\n"
+    "  --events FILE      write every fracture event to FILE (CSV: frame,body,edge,nodeA,\n"
+    "                     nodeB,x,y,z,stress,cause)\n"
     "  --quiet            no progress and no summary (errors are still printed)\n"
     "  -h, --help         this text\n"
     "\n"
@@ -55,6 +64,7 @@ struct RunOptions {
   std::string out;
   std::optional<SurfaceFormat> surface;
   int surfaceEvery = 1;
+  std::string events;
   bool quiet = false;
   bool help = false;
 };
@@ -114,6 +124,9 @@ std::string parseArgs(int argc, char** argv, RunOptions& o) {
       if (!takeValue() || !parseInt(value, 1, 100'000'000, o.surfaceEvery)) {
         return "--surface-every needs an integer >= 1";
       }
+    } else if (arg == "--events") {
+      if (!takeValue() || value.empty()) return "--events needs a file name";
+      o.events = value;
     } else if (!arg.empty() && arg[0] == '-') {
       return "unknown option '" + arg + "'";
     } else if (o.scene.empty()) {
@@ -132,11 +145,14 @@ struct BodyRecord {
   BodyId id;
   std::vector<double> rest;  // initial positions, for displacements
   size_t tets = 0;
+  bool fracture = false;  // fracturing bodies write World::surface, the others `surface`
   SurfaceTopology surface;
 };
 
 struct FrameTotals {
   BodyStats stats;  // summed over bodies (momenta unused)
+  int64_t brokenEdges = 0;
+  int64_t fragments = 0;  // a body without fracture is one piece
   double total() const {
     return stats.kineticEnergy + stats.elasticEnergy + stats.gravityEnergy + stats.contactEnergy;
   }
@@ -151,6 +167,13 @@ FrameTotals sumStats(const World& world, const std::vector<BodyRecord>& bodies) 
     t.stats.gravityEnergy += s.gravityEnergy;
     t.stats.contactEnergy += s.contactEnergy;
     t.stats.mass += s.mass;
+    if (b.fracture) {
+      const FractureStats f = world.fractureStats(b.id);
+      t.brokenEdges += f.brokenEdges;
+      t.fragments += f.fragments;
+    } else {
+      t.fragments += 1;
+    }
   }
   return t;
 }
@@ -159,7 +182,62 @@ const std::vector<std::string> kColumns = {
     "frame",          "time",         "kinetic_energy",    "elastic_energy",
     "gravity_energy", "total_energy", "newton_iterations", "linear_iterations",
     "residual",       "flags",        "ms_elements",       "ms_assembly",
-    "ms_solve",       "ms_total"};
+    "ms_solve",       "ms_total",     "broken_edges",      "fragments",
+    "ms_fracture",    "ms_surface"};
+
+const char* causeName(FractureEvent::Cause c) {
+  switch (c) {
+    case FractureEvent::Cause::Stress:
+      return "stress";
+    case FractureEvent::Cause::BrittlePlane:
+      return "brittle";
+    case FractureEvent::Cause::Cut:
+      return "cut";
+  }
+  return "unknown";
+}
+
+/// The fracture-event log: plain text, since it holds body names and causes.
+class EventLog {
+ public:
+  ~EventLog() {
+    if (m_file != nullptr) std::fclose(m_file);
+  }
+  Result<void> open(const std::string& path) {
+    m_path = path;
+    m_file = std::fopen(path.c_str(), "w");
+    if (m_file == nullptr) return fail(path, ": cannot create: ", std::strerror(errno));
+    std::fputs("frame,body,edge,nodeA,nodeB,x,y,z,stress,cause\n", m_file);
+    return {};
+  }
+  bool isOpen() const { return m_file != nullptr; }
+  /// Appends the events of one frame; flushed so an interrupted run keeps its frames.
+  Result<void> write(int frame, std::span<const FractureEvent> events,
+                     const std::vector<BodyRecord>& bodies) {
+    for (const FractureEvent& e : events) {
+      const char* name = "?";
+      for (const BodyRecord& b : bodies) {
+        if (b.id == e.body) name = b.name.c_str();
+      }
+      std::fprintf(m_file, "%d,%s,%d,%d,%d,%.9g,%.9g,%.9g,%.9g,%s\n", frame, name, e.edge, e.nodeA,
+                   e.nodeB, e.position.x, e.position.y, e.position.z, e.stress, causeName(e.cause));
+    }
+    if (std::fflush(m_file) != 0 || std::ferror(m_file)) return fail(m_path, ": write error");
+    return {};
+  }
+  Result<void> close() {
+    if (m_file == nullptr) return {};
+    const bool bad = std::ferror(m_file) != 0;
+    const bool closeFailed = std::fclose(m_file) != 0;
+    m_file = nullptr;
+    if (bad || closeFailed) return fail(m_path, ": write error");
+    return {};
+  }
+
+ private:
+  std::FILE* m_file = nullptr;
+  std::string m_path;
+};
 
 /// Flag bits with the names the summary prints.
 struct FlagName {
@@ -245,7 +323,8 @@ int runCommand(int argc, char** argv) {
     rec.name = sb.name;
     rec.rest = sb.def.mesh.positions;
     rec.tets = sb.def.mesh.tetCount();
-    if (opt.surface) rec.surface = surfaceTopology(sb.def.mesh);
+    rec.fracture = sb.def.fracture.enabled;
+    if (opt.surface && !rec.fracture) rec.surface = surfaceTopology(sb.def.mesh);
     Result<BodyId> id = world.createBody(std::move(sb.def));
     if (!id.ok()) {
       std::fprintf(stderr, "%s: bodies[%zu] (\"%s\"): %s\n", opt.scene.c_str(), i, sb.name.c_str(),
@@ -272,12 +351,21 @@ int runCommand(int argc, char** argv) {
     std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
     return kExitOutput;
   }
+  EventLog events;
+  if (!opt.events.empty()) {
+    if (Result<void> r = events.open(opt.events); !r.ok()) {
+      std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
+      return kExitOutput;
+    }
+  }
   auto writeSurfaces = [&](int frame) -> bool {
     if (!opt.surface || frame % opt.surfaceEvery != 0) return true;
     for (const BodyRecord& b : bodies) {
       const std::string path = surfacePath(surfDir, b.name, frame, *opt.surface);
-      if (Result<void> r = writeSurfaceFrame(path, b.surface, world.positions(b.id), *opt.surface);
-          !r.ok()) {
+      const Result<void> r =
+          b.fracture ? writeRenderSurface(path, world.surface(b.id), *opt.surface)
+                     : writeSurfaceFrame(path, b.surface, world.positions(b.id), *opt.surface);
+      if (!r.ok()) {
         std::fprintf(stderr, "\ngraphfrac run: %s\n", r.error().message.c_str());
         return false;
       }
@@ -303,7 +391,7 @@ int runCommand(int argc, char** argv) {
   bool outputOk =
       csv.row({int64_t{0}, world.time(), initial.stats.kineticEnergy, initial.stats.elasticEnergy,
                initial.stats.gravityEnergy, initial.total(), int64_t{0}, int64_t{0}, 0.0,
-               int64_t{0}, 0.0, 0.0, 0.0, 0.0})
+               int64_t{0}, 0.0, 0.0, 0.0, 0.0, initial.brokenEdges, initial.fragments, 0.0, 0.0})
           .ok() &&
       writeSurfaces(0);
 
@@ -313,10 +401,23 @@ int runCommand(int argc, char** argv) {
   std::string firstFlagMessage;
   int firstFlagFrame = 0;
   long long newtonTotal = 0, linearTotal = 0;
+  long long edgeEvents = 0, fragmentEvents = 0;
   double msTotal = 0;
+  size_t nextCut = 0;  // scene cuts are sorted by frame
+  bool cutFailed = false;
   const auto wallStart = std::chrono::steady_clock::now();
 
   for (int frame = 1; frame <= frames && outputOk; ++frame) {
+    // Cuts break their edges at the start of the next step, so they are given before it.
+    for (; nextCut < sc.cuts.size() && sc.cuts[nextCut].frame <= frame; ++nextCut) {
+      const scene::SceneCut& c = sc.cuts[nextCut];
+      if (Result<void> r = world.cut(bodies[c.bodyIndex].id, c.blade); !r.ok()) {
+        std::fprintf(stderr, "\n%s: cuts (frame %d, body \"%s\"): %s\n", opt.scene.c_str(), c.frame,
+                     c.body.c_str(), r.error().message.c_str());
+        cutFailed = true;
+      }
+    }
+    if (cutFailed) break;
     const StepStatus st = world.step(sc.dt);
     const StepTimings& tm = world.timings();
     const FrameTotals t = sumStats(world, bodies);
@@ -329,11 +430,14 @@ int runCommand(int argc, char** argv) {
         if (st.has(kFlagNames[k].flag)) ++flagCounts[k];
       }
     }
-    Result<void> r =
-        csv.row({int64_t{frame}, world.time(), t.stats.kineticEnergy, t.stats.elasticEnergy,
-                 t.stats.gravityEnergy, t.total(), int64_t{st.newtonIterations},
-                 int64_t{st.linearIterations}, st.residual, int64_t{st.flags}, tm.elementsMs,
-                 tm.assemblyMs, tm.solveMs, tm.totalMs});
+    Result<void> r = csv.row(
+        {int64_t{frame}, world.time(), t.stats.kineticEnergy, t.stats.elasticEnergy,
+         t.stats.gravityEnergy, t.total(), int64_t{st.newtonIterations},
+         int64_t{st.linearIterations}, st.residual, int64_t{st.flags}, tm.elementsMs, tm.assemblyMs,
+         tm.solveMs, tm.totalMs, t.brokenEdges, t.fragments, tm.fractureMs, tm.surfaceMs});
+    edgeEvents += static_cast<long long>(world.fractureEvents().size());
+    fragmentEvents += static_cast<long long>(world.fragmentEvents().size());
+    if (r.ok() && events.isOpen()) r = events.write(frame, world.fractureEvents(), bodies);
     if (!r.ok()) {
       std::fprintf(stderr, "\ngraphfrac run: %s\n", r.error().message.c_str());
       outputOk = false;
@@ -352,6 +456,11 @@ int runCommand(int argc, char** argv) {
     std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
     outputOk = false;
   }
+  if (Result<void> r = events.close(); !r.ok()) {
+    std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
+    outputOk = false;
+  }
+  if (cutFailed) return kExitScene;
   if (!outputOk) return kExitOutput;
 
   // ---- summary ------------------------------------------------------------------------
@@ -370,6 +479,18 @@ int runCommand(int argc, char** argv) {
         t.stats.kineticEnergy, t.stats.elasticEnergy, t.stats.gravityEnergy, t.stats.contactEnergy,
         t.total(), initial.total());
     printDisplacements(world, bodies);
+    bool anyFracture = false;
+    for (const BodyRecord& b : bodies) {
+      if (!b.fracture) continue;
+      anyFracture = true;
+      const FractureStats f = world.fractureStats(b.id);
+      std::printf("  %-16s broken edges %d of %d, fragments %d\n", b.name.c_str(), f.brokenEdges,
+                  f.edgeCount, f.fragments);
+    }
+    if (anyFracture || !sc.cuts.empty()) {
+      std::printf("  events: %lld edges broken, %lld fragments created; %zu cut%s applied\n",
+                  edgeEvents, fragmentEvents, nextCut, nextCut == 1 ? "" : "s");
+    }
     if (flaggedFrames > 0) {
       std::printf("  flagged steps: %d of %d (", flaggedFrames, frames);
       bool first = true;
@@ -383,6 +504,7 @@ int runCommand(int argc, char** argv) {
       std::printf("  all steps ok\n");
     }
     std::printf("  wrote %s\n", (outDir / "stats.csv").string().c_str());
+    if (!opt.events.empty()) std::printf("  wrote %s\n", opt.events.c_str());
   } else if (flaggedFrames > 0) {
     std::fprintf(stderr, "graphfrac run: %d of %d steps flagged; first at frame %d: %s\n",
                  flaggedFrames, frames, firstFlagFrame, firstFlagMessage.c_str());

@@ -148,6 +148,14 @@ inline glm::dvec3 readPositiveVec3(const json& v, const std::string& path) {
   return r;
 }
 
+/// A non-zero vector, returned normalised (fibre directions, normals, axes).
+inline glm::dvec3 readDirection(const json& v, const std::string& path) {
+  const glm::dvec3 d = readVec3(v, path);
+  const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+  if (!(len > 0)) throw SceneError{path, "expected a non-zero vector, got " + describe(v)};
+  return d / len;
+}
+
 /// One of `choices`, case-sensitive; the message lists them.
 inline std::string readChoice(const json& v, const std::string& path,
                               std::initializer_list<std::string_view> choices) {

@@ -19,6 +19,7 @@
 #include <fstream>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -162,14 +163,26 @@ TetMesh readGenerator(ObjReader& o) {
   return gen::slab(sx, sz, t, cells[0], cells[1]);
 }
 
+/// "scale": one positive factor or one per axis.
+glm::dvec3 readScale(const json& v, const std::string& path) {
+  if (v.is_number()) return glm::dvec3(readPositive(v, path));
+  if (!v.is_array()) {
+    throw SceneError{
+        path, "expected a positive number or an array of 3 positive numbers, got " + describe(v)};
+  }
+  return readPositiveVec3(v, path);
+}
+
 TetMesh readMesh(const json& v, const std::string& path, const std::string& baseDir) {
   ObjReader o(v, path);
   TetMesh mesh;
+  // Read first so that every branch below accepts it.
+  const json* scaleJ = o.find("scale");
   const bool hasFile = o.has("file"), hasGen = o.has("generator");
   if (!hasFile && !hasGen) {
     // Catches a misspelt "file"/"generator" as the typo it is.
     o.keys({"file", "generator", "size", "cells", "notch", "radius", "height", "segments", "layers",
-            "rings", "thickness"});
+            "rings", "thickness", "scale"});
   }
   if (hasFile == hasGen) {
     throw SceneError{path, "needs exactly one of \"file\" or \"generator\""};
@@ -188,6 +201,13 @@ TetMesh readMesh(const json& v, const std::string& path, const std::string& base
   } else {
     mesh = readGenerator(o);
     if (mesh.tetCount() == 0) throw SceneError{path, "the generator produced an empty mesh"};
+  }
+  if (scaleJ != nullptr) {
+    // About the origin, before "translate"; positive factors keep every tet positively oriented.
+    const glm::dvec3 k = readScale(*scaleJ, o.at("scale"));
+    for (size_t i = 0; i < mesh.nodeCount(); ++i) {
+      for (int a = 0; a < 3; ++a) mesh.positions[3 * i + a] *= k[a];
+    }
   }
   o.finish();
   return mesh;
@@ -417,6 +437,110 @@ void readBoundaryConditions(ObjReader& body, BodyDef& def) {
   }
 }
 
+// Caps that catch typos: a radius of thousands of edge lengths would make every neighbour
+// list hold the whole body.
+constexpr double kMaxFractureRadius = 100;
+constexpr int kMaxBrittleRegions = 1'000'000;
+
+FractureSettings readFracture(const json& v, const std::string& path) {
+  ObjReader o(v, path);
+  o.keys({"strength", "radius", "model", "brittle", "regions"});
+  FractureSettings f;
+  f.enabled = true;
+  f.strength = readPositive(o.require("strength"), o.at("strength"));
+  if (const json* r = o.find("radius")) {
+    f.radius = readInRange(*r, o.at("radius"), 0, kMaxFractureRadius, false, false);
+  }
+  if (const json* m = o.find("model")) {
+    f.model = readChoice(*m, o.at("model"), {"projection", "degradation"}) == "projection"
+                  ? DamageModel::Projection
+                  : DamageModel::Degradation;
+  }
+  if (const json* b = o.find("brittle")) f.brittle = readBool(*b, o.at("brittle"));
+  if (const json* n = o.find("regions")) {
+    f.regions = readInt(*n, o.at("regions"), 1, kMaxBrittleRegions);
+  }
+  o.finish();
+  return f;
+}
+
+PlasticitySettings readPlasticity(const json& v, const std::string& path) {
+  ObjReader o(v, path);
+  o.keys({"yield", "flow_rate", "hardening"});
+  PlasticitySettings p;
+  p.enabled = true;
+  p.yieldStress = readPositive(o.require("yield"), o.at("yield"));
+  if (const json* r = o.find("flow_rate")) {
+    p.flowRate = readInRange(*r, o.at("flow_rate"), 0, 1, false, false);
+  }
+  if (const json* k = o.find("hardening")) p.hardening = readNonNegative(*k, o.at("hardening"));
+  o.finish();
+  return p;
+}
+
+/// Rest centroid of tet t.
+glm::dvec3 tetCentroid(const TetMesh& mesh, size_t t) {
+  glm::dvec3 c(0);
+  for (int k = 0; k < 4; ++k) {
+    const size_t n = static_cast<size_t>(mesh.tets[4 * t + k]);
+    c += glm::dvec3(mesh.positions[3 * n], mesh.positions[3 * n + 1], mesh.positions[3 * n + 2]);
+  }
+  return c / 4.0;
+}
+
+/// A unit vector perpendicular to the unit vector a.
+glm::dvec3 anyPerpendicular(const glm::dvec3& a) {
+  const glm::dvec3 helper = std::abs(a.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+  return glm::normalize(glm::cross(a, helper));
+}
+
+/// Per-tet fibre directions from the rest centroids (after scale and translate).
+std::vector<glm::vec3> readFibreField(const json& v, const std::string& path, const TetMesh& mesh) {
+  ObjReader o(v, path);
+  const std::string type =
+      readChoice(o.require("type"), o.at("type"), {"constant", "radial", "rotated"});
+  const size_t tets = mesh.tetCount();
+  std::vector<glm::vec3> field(tets);
+  if (type == "constant") {
+    o.keys({"type", "direction"});
+    const glm::vec3 d(readDirection(o.require("direction"), o.at("direction")));
+    std::fill(field.begin(), field.end(), d);
+  } else if (type == "rotated") {
+    o.keys({"type", "direction", "rotation_deg"});
+    const glm::dvec3 d = readDirection(o.require("direction"), o.at("direction"));
+    const double a =
+        readNumber(o.require("rotation_deg"), o.at("rotation_deg")) * std::numbers::pi / 180;
+    // Right-handed rotation about +y: [1, 0, 0] turned by 90 degrees is [0, 0, -1].
+    const glm::dvec3 r(std::cos(a) * d.x + std::sin(a) * d.z, d.y,
+                       -std::sin(a) * d.x + std::cos(a) * d.z);
+    std::fill(field.begin(), field.end(), glm::vec3(r));
+  } else {
+    // Radial: from the axis out through the tet's centroid, perpendicular to the axis (muscle
+    // fibres around a bone). A tet centred on the axis has no radial direction; it takes a
+    // fixed perpendicular so the field stays defined.
+    o.keys({"type", "axis_point", "axis"});
+    const glm::dvec3 p = readVec3(o.require("axis_point"), o.at("axis_point"));
+    const glm::dvec3 a = readDirection(o.require("axis"), o.at("axis"));
+    glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+    for (size_t i = 0; i < mesh.nodeCount(); ++i) {
+      const glm::dvec3 x(mesh.positions[3 * i], mesh.positions[3 * i + 1],
+                         mesh.positions[3 * i + 2]);
+      lo = glm::min(lo, x);
+      hi = glm::max(hi, x);
+    }
+    const double tiny = 1e-9 * glm::length(hi - lo);
+    const glm::dvec3 fallback = anyPerpendicular(a);
+    for (size_t t = 0; t < tets; ++t) {
+      const glm::dvec3 c = tetCentroid(mesh, t) - p;
+      const glm::dvec3 r = c - glm::dot(c, a) * a;
+      const double len = glm::length(r);
+      field[t] = glm::vec3(len > tiny ? r / len : fallback);
+    }
+  }
+  o.finish();
+  return field;
+}
+
 bool validName(const std::string& s) {
   if (s.empty() || s.size() > 64 || s[0] == '.') return false;
   return std::all_of(s.begin(), s.end(), [](char c) {
@@ -428,7 +552,7 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
                    const std::string& baseDir) {
   ObjReader o(v, path);
   o.keys({"name", "mesh", "translate", "material", "solver", "pins", "grips", "forces",
-          "initial_velocity"});
+          "initial_velocity", "fracture", "plasticity", "fibre_field"});
   SceneBody body;
   body.name = "body" + std::to_string(index);
   if (const json* n = o.find("name")) {
@@ -453,8 +577,114 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
   if (const json* iv = o.find("initial_velocity")) {
     body.def.initialVelocity = glm::vec3(readVec3(*iv, o.at("initial_velocity")));
   }
+  if (const json* f = o.find("fracture")) body.def.fracture = readFracture(*f, o.at("fracture"));
+  if (const json* p = o.find("plasticity")) {
+    body.def.plasticity = readPlasticity(*p, o.at("plasticity"));
+  }
+  if (const json* ff = o.find("fibre_field")) {
+    body.def.fibreField = readFibreField(*ff, o.at("fibre_field"), body.def.mesh);
+    // The field only steers the fibre term; without it the field would be silently ignored.
+    if (!(body.def.material.fibreStiffness > 0)) {
+      throw SceneError{o.at("fibre_field"),
+                       "needs \"material.fibre\" with a stiffness > 0 (the field only steers the "
+                       "fibre term)"};
+    }
+  }
   o.finish();
   return body;
+}
+
+// ---- cuts ---------------------------------------------------------------------------------
+
+/// {"translate": [..], "rotate_deg": [rx, ry, rz]}: rotate about x, then y, then z (world
+/// axes), then translate, i.e. M = T Rz Ry Rx.
+glm::mat4 readPose(const json& v, const std::string& path) {
+  ObjReader o(v, path);
+  o.keys({"translate", "rotate_deg"});
+  glm::dmat4 m(1.0);
+  if (const json* t = o.find("translate")) {
+    m = glm::translate(m, readVec3(*t, o.at("translate")));
+  }
+  if (const json* r = o.find("rotate_deg")) {
+    const glm::dvec3 deg = readVec3(*r, o.at("rotate_deg"));
+    const glm::dvec3 rad = deg * (std::numbers::pi / 180);
+    m = glm::rotate(m, rad.z, glm::dvec3(0, 0, 1));
+    m = glm::rotate(m, rad.y, glm::dvec3(0, 1, 0));
+    m = glm::rotate(m, rad.x, glm::dvec3(1, 0, 0));
+  }
+  o.finish();
+  return glm::mat4(m);
+}
+
+/// A plane blade is a square of two triangles centred at `point`, both facing `normal`.
+void readBladeGeometry(const json& v, const std::string& path, Blade& blade) {
+  ObjReader o(v, path);
+  const std::string type = readChoice(o.require("type"), o.at("type"), {"plane", "mesh"});
+  if (type == "plane") {
+    o.keys({"type", "point", "normal", "size"});
+    const glm::dvec3 p = readVec3(o.require("point"), o.at("point"));
+    const glm::dvec3 n = readDirection(o.require("normal"), o.at("normal"));
+    const double h = readPositive(o.require("size"), o.at("size"));
+    const glm::dvec3 u = anyPerpendicular(n);
+    const glm::dvec3 w = glm::cross(n, u);  // u x w = n: counter-clockwise seen from +n
+    blade.vertices = {glm::vec3(p - h * u - h * w), glm::vec3(p + h * u - h * w),
+                      glm::vec3(p + h * u + h * w), glm::vec3(p - h * u + h * w)};
+    blade.triangles = {0, 1, 2, 0, 2, 3};
+  } else {
+    o.keys({"type", "vertices", "triangles"});
+    const std::string vp = o.at("vertices"), tp = o.at("triangles");
+    const json& verts = readArray(o.require("vertices"), vp, 0, "vertices [x, y, z]");
+    if (verts.size() < 3) {
+      throw SceneError{vp, "expected at least 3 vertices, got " + std::to_string(verts.size())};
+    }
+    for (size_t i = 0; i < verts.size(); ++i) {
+      blade.vertices.push_back(glm::vec3(readVec3(verts[i], indexPath(vp, i))));
+    }
+    const json& tris = readArray(o.require("triangles"), tp, 0, "triangles [i, j, k]");
+    if (tris.empty()) throw SceneError{tp, "expected at least one triangle, got []"};
+    const long long count = static_cast<long long>(verts.size());
+    for (size_t t = 0; t < tris.size(); ++t) {
+      const std::string p = indexPath(tp, t);
+      readArray(tris[t], p, 3, "vertex indices");
+      for (size_t k = 0; k < 3; ++k) {
+        blade.triangles.push_back(
+            static_cast<uint32_t>(readInt(tris[t][k], indexPath(p, k), 0, count - 1)));
+      }
+      const uint32_t* tri = &blade.triangles[3 * t];
+      if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]) {
+        throw SceneError{p, "a triangle needs 3 different vertices, got " + describe(tris[t])};
+      }
+    }
+  }
+  o.finish();
+}
+
+SceneCut readCut(const json& v, const std::string& path, const Scene& scene) {
+  ObjReader o(v, path);
+  o.keys({"frame", "body", "blade", "from", "to"});
+  SceneCut cut;
+  cut.frame = readInt(o.require("frame"), o.at("frame"), 1, scene.frames);
+  cut.body = readString(o.require("body"), o.at("body"));
+  bool found = false;
+  std::string names;
+  for (size_t i = 0; i < scene.bodies.size(); ++i) {
+    names += (i == 0 ? "\"" : ", \"") + scene.bodies[i].name + "\"";
+    if (scene.bodies[i].name == cut.body) cut.bodyIndex = i, found = true;
+  }
+  if (!found) {
+    throw SceneError{o.at("body"), "no body named \"" + cut.body + "\" (bodies: " + names + ")"};
+  }
+  if (!scene.bodies[cut.bodyIndex].def.fracture.enabled) {
+    throw SceneError{o.at("body"), "body \"" + cut.body +
+                                       "\" has no \"fracture\" block; only fracturing bodies "
+                                       "can be cut"};
+  }
+  readBladeGeometry(o.require("blade"), o.at("blade"), cut.blade);
+  if (const json* f = o.find("from")) cut.blade.from = readPose(*f, o.at("from"));
+  cut.blade.to = cut.blade.from;
+  if (const json* t = o.find("to")) cut.blade.to = readPose(*t, o.at("to"));
+  o.finish();
+  return cut;
 }
 
 Collider readCollider(const json& v, const std::string& path) {
@@ -490,7 +720,7 @@ Collider readCollider(const json& v, const std::string& path) {
 Scene readScene(const json& root, const std::string& source, const std::string& baseDir) {
   ObjReader o(root, "");
   o.keys({"name", "description", "dt", "frames", "substeps", "threads", "gravity", "backend",
-          "colliders", "bodies"});
+          "colliders", "bodies", "cuts"});
   Scene scene;
   scene.source = source;
   scene.name = std::filesystem::path(source).stem().string();
@@ -528,6 +758,14 @@ Scene readScene(const json& root, const std::string& source, const std::string& 
       }
     }
     scene.bodies.push_back(std::move(b));
+  }
+  if (const json* v = o.find("cuts")) {
+    readArray(*v, o.at("cuts"), 0, "cuts");
+    for (size_t i = 0; i < v->size(); ++i) {
+      scene.cuts.push_back(readCut((*v)[i], indexPath(o.at("cuts"), i), scene));
+    }
+    std::stable_sort(scene.cuts.begin(), scene.cuts.end(),
+                     [](const SceneCut& a, const SceneCut& b) { return a.frame < b.frame; });
   }
   o.finish();
   return scene;
