@@ -65,8 +65,8 @@ Result runConfig(const Config& cfg, int nx, int steps) {
     Blade blade;
     std::vector<float> xs;
     if (cfg.cutLevel == 1) {
-      // One partial plane: about a thousand edges for the default size.
-      xs.push_back(float(0.5 * L) + 0.5f * h);
+      // Four half-height planes: about a thousand edges for the default size.
+      for (int q = 1; q <= 4; ++q) xs.push_back(float(q) * float(L) / 5 + 0.5f * h);
       addPlanes(blade, 0, xs, float(0.5 * H), 10);
     } else {
       for (int i = 0; i < nx; ++i) xs.push_back((float(i) + 0.5f) * h);
