@@ -32,6 +32,8 @@ Result<void> CsvWriter::row(const std::vector<Value>& values) {
   for (size_t i = 0; i < values.size(); ++i) {
     if (const int64_t* n = std::get_if<int64_t>(&values[i])) {
       std::fprintf(m_file, "%lld", static_cast<long long>(*n));
+    } else if (const std::string* s = std::get_if<std::string>(&values[i])) {
+      std::fputs(s->c_str(), m_file);
     } else {
       // 10 significant digits: enough to see a 1e-8 energy drift on a 1 J total.
       std::fprintf(m_file, "%.10g", std::get<double>(values[i]));

@@ -15,7 +15,7 @@ namespace gf::cli {
 /// Writes one CSV file; numbers only (no quoting needed).
 class CsvWriter {
  public:
-  using Value = std::variant<int64_t, double>;
+  using Value = std::variant<int64_t, double, std::string>;  ///< strings are written as is
 
   CsvWriter() = default;
   ~CsvWriter();

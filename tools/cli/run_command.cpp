@@ -197,47 +197,22 @@ const char* causeName(FractureEvent::Cause c) {
   return "unknown";
 }
 
-/// The fracture-event log: plain text, since it holds body names and causes.
-class EventLog {
- public:
-  ~EventLog() {
-    if (m_file != nullptr) std::fclose(m_file);
+/// Appends one frame's fracture events to the event log (one row per broken edge).
+Result<void> writeEvents(CsvWriter& log, int frame, std::span<const FractureEvent> events,
+                         const std::vector<BodyRecord>& bodies) {
+  for (const FractureEvent& e : events) {
+    std::string name = "?";
+    for (const BodyRecord& b : bodies)
+      if (b.id == e.body) name = b.name;
+    if (Result<void> r =
+            log.row({int64_t(frame), name, int64_t(e.edge), int64_t(e.nodeA), int64_t(e.nodeB),
+                     double(e.position.x), double(e.position.y), double(e.position.z),
+                     double(e.stress), std::string(causeName(e.cause))});
+        !r.ok())
+      return r;
   }
-  Result<void> open(const std::string& path) {
-    m_path = path;
-    m_file = std::fopen(path.c_str(), "w");
-    if (m_file == nullptr) return fail(path, ": cannot create: ", std::strerror(errno));
-    std::fputs("frame,body,edge,nodeA,nodeB,x,y,z,stress,cause\n", m_file);
-    return {};
-  }
-  bool isOpen() const { return m_file != nullptr; }
-  /// Appends the events of one frame; flushed so an interrupted run keeps its frames.
-  Result<void> write(int frame, std::span<const FractureEvent> events,
-                     const std::vector<BodyRecord>& bodies) {
-    for (const FractureEvent& e : events) {
-      const char* name = "?";
-      for (const BodyRecord& b : bodies) {
-        if (b.id == e.body) name = b.name.c_str();
-      }
-      std::fprintf(m_file, "%d,%s,%d,%d,%d,%.9g,%.9g,%.9g,%.9g,%s\n", frame, name, e.edge, e.nodeA,
-                   e.nodeB, e.position.x, e.position.y, e.position.z, e.stress, causeName(e.cause));
-    }
-    if (std::fflush(m_file) != 0 || std::ferror(m_file)) return fail(m_path, ": write error");
-    return {};
-  }
-  Result<void> close() {
-    if (m_file == nullptr) return {};
-    const bool bad = std::ferror(m_file) != 0;
-    const bool closeFailed = std::fclose(m_file) != 0;
-    m_file = nullptr;
-    if (bad || closeFailed) return fail(m_path, ": write error");
-    return {};
-  }
-
- private:
-  std::FILE* m_file = nullptr;
-  std::string m_path;
-};
+  return {};
+}
 
 /// Flag bits with the names the summary prints.
 struct FlagName {
@@ -351,9 +326,11 @@ int runCommand(int argc, char** argv) {
     std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
     return kExitOutput;
   }
-  EventLog events;
+  CsvWriter events;
   if (!opt.events.empty()) {
-    if (Result<void> r = events.open(opt.events); !r.ok()) {
+    if (Result<void> r = events.open(opt.events, {"frame", "body", "edge", "nodeA", "nodeB", "x",
+                                                  "y", "z", "stress", "cause"});
+        !r.ok()) {
       std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
       return kExitOutput;
     }
@@ -437,7 +414,8 @@ int runCommand(int argc, char** argv) {
          tm.solveMs, tm.totalMs, t.brokenEdges, t.fragments, tm.fractureMs, tm.surfaceMs});
     edgeEvents += static_cast<long long>(world.fractureEvents().size());
     fragmentEvents += static_cast<long long>(world.fragmentEvents().size());
-    if (r.ok() && events.isOpen()) r = events.write(frame, world.fractureEvents(), bodies);
+    if (r.ok() && !opt.events.empty())
+      r = writeEvents(events, frame, world.fractureEvents(), bodies);
     if (!r.ok()) {
       std::fprintf(stderr, "\ngraphfrac run: %s\n", r.error().message.c_str());
       outputOk = false;

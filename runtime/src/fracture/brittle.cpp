@@ -4,6 +4,7 @@
 #include <cmath>
 #include <string>
 
+#include "kernels/edge_stress.h"
 #include "kernels/eigen_sym.h"
 
 namespace gf::detail {
@@ -38,13 +39,7 @@ Result<std::vector<BrittleSeed>> startBrittleCracks(
   jobs.parallelFor(uint32_t(T), 256, [&](uint32_t b, uint32_t e) {
     for (uint32_t t = b; t < e; ++t) {
       const double* s = tetStress + 6 * size_t(t);
-      Mat3 m;
-      m(0, 0) = s[0];
-      m(1, 1) = s[1];
-      m(2, 2) = s[2];
-      m(0, 1) = m(1, 0) = s[3];
-      m(0, 2) = m(2, 0) = s[4];
-      m(1, 2) = m(2, 1) = s[5];
+      const Mat3 m = fromVoigt(s);
       double values[3];
       Mat3 vectors;
       symmetricEigen<3>(m, values, vectors);
