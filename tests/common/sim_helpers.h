@@ -7,6 +7,8 @@
 #include <functional>
 #include <vector>
 
+#include "kernels/element.h"
+
 namespace gf::test {
 
 /// Nodes of `mesh` whose rest position satisfies `pred(x, y, z)`.
@@ -41,6 +43,18 @@ inline bool stateFinite(const World& world, BodyId id) {
   for (double v : world.velocities(id))
     if (!std::isfinite(v)) return false;
   return true;
+}
+
+/// Deformation gradient of tet e at current positions x (3 per node) against the rest mesh.
+inline Mat3 tetDeformationGradient(const TetMesh& rest, std::span<const double> x, size_t e) {
+  Vec3 X[4], xe[4];
+  for (int a = 0; a < 4; ++a) {
+    const int32_t n = rest.tets[4 * e + a];
+    X[a] = {rest.positions[3 * n], rest.positions[3 * n + 1], rest.positions[3 * n + 2]};
+    xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
+  }
+  double vol = 0;
+  return deformationGradient(xe, restShapeInverse(X, vol));
 }
 
 }  // namespace gf::test

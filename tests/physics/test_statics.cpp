@@ -7,7 +7,6 @@
 
 #include "common/beams.h"
 #include "common/sim_helpers.h"
-#include "kernels/element.h"
 
 namespace gf {
 namespace {
@@ -44,14 +43,7 @@ TEST(PatchTest, UniaxialStretchReproducesAffineField) {
     const auto x = world.positions(id.value());
     double worst = 0;
     for (size_t e = 0; e < rest.tetCount(); ++e) {
-      Vec3 X[4], xe[4];
-      for (int a = 0; a < 4; ++a) {
-        const int32_t n = rest.tets[4 * e + a];
-        X[a] = {rest.positions[3 * n], rest.positions[3 * n + 1], rest.positions[3 * n + 2]};
-        xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
-      }
-      double vol = 0;
-      const Mat3 F = deformationGradient(xe, restShapeInverse(X, vol));
+      const Mat3 F = test::tetDeformationGradient(rest, x, e);
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) {
           const double want = i == j ? F0[i] : 0.0;

@@ -5,7 +5,6 @@
 #include <cmath>
 
 #include "common/sim_helpers.h"
-#include "kernels/element.h"
 
 namespace gf {
 namespace {
@@ -80,14 +79,7 @@ double minDetF(const World& world, BodyId id, const TetMesh& rest) {
   const auto x = world.positions(id);
   double worst = 1e300;
   for (size_t e = 0; e < rest.tetCount(); ++e) {
-    Vec3 X[4], xe[4];
-    for (int a = 0; a < 4; ++a) {
-      const int32_t n = rest.tets[4 * e + a];
-      X[a] = {rest.positions[3 * n], rest.positions[3 * n + 1], rest.positions[3 * n + 2]};
-      xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
-    }
-    double vol = 0;
-    worst = std::min(worst, det(deformationGradient(xe, restShapeInverse(X, vol))));
+    worst = std::min(worst, det(test::tetDeformationGradient(rest, x, e)));
   }
   return worst;
 }

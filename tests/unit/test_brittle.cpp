@@ -9,12 +9,15 @@
 #include <cmath>
 #include <vector>
 
+#include "common/mesh_checks.h"
 #include "fracture/brittle.h"
 #include "fracture/fracture_model.h"
 #include "mesh/edge_graph.h"
 
 namespace gf::detail {
 namespace {
+
+using gf::test::components;
 
 struct Body {
   TetMesh mesh;
@@ -35,33 +38,6 @@ Body makeBody(TetMesh mesh, int regions, bool brittle = true) {
   EXPECT_TRUE(m.ok());
   b.model = std::move(m).value();
   return b;
-}
-
-// Connected components of the node graph over unbroken edges; returns the count and labels.
-int components(const EdgeGraph& g, const std::vector<uint8_t>& broken, std::vector<int>& label) {
-  label.assign(size_t(g.nodeCount), -1);
-  int count = 0;
-  std::vector<int32_t> stack;
-  for (int32_t s = 0; s < g.nodeCount; ++s) {
-    if (label[s] >= 0) continue;
-    label[s] = count;
-    stack.assign(1, s);
-    while (!stack.empty()) {
-      const int32_t v = stack.back();
-      stack.pop_back();
-      for (int32_t i = g.nodeEdgeStart[v]; i < g.nodeEdgeStart[v + 1]; ++i) {
-        const int32_t e = g.nodeEdges[i];
-        if (broken[e]) continue;
-        const int32_t w = g.edgeNodes[2 * e] == v ? g.edgeNodes[2 * e + 1] : g.edgeNodes[2 * e];
-        if (label[w] < 0) {
-          label[w] = count;
-          stack.push_back(w);
-        }
-      }
-    }
-    ++count;
-  }
-  return count;
 }
 
 // Per-tet stress sigma(x_c) * n n^T at the tet's rest centroid.

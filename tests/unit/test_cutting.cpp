@@ -12,11 +12,14 @@
 #include <cstdio>
 #include <vector>
 
+#include "common/mesh_checks.h"
 #include "fracture/cutting.h"
 #include "mesh/edge_graph.h"
 
 namespace gf::detail {
 namespace {
+
+using gf::test::components;
 
 struct Body {
   TetMesh mesh;
@@ -28,32 +31,6 @@ Body makeBody(TetMesh mesh) {
   b.mesh = std::move(mesh);
   b.graph = EdgeGraph::build(b.mesh.tets.data(), b.mesh.tetCount(), b.mesh.nodeCount());
   return b;
-}
-
-int components(const EdgeGraph& g, const std::vector<uint8_t>& broken, std::vector<int>& label) {
-  label.assign(size_t(g.nodeCount), -1);
-  int count = 0;
-  std::vector<int32_t> stack;
-  for (int32_t s = 0; s < g.nodeCount; ++s) {
-    if (label[s] >= 0) continue;
-    label[s] = count;
-    stack.assign(1, s);
-    while (!stack.empty()) {
-      const int32_t v = stack.back();
-      stack.pop_back();
-      for (int32_t i = g.nodeEdgeStart[v]; i < g.nodeEdgeStart[v + 1]; ++i) {
-        const int32_t e = g.nodeEdges[i];
-        if (broken[e]) continue;
-        const int32_t w = g.edgeNodes[2 * e] == v ? g.edgeNodes[2 * e + 1] : g.edgeNodes[2 * e];
-        if (label[w] < 0) {
-          label[w] = count;
-          stack.push_back(w);
-        }
-      }
-    }
-    ++count;
-  }
-  return count;
 }
 
 // A square blade of half-size h centred at c spanned by orthonormal u, v (normal u x v),

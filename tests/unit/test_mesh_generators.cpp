@@ -6,24 +6,14 @@
 #include <cmath>
 #include <numbers>
 
+#include "common/mesh_checks.h"
 #include "graphfrac/mesh.h"
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using gf::test::enclosedVolume;
 
-double enclosedVolume(const gf::TetMesh& m) {
-  const std::vector<int32_t> f = m.boundaryFaces();
-  double s = 0;
-  for (size_t i = 0; i < f.size(); i += 3) {
-    const double* a = &m.positions[3 * static_cast<size_t>(f[i])];
-    const double* b = &m.positions[3 * static_cast<size_t>(f[i + 1])];
-    const double* c = &m.positions[3 * static_cast<size_t>(f[i + 2])];
-    s += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
-         a[2] * (b[0] * c[1] - b[1] * c[0]);
-  }
-  return s / 6.0;
-}
+constexpr double kPi = std::numbers::pi;
 
 // Validates without repairs and checks the boundary encloses the tet volume.
 void expectValid(gf::TetMesh m, const std::string& what) {

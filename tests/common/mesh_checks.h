@@ -1,0 +1,55 @@
+// Independent reference computations shared by tests: connected components by a plain search
+// over unbroken edges, and the enclosed volume of a mesh's boundary (divergence theorem).
+#pragma once
+
+#include <graphfrac/mesh.h>
+
+#include <vector>
+
+#include "mesh/edge_graph.h"
+
+namespace gf::test {
+
+/// Connected components of the node graph over unbroken edges; returns the count and labels.
+inline int components(const detail::EdgeGraph& g, const std::vector<uint8_t>& broken,
+                      std::vector<int>& label) {
+  label.assign(size_t(g.nodeCount), -1);
+  int count = 0;
+  std::vector<int32_t> stack;
+  for (int32_t s = 0; s < g.nodeCount; ++s) {
+    if (label[s] >= 0) continue;
+    label[s] = count;
+    stack.assign(1, s);
+    while (!stack.empty()) {
+      const int32_t v = stack.back();
+      stack.pop_back();
+      for (int32_t i = g.nodeEdgeStart[v]; i < g.nodeEdgeStart[v + 1]; ++i) {
+        const int32_t e = g.nodeEdges[i];
+        if (broken[e]) continue;
+        const int32_t w = g.edgeNodes[2 * e] == v ? g.edgeNodes[2 * e + 1] : g.edgeNodes[2 * e];
+        if (label[w] < 0) {
+          label[w] = count;
+          stack.push_back(w);
+        }
+      }
+    }
+    ++count;
+  }
+  return count;
+}
+
+/// Volume enclosed by the mesh's boundary faces (positive when they face outward).
+inline double enclosedVolume(const TetMesh& m) {
+  const std::vector<int32_t> f = m.boundaryFaces();
+  double s = 0;
+  for (size_t i = 0; i < f.size(); i += 3) {
+    const double* a = &m.positions[3 * static_cast<size_t>(f[i])];
+    const double* b = &m.positions[3 * static_cast<size_t>(f[i + 1])];
+    const double* c = &m.positions[3 * static_cast<size_t>(f[i + 2])];
+    s += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+         a[2] * (b[0] * c[1] - b[1] * c[0]);
+  }
+  return s / 6.0;
+}
+
+}  // namespace gf::test
