@@ -8,7 +8,7 @@
 
 namespace gf::detail {
 
-/// Sparse LL^T (Eigen SimplicialLLT, AMD ordering) of the scalar expansion of a
+/// Sparse LL^T (CHOLMOD supernodal, or Eigen SimplicialLLT) of the scalar expansion of a
 /// BlockSparseMatrix. The symbolic analysis runs once per pattern; solve() copies the values
 /// through a precomputed map and refactorises. Eigen stays inside cholesky.cpp.
 class CholeskySolver {
