@@ -245,6 +245,7 @@ TEST(Scene, FractureKeysLoadEveryValue) {
   EXPECT_EQ(f.model, DamageModel::Projection);
   EXPECT_TRUE(f.brittle);
   EXPECT_EQ(f.regions, 3);
+  EXPECT_DOUBLE_EQ(f.fibreStrengthRatio, 4);
   const PlasticitySettings& p = bar.plasticity;
   EXPECT_TRUE(p.enabled);
   EXPECT_DOUBLE_EQ(p.yieldStress, 1e4);
@@ -270,6 +271,7 @@ TEST(Scene, FractureKeysLoadEveryValue) {
   EXPECT_EQ(slab.fracture.model, DamageModel::Degradation);
   EXPECT_FALSE(slab.fracture.brittle);
   EXPECT_EQ(slab.fracture.regions, 1);
+  EXPECT_DOUBLE_EQ(slab.fracture.fibreStrengthRatio, 1);
   EXPECT_FALSE(slab.plasticity.enabled);
   ASSERT_EQ(slab.fibreField.size(), slab.mesh.tetCount());
   for (const glm::vec3& d : slab.fibreField) expectNear(glm::dvec3(d), {0, 0, -1}, 1e-7, "rotated");
@@ -337,6 +339,26 @@ TEST(Scene, RadialFibreFieldOnTheAxisStaysPerpendicular) {
   }
 }
 
+TEST(Scene, MultigridKeysLoadEveryValue) {
+  const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
+      "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},
+      "solver": {"linear": "multigrid", "multigrid": {"levels": "50/1000/all",
+        "smoother": "chebyshev", "pre_sweeps": 3, "post_sweeps": 1, "mode": "cycles",
+        "cycles": 4, "refresh_interval": 5, "crack_rebinding": false}}}]})";
+  const Result<Scene> r = parseScene(text, "inline", "");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const SolverSettings& s = r.value().bodies[0].def.solver;
+  EXPECT_EQ(s.linearSolver, LinearSolverKind::Multigrid);
+  EXPECT_EQ(s.multigrid.levels, (std::vector<int32_t>{50, 1000}));
+  EXPECT_EQ(s.multigrid.smoother, Smoother::Chebyshev);
+  EXPECT_EQ(s.multigrid.preSweeps, 3);
+  EXPECT_EQ(s.multigrid.postSweeps, 1);
+  EXPECT_FALSE(s.multigrid.preconditionCG);
+  EXPECT_EQ(s.multigrid.cycles, 4);
+  EXPECT_EQ(s.multigrid.coarseRefreshInterval, 5);
+  EXPECT_FALSE(s.multigrid.crackRebinding);
+}
+
 // Every bad file and the pieces its message must contain: the file, the JSON path (or line and
 // column for a syntax error) and the reason.
 const std::map<std::string, std::vector<std::string>> kBadScenes = {
@@ -397,6 +419,18 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
     {"duplicate_body_name.json", {": bodies[1].name: duplicate body name \"cube\""}},
     {"bad_body_name.json", {": bodies[0].name: expected 1-64 letters", "got \"my beam/1\""}},
     {"duplicate_key.json", {": bodies[0].material.E: duplicate key"}},
+    // Solver.
+    {"bad_multigrid_levels.json",
+     {": bodies[0].solver.multigrid.levels: expected coarse handle counts, coarsest first and "
+      "increasing, ending with \"all\"",
+      "got \"1000/50/all\""}},
+    {"bad_multigrid_levels_no_all.json",
+     {": bodies[0].solver.multigrid.levels: expected coarse handle counts", "got \"50/1000\""}},
+    {"bad_multigrid_smoother.json",
+     {": bodies[0].solver.multigrid.smoother: expected one of \"jacobi\", \"gauss_seidel\", "
+      "\"chebyshev\", got \"sor\""}},
+    {"multigrid_without_multigrid.json",
+     {": bodies[0].solver.multigrid: needs \"linear\": \"multigrid\""}},
     // Fracture, plasticity, fibre fields, scale and cuts.
     {"bad_fracture_strength.json",
      {": bodies[0].fracture.strength: expected a positive number, got -5"}},
@@ -410,6 +444,10 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
     {"bad_fracture_radius.json",
      {": bodies[0].fracture.radius: expected a number in [0, 100], got -1"}},
     {"missing_fracture_strength.json", {": bodies[0].fracture.strength: missing (required)"}},
+    {"bad_fracture_fibre_strength_ratio.json",
+     {": bodies[0].fracture.fibre_strength_ratio: expected a positive number, got -2"}},
+    {"fibre_strength_ratio_without_fibre.json",
+     {": bodies[0].fracture.fibre_strength_ratio: needs \"material.fibre\" with a stiffness > 0"}},
     {"unknown_key_fracture.json", {": bodies[0].fracture.treshold: unknown key"}},
     {"wrong_type_fracture.json", {": bodies[0].fracture: expected an object, got true"}},
     {"bad_plasticity_flow_rate.json",

@@ -319,10 +319,68 @@ Material readMaterial(const json& v, const std::string& path) {
   return m;
 }
 
+/// A multigrid setup "50/1000/all": handle counts of the coarse levels, coarsest first, strictly
+/// increasing, ending with the mesh itself ("all").
+std::vector<int32_t> readLevels(const json& v, const std::string& path) {
+  const std::string text = readString(v, path);
+  const std::string want =
+      "expected coarse handle counts, coarsest first and increasing, ending "
+      "with \"all\" (e.g. \"50/1000/all\"), got " +
+      describe(v);
+  std::vector<int32_t> levels;
+  size_t pos = 0;
+  while (true) {
+    const size_t slash = text.find('/', pos);
+    const std::string part = text.substr(pos, slash == std::string::npos ? slash : slash - pos);
+    if (slash == std::string::npos) {
+      if (part != "all" || levels.empty()) throw SceneError{path, want};
+      return levels;
+    }
+    if (part.empty() || part.size() > 9 ||
+        part.find_first_not_of("0123456789") != std::string::npos) {
+      throw SceneError{path, want};
+    }
+    const int32_t n = static_cast<int32_t>(std::stol(part));
+    if (n < 1 || (!levels.empty() && n <= levels.back())) throw SceneError{path, want};
+    levels.push_back(n);
+    pos = slash + 1;
+  }
+}
+
+MultigridSettings readMultigrid(const json& v, const std::string& path) {
+  ObjReader o(v, path);
+  o.keys({"levels", "smoother", "pre_sweeps", "post_sweeps", "mode", "cycles", "refresh_interval",
+          "crack_rebinding"});
+  MultigridSettings m;
+  if (const json* x = o.find("levels")) m.levels = readLevels(*x, o.at("levels"));
+  if (const json* x = o.find("smoother")) {
+    const std::string s = readChoice(*x, o.at("smoother"), {"jacobi", "gauss_seidel", "chebyshev"});
+    m.smoother = s == "jacobi"         ? Smoother::Jacobi
+                 : s == "gauss_seidel" ? Smoother::GaussSeidel
+                                       : Smoother::Chebyshev;
+  }
+  if (const json* x = o.find("pre_sweeps")) m.preSweeps = readInt(*x, o.at("pre_sweeps"), 0, 100);
+  if (const json* x = o.find("post_sweeps")) {
+    m.postSweeps = readInt(*x, o.at("post_sweeps"), 0, 100);
+  }
+  if (const json* x = o.find("mode")) {
+    m.preconditionCG = readChoice(*x, o.at("mode"), {"cg", "cycles"}) == "cg";
+  }
+  if (const json* x = o.find("cycles")) m.cycles = readInt(*x, o.at("cycles"), 1, 1000);
+  if (const json* x = o.find("refresh_interval")) {
+    m.coarseRefreshInterval = readInt(*x, o.at("refresh_interval"), 1, 1'000'000);
+  }
+  if (const json* x = o.find("crack_rebinding")) {
+    m.crackRebinding = readBool(*x, o.at("crack_rebinding"));
+  }
+  o.finish();
+  return m;
+}
+
 SolverSettings readSolver(const json& v, const std::string& path) {
   ObjReader o(v, path);
   o.keys({"newton_iterations", "newton_tolerance", "line_search", "linear", "max_linear_iterations",
-          "linear_tolerance"});
+          "linear_tolerance", "multigrid"});
   SolverSettings s;
   if (const json* x = o.find("newton_iterations")) {
     s.newtonIterations = readInt(*x, o.at("newton_iterations"), 1, 1000);
@@ -332,9 +390,17 @@ SolverSettings readSolver(const json& v, const std::string& path) {
   }
   if (const json* x = o.find("line_search")) s.lineSearch = readBool(*x, o.at("line_search"));
   if (const json* x = o.find("linear")) {
-    s.linearSolver = readChoice(*x, o.at("linear"), {"pcg", "direct"}) == "pcg"
-                         ? LinearSolverKind::PCG
-                         : LinearSolverKind::Direct;
+    const std::string kind = readChoice(*x, o.at("linear"), {"pcg", "direct", "multigrid"});
+    s.linearSolver = kind == "pcg"      ? LinearSolverKind::PCG
+                     : kind == "direct" ? LinearSolverKind::Direct
+                                        : LinearSolverKind::Multigrid;
+  }
+  if (const json* x = o.find("multigrid")) {
+    s.multigrid = readMultigrid(*x, o.at("multigrid"));
+    // Settings for a solver that is not selected would be silently ignored.
+    if (s.linearSolver != LinearSolverKind::Multigrid) {
+      throw SceneError{o.at("multigrid"), "needs \"linear\": \"multigrid\""};
+    }
   }
   if (const json* x = o.find("max_linear_iterations")) {
     s.maxLinearIterations = readInt(*x, o.at("max_linear_iterations"), 1, 1'000'000);
@@ -444,7 +510,7 @@ constexpr int kMaxBrittleRegions = 1'000'000;
 
 FractureSettings readFracture(const json& v, const std::string& path) {
   ObjReader o(v, path);
-  o.keys({"strength", "radius", "model", "brittle", "regions"});
+  o.keys({"strength", "radius", "model", "brittle", "regions", "fibre_strength_ratio"});
   FractureSettings f;
   f.enabled = true;
   f.strength = readPositive(o.require("strength"), o.at("strength"));
@@ -459,6 +525,9 @@ FractureSettings readFracture(const json& v, const std::string& path) {
   if (const json* b = o.find("brittle")) f.brittle = readBool(*b, o.at("brittle"));
   if (const json* n = o.find("regions")) {
     f.regions = readInt(*n, o.at("regions"), 1, kMaxBrittleRegions);
+  }
+  if (const json* r = o.find("fibre_strength_ratio")) {
+    f.fibreStrengthRatio = readPositive(*r, o.at("fibre_strength_ratio"));
   }
   o.finish();
   return f;
@@ -577,7 +646,15 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
   if (const json* iv = o.find("initial_velocity")) {
     body.def.initialVelocity = glm::vec3(readVec3(*iv, o.at("initial_velocity")));
   }
-  if (const json* f = o.find("fracture")) body.def.fracture = readFracture(*f, o.at("fracture"));
+  if (const json* f = o.find("fracture")) {
+    body.def.fracture = readFracture(*f, o.at("fracture"));
+    // The ratio is relative to the fibre direction; without fibres there is none.
+    if (body.def.fracture.fibreStrengthRatio != 1 && !(body.def.material.fibreStiffness > 0)) {
+      throw SceneError{joinPath(o.at("fracture"), "fibre_strength_ratio"),
+                       "needs \"material.fibre\" with a stiffness > 0 (the ratio is relative to "
+                       "the fibre direction)"};
+    }
+  }
   if (const json* p = o.find("plasticity")) {
     body.def.plasticity = readPlasticity(*p, o.at("plasticity"));
   }

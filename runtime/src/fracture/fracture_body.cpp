@@ -23,7 +23,11 @@ Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem, 
   const size_t nt = fem.tetCount, nn = fem.nodeCount;
   fb->m_graph = EdgeGraph::build(fem.tets.data(), nt, nn);
   const RestMeshView rest{fem.restPositions.data(), fem.tets.data(), fem.nodeCount, fem.tetCount};
-  auto model = FractureModel::build(rest, fb->m_graph, fem.fracture, &jobs);
+  FibreView fibres;
+  fibres.present = fem.coeffs.fibreMu > 0;
+  fibres.constant = fem.coeffs.fibreDir;
+  if (!fem.fibreDir.empty()) fibres.perTet = fem.fibreDir.data();
+  auto model = FractureModel::build(rest, fb->m_graph, fem.fracture, &jobs, fibres);
   if (!model) return fail("BodyDef.fracture: ", model.error().message);
   fb->m_model = std::move(model.value());
   fb->m_damageModel = fem.fracture.model == DamageModel::Projection ? 0 : 1;

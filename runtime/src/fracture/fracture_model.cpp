@@ -49,13 +49,21 @@ void CentroidGrid::build(const std::vector<double>& centroids, int32_t count, do
 }
 
 Result<FractureModel> FractureModel::build(const RestMeshView& rest, const EdgeGraph& graph,
-                                           const FractureSettings& settings, JobSystem* jobs) {
+                                           const FractureSettings& settings, JobSystem* jobs,
+                                           const FibreView& fibres) {
   if (!(settings.strength > 0) || !std::isfinite(settings.strength))
     return fail("FractureSettings.strength: ", std::to_string(settings.strength),
                 " is not a positive finite stress");
   if (!(settings.radius >= 0) || !std::isfinite(settings.radius))
     return fail("FractureSettings.radius: ", std::to_string(settings.radius),
                 " is not a finite value >= 0");
+  const double ratio = settings.fibreStrengthRatio;
+  if (!(ratio > 0) || !std::isfinite(ratio))
+    return fail("FractureSettings.fibreStrengthRatio: ", std::to_string(ratio),
+                " is not a positive finite ratio");
+  if (ratio != 1 && !fibres.present)
+    return fail("FractureSettings.fibreStrengthRatio: ", std::to_string(ratio),
+                " needs fibres (material.fibreStiffness > 0); use 1 for an isotropic strength");
   if (settings.brittle && settings.regions < 1)
     return fail("FractureSettings.regions: ", std::to_string(settings.regions),
                 " must be at least 1");
@@ -93,8 +101,23 @@ Result<FractureModel> FractureModel::build(const RestMeshView& rest, const EdgeG
 
   m.strength.assign(size_t(m.edgeCount), settings.strength);
   double lengthSum = 0;
-  for (int32_t e = 0; e < m.edgeCount; ++e)
-    lengthSum += norm(node(graph.edgeNodes[2 * e + 1]) - node(graph.edgeNodes[2 * e]));
+  for (int32_t e = 0; e < m.edgeCount; ++e) {
+    const Vec3 d = node(graph.edgeNodes[2 * e + 1]) - node(graph.edgeNodes[2 * e]);
+    const double len = norm(d);
+    lengthSum += len;
+    if (ratio == 1) continue;
+    // A fibre field may change across the edge: average cos^2 over the tets that share it,
+    // in the graph's fixed order (deterministic).
+    double cos2 = 0;
+    const int32_t first = graph.edgeTetStart[e], last = graph.edgeTetStart[e + 1];
+    for (int32_t s = first; s < last; ++s) {
+      const Vec3 a = fibres.perTet ? fibres.perTet[graph.edgeTets[size_t(s)] / 6] : fibres.constant;
+      const double c = dot(d, a) / len;
+      cos2 += c * c;
+    }
+    if (last > first) cos2 /= double(last - first);
+    m.strength[size_t(e)] = fibreEdgeStrength(settings.strength, ratio, cos2);
+  }
   m.meanEdgeLength = m.edgeCount > 0 ? lengthSum / m.edgeCount : 0;
   m.radiusAbs = settings.radius * m.meanEdgeLength;
 

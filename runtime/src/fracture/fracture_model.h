@@ -49,6 +49,25 @@ struct EdgeBreak {
   Vec3 position;
 };
 
+/// Fibre directions that make the edge strength anisotropic (FractureSettings::
+/// fibreStrengthRatio): one unit vector per tet, or `constant` for the whole body when perTet
+/// is null. `present` false: the body has no fibres.
+struct FibreView {
+  const Vec3* perTet = nullptr;
+  Vec3 constant{1, 0, 0};
+  bool present = false;
+};
+
+/// Strength of an edge whose rest direction makes angle theta with the fibre, cos2 =
+/// cos^2 theta, `across` the across-fibre strength and `ratio` along / across: Hankinson's
+/// law (1921) with exponent 2, the standard fit for wood loaded at an angle to its grain: the
+/// compliance 1 / sigma interpolated linearly in cos^2 theta. An edge breaks under tension
+/// along itself, opening a crack normal to it, so edges across the fibres (cos2 = 0) split
+/// the body between its fibres and edges along them (cos2 = 1) must tear the fibres.
+inline double fibreEdgeStrength(double across, double ratio, double cos2) {
+  return across * ratio / (ratio * (1.0 - cos2) + cos2);
+}
+
 /// Uniform grid over rest centroids with cells no smaller than R: every tet within R of a
 /// point lies in the 27 cells around the point's cell.
 struct CentroidGrid {
@@ -95,7 +114,9 @@ struct FractureModel {
   /// Unit rest direction of local edge k of tet t (from node kTetEdgeNodes[k][0] to [1]) at
   /// [18 t + 3 k]; the sign is irrelevant to N^T S N.
   std::vector<double> edgeDirections;
-  std::vector<double> strength;   ///< sigma_th per edge [Pa]; overridable (impurities, maps).
+  /// sigma_th per edge [Pa]: settings.strength, or fibreEdgeStrength of the mean cos^2 over
+  /// the edge's tets when fibreStrengthRatio != 1; overridable (impurities, maps).
+  std::vector<double> strength;
   std::vector<double> centroids;  ///< Rest centroid, 3 per tet.
   double meanEdgeLength = 0;      ///< Mean rest length over unique edges.
   double radiusAbs = 0;           ///< R = settings.radius * meanEdgeLength (eq 4.10).
@@ -111,10 +132,12 @@ struct FractureModel {
   std::vector<int32_t> faceNeighbours;
 
   /// Builds the model. `jobs` parallelises the neighbour search (null = serial). Errors name
-  /// the field: a non-positive or non-finite strength or radius, mismatched graph and mesh,
-  /// a degenerate edge, or neighbour lists over 2^31 entries (R_d too large for the mesh).
+  /// the field: a non-positive or non-finite strength, radius or fibre strength ratio, a
+  /// ratio != 1 without fibres, mismatched graph and mesh, a degenerate edge, or neighbour
+  /// lists over 2^31 entries (R_d too large for the mesh).
   static Result<FractureModel> build(const RestMeshView& rest, const EdgeGraph& graph,
-                                     const FractureSettings& settings, JobSystem* jobs = nullptr);
+                                     const FractureSettings& settings, JobSystem* jobs = nullptr,
+                                     const FibreView& fibres = {});
   /// Fills faceNeighbours (brittle mode needs it); O(T log T).
   void buildFaceAdjacency(const RestMeshView& rest);
   /// True when the criterion averages over neighbours (R_d > 0).
