@@ -18,6 +18,10 @@ int runCommand(int argc, char** argv);
 /// `graphfrac bench NAME [options]`; argv[0] is "bench". Prints CSV figures.
 int runBenchCommand(int argc, char** argv);
 
+/// `graphfrac report error-vs-time SCENE [options]`; argv[0] is "report". Writes a CSV and an
+/// SVG plot of error against run time for every solver setting.
+int runReportCommand(int argc, char** argv);
+
 /// `graphfrac mesh SUBCOMMAND ...`; argv[0] is "mesh", argv[1] the subcommand:
 ///   from-surface IN.obj OUT.msh [--max-volume V] [--quality Q] [--tetgen PATH] [--keep-temp]
 ///     (tetrahedralises a closed OBJ surface with the tetgen program, run as a tool)

@@ -14,6 +14,8 @@ constexpr const char* kUsage =
     "  run SCENE [options]   simulate a JSON scene, write per-frame statistics and surfaces\n"
     "  mesh ...              tet-mesh tools (generate, convert, tetrahedralise an OBJ)\n"
     "  bench fracture        cost of fracture per step (CSV figures)\n"
+    "  report error-vs-time SCENE\n"
+    "                        error against run time of every solver setting (CSV + SVG)\n"
     "\n"
     "  graphfrac <command> --help   options of a command\n"
     "  graphfrac --version          print the version\n"
@@ -42,6 +44,7 @@ int main(int argc, char** argv) {
   if (cmd == "run") return gf::cli::runCommand(argc - 1, argv + 1);
   if (cmd == "mesh") return gf::cli::runMeshCommand(argc - 1, argv + 1);
   if (cmd == "bench") return gf::cli::runBenchCommand(argc - 1, argv + 1);
+  if (cmd == "report") return gf::cli::runReportCommand(argc - 1, argv + 1);
   std::fprintf(stderr, "graphfrac: unknown command '%s'\n\n%s", argv[1], kUsage);
   return gf::cli::kExitUsage;
 }

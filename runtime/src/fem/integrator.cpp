@@ -68,6 +68,18 @@ Integrator::Integrator(const FemModel& model) {
   }
 }
 
+Result<void> Integrator::setupSolver(const FemModel& model) {
+  if (model.solver.linearSolver != LinearSolverKind::Multigrid) return {};
+  m_multigrid = std::make_unique<MultigridSolver>();
+  Result<void> r = m_multigrid->setup(model.solver.multigrid, model.restPositions.data(),
+                                      model.fixedNode.data(), m_A);
+  if (!r.ok()) {
+    m_multigrid.reset();
+    return fail("BodyDef.solver.multigrid: ", r.error().message);
+  }
+  return {};
+}
+
 double Integrator::elementPass(const FemModel& model, const double* x, bool withHessian,
                                JobSystem& jobs) {
   // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
@@ -280,11 +292,25 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     t0 = Clock::now();
     std::fill(m_dx.begin(), m_dx.end(), 0.0);
     SolveReport sr;
-    if (m_cholesky)
+    if (m_cholesky) {
       sr = m_cholesky->solve(m_A, m_rhs.data(), m_dx.data());
-    else
+    } else if (m_multigrid) {
+      // Cracks change the binding only when edges broke since the last solve (SPEC §5).
+      if (m_fracture && m_fracture->brokenCount() != m_boundBrokenCount) {
+        const EdgeGraph& g = m_fracture->graph();
+        m_multigrid->rebind(g.edgeNodes.data(), m_fracture->broken().data(), g.edgeCount);
+        m_boundBrokenCount = m_fracture->brokenCount();
+      }
+      sr = m_multigrid->solve(m_A, m_rhs.data(), m_dx.data(), model.solver.maxLinearIterations,
+                              model.solver.linearTolerance, jobs);
+      // A fixed number of V-cycles is a chosen cost, not a convergence target: only a
+      // non-finite result is a failure there.
+      if (!model.solver.multigrid.preconditionCG && std::isfinite(sr.relativeResidual))
+        sr.converged = true;
+    } else {
       sr = m_pcg.solve(m_A, m_rhs.data(), m_dx.data(), model.solver.maxLinearIterations,
                        model.solver.linearTolerance, jobs);
+    }
     rep.solveMs += msSince(t0);
     rep.linearIterations += sr.iterations;
     rep.residual = std::max(rep.residual, sr.relativeResidual);

@@ -23,6 +23,7 @@
 #include "kernels/contact.h"
 #include "solver/block_sparse.h"
 #include "solver/cholesky.h"
+#include "solver/multigrid.h"
 #include "solver/pcg.h"
 
 namespace gf::detail {
@@ -52,6 +53,11 @@ struct EnergyBreakdown {
 class Integrator {
  public:
   explicit Integrator(const FemModel& model);
+  /// Builds what the chosen linear solver needs beyond the pattern (the multigrid hierarchy);
+  /// an error names the setting that cannot be built. Call once, before the first step.
+  Result<void> setupSolver(const FemModel& model);
+  /// The multigrid solver, or null when the body uses another linear solver.
+  const MultigridSolver* multigrid() const { return m_multigrid.get(); }
   /// Damage state the element pass reads (null: no fracture) and the effective rest inverses
   /// of plastic elements (null: no plasticity). Both outlive the integrator's use.
   void attach(FractureBody* fracture, const std::vector<Mat3>* plasticInverse) {
@@ -100,6 +106,8 @@ class Integrator {
   const std::vector<Mat3>* m_plasticInverse = nullptr;
   PcgSolver m_pcg;
   std::unique_ptr<CholeskySolver> m_cholesky;
+  std::unique_ptr<MultigridSolver> m_multigrid;
+  int32_t m_boundBrokenCount = 0;  // broken edges the multigrid binding has seen
 };
 
 }  // namespace gf::detail

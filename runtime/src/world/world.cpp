@@ -249,6 +249,22 @@ Result<BodyId> World::createBody(BodyDef def) {
   if (!(s.newtonTolerance > 0)) return fail("BodyDef.solver.newtonTolerance: must be > 0");
   if (s.maxLinearIterations < 1) return fail("BodyDef.solver.maxLinearIterations: must be >= 1");
   if (!(s.linearTolerance > 0)) return fail("BodyDef.solver.linearTolerance: must be > 0");
+  if (s.linearSolver == LinearSolverKind::Multigrid) {
+    const MultigridSettings& mg = s.multigrid;
+    if (mg.levels.empty())
+      return fail("BodyDef.solver.multigrid.levels: needs at least one coarse level");
+    for (size_t i = 0; i < mg.levels.size(); ++i) {
+      if (mg.levels[i] < 1 || (i > 0 && mg.levels[i] <= mg.levels[i - 1]))
+        return fail(
+            "BodyDef.solver.multigrid.levels: handle counts must be >= 1 and strictly "
+            "increasing, coarsest first");
+    }
+    if (mg.preSweeps < 0 || mg.postSweeps < 0 || mg.preSweeps + mg.postSweeps < 1)
+      return fail("BodyDef.solver.multigrid: preSweeps and postSweeps must be >= 0, together >= 1");
+    if (mg.cycles < 1) return fail("BodyDef.solver.multigrid.cycles: must be >= 1");
+    if (mg.coarseRefreshInterval < 1)
+      return fail("BodyDef.solver.multigrid.coarseRefreshInterval: must be >= 1");
+  }
 
   auto body = std::make_unique<BodyRecord>();
   body->model = detail::buildFemModel(def);
@@ -257,6 +273,7 @@ Result<BodyId> World::createBody(BodyDef def) {
   for (size_t i = 0; i < body->state.v.size(); ++i)
     body->state.v[i] = def.initialVelocity[int(i % 3)];
   body->integrator = std::make_unique<detail::Integrator>(body->model);
+  if (Result<void> r = body->integrator->setupSolver(body->model); !r.ok()) return r.error();
   Impl& w0 = *m_impl;
   if (def.fracture.enabled) {
     auto fb = detail::FractureBody::create(body->model, *w0.jobs);

@@ -1,0 +1,686 @@
+// Galerkin multigrid V-cycles and flexible CG (thesis sec 6.2, eq 6.1-6.4).
+//
+// Design: level 0 is the fine 3x3-block matrix, levels 1..L the 12x12-block Galerkin operators;
+// the smoothers are written once for both block sizes. Every pass writes disjoint rows (the
+// Gauss-Seidel sweeps go colour by colour of a greedy colouring, so a colour's rows never
+// touch each other) and every reduction uses the fixed chunks of vector_ops.h: the same bits
+// for any thread count. Symmetry: pre-smoothing runs forward Gauss-Seidel, post-smoothing the
+// same number of backward sweeps, Jacobi and Chebyshev are symmetric polynomials, and the coarse
+// solve is an exact Cholesky of an SPD matrix, so with preSweeps == postSweeps the V-cycle is
+// an SPD preconditioner. CG still uses the flexible (Polak-Ribiere) beta, one extra dot per
+// iteration, so unequal sweep counts cannot break it.
+// The coarsest level is factorised by a sparse LL^T (CHOLMOD's supernodal one when the build
+// has it, about 20x faster at a thousand handles, else Eigen's simplicial one): elongated
+// bodies give banded coarse graphs, and fragments that gain handles after cracks give
+// block-diagonal ones, which a dense factor would pay for in full. Neither depends on the
+// JobSystem's thread count.
+#include "solver/multigrid.h"
+
+#include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#if GF_HAVE_CHOLMOD
+#include <Eigen/CholmodSupport>
+#endif
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "solver/vector_ops.h"
+
+namespace gf::detail {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+// Power iterations for the largest eigenvalue of D^-1 A, and the margin put on the estimate
+// (the Rayleigh quotient approaches it from below).
+constexpr int kPowerIterations = 12;
+constexpr double kLambdaMargin = 1.1;
+// Chebyshev targets [kChebyshevLow, 1] x lambda_max: the upper part of the spectrum, which the
+// coarse levels do not represent (the interval PETSc's Chebyshev smoother uses).
+constexpr double kChebyshevLow = 0.1;
+
+// A level's block-CSR matrix, block size B.
+template <int B>
+struct LevelMatrix {
+  int32_t n = 0;
+  const int32_t* rowStart = nullptr;
+  const int32_t* col = nullptr;
+  const double* values = nullptr;
+};
+
+// Rows per parallel range for a level of block size B: a few thousand flops each.
+template <int B>
+constexpr uint32_t rowGrain() {
+  return B == 3 ? 128 : 8;
+}
+
+// out = (A x)_r for block row r.
+template <int B>
+inline void rowProduct(const LevelMatrix<B>& A, int32_t r, const double* x, double* out) {
+  for (int i = 0; i < B; ++i) out[i] = 0;
+  for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k) {
+    const double* m = A.values + static_cast<size_t>(B * B) * k;
+    const double* xc = x + static_cast<size_t>(B) * A.col[k];
+    for (int i = 0; i < B; ++i) {
+      double s = 0;
+      for (int j = 0; j < B; ++j) s += m[B * i + j] * xc[j];
+      out[i] += s;
+    }
+  }
+}
+
+// out = b_r - (A x)_r for block row r.
+template <int B>
+inline void rowResidual(const LevelMatrix<B>& A, int32_t r, const double* b, const double* x,
+                        double* out) {
+  rowProduct<B>(A, r, x, out);
+  for (int i = 0; i < B; ++i) out[i] = b[B * r + i] - out[i];
+}
+
+template <int B>
+inline void blockApply(const double* m, const double* v, double* out) {
+  for (int i = 0; i < B; ++i) {
+    double s = 0;
+    for (int j = 0; j < B; ++j) s += m[B * i + j] * v[j];
+    out[i] = s;
+  }
+}
+
+// Inverse of an SPD diagonal block by Cholesky; a block that is not numerically SPD falls back
+// to the inverse of its positive diagonal entries (1 where not positive), so D^-1 stays SPD.
+template <int B>
+void invertDiagonal(const double* m, double* inv) {
+  using Mat = Eigen::Matrix<double, B, B, Eigen::RowMajor>;
+  const Eigen::Map<const Mat> a(m);
+  Eigen::LLT<Mat> llt(a);
+  if (llt.info() == Eigen::Success) {
+    Eigen::Map<Mat> out(inv);
+    out = llt.solve(Mat::Identity());
+    bool finite = true;
+    for (int i = 0; i < B * B; ++i) finite = finite && std::isfinite(inv[i]);
+    if (finite) return;
+  }
+  for (int i = 0; i < B * B; ++i) inv[i] = 0;
+  for (int i = 0; i < B; ++i) {
+    const double d = m[(B + 1) * i];
+    inv[(B + 1) * i] = (d > 0 && std::isfinite(1 / d)) ? 1 / d : 1.0;
+  }
+}
+
+// Smoother data of one level: inverse diagonal blocks, colouring, spectral bound, work vectors.
+struct Level {
+  int blockSize = 3;
+  int32_t n = 0;
+  std::vector<double> invDiag;
+  std::vector<int32_t> diagIndex;
+  std::vector<int32_t> colourStart, colourRows;
+  double lambdaMax = 2;
+  std::vector<double> b, x, r, t;  // rhs, iterate, residual, temporary (B n each)
+};
+
+// Greedy colouring in row order: adjacent rows never share a colour.
+void colour(int32_t n, const int32_t* rowStart, const int32_t* col, Level& lv) {
+  std::vector<int32_t> c(static_cast<size_t>(n), -1);
+  std::vector<int32_t> seen;
+  int32_t colours = 0;
+  for (int32_t r = 0; r < n; ++r) {
+    for (int32_t k = rowStart[r]; k < rowStart[r + 1]; ++k) {
+      const int32_t cc = c[col[k]];
+      if (cc >= 0) {
+        if (static_cast<size_t>(cc) >= seen.size()) seen.resize(static_cast<size_t>(cc) + 1, -1);
+        seen[cc] = r;
+      }
+    }
+    int32_t pick = 0;
+    while (static_cast<size_t>(pick) < seen.size() && seen[pick] == r) ++pick;
+    c[r] = pick;
+    colours = std::max(colours, pick + 1);
+  }
+  lv.colourStart.assign(static_cast<size_t>(colours) + 1, 0);
+  for (int32_t r = 0; r < n; ++r) ++lv.colourStart[c[r] + 1];
+  for (int32_t k = 0; k < colours; ++k) lv.colourStart[k + 1] += lv.colourStart[k];
+  lv.colourRows.resize(static_cast<size_t>(n));
+  std::vector<int32_t> fill(lv.colourStart.begin(), lv.colourStart.end() - 1);
+  for (int32_t r = 0; r < n; ++r) lv.colourRows[fill[c[r]]++] = r;
+}
+
+}  // namespace
+
+struct MultigridSolver::Impl {
+  MultigridSettings settings;
+  MultigridHierarchy hierarchy;
+  MultigridStats stats;
+  std::vector<double> cycleResiduals;
+  std::vector<Level> levels;  // 0 = fine
+  int32_t fineBlocks = -1;
+  int solvesSinceRefresh = 0;
+  bool needRefresh = true;
+  bool patternsChanged = true;
+  std::vector<double> partials;
+
+  // Coarsest level: lower triangle of its scalar expansion and the map into its values.
+  using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+  SpMat coarseLower;
+  std::vector<int64_t> coarseMap;
+#if GF_HAVE_CHOLMOD
+  Eigen::CholmodSupernodalLLT<SpMat, Eigen::Lower> coarseLlt;
+#else
+  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> coarseLlt;
+#endif
+  bool coarseOk = false;
+
+  // CG vectors (3 n each).
+  std::vector<double> r, z, p, ap, rOld;
+
+  int coarseCount() const { return hierarchy.coarseLevelCount(); }
+
+  template <int B>
+  LevelMatrix<B> matrix(int l, const BlockSparseMatrix& A) const {
+    LevelMatrix<B> m;
+    if constexpr (B == 3) {
+      (void)l;
+      m.n = A.n;
+      m.rowStart = A.rowStart.data();
+      m.col = A.col.data();
+      m.values = A.values.data();
+    } else {
+      const CoarseMatrix& C = hierarchy.level(l).A;
+      m.n = C.n;
+      m.rowStart = C.rowStart.data();
+      m.col = C.col.data();
+      m.values = C.values.data();
+    }
+    return m;
+  }
+
+  void buildLevels(const BlockSparseMatrix& A) {
+    levels.assign(static_cast<size_t>(coarseCount()) + 1, Level{});
+    for (int l = 0; l <= coarseCount(); ++l) {
+      Level& lv = levels[static_cast<size_t>(l)];
+      const int B = l == 0 ? 3 : 12;
+      const int32_t n = l == 0 ? A.n : hierarchy.level(l).A.n;
+      const int32_t* rs = l == 0 ? A.rowStart.data() : hierarchy.level(l).A.rowStart.data();
+      const int32_t* cl = l == 0 ? A.col.data() : hierarchy.level(l).A.col.data();
+      lv.blockSize = B;
+      lv.n = n;
+      lv.invDiag.assign(static_cast<size_t>(B * B) * n, 0.0);
+      lv.diagIndex.resize(static_cast<size_t>(n));
+      for (int32_t row = 0; row < n; ++row)
+        lv.diagIndex[row] = l == 0 ? A.diagonal(row) : hierarchy.level(l).A.find(row, row);
+      colour(n, rs, cl, lv);
+      const size_t len = static_cast<size_t>(B) * n;
+      lv.b.assign(len, 0.0);
+      lv.x.assign(len, 0.0);
+      lv.r.assign(len, 0.0);
+      lv.t.assign(len, 0.0);
+    }
+    stats.handles.clear();
+    for (int l = coarseCount(); l >= 1; --l) stats.handles.push_back(hierarchy.handleCount(l));
+    buildCoarsestPattern();
+    patternsChanged = false;
+  }
+
+  // Column 12c + j of the scalar expansion holds rows 12r + i >= 12c + j of blocks (r, c).
+  void buildCoarsestPattern() {
+    coarseMap.clear();
+    coarseOk = false;
+    if (coarseCount() == 0) return;
+    const CoarseMatrix& C = hierarchy.level(coarseCount()).A;
+    const int64_t size = 12 * static_cast<int64_t>(C.n);
+    coarseLower.resize(size, size);
+    coarseLower.resizeNonZeros(0);
+    coarseLower.reserve(static_cast<int64_t>(C.col.size()) * 72 + 12 * C.n);
+    for (int32_t c = 0; c < C.n; ++c)
+      for (int j = 0; j < 12; ++j) {
+        coarseLower.startVec(12 * c + j);
+        for (int32_t k = C.rowStart[c]; k < C.rowStart[c + 1]; ++k) {
+          const int32_t rr = C.col[k];
+          if (rr < c) continue;
+          const int64_t blk = C.find(rr, c);
+          for (int i = 0; i < 12; ++i) {
+            if (rr == c && i < j) continue;
+            coarseLower.insertBack(12 * rr + i, 12 * c + j) = 0.0;
+            coarseMap.push_back(144 * blk + 12 * i + j);
+          }
+        }
+      }
+    coarseLower.finalize();
+#if GF_HAVE_CHOLMOD
+    coarseLlt.cholmod().print = 0;  // a failed factorisation is retried below, not printed
+#endif
+    if (coarseLower.cols() > 0) coarseLlt.analyzePattern(coarseLower);
+  }
+
+  void factorCoarsest() {
+    coarseOk = false;
+    if (coarseCount() == 0 || coarseLower.cols() == 0) return;
+    const CoarseMatrix& C = hierarchy.level(coarseCount()).A;
+    double* v = coarseLower.valuePtr();
+    for (size_t i = 0; i < coarseMap.size(); ++i) v[i] = C.values[coarseMap[i]];
+    coarseLlt.factorize(coarseLower);
+    // Round-off can leave a regularised null direction a hair below zero: retry with a growing
+    // diagonal shift (still SPD, so the V-cycle stays symmetric positive definite).
+    double meanDiag = 0;
+    for (int64_t i = 0; i < coarseLower.cols(); ++i) meanDiag += coarseLower.coeff(i, i);
+    meanDiag /= std::max<int64_t>(1, coarseLower.cols());
+    for (int attempt = 0; coarseLlt.info() != Eigen::Success && attempt < 6; ++attempt) {
+      const double shift = std::pow(100.0, attempt) * 1e-12 * meanDiag;
+      for (int64_t i = 0; i < coarseLower.cols(); ++i) coarseLower.coeffRef(i, i) += shift;
+      coarseLlt.factorize(coarseLower);
+    }
+    coarseOk = coarseLlt.info() == Eigen::Success;
+  }
+
+  template <int B>
+  void invertDiagonals(int l, const BlockSparseMatrix& A, JobSystem& jobs) {
+    Level& lv = levels[static_cast<size_t>(l)];
+    const LevelMatrix<B> m = matrix<B>(l, A);
+    forRanges(jobs, static_cast<uint32_t>(lv.n), rowGrain<B>(), [&](uint32_t begin, uint32_t end) {
+      for (uint32_t row = begin; row < end; ++row)
+        invertDiagonal<B>(m.values + static_cast<size_t>(B * B) * lv.diagIndex[row],
+                          lv.invDiag.data() + static_cast<size_t>(B * B) * row);
+    });
+  }
+
+  // Largest eigenvalue of D^-1 A by power iteration with the Rayleigh quotient v.Av / v.Dv.
+  template <int B>
+  void estimateLambda(int l, const BlockSparseMatrix& A, JobSystem& jobs) {
+    Level& lv = levels[static_cast<size_t>(l)];
+    const LevelMatrix<B> m = matrix<B>(l, A);
+    const size_t len = static_cast<size_t>(B) * lv.n;
+    double* v = lv.x.data();
+    double* w = lv.r.data();
+    // A fixed, non-smooth start vector: deterministic and rich in the high modes sought.
+    for (size_t i = 0; i < len; ++i) v[i] = 1.0 + 0.37 * static_cast<double>((i * 7919) % 13);
+    double lambda = 0;
+    for (int it = 0; it < kPowerIterations; ++it) {
+      forRanges(jobs, static_cast<uint32_t>(lv.n), rowGrain<B>(),
+                [&](uint32_t begin, uint32_t end) {
+                  for (uint32_t row = begin; row < end; ++row)
+                    rowProduct<B>(m, static_cast<int32_t>(row), v, w + B * row);
+                });
+      const double vav = dot(v, w, len, partials, jobs);
+      double* t = lv.t.data();
+      forRanges(jobs, static_cast<uint32_t>(lv.n), rowGrain<B>(),
+                [&](uint32_t begin, uint32_t end) {
+                  for (uint32_t row = begin; row < end; ++row)
+                    blockApply<B>(m.values + static_cast<size_t>(B * B) * lv.diagIndex[row],
+                                  v + B * row, t + B * row);
+                });
+      const double vdv = dot(v, t, len, partials, jobs);
+      if (!(vdv > 0) || !std::isfinite(vav)) break;
+      lambda = vav / vdv;
+      // v = D^-1 A v, normalised.
+      forRanges(jobs, static_cast<uint32_t>(lv.n), rowGrain<B>(),
+                [&](uint32_t begin, uint32_t end) {
+                  for (uint32_t row = begin; row < end; ++row)
+                    blockApply<B>(lv.invDiag.data() + static_cast<size_t>(B * B) * row, w + B * row,
+                                  v + B * row);
+                });
+      const double nv = norm2(v, len, partials, jobs);
+      if (!(nv > 0) || !std::isfinite(nv)) break;
+      const double inv = 1 / nv;
+      chunkedFor(len, jobs, [&](size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) v[i] *= inv;
+      });
+    }
+    lv.lambdaMax = lambda > 0 && std::isfinite(lambda) ? kLambdaMargin * lambda : 2.0;
+  }
+
+  void refresh(const BlockSparseMatrix& A, JobSystem& jobs) {
+    hierarchy.assemble(A, jobs);
+    for (int l = 1; l <= coarseCount(); ++l) invertDiagonals<12>(l, A, jobs);
+    if (settings.smoother != Smoother::GaussSeidel) {
+      estimateLambda<3>(0, A, jobs);
+      for (int l = 1; l < coarseCount(); ++l) estimateLambda<12>(l, A, jobs);
+    }
+    factorCoarsest();
+    stats.coarseFactorOk = coarseOk || coarseCount() == 0;
+  }
+
+  // `sweeps` smoothing steps on level l; forward selects the Gauss-Seidel colour order.
+  template <int B>
+  void smooth(int l, const BlockSparseMatrix& A, const double* b, double* x, int sweeps,
+              bool forward, JobSystem& jobs) {
+    if (sweeps <= 0) return;
+    Level& lv = levels[static_cast<size_t>(l)];
+    const LevelMatrix<B> m = matrix<B>(l, A);
+    const double* inv = lv.invDiag.data();
+    const uint32_t grain = rowGrain<B>();
+    switch (settings.smoother) {
+      case Smoother::GaussSeidel: {
+        const int32_t colours = static_cast<int32_t>(lv.colourStart.size()) - 1;
+        for (int s = 0; s < sweeps; ++s)
+          for (int32_t cc = 0; cc < colours; ++cc) {
+            const int32_t c = forward ? cc : colours - 1 - cc;
+            const int32_t first = lv.colourStart[c];
+            const uint32_t count = static_cast<uint32_t>(lv.colourStart[c + 1] - first);
+            forRanges(jobs, count, grain, [&](uint32_t begin, uint32_t end) {
+              double res[B], dx[B];
+              for (uint32_t q = begin; q < end; ++q) {
+                const int32_t row = lv.colourRows[first + q];
+                rowResidual<B>(m, row, b, x, res);
+                blockApply<B>(inv + static_cast<size_t>(B * B) * row, res, dx);
+                for (int i = 0; i < B; ++i) x[B * row + i] += dx[i];
+              }
+            });
+          }
+        break;
+      }
+      case Smoother::Jacobi: {
+        // Damping 4 / (3 lambda_max) of D^-1 A: 2/3 at the classic lambda_max = 2.
+        const double omega = 4.0 / (3.0 * lv.lambdaMax);
+        double* t = lv.t.data();
+        const size_t len = static_cast<size_t>(B) * lv.n;
+        for (int s = 0; s < sweeps; ++s) {
+          forRanges(jobs, static_cast<uint32_t>(lv.n), grain, [&](uint32_t begin, uint32_t end) {
+            double res[B];
+            for (uint32_t row = begin; row < end; ++row) {
+              rowResidual<B>(m, static_cast<int32_t>(row), b, x, res);
+              blockApply<B>(inv + static_cast<size_t>(B * B) * row, res, t + B * row);
+            }
+          });
+          axpy(omega, t, x, len, jobs);
+        }
+        break;
+      }
+      case Smoother::Chebyshev: {
+        // Chebyshev iteration (Saad, Alg. 12.1) on D^-1 A over [low, high]; degree = sweeps.
+        const double high = lv.lambdaMax, low = kChebyshevLow * lv.lambdaMax;
+        const double theta = 0.5 * (high + low), delta = 0.5 * (high - low);
+        const double sigma = theta / delta;
+        double rho = 1 / sigma;
+        double* d = lv.t.data();
+        const size_t len = static_cast<size_t>(B) * lv.n;
+        auto update = [&](double keep, double scale) {
+          forRanges(jobs, static_cast<uint32_t>(lv.n), grain, [&](uint32_t begin, uint32_t end) {
+            double res[B], z[B];
+            for (uint32_t row = begin; row < end; ++row) {
+              rowResidual<B>(m, static_cast<int32_t>(row), b, x, res);
+              blockApply<B>(inv + static_cast<size_t>(B * B) * row, res, z);
+              for (int i = 0; i < B; ++i) d[B * row + i] = keep * d[B * row + i] + scale * z[i];
+            }
+          });
+        };
+        update(0.0, 1 / theta);
+        for (int k = 1;; ++k) {
+          axpy(1.0, d, x, len, jobs);
+          if (k == sweeps) break;
+          const double rhoNew = 1 / (2 * sigma - rho);
+          update(rhoNew * rho, 2 * rhoNew / delta);
+          rho = rhoNew;
+        }
+        break;
+      }
+    }
+  }
+
+  template <int B>
+  void residual(int l, const BlockSparseMatrix& A, const double* b, const double* x, double* r,
+                JobSystem& jobs) {
+    const LevelMatrix<B> m = matrix<B>(l, A);
+    forRanges(jobs, static_cast<uint32_t>(m.n), rowGrain<B>(), [&](uint32_t begin, uint32_t end) {
+      for (uint32_t row = begin; row < end; ++row)
+        rowResidual<B>(m, static_cast<int32_t>(row), b, x, r + B * row);
+    });
+  }
+
+  // x = V b on level l (x is overwritten; eq 6.1-6.3).
+  template <int B>
+  void cycle(int l, const BlockSparseMatrix& A, const double* b, double* x, JobSystem& jobs) {
+    const int L = coarseCount();
+    const size_t len = static_cast<size_t>(B) * levels[static_cast<size_t>(l)].n;
+    if (l == L && L > 0) {
+      auto t0 = Clock::now();
+      if (coarseOk) {
+        Eigen::Map<const Eigen::VectorXd> bm(b, static_cast<Eigen::Index>(len));
+        Eigen::Map<Eigen::VectorXd> xm(x, static_cast<Eigen::Index>(len));
+        xm = coarseLlt.solve(bm);
+        if (!allFinite(x, len)) fill(0.0, x, len, jobs);
+      } else {
+        fill(0.0, x, len, jobs);
+      }
+      stats.coarseSolveMs += msSince(t0);
+      return;
+    }
+    fill(0.0, x, len, jobs);
+    auto t0 = Clock::now();
+    smooth<B>(l, A, b, x, settings.preSweeps, true, jobs);
+    stats.smoothMs += msSince(t0);
+    if (L == 0) {
+      t0 = Clock::now();
+      smooth<B>(l, A, b, x, settings.postSweeps, false, jobs);
+      stats.smoothMs += msSince(t0);
+      return;
+    }
+    Level& lv = levels[static_cast<size_t>(l)];
+    Level& next = levels[static_cast<size_t>(l) + 1];
+    t0 = Clock::now();
+    residual<B>(l, A, b, x, lv.r.data(), jobs);
+    hierarchy.restrictTo(l, lv.r.data(), next.b.data(), jobs);  // eq 6.1
+    stats.transferMs += msSince(t0);
+    cycle<12>(l + 1, A, next.b.data(), next.x.data(), jobs);
+    t0 = Clock::now();
+    hierarchy.prolongAdd(l, next.x.data(), x, jobs);  // eq 6.3
+    stats.transferMs += msSince(t0);
+    t0 = Clock::now();
+    smooth<B>(l, A, b, x, settings.postSweeps, false, jobs);
+    stats.smoothMs += msSince(t0);
+  }
+};
+
+MultigridSolver::MultigridSolver() : m_impl(std::make_unique<Impl>()) {}
+MultigridSolver::~MultigridSolver() = default;
+MultigridSolver::MultigridSolver(MultigridSolver&&) noexcept = default;
+MultigridSolver& MultigridSolver::operator=(MultigridSolver&&) noexcept = default;
+
+const MultigridStats& MultigridSolver::stats() const { return m_impl->stats; }
+const MultigridHierarchy& MultigridSolver::hierarchy() const { return m_impl->hierarchy; }
+const std::vector<double>& MultigridSolver::cycleResiduals() const {
+  return m_impl->cycleResiduals;
+}
+
+Result<void> MultigridSolver::setup(const MultigridSettings& settings, const double* restPositions,
+                                    const uint8_t* fixedNode, const BlockSparseMatrix& A) {
+  const auto t0 = Clock::now();
+  Impl& s = *m_impl;
+  s.fineBlocks = -1;
+  if (settings.levels.empty()) return fail("multigrid.levels: at least one coarse level is needed");
+  if (settings.preSweeps < 0 || settings.postSweeps < 0 ||
+      settings.preSweeps + settings.postSweeps == 0)
+    return fail("multigrid.preSweeps/postSweeps: must be >= 0 and not both 0 (got ",
+                std::to_string(settings.preSweeps), ", ", std::to_string(settings.postSweeps), ")");
+  if (settings.cycles < 1)
+    return fail("multigrid.cycles: must be >= 1 (got ", std::to_string(settings.cycles), ")");
+  if (settings.coarseRefreshInterval < 1)
+    return fail("multigrid.coarseRefreshInterval: must be >= 1 (got ",
+                std::to_string(settings.coarseRefreshInterval), ")");
+  // Settings list the coarsest level first; the hierarchy wants the finest coarse level first.
+  const std::vector<int32_t> counts(settings.levels.rbegin(), settings.levels.rend());
+  if (Result<void> r = s.hierarchy.build(counts, restPositions, fixedNode, A); !r.ok()) return r;
+  s.settings = settings;
+  s.fineBlocks = A.blockCount();
+  s.buildLevels(A);
+  s.needRefresh = true;
+  s.stats.setupMs = msSince(t0);
+  return {};
+}
+
+void MultigridSolver::rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount) {
+  Impl& s = *m_impl;
+  if (!s.settings.crackRebinding || s.fineBlocks < 0) return;
+  const auto t0 = Clock::now();
+  s.hierarchy.rebind(edgeNodes, broken, edgeCount);
+  s.patternsChanged = true;
+  s.needRefresh = true;
+  s.stats.rebindMs = msSince(t0);
+}
+
+SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, double* x,
+                                   int maxIterations, double relativeTolerance, JobSystem& jobs) {
+  Impl& s = *m_impl;
+  const auto tStart = Clock::now();
+  SolveReport report;
+  report.relativeResidual = std::numeric_limits<double>::infinity();
+  MultigridStats& st = s.stats;
+  st.refreshMs = st.smoothMs = st.coarseSolveMs = st.transferMs = 0;
+  st.iterations = st.cycles = 0;
+  st.refreshed = false;
+  s.cycleResiduals.clear();
+  const size_t n3 = 3 * static_cast<size_t>(std::max(A.n, 0));
+  if (s.fineBlocks != A.blockCount() || s.levels.empty() || s.levels[0].n != A.n) {
+    fill(0.0, x, n3, jobs);  // not set up for this pattern
+    return report;
+  }
+  if (s.r.size() < n3) {
+    s.r.resize(n3);
+    s.z.resize(n3);
+    s.p.resize(n3);
+    s.ap.resize(n3);
+    s.rOld.resize(n3);
+  }
+  double* r = s.r.data();
+  double* z = s.z.data();
+  double* p = s.p.data();
+  double* ap = s.ap.data();
+  double* rOld = s.rOld.data();
+
+  const double bb = dot(b, b, n3, s.partials, jobs);
+  if (!std::isfinite(bb)) return report;
+  if (bb == 0) {
+    fill(0.0, x, n3, jobs);
+    report.converged = true;
+    report.relativeResidual = 0;
+    return report;
+  }
+  if (!allFinite(x, n3)) fill(0.0, x, n3, jobs);
+  const double bnorm = std::sqrt(bb);
+  const double tol2 = relativeTolerance * relativeTolerance * bb;
+
+  auto trueResidual = [&]() {
+    A.multiply(x, ap, jobs);
+    return chunkedReduce(n3, s.partials, jobs, [&](size_t begin, size_t end) {
+      for (size_t i = begin; i < end; ++i) r[i] = b[i] - ap[i];
+      return dotRange(r, r, begin, end);
+    });
+  };
+  double rr = trueResidual();
+  if (!std::isfinite(rr)) {
+    fill(0.0, x, n3, jobs);
+    rr = trueResidual();
+  }
+  bool converged = std::isfinite(rr) && rr <= tol2;
+  if (!converged) {
+    // Set up what depends on A: coarse operators on refresh, fine diagonal every solve.
+    auto t0 = Clock::now();
+    if (s.patternsChanged) s.buildLevels(A);
+    if (s.needRefresh || s.solvesSinceRefresh >= s.settings.coarseRefreshInterval) {
+      s.invertDiagonals<3>(0, A, jobs);
+      s.refresh(A, jobs);
+      s.needRefresh = false;
+      s.solvesSinceRefresh = 0;
+      st.refreshed = true;
+    } else {
+      s.invertDiagonals<3>(0, A, jobs);
+    }
+    ++s.solvesSinceRefresh;
+    st.refreshMs = msSince(t0);
+  }
+
+  int it = 0;
+  if (!converged && !s.settings.preconditionCG) {
+    s.cycleResiduals.push_back(std::sqrt(rr) / bnorm);
+    while (it < s.settings.cycles) {
+      s.cycle<3>(0, A, r, z, jobs);  // error equation A e = r
+      ++it;
+      ++st.cycles;
+      axpy(1.0, z, x, n3, jobs);
+      rr = trueResidual();
+      s.cycleResiduals.push_back(std::sqrt(rr) / bnorm);
+      if (!std::isfinite(rr)) {
+        axpy(-1.0, z, x, n3, jobs);  // back to the last finite iterate
+        rr = trueResidual();
+        break;
+      }
+      if (rr <= tol2) {
+        converged = true;
+        break;
+      }
+    }
+  } else if (!converged) {
+    // Flexible CG: beta = z_new . (r_new - r_old) / (z_old . r_old).
+    s.cycle<3>(0, A, r, z, jobs);
+    ++st.cycles;
+    double rz = dot(r, z, n3, s.partials, jobs);
+    copy(z, p, n3, jobs);
+    while (it < maxIterations) {
+      if (!(rz > 0) || !std::isfinite(rz)) {
+        break;
+      }
+      A.multiply(p, ap, jobs);
+      const double pap = dot(p, ap, n3, s.partials, jobs);
+      const double alpha = rz / pap;
+      if (!(pap > 0) || !std::isfinite(pap) || !std::isfinite(alpha)) {
+        break;
+      }
+      ++it;
+      rr = chunkedReduce(n3, s.partials, jobs, [&](size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+          x[i] += alpha * p[i];
+          rOld[i] = r[i];
+          r[i] -= alpha * ap[i];
+        }
+        return dotRange(r, r, begin, end);
+      });
+      if (!std::isfinite(rr)) {
+        axpy(-alpha, p, x, n3, jobs);
+        break;
+      }
+      if (rr <= tol2) {
+        rr = trueResidual();
+        if (rr <= tol2) {
+          converged = true;
+          break;
+        }
+        // Round-off drift: restart from the true residual.
+        s.cycle<3>(0, A, r, z, jobs);
+        ++st.cycles;
+        rz = dot(r, z, n3, s.partials, jobs);
+        copy(z, p, n3, jobs);
+        continue;
+      }
+      s.cycle<3>(0, A, r, z, jobs);
+      ++st.cycles;
+      const double rzNew = dot(r, z, n3, s.partials, jobs);
+      const double zrOld = dot(z, rOld, n3, s.partials, jobs);
+      const double beta = (rzNew - zrOld) / rz;
+      rz = rzNew;
+      if (!std::isfinite(beta)) {
+        break;
+      }
+      xpby(z, beta, p, n3, jobs);
+    }
+    if (!converged) rr = trueResidual();
+  }
+  if (!std::isfinite(rr)) {
+    fill(0.0, x, n3, jobs);
+    rr = trueResidual();
+  }
+  st.iterations = s.settings.preconditionCG ? it : 0;
+  report.iterations = it;
+  report.converged = converged && std::isfinite(rr);
+  report.relativeResidual =
+      std::isfinite(rr) ? std::sqrt(rr) / bnorm : std::numeric_limits<double>::infinity();
+  st.totalMs = msSince(tStart);
+  return report;
+}
+
+}  // namespace gf::detail

@@ -1,0 +1,70 @@
+// Galerkin multigrid solver of the implicit step (SPEC §5, thesis sec 6.2, Xian et al. 2019):
+// V-cycles over the hierarchy of multigrid_hierarchy.h, alone or preconditioning CG.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "graphfrac/defs.h"
+#include "graphfrac/jobs.h"
+#include "graphfrac/status.h"
+#include "solver/block_sparse.h"
+#include "solver/multigrid_hierarchy.h"
+
+namespace gf::detail {
+
+/// Costs and sizes of the multigrid, for reports and benchmarks. Stage times are those of the
+/// last solve; setup and rebind times those of the last call.
+struct MultigridStats {
+  double refreshMs = 0;          ///< coarse operators, smoother set-up, coarsest factorisation
+  double smoothMs = 0;           ///< smoothing sweeps on every level
+  double coarseSolveMs = 0;      ///< coarsest-level solves
+  double transferMs = 0;         ///< residuals, restriction and prolongation between levels
+  double totalMs = 0;            ///< the whole solve
+  double setupMs = 0;            ///< last setup()
+  double rebindMs = 0;           ///< last rebind()
+  std::vector<int32_t> handles;  ///< per coarse level, coarsest first (as MultigridSettings)
+  int iterations = 0;            ///< CG iterations of the last solve (0 when cycling alone)
+  int cycles = 0;                ///< V-cycles of the last solve
+  bool refreshed = false;        ///< the last solve recomputed the coarse operators
+  bool coarseFactorOk = true;    ///< the coarsest factorisation succeeded (else no correction)
+};
+
+/// Galerkin multigrid for the SPD block systems of the implicit step. Deterministic: the same
+/// bits for any thread count. Allocates nothing in solve() after the first one following a
+/// setup or rebind.
+class MultigridSolver {
+ public:
+  MultigridSolver();
+  ~MultigridSolver();
+  MultigridSolver(MultigridSolver&&) noexcept;
+  MultigridSolver& operator=(MultigridSolver&&) noexcept;
+
+  /// Builds the hierarchy for the pattern of A (values are not read). restPositions: 3 per
+  /// node; fixedNode: Dirichlet nodes, which A must hold as identity rows (applyDirichlet).
+  Result<void> setup(const MultigridSettings& settings, const double* restPositions,
+                     const uint8_t* fixedNode, const BlockSparseMatrix& A);
+  /// Crack re-binding after edges broke (edgeNodes: 2 per edge; broken: 1/0 per edge, the
+  /// full current state). No-op when settings.crackRebinding is false.
+  void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount);
+  /// Solves A x = b (A with the pattern given to setup). x holds the initial guess. With
+  /// preconditionCG, flexible CG with one V-cycle per iteration up to maxIterations; else up to
+  /// settings.cycles V-cycles (each x += V(b - A x)). Both stop early at relativeTolerance.
+  /// iterations = CG iterations or V-cycles; relativeResidual is the true |b - A x| / |b|;
+  /// converged = that residual <= relativeTolerance. Never leaves NaN in x.
+  SolveReport solve(const BlockSparseMatrix& A, const double* b, double* x, int maxIterations,
+                    double relativeTolerance, JobSystem& jobs);
+
+  const MultigridStats& stats() const;
+  const MultigridHierarchy& hierarchy() const;
+  /// Relative true residual before the first and after every V-cycle of the last solve when
+  /// cycling alone (the per-cycle reduction factors follow from it).
+  const std::vector<double>& cycleResiduals() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> m_impl;
+};
+
+}  // namespace gf::detail
