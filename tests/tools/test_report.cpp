@@ -92,6 +92,7 @@ TEST(Report, ErrorVsTimeRanksSolversAgainstTheConvergedStep) {
   EXPECT_LT(oneCycle, num(find(rows, "pcg 2"), "rel_error_vs_direct"));
   for (const Row& r : rows) {
     EXPECT_GT(num(r, "ms_per_frame"), 0) << r.at("setting");
+    EXPECT_GT(num(r, "cpu_ms_per_frame"), 0) << r.at("setting");
     // A hanging beam changes its volume by a fraction of a percent, not more.
     EXPECT_LT(std::abs(num(r, "volume_gain_pct")), 1.0) << r.at("setting");
   }
