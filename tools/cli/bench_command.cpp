@@ -5,6 +5,8 @@
 // work and the differences are fracture's. Prints per-stage ms per step and the ratios.
 // `graphfrac bench multigrid` (issue 4): per-stage ms and fps of the default multigrid and PCG
 // settings on the thesis's chapter-6 bodies at 4k, 28k, 35k and 160k tets.
+// `graphfrac bench overhead` (issue 5 item 2): World::step of a pure-deformation body against
+// the raw integrator step it wraps, in alternating rounds on one thread.
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -13,6 +15,8 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "fem/fem_body.h"
+#include "fem/integrator.h"
 #include "graphfrac/jobs.h"
 #include "graphfrac/world.h"
 #include "scene/scene.h"
@@ -55,6 +59,7 @@ ConfigResult runConfig(const Config& cfg, int nx, int steps) {
   BodyDef def;
   def.mesh = gen::box(L, H, H, nx, ny, nz);
   def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
+  def.solver.linearSolver = LinearSolverKind::PCG;  // equal solver work in every config
   def.solver.maxLinearIterations = 50;
   def.solver.linearTolerance = 1e-30;  // always the full 50 iterations
   def.fracture.enabled = cfg.fracture;
@@ -236,6 +241,71 @@ int benchMultigrid(int argc, char** argv) {
   return kExitOk;
 }
 
+// A clamped beam sagging under gravity: no fracture, plasticity, fibres or render surface.
+BodyDef overheadBody(int nx) {
+  BodyDef def;
+  def.mesh = gen::box(1.0, 0.25, 0.25, nx, std::max(1, nx / 4), std::max(1, nx / 4));
+  def.material = Material::stableNeoHookean(1e6, 0.4, 1000);
+  Grip clamp;
+  for (size_t n = 0; n < def.mesh.nodeCount(); ++n)
+    if (def.mesh.positions[3 * n] < 1e-9) clamp.nodes.push_back(int32_t(n));
+  def.grips.push_back(clamp);
+  return def;
+}
+
+int benchOverhead(int argc, char** argv) {
+  int nx = 24, steps = 10, rounds = 7;
+  for (int i = 2; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--cells")) nx = std::max(4, std::atoi(argv[i + 1]));
+    if (!std::strcmp(argv[i], "--steps")) steps = std::max(1, std::atoi(argv[i + 1]));
+    if (!std::strcmp(argv[i], "--rounds")) rounds = std::max(1, std::atoi(argv[i + 1]));
+  }
+  const double dt = 1.0 / 60;
+  const BodyDef def = overheadBody(nx);
+  detail::FemModel model = detail::buildFemModel(def);
+  detail::FemState state;
+  state.x = model.restPositions;
+  state.v.assign(state.x.size(), 0.0);
+  detail::Integrator integrator(model);
+  if (Result<void> r = integrator.setupSolver(model); !r.ok()) {
+    std::fprintf(stderr, "bench overhead: %s\n", r.error().message.c_str());
+    return kExitScene;
+  }
+  detail::StepContext ctx;
+  ctx.dt = dt;
+  ctx.gravity = {0, -9.81f, 0};  // as WorldDef's float gravity, so both runs see the same bits
+
+  World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
+  gf::Result<BodyId> id = world.createBody(def);
+  if (!id.ok()) {
+    std::fprintf(stderr, "bench overhead: %s\n", id.error().message.c_str());
+    return kExitScene;
+  }
+  // Alternating rounds on the same trajectory; the fastest round of each is the least
+  // disturbed by other processes.
+  using Clock = std::chrono::steady_clock;
+  double rawBest = 1e300, worldBest = 1e300;
+  for (int r = 0; r < rounds; ++r) {
+    auto t0 = Clock::now();
+    for (int s = 0; s < steps; ++s) (void)integrator.step(model, state, ctx, serialJobs());
+    rawBest =
+        std::min(rawBest, std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    t0 = Clock::now();
+    for (int s = 0; s < steps; ++s) (void)world.step(dt);
+    worldBest =
+        std::min(worldBest, std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+  }
+  const auto wx = world.positions(id.value());
+  const bool same = wx.size() == state.x.size() &&
+                    std::memcmp(wx.data(), state.x.data(), wx.size() * sizeof(double)) == 0;
+  std::printf("# %d rounds of %d steps, best round each, 1 thread, default solver\n", rounds,
+              steps);
+  std::printf("tets,ms_integrator,ms_world,ratio,identical_positions\n");
+  std::printf("%zu,%.3f,%.3f,%.4f,%s\n", def.mesh.tetCount(), rawBest / steps, worldBest / steps,
+              worldBest / rawBest, same ? "yes" : "no");
+  return kExitOk;
+}
+
 }  // namespace
 
 int runBenchCommand(int argc, char** argv) {
@@ -245,11 +315,14 @@ int runBenchCommand(int argc, char** argv) {
         "  NX cells along a 1 m x 0.25 m x 0.25 m beam (NX/4 across; default 40: 24k tets)\n"
         "       graphfrac bench multigrid [--frames N] [--threads T] [--only CASE]\n"
         "  ms per frame and per stage of the default multigrid and PCG settings on 4k, 28k,\n"
-        "  35k and 160k tets, next to the thesis's GPU fps (table 6.2)");
+        "  35k and 160k tets, next to the thesis's GPU fps (table 6.2)\n"
+        "       graphfrac bench overhead [--cells NX] [--steps S] [--rounds R]\n"
+        "  World::step of a pure-deformation beam against the raw integrator step");
     return argc < 2 ? kExitUsage : kExitOk;
   }
   if (!std::strcmp(argv[1], "fracture")) return benchFracture(argc, argv);
   if (!std::strcmp(argv[1], "multigrid")) return benchMultigrid(argc, argv);
+  if (!std::strcmp(argv[1], "overhead")) return benchOverhead(argc, argv);
   std::fprintf(stderr, "graphfrac bench: unknown benchmark '%s'\n", argv[1]);
   return kExitUsage;
 }

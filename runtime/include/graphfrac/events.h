@@ -31,4 +31,15 @@ struct FragmentEvent {
   glm::vec3 velocity{0, 0, 0};  ///< Momentum / mass [m/s].
 };
 
+/// A fragment left the FEM solve to be moved by rigid-body physics (World::detachFragment).
+struct HandoffEvent {
+  BodyId body;
+  int32_t fragment = -1;
+  int32_t nodeCount = 0;
+  double mass = 0;  ///< [kg]
+  glm::vec3 centreOfMass{0, 0, 0};
+  glm::vec3 velocity{0, 0, 0};         ///< Linear velocity of the centre of mass [m/s].
+  glm::vec3 angularVelocity{0, 0, 0};  ///< [rad/s], world axes.
+};
+
 }  // namespace gf

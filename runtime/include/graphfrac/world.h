@@ -1,6 +1,8 @@
 // The World: owns bodies, steps them with implicit FEM, and reports what happened.
 #pragma once
 
+#include <glm/gtc/quaternion.hpp>
+#include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/vec3.hpp>
 #include <memory>
@@ -42,6 +44,22 @@ struct FractureStats {
   int32_t fragments = 1;
 };
 
+/// A fragment as a rigid body (World::fragmentInfo, World::detachFragment). The fragment is
+/// the union of its nodes' corner cells: its mass is the FEM's (lumped) mass, its inertia the
+/// exact one of those cells. x = rotation * X + translation maps rest positions X onto the
+/// rigid pose that fits the current positions best (least squares, mass-weighted).
+struct RigidFragmentInfo {
+  int32_t nodeCount = 0;
+  double mass = 0;                ///< [kg]
+  double volume = 0;              ///< Rest volume [m^3].
+  glm::dvec3 centreOfMass{0};     ///< Current [m].
+  glm::dmat3 inertia{1.0};        ///< About the centre of mass, world axes [kg m^2].
+  glm::dvec3 linearVelocity{0};   ///< Momentum / mass of the nodes [m/s].
+  glm::dvec3 angularVelocity{0};  ///< inertia^-1 (nodes' angular momentum about the COM).
+  glm::dvec3 translation{0};      ///< Rest-to-current frame.
+  glm::dquat rotation{1, 0, 0, 0};
+};
+
 /// Timing of the last step, per stage [ms].
 struct StepTimings {
   double fractureMs = 0;  ///< Stresses, criterion, fragments (0 without fracture).
@@ -50,6 +68,23 @@ struct StepTimings {
   double assemblyMs = 0;  ///< Gathering element blocks into the sparse matrix.
   double solveMs = 0;     ///< Linear solves.
   double totalMs = 0;
+};
+
+/// A copy of everything a step reads (positions, velocities, plastic state, damage, broken
+/// edges, fragments, strengths, material, grip velocities, pending forces and cuts, solver
+/// history, time) for rollback and replays; see World::snapshot. An opaque, immutable value:
+/// copies share one buffer.
+class WorldSnapshot {
+ public:
+  /// True for a default-constructed snapshot (restoring it is an error).
+  bool empty() const { return m_data == nullptr; }
+  /// Simulated time the snapshot was taken at [s].
+  double time() const;
+
+ private:
+  friend class World;
+  struct Data;
+  std::shared_ptr<const Data> m_data;
 };
 
 class World {
@@ -98,13 +133,76 @@ class World {
   FractureStats fractureStats(BodyId id) const;
   /// Fragment id of every node (empty for an invalid id or a body without fracture).
   std::span<const int32_t> nodeFragments(BodyId id) const;
+
+  // Hand-off of fragments to rigid-body physics (integration/bullet). A detached fragment's
+  // nodes leave the FEM solve: they move as the game's rigid body says (setFragmentTransform)
+  // and the rest of the body sees them like pinned nodes. Contact between them and the rest of
+  // the body is up to the rigid physics.
+
+  /// A fragment's rigid-body properties now, without detaching it. Error for a bad id, a body
+  /// without fracture or a fragment id out of range.
+  Result<RigidFragmentInfo> fragmentInfo(BodyId id, int32_t fragment) const;
+  /// Takes a fragment out of the FEM solve and returns its rigid-body properties (momentum and
+  /// angular momentum of its nodes carried over). Error (nothing changed) for a bad id, a body
+  /// without fracture, a fragment out of range, one holding gripped nodes, or one already
+  /// detached.
+  Result<RigidFragmentInfo> detachFragment(BodyId id, int32_t fragment);
+  /// Moves a detached fragment rigidly: x = rotation * X + translation for its rest positions
+  /// X, and velocities v = linearVelocity + angularVelocity x (x - centre of mass). The render
+  /// surface follows. Error for a bad id, a fragment not detached or a non-finite or zero value.
+  Result<void> setFragmentTransform(BodyId id, int32_t fragment, glm::dvec3 translation,
+                                    glm::dquat rotation, glm::dvec3 linearVelocity,
+                                    glm::dvec3 angularVelocity);
+  /// Fragments detached since the last step began, sorted by (body, fragment). Valid until
+  /// the next step.
+  std::span<const HandoffEvent> handoffEvents() const;
   /// The render surface of a body, built on the first call and kept up to date by every step
-  /// from then on (a body nobody renders pays nothing). Empty for an invalid id.
+  /// from then on (a body nobody renders pays nothing). Empty for an invalid id or when called
+  /// while step() runs.
   SurfaceView surface(BodyId id);
   /// Timings of the last step.
   const StepTimings& timings() const;
   /// Simulated time [s].
   double time() const;
+
+  // Commands the game issues between steps. Each returns an error naming the argument and the
+  // reason (stale id, non-finite value, index or size out of range, a call made while step()
+  // runs) and then leaves the world unchanged.
+
+  /// A force [N] at a world point that acts during the next step only. It is spread over the
+  /// corners of the tet containing the point with its barycentric weights, so the total force
+  /// and the torque about any point are exact. A point outside the body goes to the tet whose
+  /// weakest barycentric coordinate is largest, with negative weights clamped: it then acts at
+  /// a point of that tet near the given one. Finding the tet is O(tets) per call.
+  Result<void> applyForce(BodyId id, glm::vec3 point, glm::vec3 force);
+  /// An impulse [N s] at a world point, applied to the velocities at once and spread like
+  /// applyForce (node i gets w_i J, dv_i = w_i J / m_i): the momentum changes by exactly J and
+  /// the angular momentum by point x J (for a point inside the body). Gripped nodes take it too
+  /// but are reset to their grip velocity by the next step.
+  Result<void> applyImpulse(BodyId id, glm::vec3 point, glm::vec3 impulse);
+  /// Sets the velocity [m/s] of grip `grip` of BodyDef::grips from the next step on.
+  Result<void> setGripVelocity(BodyId id, int grip, glm::vec3 velocity);
+  /// Replaces the tensile strength sigma_th [Pa] of every edge (one per edge, in edge-graph
+  /// order, see fractureStats().edgeCount; positive and finite). Error for a body without
+  /// fracture.
+  Result<void> setEdgeStrengths(BodyId id, std::span<const double> strength);
+  /// Replaces the material (same MaterialModel, validated like createBody; fibreStiffness must
+  /// stay zero or non-zero as at creation). A new density changes the lumped masses.
+  Result<void> setMaterial(BodyId id, const Material& material);
+
+  /// Copies the whole world state for rollback and replays (O(state), no solver work).
+  WorldSnapshot snapshot() const;
+  /// Puts the world back into a snapshot's state: the steps that follow repeat bit for bit.
+  /// The world must hold exactly the snapshot's bodies (same ids and meshes); otherwise, for an
+  /// empty snapshot, or during step(), it is an error and nothing changes. Render surfaces are
+  /// rebuilt; events are those of the step before the snapshot. With a multigrid solver the
+  /// crack re-binding history is replayed (one re-bind per step that broke edges), unless it
+  /// is unchanged since the snapshot. A body with fragments handed to rigid physics
+  /// (detachFragment) cannot be restored yet: that is an error.
+  Result<void> restore(const WorldSnapshot& snapshot);
+  /// FNV-1a over every live body's id, positions, velocities and broken-edge flags and the
+  /// time: equal hashes for equal states, for determinism checks across threads and runs.
+  uint64_t stateHash() const;
 
  private:
   struct Impl;

@@ -80,6 +80,32 @@ Result<void> Integrator::setupSolver(const FemModel& model) {
   return {};
 }
 
+void Integrator::refreshFixedNodes(const FemModel& model) {
+  if (!m_multigrid) return;
+  (void)setupSolver(model);  // on failure m_multigrid is null and PCG takes over
+  m_boundBrokenCount = 0;
+  m_rebindHistory.clear();
+}
+
+Result<void> Integrator::restoreSolver(const FemModel& model, const std::vector<int32_t>& history) {
+  if (history == m_rebindHistory) return {};
+  m_rebindHistory = history;
+  m_boundBrokenCount = history.empty() ? 0 : history.back();
+  if (!m_multigrid) return {};
+  if (Result<void> r = setupSolver(model); !r.ok()) return r;
+  if (history.empty() || !m_fracture) return {};
+  const EdgeGraph& g = m_fracture->graph();
+  const std::vector<int32_t>& order = m_fracture->breakOrder();
+  std::vector<uint8_t> broken(size_t(g.edgeCount), 0);
+  int32_t applied = 0;
+  for (int32_t count : history) {
+    for (; applied < count && applied < int32_t(order.size()); ++applied)
+      broken[order[applied]] = 1;
+    m_multigrid->rebind(g.edgeNodes.data(), broken.data(), g.edgeCount);
+  }
+  return {};
+}
+
 double Integrator::elementPass(const FemModel& model, const double* x, bool withHessian,
                                JobSystem& jobs) {
   // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
@@ -300,6 +326,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
         const EdgeGraph& g = m_fracture->graph();
         m_multigrid->rebind(g.edgeNodes.data(), m_fracture->broken().data(), g.edgeCount);
         m_boundBrokenCount = m_fracture->brokenCount();
+        m_rebindHistory.push_back(m_boundBrokenCount);
       }
       sr = m_multigrid->solve(m_A, m_rhs.data(), m_dx.data(), model.solver.maxLinearIterations,
                               model.solver.linearTolerance, jobs);

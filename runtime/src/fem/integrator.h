@@ -56,6 +56,10 @@ class Integrator {
   /// Builds what the chosen linear solver needs beyond the pattern (the multigrid hierarchy);
   /// an error names the setting that cannot be built. Call once, before the first step.
   Result<void> setupSolver(const FemModel& model);
+  /// After model.fixedNode changed (World::detachFragment): the multigrid binds no handle to
+  /// fixed nodes, so its hierarchy is built again and re-bound to the current cracks at the
+  /// next solve. If it cannot be built (e.g. no free node is left) PCG solves the body.
+  void refreshFixedNodes(const FemModel& model);
   /// The multigrid solver, or null when the body uses another linear solver.
   const MultigridSolver* multigrid() const { return m_multigrid.get(); }
   /// Damage state the element pass reads (null: no fracture) and the effective rest inverses
@@ -69,6 +73,13 @@ class Integrator {
   /// On a NaN/Inf the state is restored and flagged.
   BodyStepReport step(const FemModel& model, FemState& state, const StepContext& ctx,
                       JobSystem& jobs);
+  /// Broken-edge counts at which the multigrid re-bound so far. With the fracture's break
+  /// order they fix its binding, which depends on history (handles only accumulate).
+  const std::vector<int32_t>& rebindHistory() const { return m_rebindHistory; }
+  /// Puts the solver into the state `history` describes (World::restore): a fresh set-up, then
+  /// the re-binds replayed on the broken sets of the attached fracture's break-order prefixes
+  /// (its state must already be restored). No-op when the history is the current one.
+  Result<void> restoreSolver(const FemModel& model, const std::vector<int32_t>& history);
   /// Elastic and contact energy at positions x.
   EnergyBreakdown energies(const FemModel& model, const double* x, const StepContext& ctx,
                            JobSystem& jobs);
@@ -108,6 +119,7 @@ class Integrator {
   std::unique_ptr<CholeskySolver> m_cholesky;
   std::unique_ptr<MultigridSolver> m_multigrid;
   int32_t m_boundBrokenCount = 0;  // broken edges the multigrid binding has seen
+  std::vector<int32_t> m_rebindHistory;
 };
 
 }  // namespace gf::detail

@@ -114,11 +114,46 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const double* 
     }
   }
   m_brokenCount += int32_t(m_breaks.size() - first);
+  m_breakOrder.insert(m_breakOrder.end(), m_newEdges.begin(), m_newEdges.end());
   if (m_fragments.update(m_graph, m_broken.data(), m_newEdges)) {
     const auto s = m_fragments.splits();
     m_splits.insert(m_splits.end(), s.begin(), s.end());
     m_fragments.compute(m_nodeVolume, fem.nodeMass, x, v, m_props);
   }
+}
+
+FractureBody::State FractureBody::saveState() const {
+  State s;
+  s.broken = m_broken;
+  s.tetMask = m_tetMask;
+  s.breakCause = m_breakCause;
+  s.chi = m_chi;
+  s.strength = m_model.strength;
+  s.breaks = m_breaks;
+  s.splits = m_splits;
+  s.props = m_props;
+  s.fragments = m_fragments;
+  s.pendingCuts = m_pendingCuts;
+  s.breakOrder = m_breakOrder;
+  s.brokenCount = m_brokenCount;
+  s.brittleFired = m_brittleFired;
+  return s;
+}
+
+void FractureBody::restoreState(const State& s) {
+  m_broken = s.broken;
+  m_tetMask = s.tetMask;
+  m_breakCause = s.breakCause;
+  m_chi = s.chi;
+  m_model.strength = s.strength;
+  m_breaks = s.breaks;
+  m_splits = s.splits;
+  m_props = s.props;
+  m_fragments = s.fragments;
+  m_pendingCuts = s.pendingCuts;
+  m_breakOrder = s.breakOrder;
+  m_brokenCount = s.brokenCount;
+  m_brittleFired = s.brittleFired;
 }
 
 int32_t FractureBody::detect(const FemModel& fem, const double* x, const double* v, JobSystem& jobs,

@@ -63,6 +63,28 @@ class FractureBody {
   const std::vector<FragmentSplit>& splits() const { return m_splits; }
   const FragmentProperties& splitProperties() const { return m_props; }
   int32_t brokenCount() const { return m_brokenCount; }
+  /// Every broken edge in the order it broke (the first k are the broken set after k breaks).
+  const std::vector<int32_t>& breakOrder() const { return m_breakOrder; }
+
+  /// Per-edge strengths sigma_th (FractureModel::strength); World validates replacements.
+  const std::vector<double>& strengths() const { return m_model.strength; }
+  void setStrengths(std::vector<double> strength) { m_model.strength = std::move(strength); }
+
+  /// What changes during a run (World::snapshot); the rest is fixed at creation or scratch.
+  struct State {
+    std::vector<uint8_t> broken, tetMask, breakCause;
+    std::vector<double> chi, strength;
+    std::vector<EdgeBreak> breaks;
+    std::vector<FragmentSplit> splits;
+    FragmentProperties props;
+    Fragments fragments;
+    std::vector<PendingCut> pendingCuts;
+    std::vector<int32_t> breakOrder;
+    int32_t brokenCount = 0;
+    bool brittleFired = false;
+  };
+  State saveState() const;
+  void restoreState(const State& s);
 
  private:
   // Completes m_stress at x: damaged tets (scaled or zero) and the edge stresses chi needs.
@@ -90,6 +112,7 @@ class FractureBody {
   Fragments m_fragments;
   std::vector<PendingCut> m_pendingCuts;
   int32_t m_brokenCount = 0;
+  std::vector<int32_t> m_breakOrder;
   bool m_brittleFired = false;
 };
 

@@ -1,10 +1,16 @@
 // World: body storage (generational slots), validation at the API boundary, stepping.
 #include "graphfrac/world.h"
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
+#include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fem/fem_body.h"
@@ -15,6 +21,7 @@
 #include "kernels/element.h"
 #include "kernels/plasticity.h"
 #include "surface/crack_surface.h"
+#include "world/rigid_fragment.h"
 
 namespace gf {
 
@@ -42,6 +49,12 @@ struct BodyRecord {
   std::unique_ptr<detail::Integrator> integrator;
   std::unique_ptr<detail::FractureBody> fracture;  // null: no fracture, no edge stresses
   std::unique_ptr<SurfaceRecord> surface;          // null until somebody asks for it
+  std::vector<Grip> grips;                         // node lists for setGripVelocity
+  std::vector<double> pendingForce;                // applyForce, next step only; empty: none
+  // Fragments handed to rigid physics (detachFragment): id and rest centre of mass, in
+  // detach order. rigidMoved: setFragmentTransform moved nodes since the surface was updated.
+  std::vector<std::pair<int32_t, Vec3>> rigid;
+  bool rigidMoved = false;
 };
 
 detail::BladePose toPose(const glm::mat4& m) {
@@ -73,9 +86,19 @@ struct World::Impl {
   StepTimings timings;
   std::vector<FractureEvent> fractureEvents;
   std::vector<FragmentEvent> fragmentEvents;
+  std::vector<HandoffEvent> handoffEvents;
   double time = 0;
   double lastSubstep = 1.0 / 60;  // contact stiffness of stats() follows the last step
   std::string pendingWarning;
+  // Set while step() runs: calls that change the world are refused then (a job callback
+  // re-entering the world would race the step).
+  std::atomic<bool> stepping{false};
+
+  // The error of a mutating call made during step(), or empty.
+  std::string busy(const char* call) const {
+    return stepping.load() ? std::string(call) + ": called while step() runs; nothing changed"
+                           : std::string();
+  }
 
   BodyRecord* get(BodyId id) const {
     if (id.index == 0 || id.index > slots.size()) return nullptr;
@@ -200,6 +223,7 @@ World::World(const WorldDef& def) : m_impl(std::make_unique<Impl>()) {
 World::~World() = default;
 
 Result<BodyId> World::createBody(BodyDef def) {
+  if (std::string e = m_impl->busy("createBody"); !e.empty()) return fail(e);
   if (def.mesh.tetCount() == 0) return fail("BodyDef.mesh: has no tetrahedra");
   int flipped = 0;
   if (auto r = validate(def.mesh, "BodyDef.mesh", &flipped); !r) return r.error();
@@ -295,10 +319,12 @@ Result<BodyId> World::createBody(BodyDef def) {
   while (slot < w.slots.size() && w.slots[slot].body) ++slot;
   if (slot == w.slots.size()) w.slots.emplace_back();
   w.slots[slot].body = std::move(body);
+  w.slots[slot].body->grips = std::move(def.grips);
   return BodyId{uint32_t(slot + 1), w.slots[slot].generation};
 }
 
 Result<void> World::destroyBody(BodyId id) {
+  if (std::string e = m_impl->busy("destroyBody"); !e.empty()) return fail(e);
   if (!m_impl->get(id)) return fail("destroyBody: stale or null BodyId");
   Slot& s = m_impl->slots[id.index - 1];
   s.body.reset();
@@ -316,6 +342,20 @@ StepStatus World::step(double dt) {
     st.message = "step: dt must be positive and finite, got " + std::to_string(dt);
     return st;
   }
+  if (w.stepping.exchange(true)) {
+    st.flags = kStepInvalidInput;
+    st.message = "step: called while step() runs; nothing changed";
+    return st;
+  }
+  // Forces of applyForce act over this whole step: swapped in, the constant ones swapped back
+  // after (restoring the copy, not subtracting, keeps the constant forces bit-exact).
+  std::vector<std::vector<double>> constantForces;
+  for (Slot& s : w.slots) {
+    if (!s.body || s.body->pendingForce.empty()) continue;
+    std::vector<double>& f = s.body->model.externalForce;
+    constantForces.push_back(f);
+    for (size_t i = 0; i < f.size(); ++i) f[i] += s.body->pendingForce[i];
+  }
   if (!w.pendingWarning.empty()) {
     st.message = w.pendingWarning;
     w.pendingWarning.clear();
@@ -328,6 +368,7 @@ StepStatus World::step(double dt) {
   w.timings = {};
   w.fractureEvents.clear();
   w.fragmentEvents.clear();
+  w.handoffEvents.clear();
   const double h = dt / w.def.substeps;
   w.lastSubstep = h;
   const detail::StepContext ctx = w.context(h);
@@ -364,6 +405,12 @@ StepStatus World::step(double dt) {
                      return a.body.index != b.body.index ? a.body.index < b.body.index
                                                          : a.fragment < b.fragment;
                    });
+  size_t swapped = 0;
+  for (Slot& s : w.slots) {
+    if (!s.body || s.body->pendingForce.empty()) continue;
+    s.body->model.externalForce = std::move(constantForces[swapped++]);
+    s.body->pendingForce.clear();
+  }
   const auto ts = Clock::now();
   for (Slot& s : w.slots)
     if (s.body && s.body->surface) w.updateSurface(*s.body);
@@ -375,6 +422,7 @@ StepStatus World::step(double dt) {
     st.message = "a body produced a non-finite state and was restored to its previous step";
   else if (st.has(kStepNotConverged) && st.message.empty())
     st.message = "the solver stopped at its iteration cap";
+  w.stepping.store(false);
   return st;
 }
 
@@ -390,6 +438,7 @@ std::span<const double> World::velocities(BodyId id) const {
 
 Result<void> World::setVelocity(BodyId id, glm::dvec3 v) {
   BodyRecord* b = m_impl->get(id);
+  if (std::string e = m_impl->busy("setVelocity"); !e.empty()) return fail(e);
   if (!b) return fail("setVelocity: stale or null BodyId");
   if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
     return fail("setVelocity: velocity is not finite");
@@ -411,12 +460,14 @@ Result<void> overwrite(std::vector<double>& dst, std::span<const double> src, co
 
 Result<void> World::setPositions(BodyId id, std::span<const double> x) {
   BodyRecord* b = m_impl->get(id);
+  if (std::string e = m_impl->busy("setPositions"); !e.empty()) return fail(e);
   if (!b) return fail("setPositions: stale or null BodyId");
   return overwrite(b->state.x, x, "setPositions");
 }
 
 Result<void> World::setVelocities(BodyId id, std::span<const double> v) {
   BodyRecord* b = m_impl->get(id);
+  if (std::string e = m_impl->busy("setVelocities"); !e.empty()) return fail(e);
   if (!b) return fail("setVelocities: stale or null BodyId");
   return overwrite(b->state.v, v, "setVelocities");
 }
@@ -449,6 +500,7 @@ BodyStats World::stats(BodyId id) const {
 
 Result<void> World::cut(BodyId id, const Blade& blade) {
   BodyRecord* b = m_impl->get(id);
+  if (std::string e = m_impl->busy("cut"); !e.empty()) return fail(e);
   if (!b) return fail("cut: stale or null BodyId");
   if (!b->fracture) return fail("cut: the body was created without fracture (BodyDef.fracture)");
   if (blade.triangles.empty() || blade.triangles.size() % 3 != 0)
@@ -499,7 +551,9 @@ std::span<const int32_t> World::nodeFragments(BodyId id) const {
 
 SurfaceView World::surface(BodyId id) {
   BodyRecord* b = m_impl->get(id);
-  if (!b) return {};
+  if (!b || m_impl->stepping.load()) return {};
+  if (b->surface && b->rigidMoved) m_impl->updateSurface(*b);
+  b->rigidMoved = false;
   if (!b->surface) {
     auto r = std::make_unique<SurfaceRecord>();
     r->rest.positions = b->model.restPositions;
@@ -540,5 +594,419 @@ SurfaceView World::surface(BodyId id) {
 const StepTimings& World::timings() const { return m_impl->timings; }
 
 double World::time() const { return m_impl->time; }
+
+namespace {
+// Corners and weights that spread a point load over a body (World::applyForce): the
+// barycentric coordinates of p in the tet that contains it at positions x, or in the tet whose
+// weakest coordinate is largest, clamped to >= 0 and renormalised. False for a body whose tets
+// are all degenerate at x.
+bool pointWeights(const detail::FemModel& m, const std::vector<double>& x, glm::dvec3 p,
+                  int32_t corner[4], double w[4]) {
+  auto node = [&](int32_t n) { return glm::dvec3(x[3 * n], x[3 * n + 1], x[3 * n + 2]); };
+  double best = -std::numeric_limits<double>::infinity();
+  for (int32_t t = 0; t < m.tetCount; ++t) {
+    const int32_t* tn = &m.tets[4 * size_t(t)];
+    const glm::dvec3 x0 = node(tn[0]), a = node(tn[1]) - x0, b = node(tn[2]) - x0,
+                     c = node(tn[3]) - x0, d = p - x0;
+    const double det = glm::dot(a, glm::cross(b, c));
+    if (!(std::abs(det) > 0)) continue;
+    // Cramer's rule for a l1 + b l2 + c l3 = p - x0.
+    const double l1 = glm::dot(d, glm::cross(b, c)) / det;
+    const double l2 = glm::dot(a, glm::cross(d, c)) / det;
+    const double l3 = glm::dot(a, glm::cross(b, d)) / det;
+    const double l[4] = {1 - l1 - l2 - l3, l1, l2, l3};
+    const double weakest = std::min(std::min(l[0], l[1]), std::min(l[2], l[3]));
+    if (!(weakest > best)) continue;
+    best = weakest;
+    for (int k = 0; k < 4; ++k) {
+      corner[k] = tn[k];
+      w[k] = l[k];
+    }
+    if (weakest >= 0) break;  // inside (or on a face): exact
+  }
+  if (best == -std::numeric_limits<double>::infinity()) return false;
+  if (best < 0) {
+    double sum = 0;
+    for (int k = 0; k < 4; ++k) sum += (w[k] = std::max(w[k], 0.0));
+    for (int k = 0; k < 4; ++k) w[k] /= sum;
+  }
+  return true;
+}
+
+// Checks of the point commands: live body, not stepping, finite point and vector.
+Result<void> checkPointCommand(const std::string& busy, const void* body, const char* call,
+                               glm::vec3 point, glm::vec3 vec, const char* vecName) {
+  if (!busy.empty()) return fail(busy);
+  if (!body) return fail(call, ": stale or null BodyId");
+  if (!finite3(point)) return fail(call, ": point is not finite");
+  if (!finite3(vec)) return fail(call, ": ", vecName, " is not finite");
+  return {};
+}
+}  // namespace
+
+Result<void> World::applyForce(BodyId id, glm::vec3 point, glm::vec3 force) {
+  BodyRecord* b = m_impl->get(id);
+  if (auto r =
+          checkPointCommand(m_impl->busy("applyForce"), b, "applyForce", point, force, "force");
+      !r)
+    return r;
+  int32_t corner[4];
+  double w[4];
+  if (!pointWeights(b->model, b->state.x, glm::dvec3(point), corner, w))
+    return fail("applyForce: the body has no tet of non-zero volume to apply the force to");
+  if (b->pendingForce.empty()) b->pendingForce.assign(b->state.x.size(), 0.0);
+  for (int k = 0; k < 4; ++k)
+    for (int i = 0; i < 3; ++i) b->pendingForce[3 * corner[k] + i] += w[k] * double(force[i]);
+  return {};
+}
+
+Result<void> World::applyImpulse(BodyId id, glm::vec3 point, glm::vec3 impulse) {
+  BodyRecord* b = m_impl->get(id);
+  if (auto r = checkPointCommand(m_impl->busy("applyImpulse"), b, "applyImpulse", point, impulse,
+                                 "impulse");
+      !r)
+    return r;
+  int32_t corner[4];
+  double w[4];
+  if (!pointWeights(b->model, b->state.x, glm::dvec3(point), corner, w))
+    return fail("applyImpulse: the body has no tet of non-zero volume to apply the impulse to");
+  for (int k = 0; k < 4; ++k) {
+    const double m = b->model.nodeMass[corner[k]];
+    if (!(m > 0)) continue;  // a node of zero mass carries no momentum
+    for (int i = 0; i < 3; ++i) b->state.v[3 * corner[k] + i] += w[k] * double(impulse[i]) / m;
+  }
+  return {};
+}
+
+Result<void> World::setGripVelocity(BodyId id, int grip, glm::vec3 velocity) {
+  if (std::string e = m_impl->busy("setGripVelocity"); !e.empty()) return fail(e);
+  BodyRecord* b = m_impl->get(id);
+  if (!b) return fail("setGripVelocity: stale or null BodyId");
+  if (grip < 0 || size_t(grip) >= b->grips.size())
+    return fail("setGripVelocity: grip ", std::to_string(grip), " out of range [0, ",
+                std::to_string(b->grips.size()), ")");
+  if (!finite3(velocity)) return fail("setGripVelocity: velocity is not finite");
+  detail::FemModel& m = b->model;
+  for (int32_t n : b->grips[size_t(grip)].nodes)
+    for (int i = 0; i < 3; ++i) m.gripVelocity[3 * n + i] = velocity[i];
+  m.movingGrips =
+      std::any_of(m.gripVelocity.begin(), m.gripVelocity.end(), [](double v) { return v != 0; });
+  return {};
+}
+
+Result<void> World::setEdgeStrengths(BodyId id, std::span<const double> strength) {
+  if (std::string e = m_impl->busy("setEdgeStrengths"); !e.empty()) return fail(e);
+  BodyRecord* b = m_impl->get(id);
+  if (!b) return fail("setEdgeStrengths: stale or null BodyId");
+  if (!b->fracture)
+    return fail("setEdgeStrengths: the body was created without fracture (BodyDef.fracture)");
+  const size_t edges = b->fracture->strengths().size();
+  if (strength.size() != edges)
+    return fail("setEdgeStrengths: expected one strength per edge (", std::to_string(edges),
+                "), got ", std::to_string(strength.size()));
+  for (size_t e = 0; e < strength.size(); ++e)
+    if (!(std::isfinite(strength[e]) && strength[e] > 0))
+      return fail("setEdgeStrengths: strength[", std::to_string(e),
+                  "] = ", std::to_string(strength[e]), " is not a positive finite stress");
+  b->fracture->setStrengths(std::vector<double>(strength.begin(), strength.end()));
+  return {};
+}
+
+Result<void> World::setMaterial(BodyId id, const Material& material) {
+  if (std::string e = m_impl->busy("setMaterial"); !e.empty()) return fail(e);
+  BodyRecord* b = m_impl->get(id);
+  if (!b) return fail("setMaterial: stale or null BodyId");
+  if (auto r = material.check(); !r) return fail("setMaterial: ", r.error().message);
+  detail::FemModel& m = b->model;
+  if (material.model != m.material.model)
+    return fail("setMaterial: material.model must stay the body's model (",
+                std::to_string(int(m.material.model)), "), got ",
+                std::to_string(int(material.model)));
+  if ((material.fibreStiffness > 0) != (m.material.fibreStiffness > 0))
+    return fail(
+        "setMaterial: material.fibreStiffness must stay zero or non-zero as at creation (the "
+        "fibre field and fibre strengths are built once)");
+  const bool newDensity = material.density != m.material.density;
+  m.material = material;
+  m.coeffs = detail::toCoeffs(material);
+  if (newDensity) {
+    // Lumped masses as buildFemModel forms them, in the same order (eq 2.10, row-summed).
+    std::fill(m.nodeMass.begin(), m.nodeMass.end(), 0.0);
+    for (int32_t e = 0; e < m.tetCount; ++e)
+      for (int a = 0; a < 4; ++a)
+        m.nodeMass[m.tets[4 * size_t(e) + a]] += 0.25 * material.density * m.restVolume[e];
+  }
+  return {};
+}
+
+// Everything of one body that a step reads and a run changes; the rest of the model is fixed.
+struct BodySnapshot {
+  uint32_t slot = 0, generation = 0;
+  int32_t nodeCount = 0, tetCount = 0;
+  detail::FemState state;
+  Material material;
+  MaterialCoeffs coeffs;
+  std::vector<double> nodeMass, gripVelocity, pendingForce;
+  bool movingGrips = false;
+  bool hasFracture = false;
+  detail::FractureBody::State fracture;
+  std::vector<int32_t> rebindHistory;
+};
+
+struct WorldSnapshot::Data {
+  double time = 0, lastSubstep = 0;
+  std::vector<BodySnapshot> bodies;  // live bodies in slot order
+  std::vector<FractureEvent> fractureEvents;
+  std::vector<FragmentEvent> fragmentEvents;
+};
+
+double WorldSnapshot::time() const { return m_data ? m_data->time : 0.0; }
+
+WorldSnapshot World::snapshot() const {
+  const Impl& w = *m_impl;
+  auto d = std::make_shared<WorldSnapshot::Data>();
+  d->time = w.time;
+  d->lastSubstep = w.lastSubstep;
+  d->fractureEvents = w.fractureEvents;
+  d->fragmentEvents = w.fragmentEvents;
+  for (size_t si = 0; si < w.slots.size(); ++si) {
+    const BodyRecord* b = w.slots[si].body.get();
+    if (!b) continue;
+    BodySnapshot s;
+    s.slot = uint32_t(si);
+    s.generation = w.slots[si].generation;
+    s.nodeCount = b->model.nodeCount;
+    s.tetCount = b->model.tetCount;
+    s.state = b->state;
+    s.material = b->model.material;
+    s.coeffs = b->model.coeffs;
+    s.nodeMass = b->model.nodeMass;
+    s.gripVelocity = b->model.gripVelocity;
+    s.pendingForce = b->pendingForce;
+    s.movingGrips = b->model.movingGrips;
+    s.hasFracture = b->fracture != nullptr;
+    if (b->fracture) s.fracture = b->fracture->saveState();
+    s.rebindHistory = b->integrator->rebindHistory();
+    d->bodies.push_back(std::move(s));
+  }
+  WorldSnapshot out;
+  out.m_data = std::move(d);
+  return out;
+}
+
+Result<void> World::restore(const WorldSnapshot& snapshot) {
+  if (std::string e = m_impl->busy("restore"); !e.empty()) return fail(e);
+  if (snapshot.empty()) return fail("restore: the snapshot is empty");
+  Impl& w = *m_impl;
+  const WorldSnapshot::Data& d = *snapshot.m_data;
+  // All checks first, so a mismatch changes nothing.
+  size_t live = 0;
+  for (const Slot& s : w.slots) live += s.body ? 1 : 0;
+  if (live != d.bodies.size())
+    return fail("restore: the world holds ", std::to_string(live), " bodies, the snapshot ",
+                std::to_string(d.bodies.size()));
+  for (const BodySnapshot& s : d.bodies) {
+    const std::string which = "restore: body " + std::to_string(s.slot + 1) + ": ";
+    if (s.slot >= w.slots.size() || !w.slots[s.slot].body ||
+        w.slots[s.slot].generation != s.generation)
+      return fail(which, "not in this world (created or destroyed since the snapshot?)");
+    const BodyRecord& b = *w.slots[s.slot].body;
+    if (b.model.nodeCount != s.nodeCount || b.model.tetCount != s.tetCount ||
+        (b.fracture != nullptr) != s.hasFracture || b.state.Fp.size() != s.state.Fp.size())
+      return fail(which, "mesh, fracture or plasticity differ from the snapshot's");
+    // The snapshot does not hold which nodes a hand-off prescribed; refuse rather than restore
+    // a body half rigid.
+    if (!b.rigid.empty())
+      return fail(which,
+                  "has fragments handed to rigid physics (detachFragment); restoring "
+                  "across a hand-off is not supported yet");
+  }
+  for (const BodySnapshot& s : d.bodies) {
+    BodyRecord& b = *w.slots[s.slot].body;
+    b.state = s.state;
+    b.model.material = s.material;
+    b.model.coeffs = s.coeffs;
+    b.model.nodeMass = s.nodeMass;
+    b.model.gripVelocity = s.gripVelocity;
+    b.model.movingGrips = s.movingGrips;
+    b.pendingForce = s.pendingForce;
+    if (b.fracture) b.fracture->restoreState(s.fracture);
+    // Cannot fail: the same set-up succeeded when the body was created.
+    if (Result<void> r = b.integrator->restoreSolver(b.model, s.rebindHistory); !r)
+      return fail("restore: body ", std::to_string(s.slot + 1), ": ", r.error().message);
+    if (b.surface) {
+      b.surface->brokenCount = ~uint64_t(0);  // force a full rebuild
+      w.updateSurface(b);
+    }
+  }
+  w.time = d.time;
+  w.lastSubstep = d.lastSubstep;
+  w.fractureEvents = d.fractureEvents;
+  w.fragmentEvents = d.fragmentEvents;
+  return {};
+}
+
+uint64_t World::stateHash() const {
+  uint64_t h = 14695981039346656037ull;  // FNV-1a 64-bit offset basis
+  auto mix = [&h](const void* data, size_t bytes) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 1099511628211ull;
+  };
+  const Impl& w = *m_impl;
+  for (size_t si = 0; si < w.slots.size(); ++si) {
+    const BodyRecord* b = w.slots[si].body.get();
+    if (!b) continue;
+    const uint32_t ids[2] = {uint32_t(si + 1), w.slots[si].generation};
+    mix(ids, sizeof ids);
+    mix(b->state.x.data(), b->state.x.size() * sizeof(double));
+    mix(b->state.v.data(), b->state.v.size() * sizeof(double));
+    if (b->fracture) mix(b->fracture->broken().data(), b->fracture->broken().size());
+  }
+  mix(&w.time, sizeof w.time);
+  return h;
+}
+
+// ---- Hand-off of fragments to rigid-body physics (issue 5 item 3) ----
+
+namespace {
+glm::dvec3 toGlm(Vec3 v) { return {v.x, v.y, v.z}; }
+glm::dmat3 toGlm(const Mat3& m) {
+  glm::dmat3 g;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) g[j][i] = m(i, j);  // glm is column-major
+  return g;
+}
+bool finite3d(glm::dvec3 v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+// Error of the checks every fragment call shares, or empty.
+std::string checkFragment(const BodyRecord* b, const char* call, int32_t fragment) {
+  if (!b) return std::string(call) + ": stale or null BodyId";
+  if (!b->fracture)
+    return std::string(call) + ": the body was created without fracture (BodyDef.fracture)";
+  const int32_t count = b->fracture->fragments().count();
+  if (fragment < 0 || fragment >= count)
+    return std::string(call) + ": fragment " + std::to_string(fragment) + " out of range [0, " +
+           std::to_string(count) + ")";
+  return {};
+}
+
+const Vec3* detachedCentre(const BodyRecord& b, int32_t fragment) {
+  for (const auto& r : b.rigid)
+    if (r.first == fragment) return &r.second;
+  return nullptr;
+}
+
+RigidFragmentInfo toInfo(const detail::RigidProperties& p) {
+  RigidFragmentInfo info;
+  info.nodeCount = p.nodeCount;
+  info.mass = p.mass;
+  info.volume = p.volume;
+  info.centreOfMass = toGlm(p.centre);
+  const glm::dmat3 R = toGlm(p.rotation);
+  // The rigid body carries the rest shape, so its inertia is the rest one turned to the pose.
+  info.inertia = R * toGlm(p.restInertia) * glm::transpose(R);
+  info.linearVelocity = toGlm(p.momentum) / p.mass;
+  info.angularVelocity =
+      R * (glm::inverse(toGlm(p.restInertia)) * (glm::transpose(R) * toGlm(p.angularMomentum)));
+  info.rotation = glm::quat_cast(R);
+  info.translation = info.centreOfMass - R * toGlm(p.restCentre);
+  return info;
+}
+
+// Prescribes the rigid velocity field v + w x (x - c) on a detached fragment's nodes (the
+// integrator moves them by it and reports it as their velocity).
+void setRigidVelocities(BodyRecord& b, int32_t fragment, glm::dvec3 v, glm::dvec3 w, glm::dvec3 c) {
+  detail::FemModel& m = b.model;
+  for (int32_t n : b.fracture->fragments().nodes(fragment)) {
+    const glm::dvec3 x(b.state.x[3 * n], b.state.x[3 * n + 1], b.state.x[3 * n + 2]);
+    const glm::dvec3 vn = v + glm::cross(w, x - c);
+    for (int i = 0; i < 3; ++i) m.gripVelocity[3 * n + i] = b.state.v[3 * n + i] = vn[i];
+    m.movingGrips |= vn != glm::dvec3(0);
+  }
+}
+}  // namespace
+
+Result<RigidFragmentInfo> World::fragmentInfo(BodyId id, int32_t fragment) const {
+  const BodyRecord* b = m_impl->get(id);
+  if (std::string e = checkFragment(b, "fragmentInfo", fragment); !e.empty()) return fail(e);
+  const detail::RigidProperties p =
+      detail::rigidProperties(b->model, b->state.x.data(), b->state.v.data(),
+                              b->fracture->fragments().nodeFragment().data(), fragment);
+  return toInfo(p);
+}
+
+Result<RigidFragmentInfo> World::detachFragment(BodyId id, int32_t fragment) {
+  if (std::string e = m_impl->busy("detachFragment"); !e.empty()) return fail(e);
+  BodyRecord* b = m_impl->get(id);
+  if (std::string e = checkFragment(b, "detachFragment", fragment); !e.empty()) return fail(e);
+  if (detachedCentre(*b, fragment))
+    return fail("detachFragment: fragment ", std::to_string(fragment), " is already detached");
+  const detail::RigidProperties p =
+      detail::rigidProperties(b->model, b->state.x.data(), b->state.v.data(),
+                              b->fracture->fragments().nodeFragment().data(), fragment);
+  if (p.hasFixedNode)
+    return fail("detachFragment: fragment ", std::to_string(fragment),
+                " holds gripped nodes (BodyDef.grips); a pinned piece cannot move rigidly");
+  if (!(p.mass > 0))
+    return fail("detachFragment: fragment ", std::to_string(fragment), " has no mass");
+  const RigidFragmentInfo info = toInfo(p);
+  for (int32_t n : b->fracture->fragments().nodes(fragment)) b->model.fixedNode[size_t(n)] = 1;
+  setRigidVelocities(*b, fragment, info.linearVelocity, info.angularVelocity, info.centreOfMass);
+  b->integrator->refreshFixedNodes(b->model);
+  b->rigid.emplace_back(fragment, p.restCentre);
+
+  HandoffEvent ev;
+  ev.body = id;
+  ev.fragment = fragment;
+  ev.nodeCount = info.nodeCount;
+  ev.mass = info.mass;
+  ev.centreOfMass = glm::vec3(info.centreOfMass);
+  ev.velocity = glm::vec3(info.linearVelocity);
+  ev.angularVelocity = glm::vec3(info.angularVelocity);
+  // Kept sorted by (body, fragment) as the calls come (ARCHITECTURE.md: determinism).
+  std::vector<HandoffEvent>& events = m_impl->handoffEvents;
+  const auto at = std::upper_bound(
+      events.begin(), events.end(), ev, [](const HandoffEvent& a, const HandoffEvent& c) {
+        return a.body.index != c.body.index ? a.body.index < c.body.index : a.fragment < c.fragment;
+      });
+  events.insert(at, ev);
+  return info;
+}
+
+Result<void> World::setFragmentTransform(BodyId id, int32_t fragment, glm::dvec3 translation,
+                                         glm::dquat rotation, glm::dvec3 linearVelocity,
+                                         glm::dvec3 angularVelocity) {
+  if (std::string e = m_impl->busy("setFragmentTransform"); !e.empty()) return fail(e);
+  BodyRecord* b = m_impl->get(id);
+  if (std::string e = checkFragment(b, "setFragmentTransform", fragment); !e.empty())
+    return fail(e);
+  const Vec3* restCentre = detachedCentre(*b, fragment);
+  if (!restCentre)
+    return fail("setFragmentTransform: fragment ", std::to_string(fragment),
+                " is not detached (call detachFragment first)");
+  if (!finite3d(translation)) return fail("setFragmentTransform: translation is not finite");
+  if (!finite3d(linearVelocity)) return fail("setFragmentTransform: linearVelocity is not finite");
+  if (!finite3d(angularVelocity))
+    return fail("setFragmentTransform: angularVelocity is not finite");
+  const double qn = glm::length(rotation);
+  if (!(std::isfinite(qn) && qn > 1e-12))
+    return fail("setFragmentTransform: rotation must be a finite non-zero quaternion");
+  // Normalised in double: a single-precision engine's quaternion is off unity by ~1e-7, which
+  // would otherwise show up as strain of the fragment.
+  const glm::dmat3 R = glm::mat3_cast(rotation / qn);
+  const std::vector<double>& X = b->model.restPositions;
+  for (int32_t n : b->fracture->fragments().nodes(fragment)) {
+    const glm::dvec3 x = R * glm::dvec3(X[3 * n], X[3 * n + 1], X[3 * n + 2]) + translation;
+    for (int i = 0; i < 3; ++i) b->state.x[3 * n + i] = x[i];
+  }
+  setRigidVelocities(*b, fragment, linearVelocity, angularVelocity,
+                     R * toGlm(*restCentre) + translation);
+  b->rigidMoved = true;
+  return {};
+}
+
+std::span<const HandoffEvent> World::handoffEvents() const { return m_impl->handoffEvents; }
 
 }  // namespace gf

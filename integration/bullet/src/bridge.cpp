@@ -1,0 +1,189 @@
+#include "graphfrac/bullet/bridge.h"
+
+#include <btBulletDynamicsCommon.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/matrix.hpp>
+
+// integration/CMakeLists.txt links the single-precision libraries; a header that disagrees
+// would give every Bullet object another layout than the library's.
+static_assert(sizeof(btScalar) == sizeof(float),
+              "graphfrac_bullet is built against single-precision Bullet: "
+              "BT_USE_DOUBLE_PRECISION must not be defined");
+
+namespace gf::bullet {
+
+namespace {
+btVector3 toBt(glm::dvec3 v) { return {btScalar(v.x), btScalar(v.y), btScalar(v.z)}; }
+glm::dvec3 toGlm(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
+btMatrix3x3 toBt(const glm::dmat3& m) {                             // glm is column-major
+  return {btScalar(m[0][0]), btScalar(m[1][0]), btScalar(m[2][0]),  //
+          btScalar(m[0][1]), btScalar(m[1][1]), btScalar(m[2][1]),  //
+          btScalar(m[0][2]), btScalar(m[1][2]), btScalar(m[2][2])};
+}
+glm::dmat3 toGlm(const btMatrix3x3& m) {
+  glm::dmat3 g;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) g[j][i] = m[i][j];
+  return g;
+}
+
+// Collision margin of a fragment's hull: Bullet's default 4 cm would swamp centimetre pieces.
+constexpr double kMarginFraction = 0.05, kMinMargin = 1e-4, kMaxMargin = 0.02;
+}  // namespace
+
+struct Bridge::Entry {
+  std::unique_ptr<btConvexHullShape> shape;
+  std::unique_ptr<btRigidBody> body;
+  glm::dmat3 principal{1.0};  // principal axes in rest coordinates (columns), det +1
+  glm::dvec3 restCentre{0};
+};
+
+Bridge::Bridge(World& world, btDiscreteDynamicsWorld& dynamics)
+    : m_world(world), m_dynamics(dynamics) {}
+
+Bridge::~Bridge() {
+  for (const auto& e : m_entries) m_dynamics.removeRigidBody(e->body.get());
+}
+
+Result<void> Bridge::setPolicy(BodyId body, HandoffPolicy policy, double maxVolume) {
+  if (!m_world.isValid(body)) return fail("Bridge::setPolicy: stale or null BodyId");
+  if (m_world.fractureStats(body).edgeCount == 0)
+    return fail("Bridge::setPolicy: the body was created without fracture (BodyDef.fracture)");
+  if (policy == HandoffPolicy::BelowVolume && !(std::isfinite(maxVolume) && maxVolume > 0))
+    return fail("Bridge::setPolicy: maxVolume must be positive and finite for BelowVolume");
+  auto it = std::lower_bound(m_policies.begin(), m_policies.end(), body.index,
+                             [](const Policy& p, uint32_t i) { return p.body.index < i; });
+  if (it == m_policies.end() || !(it->body == body)) {
+    if (it != m_policies.end() && it->body.index == body.index) it = m_policies.erase(it);
+    it = m_policies.insert(it, Policy{body});
+  }
+  it->policy = policy;
+  it->maxVolume = maxVolume;
+  it->seenFragments = 1;  // rescan at the next hand-off
+  return {};
+}
+
+StepStatus Bridge::step(double dt) {
+  StepStatus st = m_world.step(dt);
+  if (st.has(kStepInvalidInput)) return st;
+  handOffNewFragments();
+  m_dynamics.stepSimulation(btScalar(dt), 0);
+  syncFromDynamics();
+  return st;
+}
+
+int Bridge::handOffNewFragments() {
+  int handed = 0;
+  for (Policy& p : m_policies) {
+    if (p.policy == HandoffPolicy::Never || !m_world.isValid(p.body)) continue;
+    const int32_t count = m_world.fractureStats(p.body).fragments;
+    if (count < 2 || count == p.seenFragments) continue;
+    p.seenFragments = count;
+    for (int32_t f = 0; f < count; ++f) {
+      if (rigidBody(p.body, f)) continue;
+      if (p.policy == HandoffPolicy::BelowVolume) {
+        const Result<RigidFragmentInfo> info = m_world.fragmentInfo(p.body, f);
+        if (!info || info.value().volume >= p.maxVolume) continue;
+      }
+      // A gripped fragment refuses; it is tried again when the body splits next.
+      if (handOff(p.body, f)) ++handed;
+    }
+  }
+  return handed;
+}
+
+Result<btRigidBody*> Bridge::handOff(BodyId body, int32_t fragment) {
+  if (rigidBody(body, fragment))
+    return fail("Bridge::handOff: fragment ", std::to_string(fragment), " is already in Bullet");
+  const Result<RigidFragmentInfo> detached = m_world.detachFragment(body, fragment);
+  if (!detached) return detached.error();
+  const RigidFragmentInfo& f = detached.value();
+  auto e = std::make_unique<Entry>();
+  const glm::dmat3 R0 = glm::mat3_cast(f.rotation);
+  e->restCentre = glm::transpose(R0) * (f.centreOfMass - f.translation);
+  // Principal axes of the rest inertia, in double (Bullet wants a diagonal local inertia).
+  const glm::dmat3 restInertia = glm::transpose(R0) * f.inertia * R0;
+  Eigen::Matrix3d I;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) I(i, j) = restInertia[j][i];
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(I);
+  Eigen::Matrix3d E = eig.eigenvectors();
+  if (E.determinant() < 0) E.col(2) *= -1;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) e->principal[j][i] = E(i, j);
+  const glm::dvec3 moments(eig.eigenvalues()(0), eig.eigenvalues()(1), eig.eigenvalues()(2));
+
+  // Nodes onto the rigid rest shape at the detach pose, then the hull in the principal frame.
+  if (Result<void> r = m_world.setFragmentTransform(body, fragment, f.translation, f.rotation,
+                                                    f.linearVelocity, f.angularVelocity);
+      !r)
+    return r.error();
+  const glm::dmat3 B = R0 * e->principal;  // principal frame -> world
+  const glm::dmat3 Bt = glm::transpose(B);
+  e->shape = std::make_unique<btConvexHullShape>();
+  const std::span<const int32_t> nodeFragment = m_world.nodeFragments(body);
+  const std::span<const double> x = m_world.positions(body);
+  glm::dvec3 lo(1e300), hi(-1e300);
+  for (size_t n = 0; n < nodeFragment.size(); ++n) {
+    if (nodeFragment[n] != fragment) continue;
+    const glm::dvec3 p = Bt * (glm::dvec3(x[3 * n], x[3 * n + 1], x[3 * n + 2]) - f.centreOfMass);
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+    e->shape->addPoint(toBt(p), false);
+  }
+  e->shape->recalcLocalAabb();
+  e->shape->optimizeConvexHull();
+  const glm::dvec3 size = hi - lo;
+  e->shape->setMargin(btScalar(
+      std::clamp(kMarginFraction * std::max({size.x, size.y, size.z}), kMinMargin, kMaxMargin)));
+
+  btRigidBody::btRigidBodyConstructionInfo ci(btScalar(f.mass), nullptr, e->shape.get(),
+                                              toBt(moments));
+  ci.m_startWorldTransform = btTransform(toBt(B), toBt(f.centreOfMass));
+  e->body = std::make_unique<btRigidBody>(ci);
+  e->body->setLinearVelocity(toBt(f.linearVelocity));
+  e->body->setAngularVelocity(toBt(f.angularVelocity));
+  m_dynamics.addRigidBody(e->body.get());
+  btRigidBody* rb = e->body.get();
+  m_fragments.push_back({body, fragment, rb});
+  m_entries.push_back(std::move(e));
+  return rb;
+}
+
+void Bridge::syncFromDynamics() {
+  size_t keep = 0;
+  for (size_t i = 0; i < m_entries.size(); ++i) {
+    Entry& e = *m_entries[i];
+    const RigidFragment& rf = m_fragments[i];
+    if (!m_world.isValid(rf.body)) {
+      m_dynamics.removeRigidBody(e.body.get());
+      continue;
+    }
+    // x = Rb p + cb with p = E^T (X - C): rest-to-current rotation Rb E^T.
+    const btTransform& T = e.body->getCenterOfMassTransform();
+    const glm::dmat3 Q = toGlm(T.getBasis()) * glm::transpose(e.principal);
+    const glm::dvec3 t = toGlm(T.getOrigin()) - Q * e.restCentre;
+    // Cannot fail: the fragment is detached and Bullet's state is finite.
+    (void)m_world.setFragmentTransform(rf.body, rf.fragment, t, glm::quat_cast(Q),
+                                       toGlm(e.body->getLinearVelocity()),
+                                       toGlm(e.body->getAngularVelocity()));
+    if (keep != i) {
+      m_entries[keep] = std::move(m_entries[i]);
+      m_fragments[keep] = m_fragments[i];
+    }
+    ++keep;
+  }
+  m_entries.resize(keep);
+  m_fragments.resize(keep);
+}
+
+btRigidBody* Bridge::rigidBody(BodyId body, int32_t fragment) const {
+  for (const RigidFragment& f : m_fragments)
+    if (f.body == body && f.fragment == fragment) return f.rigidBody;
+  return nullptr;
+}
+
+}  // namespace gf::bullet

@@ -1,0 +1,271 @@
+// Hand-off of fragments to Bullet (issue 5 item 3): conservation across the hand-off, exact
+// mass properties against analytic boxes, a fragment resting on a Bullet floor, and bad API use.
+#include <btBulletDynamicsCommon.h>
+#include <graphfrac/bullet/bridge.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <glm/gtc/quaternion.hpp>
+#include <memory>
+
+#include "common/sim_helpers.h"
+
+namespace gf {
+namespace {
+
+// A Bullet world with its collaborators, torn down in the right order.
+struct Dynamics {
+  btDefaultCollisionConfiguration config;
+  btCollisionDispatcher dispatcher{&config};
+  btDbvtBroadphase broadphase;
+  btSequentialImpulseConstraintSolver solver;
+  btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
+  btStaticPlaneShape floorShape{btVector3(0, 1, 0), 0};
+  std::unique_ptr<btRigidBody> floor;
+  explicit Dynamics(btVector3 gravity) {
+    world.setGravity(gravity);
+    floor = std::make_unique<btRigidBody>(0, nullptr, &floorShape);
+    world.addRigidBody(floor.get());
+  }
+  ~Dynamics() { world.removeRigidBody(floor.get()); }
+};
+
+BodyDef breakableBox(double sx, double sy, double sz, int nx, int ny, int nz) {
+  BodyDef def;
+  def.mesh = gen::box(sx, sy, sz, nx, ny, nz);
+  def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
+  def.fracture.enabled = true;
+  def.fracture.strength = 1e12;  // only cuts break it
+  return def;
+}
+
+glm::dvec3 toGlm(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
+
+// Rigid-body momenta as Bullet holds them: m v and, about the origin, c x m v + I w.
+void bulletMomenta(const btRigidBody& rb, glm::dvec3& p, glm::dvec3& L, glm::dvec3& spin) {
+  const double m = 1.0 / rb.getInvMass();
+  p = m * toGlm(rb.getLinearVelocity());
+  const btMatrix3x3 I = rb.getInvInertiaTensorWorld().inverse();
+  spin = toGlm(I * rb.getAngularVelocity());
+  L = glm::cross(toGlm(rb.getCenterOfMassPosition()), p) + spin;
+}
+
+double rel(glm::dvec3 a, glm::dvec3 b) { return glm::length(a - b) / glm::length(b); }
+
+// A cut through the plane x = x0 that splits a box of [0,1]^3 scale in two.
+Blade planeBlade(double x0) {
+  Blade b;
+  b.vertices = {
+      {float(x0), -10, -10}, {float(x0), 10, -10}, {float(x0), 10, 10}, {float(x0), -10, 10}};
+  b.triangles = {0, 1, 2, 0, 2, 3};
+  return b;
+}
+
+TEST(BulletHandoff, ConservesMomentumAndAngularMomentum) {
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  const BodyId id = world.createBody(breakableBox(0.3, 0.2, 0.1, 6, 4, 2)).value();
+  // A tumbling, slightly deformed body whose velocity field is not rigid, so L is not I w of
+  // any one field the hand-off could copy.
+  const std::span<const double> x0 = world.positions(id);
+  std::vector<double> x(x0.begin(), x0.end()), v(x.size());
+  const glm::dvec3 v0(0.3, -0.2, 0.1), w0(2, -1, 3), c0(0.15, 0.1, 0.05);
+  for (size_t n = 0; n < x.size() / 3; ++n) {
+    glm::dvec3 p(x[3 * n], x[3 * n + 1], x[3 * n + 2]);
+    const glm::dvec3 r = p - c0;
+    const glm::dvec3 vn =
+        v0 + glm::cross(w0, r) +
+        0.05 * glm::dvec3(std::sin(7.0 * n), std::cos(3.0 * n), std::sin(5.0 * n + 1));
+    p += 0.01 * glm::dvec3(r.y * r.x, std::sin(9.0 * n) * 0.02, r.z * r.z);  // small strain
+    for (int i = 0; i < 3; ++i) {
+      x[3 * n + i] = p[i];
+      v[3 * n + i] = vn[i];
+    }
+  }
+  ASSERT_TRUE(world.setPositions(id, x).ok());
+  ASSERT_TRUE(world.setVelocities(id, v).ok());
+  const BodyStats before = world.stats(id);
+
+  Dynamics dyn(btVector3(0, 0, 0));
+  bullet::Bridge bridge(world, dyn.world);
+  Result<btRigidBody*> rb = bridge.handOff(id, 0);
+  ASSERT_TRUE(rb.ok()) << rb.error().message;
+  glm::dvec3 p, L, spin;
+  bulletMomenta(*rb.value(), p, L, spin);
+  const glm::dvec3 c = toGlm(rb.value()->getCenterOfMassPosition());
+  const glm::dvec3 spinFem = before.angularMomentum - glm::cross(c, before.linearMomentum);
+  std::printf("hand-off: mass %.9g vs %.9g; |dp|/|p| = %.2e, |dL|/|L| = %.2e, spin %.2e\n",
+              1.0 / rb.value()->getInvMass(), before.mass, rel(p, before.linearMomentum),
+              rel(L, before.angularMomentum), rel(spin, spinFem));
+  EXPECT_LT(std::abs(1.0 / rb.value()->getInvMass() - before.mass), 1e-6 * before.mass);
+  EXPECT_LT(rel(p, before.linearMomentum), 1e-6);
+  EXPECT_LT(rel(L, before.angularMomentum), 1e-4);
+  EXPECT_LT(rel(spin, spinFem), 1e-4);
+  ASSERT_EQ(world.handoffEvents().size(), 1u);
+  EXPECT_EQ(world.handoffEvents()[0].fragment, 0);
+}
+
+TEST(BulletHandoff, BoxMassAndInertiaMatchAnalytic) {
+  const double a = 0.3, b = 0.2, c = 0.1, rho = 1000;
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  const BodyId id = world.createBody(breakableBox(a, b, c, 6, 4, 2)).value();
+  // Turned and moved: the info must report the pose and the inertia in world axes.
+  const glm::dquat q = glm::angleAxis(0.7, glm::normalize(glm::dvec3(1, 2, -1)));
+  const glm::dvec3 t(1, -2, 0.5);
+  const glm::dmat3 R = glm::mat3_cast(q);
+  std::vector<double> x(world.positions(id).begin(), world.positions(id).end());
+  for (size_t n = 0; n < x.size() / 3; ++n) {
+    const glm::dvec3 p = R * glm::dvec3(x[3 * n], x[3 * n + 1], x[3 * n + 2]) + t;
+    for (int i = 0; i < 3; ++i) x[3 * n + i] = p[i];
+  }
+  ASSERT_TRUE(world.setPositions(id, x).ok());
+  const RigidFragmentInfo info = world.fragmentInfo(id, 0).value();
+  const double m = rho * a * b * c;
+  const glm::dmat3 Ibox(m / 12 * (b * b + c * c), 0, 0, 0, m / 12 * (a * a + c * c), 0, 0, 0,
+                        m / 12 * (a * a + b * b));
+  const glm::dmat3 expected = R * Ibox * glm::transpose(R);
+  double err = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) err = std::max(err, std::abs(info.inertia[j][i] - expected[j][i]));
+  const glm::dvec3 centre = R * glm::dvec3(a / 2, b / 2, c / 2) + t;
+  std::printf("box: mass %.12g (analytic %.12g), max |I - I_box| / I_max = %.2e, |c| err %.2e\n",
+              info.mass, m, err / (m / 12 * (a * a + b * b)),
+              glm::length(info.centreOfMass - centre));
+  EXPECT_LT(std::abs(info.mass - m), 1e-10 * m);
+  EXPECT_LT(err, 1e-2 * m / 12 * (a * a + b * b));
+  EXPECT_LT(glm::length(info.centreOfMass - centre), 1e-12);
+  EXPECT_LT(glm::length(info.translation - t), 1e-10);
+  EXPECT_GT(std::abs(glm::dot(info.rotation, q)), 1 - 1e-12);
+
+  // Split in two by a cut: the pieces' corner cells partition the box, so their inertias,
+  // moved to the common centre (parallel axes), add up to the box's.
+  World w2(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  const BodyId id2 = w2.createBody(breakableBox(a, b, c, 6, 4, 2)).value();
+  ASSERT_TRUE(w2.cut(id2, planeBlade(0.125)).ok());
+  (void)w2.step(1e-4);
+  ASSERT_EQ(w2.fractureStats(id2).fragments, 2);
+  glm::dmat3 sum(0.0);
+  double mass = 0;
+  const glm::dvec3 cb(a / 2, b / 2, c / 2);
+  for (int32_t f = 0; f < 2; ++f) {
+    const RigidFragmentInfo fi = w2.fragmentInfo(id2, f).value();
+    const glm::dvec3 d = fi.centreOfMass - cb;
+    sum += fi.inertia + fi.mass * (glm::dot(d, d) * glm::dmat3(1.0) - glm::outerProduct(d, d));
+    mass += fi.mass;
+  }
+  double err2 = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) err2 = std::max(err2, std::abs(sum[j][i] - Ibox[j][i]));
+  std::printf("two pieces: mass sum %.12g, parallel-axis sum vs box: %.2e relative\n", mass,
+              err2 / Ibox[2][2]);
+  EXPECT_LT(std::abs(mass - m), 1e-10 * m);
+  EXPECT_LT(err2, 1e-6 * Ibox[2][2]);  // 1e-4 s of gravity-free motion: nearly rigid
+
+  // Bullet gets the principal moments of the box.
+  Dynamics dyn(btVector3(0, 0, 0));
+  bullet::Bridge bridge(world, dyn.world);
+  btRigidBody* rb = bridge.handOff(id, 0).value();
+  const btVector3 inv = rb->getInvInertiaDiagLocal();
+  double got[3] = {1 / inv.x(), 1 / inv.y(), 1 / inv.z()};
+  double want[3] = {Ibox[0][0], Ibox[1][1], Ibox[2][2]};
+  std::sort(got, got + 3);
+  std::sort(want, want + 3);
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(got[i], want[i], 1e-2 * want[i]);
+}
+
+TEST(BulletHandoff, FragmentsFallOntoBulletFloorAndSurfaceFollows) {
+  WorldDef wd;
+  wd.backend = Backend::Cpu;
+  World world(wd);
+  BodyDef def = breakableBox(0.2, 0.2, 0.2, 4, 4, 4);
+  for (size_t i = 1; i < def.mesh.positions.size(); i += 3) def.mesh.positions[i] += 0.5;
+  const BodyId id = world.createBody(def).value();
+  const SurfaceView s0 = world.surface(id);
+  ASSERT_FALSE(s0.positions.empty());
+  Dynamics dyn(btVector3(0, -9.81f, 0));
+  bullet::Bridge bridge(world, dyn.world);
+  ASSERT_TRUE(bridge.setPolicy(id, bullet::HandoffPolicy::EveryFragment).ok());
+  ASSERT_TRUE(world.cut(id, planeBlade(0.125)).ok());
+  size_t handoffs = 0;
+  for (int frame = 0; frame < 120; ++frame) {
+    const StepStatus st = bridge.step(1.0 / 60);
+    EXPECT_FALSE(st.has(kStepInvalidInput)) << st.message;
+    handoffs += world.handoffEvents().size();
+  }
+  EXPECT_EQ(handoffs, 2u);
+  ASSERT_EQ(bridge.fragments().size(), 2u);
+  const std::span<const double> x = world.positions(id);
+  const std::span<const double> v = world.velocities(id);
+  double lowest = 1e300, vmax = 0;
+  for (size_t n = 0; n < x.size() / 3; ++n) lowest = std::min(lowest, x[3 * n + 1]);
+  for (double vi : v) vmax = std::max(vmax, std::abs(vi));
+  const SurfaceView s = world.surface(id);
+  double surfLowest = 1e300;
+  for (size_t i = 1; i < s.positions.size(); i += 3)
+    surfLowest = std::min<double>(surfLowest, s.positions[i]);
+  std::printf("after 2 s: lowest node y = %.4f, lowest surface vertex y = %.4f, max |v| = %.3g\n",
+              lowest, surfLowest, vmax);
+  EXPECT_GT(lowest, -0.005);  // on the floor, not through it
+  EXPECT_LT(lowest, 0.03);    // it fell 0.5 m and rests (hull margin <= 1 cm)
+  EXPECT_LT(vmax, 0.05);
+  EXPECT_NEAR(surfLowest, lowest, 1e-4);  // the render surface moved with the nodes
+}
+
+TEST(BulletHandoff, BadApiUseReturnsErrorsAndChangesNothing) {
+  World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
+  BodyDef def = breakableBox(0.2, 0.1, 0.1, 4, 2, 2);
+  Grip grip;
+  grip.nodes = test::selectNodes(def.mesh, [](double xx, double, double) { return xx < 1e-9; });
+  def.grips = {grip};
+  const BodyId id = world.createBody(def).value();
+  BodyDef plain = breakableBox(0.1, 0.1, 0.1, 2, 2, 2);
+  plain.fracture.enabled = false;
+  const BodyId noFracture = world.createBody(plain).value();
+  const BodyId stale{id.index, id.generation + 7};
+  const uint64_t hash = world.stateHash();
+  const glm::dquat q(1, 0, 0, 0);
+  EXPECT_FALSE(world.detachFragment(stale, 0).ok());
+  EXPECT_FALSE(world.detachFragment(noFracture, 0).ok());
+  EXPECT_FALSE(world.detachFragment(id, 1).ok());
+  EXPECT_FALSE(world.detachFragment(id, -1).ok());
+  const Result<RigidFragmentInfo> gripped = world.detachFragment(id, 0);
+  ASSERT_FALSE(gripped.ok());
+  EXPECT_NE(gripped.error().message.find("grip"), std::string::npos) << gripped.error().message;
+  EXPECT_FALSE(world.fragmentInfo(stale, 0).ok());
+  EXPECT_FALSE(world.setFragmentTransform(id, 0, glm::dvec3(0), q, {}, {}).ok());  // not detached
+  EXPECT_EQ(world.stateHash(), hash);
+  EXPECT_TRUE(world.handoffEvents().empty());
+
+  // A free body: detach once, then the transform's arguments are checked.
+  World free(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
+  const BodyId fid = free.createBody(breakableBox(0.2, 0.1, 0.1, 4, 2, 2)).value();
+  ASSERT_TRUE(free.detachFragment(fid, 0).ok());
+  EXPECT_FALSE(free.detachFragment(fid, 0).ok());  // already detached
+  const uint64_t h2 = free.stateHash();
+  const double nan = std::nan("");
+  EXPECT_FALSE(free.setFragmentTransform(fid, 0, glm::dvec3(nan, 0, 0), q, {}, {}).ok());
+  EXPECT_FALSE(
+      free.setFragmentTransform(fid, 0, glm::dvec3(0), glm::dquat(0, 0, 0, 0), {}, {}).ok());
+  EXPECT_FALSE(free.setFragmentTransform(fid, 0, glm::dvec3(0), q, glm::dvec3(0, nan, 0), {}).ok());
+  EXPECT_FALSE(free.setFragmentTransform(fid, 1, glm::dvec3(0), q, {}, {}).ok());
+  EXPECT_EQ(free.stateHash(), h2);
+  Dynamics dyn(btVector3(0, 0, 0));
+  bullet::Bridge bridge(free, dyn.world);
+  EXPECT_FALSE(bridge.handOff(fid, 0).ok());  // detached by the world already
+  EXPECT_FALSE(bridge.setPolicy(fid, bullet::HandoffPolicy::BelowVolume, -1).ok());
+  EXPECT_FALSE(bridge.setPolicy(noFracture, bullet::HandoffPolicy::EveryFragment).ok());
+
+  // Both worlds still step, and the gripped body still hangs from its grip.
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(world.step(1.0 / 60).flags & (kStepNanContained | kStepInvalidInput), 0u);
+    EXPECT_EQ(free.step(1.0 / 60).flags & (kStepNanContained | kStepInvalidInput), 0u);
+  }
+  EXPECT_TRUE(test::stateFinite(world, id));
+  EXPECT_TRUE(test::stateFinite(free, fid));
+  // A detached fragment is held by its rigid motion: here, at rest, it does not fall.
+  const RigidFragmentInfo after = free.fragmentInfo(fid, 0).value();
+  EXPECT_LT(glm::length(after.linearVelocity), 1e-12);
+}
+
+}  // namespace
+}  // namespace gf
