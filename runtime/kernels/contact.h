@@ -1,6 +1,7 @@
 // Penalty contact of one node against a static collider: a one-sided quadratic energy
 // k m d^2 / 2 on the penetration depth d, so contact enters the implicit step as an energy
 // (consistent gradient and a PSD Hessian k m n n^T) and stays stable at large time steps.
+// A moving collider is placed at its end-of-step pose, so the same energy pushes nodes along.
 #pragma once
 
 #include "math.h"
@@ -12,10 +13,11 @@ enum ColliderKind : int { kColliderPlane = 0, kColliderBox = 1, kColliderSphere 
 /// Collider in kernel form. `stiffness` is per unit node mass [1/s^2].
 struct ColliderData {
   int kind = kColliderPlane;
-  Vec3 point;         ///< plane point, box or sphere centre
-  Vec3 normal;        ///< plane normal (unit)
-  Vec3 halfExtents;   ///< box
-  double radius = 0;  ///< sphere
+  Vec3 point;                        ///< plane point, box or sphere centre
+  Vec3 normal;                       ///< plane normal (unit)
+  Vec3 halfExtents;                  ///< box
+  Mat3 rotation = Mat3::identity();  ///< box: local-to-world axes (columns)
+  double radius = 0;                 ///< sphere
   double stiffness = 0;
 };
 
@@ -31,8 +33,8 @@ GF_HD double penetration(const ColliderData& c, Vec3 x, Vec3& n) {
     n = r > 1e-12 ? (1.0 / r) * d : Vec3{0, 1, 0};
     return c.radius - r;
   }
-  // Box: push out through the face of least penetration.
-  const Vec3 d = x - c.point;
+  // Box: push out through the face of least penetration, in the box's axes.
+  const Vec3 d = transpose(c.rotation) * (x - c.point);
   double best = 1e300;
   n = Vec3{0, 1, 0};
   for (int i = 0; i < 3; ++i) {
@@ -49,6 +51,7 @@ GF_HD double penetration(const ColliderData& c, Vec3 x, Vec3& n) {
       n[i] = -1;
     }
   }
+  n = c.rotation * n;
   return best;
 }
 

@@ -42,7 +42,7 @@ struct Bridge::Entry {
 };
 
 Bridge::Bridge(World& world, btDiscreteDynamicsWorld& dynamics)
-    : m_world(world), m_dynamics(dynamics) {}
+    : m_world(world), m_dynamics(dynamics), m_worldColliders(world.colliders().size()) {}
 
 Bridge::~Bridge() {
   for (const auto& e : m_entries) m_dynamics.removeRigidBody(e->body.get());
@@ -67,12 +67,96 @@ Result<void> Bridge::setPolicy(BodyId body, HandoffPolicy policy, double maxVolu
 }
 
 StepStatus Bridge::step(double dt) {
+  mirrorColliders();
   StepStatus st = m_world.step(dt);
   if (st.has(kStepInvalidInput)) return st;
+  applyContactImpulses();
   handOffNewFragments();
   m_dynamics.stepSimulation(btScalar(dt), 0);
   syncFromDynamics();
   return st;
+}
+
+Result<int32_t> Bridge::addCollider(btRigidBody* body) {
+  if (!body) return fail("Bridge::addCollider: body is null");
+  if (std::find(m_colliders.begin(), m_colliders.end(), body) != m_colliders.end())
+    return fail("Bridge::addCollider: body is already registered");
+  const int type = body->getCollisionShape()->getShapeType();
+  if (type == STATIC_PLANE_PROXYTYPE && !body->isStaticObject())
+    return fail("Bridge::addCollider: a btStaticPlaneShape must belong to a static body");
+  if (type != SPHERE_SHAPE_PROXYTYPE && type != BOX_SHAPE_PROXYTYPE &&
+      type != STATIC_PLANE_PROXYTYPE)
+    return fail("Bridge::addCollider: shape type ", std::to_string(type),
+                " is not supported (btSphereShape, btBoxShape, btStaticPlaneShape)");
+  m_colliders.push_back(body);
+  mirrorColliders();
+  return int32_t(m_worldColliders + m_colliders.size() - 1);
+}
+
+Result<void> Bridge::removeCollider(btRigidBody* body) {
+  const auto it = std::find(m_colliders.begin(), m_colliders.end(), body);
+  if (it == m_colliders.end()) return fail("Bridge::removeCollider: body is not registered");
+  m_colliders.erase(it);
+  if (!m_colliders.empty()) {
+    mirrorColliders();
+  } else {  // mirrorColliders does nothing then: keep only the world's own colliders
+    const std::span<const Collider> current = m_world.colliders();
+    (void)m_world.setColliders(std::vector<Collider>(
+        current.begin(), current.begin() + std::min(current.size(), m_worldColliders)));
+  }
+  return {};
+}
+
+void Bridge::mirrorColliders() {
+  if (m_colliders.empty()) return;
+  const std::span<const Collider> current = m_world.colliders();
+  std::vector<Collider> all(current.begin(),
+                            current.begin() + std::min(current.size(), m_worldColliders));
+  for (const btRigidBody* b : m_colliders) {
+    const btCollisionShape* shape = b->getCollisionShape();
+    const btTransform& T = b->getCenterOfMassTransform();
+    Collider c;
+    c.point = glm::vec3(toGlm(T.getOrigin()));
+    if (!b->isStaticObject()) c.velocity = glm::vec3(toGlm(b->getLinearVelocity()));
+    switch (shape->getShapeType()) {
+      case SPHERE_SHAPE_PROXYTYPE:
+        c.kind = Collider::Kind::Sphere;
+        c.radius = static_cast<const btSphereShape*>(shape)->getRadius();
+        break;
+      case BOX_SHAPE_PROXYTYPE: {
+        c.kind = Collider::Kind::Box;
+        c.halfExtents =
+            glm::vec3(toGlm(static_cast<const btBoxShape*>(shape)->getHalfExtentsWithMargin()));
+        const btQuaternion q = T.getRotation();
+        c.rotation = glm::quat(float(q.w()), float(q.x()), float(q.y()), float(q.z()));
+        break;
+      }
+      default: {  // STATIC_PLANE_PROXYTYPE (addCollider admits nothing else)
+        const auto* plane = static_cast<const btStaticPlaneShape*>(shape);
+        const btVector3 n = T.getBasis() * plane->getPlaneNormal();
+        c.kind = Collider::Kind::Plane;
+        c.normal = glm::vec3(toGlm(n));
+        c.point = glm::vec3(toGlm(T * (plane->getPlaneNormal() * plane->getPlaneConstant())));
+      }
+    }
+    all.push_back(c);
+  }
+  // Cannot fail: Bullet's shapes and poses are valid colliders.
+  (void)m_world.setColliders(all);
+}
+
+void Bridge::applyContactImpulses() {
+  const std::span<const glm::dvec3> J = m_world.colliderImpulses();
+  const std::span<const glm::dvec3> L = m_world.colliderAngularImpulses();
+  for (size_t i = 0; i < m_colliders.size(); ++i) {
+    btRigidBody* b = m_colliders[i];
+    const size_t c = m_worldColliders + i;
+    if (c >= J.size() || b->isStaticOrKinematicObject()) continue;
+    if (J[c] == glm::dvec3(0) && L[c] == glm::dvec3(0)) continue;
+    b->activate(true);
+    b->applyCentralImpulse(toBt(-J[c]));
+    b->applyTorqueImpulse(toBt(-L[c]));
+  }
 }
 
 int Bridge::handOffNewFragments() {

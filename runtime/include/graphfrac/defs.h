@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <glm/gtc/quaternion.hpp>
 #include <glm/vec3.hpp>
 #include <vector>
 
@@ -161,17 +162,22 @@ struct BodyDef {
   std::vector<glm::vec3> fibreField;
 };
 
-/// A static obstacle; contact is a one-sided penalty whose energy enters the implicit step.
+/// An obstacle; contact is a one-sided penalty whose energy enters the implicit step. A
+/// collider with a velocity moves: each substep sees it at its end-of-substep pose (so it
+/// pushes), and the world advances `point` by velocity * dt per step until the game replaces
+/// it (World::setColliders). It is kinematic: World::colliderImpulses reports what it gave.
 struct Collider {
   enum class Kind : uint8_t { Plane, Box, Sphere };
   Kind kind = Kind::Plane;
   glm::vec3 point{0, 0, 0};                 ///< Plane: a point on it; Box/Sphere: centre.
   glm::vec3 normal{0, 1, 0};                ///< Plane: outward normal.
-  glm::vec3 halfExtents{0.5f, 0.5f, 0.5f};  ///< Box (axis aligned).
+  glm::vec3 halfExtents{0.5f, 0.5f, 0.5f};  ///< Box, along its own axes.
   float radius = 0.5f;                      ///< Sphere.
   /// Penalty stiffness [N/m per node-mass kg]; 0 picks one from the time step so that a
   /// node is pushed out within about one step.
   double stiffness = 0;
+  glm::vec3 velocity{0, 0, 0};     ///< Translation velocity [m/s] (no spin).
+  glm::quat rotation{1, 0, 0, 0};  ///< Box: box-to-world rotation (unit, or normalised).
 };
 
 /// Which backend runs the bodies.

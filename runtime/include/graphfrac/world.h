@@ -190,6 +190,24 @@ class World {
   /// stay zero or non-zero as at creation). A new density changes the lumped masses.
   Result<void> setMaterial(BodyId id, const Material& material);
 
+  /// Replaces every collider (WorldDef::colliders included), e.g. with the game's rigid bodies
+  /// at their current pose and velocity before each step (integration/bullet does this). The
+  /// world treats them as kinematic: they push the bodies and report what they gave
+  /// (colliderImpulses); the game applies the opposite to its rigid bodies.
+  Result<void> setColliders(std::span<const Collider> colliders);
+  /// The colliders now; a moving one's point has advanced by velocity * dt every step.
+  std::span<const Collider> colliders() const;
+  /// Per collider, the impulse [N s] its contact penalty gave the bodies' free nodes during the
+  /// last step, summed over nodes and substeps: h times the contact force that entered the
+  /// implicit step's momentum balance (the last Newton step's linearisation of the penalty,
+  /// taken to the accepted end-of-substep positions; the force at those positions when the
+  /// contact set did not change). A free body's momentum change is this plus its external
+  /// impulses, to the linear solver's tolerance.
+  std::span<const glm::dvec3> colliderImpulses() const;
+  /// Per collider, the moment [N m s] of those impulses about the collider's point (its centre
+  /// for a box or sphere) at the end of each substep.
+  std::span<const glm::dvec3> colliderAngularImpulses() const;
+
   /// Copies the whole world state for rollback and replays (O(state), no solver work).
   WorldSnapshot snapshot() const;
   /// Puts the world back into a snapshot's state: the steps that follow repeat bit for bit.

@@ -381,6 +381,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
       }
       rep.elementsMs += msSince(t0);
     }
+    if (ctx.colliderImpulse) m_xLin = m_x;
     for (size_t i = 0; i < n3; ++i) m_x[i] += alpha * m_dx[i];
     const double relStep = firstStepNorm > 0 ? alpha * stepNorm / firstStepNorm : 0.0;
     if (fullNewton) {
@@ -404,6 +405,27 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     state.x = m_xStart;
     state.v = m_vStart;
     rep.flags |= kStepNanContained;
+  } else if (ctx.colliderImpulse) {
+    // The last Newton step solved the linearisation at m_xLin, so the contact force that
+    // entered the momentum balance is the linearised one, g + H (x - x_lin) (equal to the
+    // force at x when the contact set and normals did not change). Serial, in node order: the
+    // same sums for any thread count.
+    for (int32_t n = 0; n < model.nodeCount; ++n) {
+      if (model.fixedNode[n]) continue;  // prescribed nodes take no part in the balance
+      const Vec3 xi = load3(m_x.data(), n), xl = load3(m_xLin.data(), n);
+      for (int c = 0; c < ctx.colliderCount; ++c) {
+        Vec3 g;
+        Mat3 h;
+        if (nodeContact(ctx.colliders[c], xl, model.nodeMass[n], g, h) == 0) continue;
+        const Vec3 j = -dt * (g + h * (xi - xl));
+        const Vec3 moment = cross(xi - ctx.colliders[c].point, j);
+        double* out = ctx.colliderImpulse + 6 * c;
+        for (int i = 0; i < 3; ++i) {
+          out[i] += j[i];
+          out[3 + i] += moment[i];
+        }
+      }
+    }
   }
   return rep;
 }

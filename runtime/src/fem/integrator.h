@@ -34,6 +34,10 @@ struct StepContext {
   Vec3 gravity;
   const ColliderData* colliders = nullptr;
   int colliderCount = 0;
+  /// Null, or 6 per collider that the step adds to: the impulse its penalty gave the free
+  /// nodes (dt times the contact force of the last Newton step's linearisation at the accepted
+  /// positions), then that impulse's moment about the collider's point.
+  double* colliderImpulse = nullptr;
 };
 
 /// What a body step reports.
@@ -111,6 +115,7 @@ class Integrator {
   std::vector<uint8_t> m_contactSeen;  // contact was in the last linearisation
   BlockSparseMatrix m_dampK;           // K(x_n) for Rayleigh r2, only when r2 > 0
   bool m_dampKValid = false;           // m_dampK belongs to the current step
+  std::vector<double> m_xLin;          // the last linearisation point, for collider impulses
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
   FractureBody* m_fracture = nullptr;
   double* m_stressOut = nullptr;  // 6 per tet: the element pass also writes Biot stresses

@@ -72,6 +72,24 @@ bool finiteMat(const glm::mat4& m) {
   return true;
 }
 
+// Kernel form of a collider; the stiffness is filled in per step (Impl::context).
+ColliderData toData(const Collider& c) {
+  ColliderData d;
+  d.kind = static_cast<int>(c.kind);
+  d.point = {c.point.x, c.point.y, c.point.z};
+  Vec3 n{c.normal.x, c.normal.y, c.normal.z};
+  const double len = norm(n);
+  d.normal = len > 0 ? (1.0 / len) * n : Vec3{0, 1, 0};
+  d.halfExtents = {c.halfExtents.x, c.halfExtents.y, c.halfExtents.z};
+  d.radius = c.radius;
+  const glm::dquat q(c.rotation);
+  const double ql = glm::length(q);
+  const glm::dmat3 R = glm::mat3_cast(ql > 0 ? q / ql : glm::dquat(1, 0, 0, 0));
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) d.rotation(i, j) = R[j][i];  // glm is column-major
+  return d;
+}
+
 struct Slot {
   uint32_t generation = 1;
   std::unique_ptr<BodyRecord> body;  // null when free
@@ -82,7 +100,9 @@ struct World::Impl {
   WorldDef def;
   JobSystem* jobs = nullptr;
   std::vector<Slot> slots;
-  std::vector<ColliderData> colliders;
+  std::vector<ColliderData> colliders;  // at their current pose (def.colliders: as given)
+  std::vector<double> colliderImpulse;  // 6 per collider, see StepContext::colliderImpulse
+  std::vector<glm::dvec3> impulses, angularImpulses;  // of the last step
   StepTimings timings;
   std::vector<FractureEvent> fractureEvents;
   std::vector<FragmentEvent> fragmentEvents;
@@ -206,18 +226,9 @@ World::World(const WorldDef& def) : m_impl(std::make_unique<Impl>()) {
     w.pendingWarning = "WorldDef.gravity: not finite; using zero gravity";
     w.def.gravity = glm::vec3(0);
   }
-  for (size_t i = 0; i < w.def.colliders.size(); ++i) {
-    const Collider& c = w.def.colliders[i];
-    ColliderData d;
-    d.kind = static_cast<int>(c.kind);
-    d.point = {c.point.x, c.point.y, c.point.z};
-    Vec3 n{c.normal.x, c.normal.y, c.normal.z};
-    const double len = norm(n);
-    d.normal = len > 0 ? (1.0 / len) * n : Vec3{0, 1, 0};
-    d.halfExtents = {c.halfExtents.x, c.halfExtents.y, c.halfExtents.z};
-    d.radius = c.radius;
-    w.colliders.push_back(d);
-  }
+  for (const Collider& c : w.def.colliders) w.colliders.push_back(toData(c));
+  w.impulses.assign(w.colliders.size(), glm::dvec3(0));
+  w.angularImpulses = w.impulses;
 }
 
 World::~World() = default;
@@ -371,8 +382,18 @@ StepStatus World::step(double dt) {
   w.handoffEvents.clear();
   const double h = dt / w.def.substeps;
   w.lastSubstep = h;
-  const detail::StepContext ctx = w.context(h);
+  detail::StepContext ctx = w.context(h);
+  // Moving colliders: each substep sees them at its end pose; the sums of their impulses are
+  // over bodies and substeps.
+  std::vector<Vec3> colliderStart(w.colliders.size());
+  for (size_t c = 0; c < w.colliders.size(); ++c) colliderStart[c] = w.colliders[c].point;
+  w.colliderImpulse.assign(6 * w.colliders.size(), 0.0);
+  ctx.colliderImpulse = w.colliders.empty() ? nullptr : w.colliderImpulse.data();
   for (int sub = 0; sub < w.def.substeps; ++sub) {
+    for (size_t c = 0; c < w.colliders.size(); ++c) {
+      const glm::vec3 v = w.def.colliders[c].velocity;
+      w.colliders[c].point = colliderStart[c] + ((sub + 1) * h) * Vec3{v.x, v.y, v.z};
+    }
     for (size_t si = 0; si < w.slots.size(); ++si) {
       BodyRecord* b = w.slots[si].body.get();
       if (!b) continue;
@@ -393,6 +414,13 @@ StepStatus World::step(double dt) {
         w.timings.fractureMs += ms(tp);
       }
     }
+  }
+  for (size_t c = 0; c < w.colliders.size(); ++c) {
+    const double* j = &w.colliderImpulse[6 * c];
+    w.impulses[c] = {j[0], j[1], j[2]};
+    w.angularImpulses[c] = {j[3], j[4], j[5]};
+    const Vec3 p = w.colliders[c].point;
+    w.def.colliders[c].point = glm::vec3(float(p.x), float(p.y), float(p.z));
   }
   // Events sorted by body, then edge / fragment (ARCHITECTURE.md: determinism).
   std::stable_sort(w.fractureEvents.begin(), w.fractureEvents.end(),
@@ -755,6 +783,9 @@ struct BodySnapshot {
 
 struct WorldSnapshot::Data {
   double time = 0, lastSubstep = 0;
+  std::vector<Collider> colliderDefs;  // moving colliders are state too
+  std::vector<ColliderData> colliders;
+  std::vector<glm::dvec3> impulses, angularImpulses;
   std::vector<BodySnapshot> bodies;  // live bodies in slot order
   std::vector<FractureEvent> fractureEvents;
   std::vector<FragmentEvent> fragmentEvents;
@@ -767,6 +798,10 @@ WorldSnapshot World::snapshot() const {
   auto d = std::make_shared<WorldSnapshot::Data>();
   d->time = w.time;
   d->lastSubstep = w.lastSubstep;
+  d->colliderDefs = w.def.colliders;
+  d->colliders = w.colliders;
+  d->impulses = w.impulses;
+  d->angularImpulses = w.angularImpulses;
   d->fractureEvents = w.fractureEvents;
   d->fragmentEvents = w.fragmentEvents;
   for (size_t si = 0; si < w.slots.size(); ++si) {
@@ -841,6 +876,10 @@ Result<void> World::restore(const WorldSnapshot& snapshot) {
   }
   w.time = d.time;
   w.lastSubstep = d.lastSubstep;
+  w.def.colliders = d.colliderDefs;
+  w.colliders = d.colliders;
+  w.impulses = d.impulses;
+  w.angularImpulses = d.angularImpulses;
   w.fractureEvents = d.fractureEvents;
   w.fragmentEvents = d.fragmentEvents;
   return {};
@@ -1008,5 +1047,47 @@ Result<void> World::setFragmentTransform(BodyId id, int32_t fragment, glm::dvec3
 }
 
 std::span<const HandoffEvent> World::handoffEvents() const { return m_impl->handoffEvents; }
+
+// ---- Colliders the game moves between steps (issue 5 item 3: two-way rigid contact) ----
+
+Result<void> World::setColliders(std::span<const Collider> colliders) {
+  if (std::string e = m_impl->busy("setColliders"); !e.empty()) return fail(e);
+  for (size_t i = 0; i < colliders.size(); ++i) {
+    const Collider& c = colliders[i];
+    const std::string which = "setColliders: colliders[" + std::to_string(i) + "].";
+    if (c.kind != Collider::Kind::Plane && c.kind != Collider::Kind::Box &&
+        c.kind != Collider::Kind::Sphere)
+      return fail(which, "kind: ", std::to_string(int(c.kind)), " is not a Collider::Kind");
+    if (!finite3(c.point)) return fail(which, "point: not finite");
+    if (!finite3(c.velocity)) return fail(which, "velocity: not finite");
+    if (!(std::isfinite(c.stiffness) && c.stiffness >= 0))
+      return fail(which, "stiffness: must be >= 0 and finite (0 picks one)");
+    if (c.kind == Collider::Kind::Plane && !(finite3(c.normal) && glm::length(c.normal) > 0))
+      return fail(which, "normal: must be finite and non-zero");
+    if (c.kind == Collider::Kind::Box) {
+      if (!(finite3(c.halfExtents) && c.halfExtents.x > 0 && c.halfExtents.y > 0 &&
+            c.halfExtents.z > 0))
+        return fail(which, "halfExtents: must be positive and finite");
+      const glm::vec4 q(c.rotation.x, c.rotation.y, c.rotation.z, c.rotation.w);
+      if (!(std::isfinite(glm::length(q)) && glm::length(q) > 0))
+        return fail(which, "rotation: must be a finite non-zero quaternion");
+    }
+    if (c.kind == Collider::Kind::Sphere && !(std::isfinite(c.radius) && c.radius > 0))
+      return fail(which, "radius: must be positive and finite");
+  }
+  Impl& w = *m_impl;
+  w.def.colliders.assign(colliders.begin(), colliders.end());
+  w.colliders.clear();
+  for (const Collider& c : colliders) w.colliders.push_back(toData(c));
+  w.impulses.assign(w.colliders.size(), glm::dvec3(0));
+  w.angularImpulses = w.impulses;
+  return {};
+}
+
+std::span<const Collider> World::colliders() const { return m_impl->def.colliders; }
+std::span<const glm::dvec3> World::colliderImpulses() const { return m_impl->impulses; }
+std::span<const glm::dvec3> World::colliderAngularImpulses() const {
+  return m_impl->angularImpulses;
+}
 
 }  // namespace gf

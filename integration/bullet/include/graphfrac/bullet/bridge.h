@@ -6,8 +6,19 @@
 // over. After each Bullet step it moves the fragments' nodes with their rigid bodies
 // (World::setFragmentTransform), so their render surface keeps streaming.
 //
-// Not in this slice: contact between Bullet bodies and the deformable (FEM) bodies; a handed-
-// off fragment collides only with Bullet objects, and a Bullet ball passes through FEM bodies.
+// Two-way contact: Bullet bodies registered with addCollider (spheres, boxes, static planes)
+// are mirrored as World colliders before every FEM step, at their pose and with their linear
+// velocity, and after the step each dynamic one takes the opposite of the impulse and of its
+// moment that its collider gave the FEM nodes (World::colliderImpulses): equal and opposite.
+// The coupling is staggered: during the FEM step the rigid body moves at its old velocity (a
+// kinematic obstacle), the reaction enters Bullet's step that follows. Momentum is exchanged
+// exactly, but a rigid body much lighter than the FEM nodes it touches in one step gets a
+// velocity change far above its own and may bounce too hard (a body resting on a few nodes
+// is stable when its mass exceeds roughly 100 dt^2 k times theirs, k the collider stiffness per
+// unit node mass; the default makes that 100 times). Contact acts on FEM nodes only: a body
+// that moves more than about half the FEM body's thickness or node spacing per step can pass
+// between nodes (no continuous detection). Friction and the collider's spin during the step
+// are not modelled. A handed-off fragment collides only with Bullet objects.
 // Concave fragments get the hull of their nodes (no convex decomposition yet).
 //
 // Bullet is used in single precision (integration/CMakeLists.txt says why).
@@ -52,9 +63,25 @@ class Bridge {
   /// stale id, a body without fracture or a bad volume.
   Result<void> setPolicy(BodyId body, HandoffPolicy policy, double maxVolume = 0);
 
-  /// One frame: World::step(dt), handOffNewFragments(), a Bullet step of exactly dt
-  /// (stepSimulation(dt, 0): no interpolation, the game's loop fixes dt), syncFromDynamics().
+  /// One frame: mirrorColliders(), World::step(dt), applyContactImpulses(),
+  /// handOffNewFragments(), a Bullet step of exactly dt (stepSimulation(dt, 0): no
+  /// interpolation, the game's loop fixes dt), syncFromDynamics().
   StepStatus step(double dt);
+
+  /// Registers a Bullet body that touches the deformable bodies: a btSphereShape, a btBoxShape
+  /// (any orientation) or, for a static body only, a btStaticPlaneShape. Returns its index in
+  /// World::colliders() (after the colliders the world had when the bridge was made, which keep
+  /// theirs). The body outlives its registration; error for null, another shape, a dynamic
+  /// plane or a body registered twice. Do not call World::setColliders while any is registered.
+  Result<int32_t> addCollider(btRigidBody* body);
+  /// Unregisters a body (before the game deletes it); the ones registered after it move down
+  /// one index. Error for a body not registered.
+  Result<void> removeCollider(btRigidBody* body);
+  /// Before World::step: the registered bodies as colliders at their current pose and velocity.
+  void mirrorColliders();
+  /// After World::step: each dynamic registered body takes minus its collider's impulse and
+  /// moment (static and kinematic bodies take nothing).
+  void applyContactImpulses();
   /// After World::step: detaches what the policies pick among the fragments of bodies whose
   /// fragment count changed, and creates their rigid bodies. Returns how many.
   int handOffNewFragments();
@@ -79,7 +106,9 @@ class Bridge {
   };
   World& m_world;
   btDiscreteDynamicsWorld& m_dynamics;
-  std::vector<Policy> m_policies;  // sorted by body index: deterministic hand-off order
+  size_t m_worldColliders = 0;            // the world's own colliders, first in its list
+  std::vector<btRigidBody*> m_colliders;  // registered with addCollider, in that order
+  std::vector<Policy> m_policies;         // sorted by body index: deterministic hand-off order
   std::vector<std::unique_ptr<Entry>> m_entries;
   std::vector<RigidFragment> m_fragments;  // parallel to m_entries
 };
