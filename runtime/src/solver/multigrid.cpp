@@ -173,7 +173,7 @@ struct MultigridSolver::Impl {
 #if GF_HAVE_CHOLMOD
   Eigen::CholmodSupernodalLLT<SpMat, Eigen::Lower> coarseLlt;
 #else
-  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> coarseLlt;
+  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int> > coarseLlt;
 #endif
   bool coarseOk = false;
 
