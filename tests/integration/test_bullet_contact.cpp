@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "common/bullet_world.h"
 #include "common/sim_helpers.h"
 #include "kernels/contact.h"
 
@@ -19,15 +20,7 @@ namespace {
 
 glm::dvec3 toGlm(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
 
-struct Dynamics {
-  btDefaultCollisionConfiguration config;
-  btCollisionDispatcher dispatcher{&config};
-  btDbvtBroadphase broadphase;
-  btSequentialImpulseConstraintSolver solver;
-  btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
-};
-
-// A Bullet ball; declared after Dynamics, it leaves the world before the world goes.
+// A Bullet ball; declared after the BulletWorld, it leaves the world before the world goes.
 struct Ball {
   btSphereShape shape;
   std::unique_ptr<btRigidBody> body;
@@ -138,8 +131,7 @@ class BallThrownAtFreeBlock : public ::testing::TestWithParam<LinearSolverKind> 
 TEST_P(BallThrownAtFreeBlock, ConservesMomentum) {
   World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
   const BodyId block = world.createBody(softBlock(300, GetParam())).value();  // 2.4 kg
-  Dynamics dyn;
-  dyn.world.setGravity(btVector3(0, 0, 0));
+  test::BulletWorld dyn(btVector3(0, 0, 0), /*withFloor=*/false);
   const float mass = 1.0f, v0 = 3.0f;
   Ball ball(dyn.world, 0.05f, mass, btVector3(-0.1f, 0.1f, 0.1f), btVector3(v0, 0, 0));
   bullet::Bridge bridge(world, dyn.world);
@@ -184,8 +176,7 @@ INSTANTIATE_TEST_SUITE_P(BulletContact, BallThrownAtFreeBlock,
 TEST(BulletContact, TurnedBoxThrownAtFreeBlockConservesMomenta) {
   World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
   const BodyId block = world.createBody(softBlock(300)).value();
-  Dynamics dyn;
-  dyn.world.setGravity(btVector3(0, 0, 0));
+  test::BulletWorld dyn(btVector3(0, 0, 0), /*withFloor=*/false);
   btBoxShape shape(btVector3(0.05f, 0.05f, 0.05f));
   const float mass = 2;
   btVector3 inertia;
@@ -233,8 +224,7 @@ TEST(BulletContact, BallDroppedOnBlockRestingOnBulletFloorStops) {
   BodyDef def = softBlock(300);
   def.material.massDamping = 2;
   const BodyId block = world.createBody(def).value();
-  Dynamics dyn;
-  dyn.world.setGravity(btVector3(0, -float(g), 0));
+  test::BulletWorld dyn(btVector3(0, -float(g), 0), /*withFloor=*/false);
   btStaticPlaneShape floorShape(btVector3(0, 1, 0), 0);
   btRigidBody floor(0, nullptr, &floorShape);
   dyn.world.addRigidBody(&floor);

@@ -9,27 +9,11 @@
 #include <glm/gtc/quaternion.hpp>
 #include <memory>
 
+#include "common/bullet_world.h"
 #include "common/sim_helpers.h"
 
 namespace gf {
 namespace {
-
-// A Bullet world with its collaborators, torn down in the right order.
-struct Dynamics {
-  btDefaultCollisionConfiguration config;
-  btCollisionDispatcher dispatcher{&config};
-  btDbvtBroadphase broadphase;
-  btSequentialImpulseConstraintSolver solver;
-  btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
-  btStaticPlaneShape floorShape{btVector3(0, 1, 0), 0};
-  std::unique_ptr<btRigidBody> floor;
-  explicit Dynamics(btVector3 gravity) {
-    world.setGravity(gravity);
-    floor = std::make_unique<btRigidBody>(0, nullptr, &floorShape);
-    world.addRigidBody(floor.get());
-  }
-  ~Dynamics() { world.removeRigidBody(floor.get()); }
-};
 
 BodyDef breakableBox(double sx, double sy, double sz, int nx, int ny, int nz) {
   BodyDef def;
@@ -86,7 +70,7 @@ TEST(BulletHandoff, ConservesMomentumAndAngularMomentum) {
   ASSERT_TRUE(world.setVelocities(id, v).ok());
   const BodyStats before = world.stats(id);
 
-  Dynamics dyn(btVector3(0, 0, 0));
+  test::BulletWorld dyn(btVector3(0, 0, 0));
   bullet::Bridge bridge(world, dyn.world);
   Result<btRigidBody*> rb = bridge.handOff(id, 0);
   ASSERT_TRUE(rb.ok()) << rb.error().message;
@@ -162,7 +146,7 @@ TEST(BulletHandoff, BoxMassAndInertiaMatchAnalytic) {
   EXPECT_LT(err2, 1e-6 * Ibox[2][2]);  // 1e-4 s of gravity-free motion: nearly rigid
 
   // Bullet gets the principal moments of the box.
-  Dynamics dyn(btVector3(0, 0, 0));
+  test::BulletWorld dyn(btVector3(0, 0, 0));
   bullet::Bridge bridge(world, dyn.world);
   btRigidBody* rb = bridge.handOff(id, 0).value();
   const btVector3 inv = rb->getInvInertiaDiagLocal();
@@ -182,7 +166,7 @@ TEST(BulletHandoff, FragmentsFallOntoBulletFloorAndSurfaceFollows) {
   const BodyId id = world.createBody(def).value();
   const SurfaceView s0 = world.surface(id);
   ASSERT_FALSE(s0.positions.empty());
-  Dynamics dyn(btVector3(0, -9.81f, 0));
+  test::BulletWorld dyn(btVector3(0, -9.81f, 0));
   bullet::Bridge bridge(world, dyn.world);
   ASSERT_TRUE(bridge.setPolicy(id, bullet::HandoffPolicy::EveryFragment).ok());
   ASSERT_TRUE(world.cut(id, planeBlade(0.125)).ok());
@@ -249,7 +233,7 @@ TEST(BulletHandoff, BadApiUseReturnsErrorsAndChangesNothing) {
   EXPECT_FALSE(free.setFragmentTransform(fid, 0, glm::dvec3(0), q, glm::dvec3(0, nan, 0), {}).ok());
   EXPECT_FALSE(free.setFragmentTransform(fid, 1, glm::dvec3(0), q, {}, {}).ok());
   EXPECT_EQ(free.stateHash(), h2);
-  Dynamics dyn(btVector3(0, 0, 0));
+  test::BulletWorld dyn(btVector3(0, 0, 0));
   bullet::Bridge bridge(free, dyn.world);
   EXPECT_FALSE(bridge.handOff(fid, 0).ok());  // detached by the world already
   EXPECT_FALSE(bridge.setPolicy(fid, bullet::HandoffPolicy::BelowVolume, -1).ok());

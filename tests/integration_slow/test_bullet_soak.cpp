@@ -14,27 +14,11 @@
 #include <span>
 #include <vector>
 
+#include "common/bullet_world.h"
 #include "common/sim_helpers.h"
 
 namespace gf {
 namespace {
-
-// A Bullet world with a static floor plane at y = 0.
-struct Dynamics {
-  btDefaultCollisionConfiguration config;
-  btCollisionDispatcher dispatcher{&config};
-  btDbvtBroadphase broadphase;
-  btSequentialImpulseConstraintSolver solver;
-  btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
-  btStaticPlaneShape floorShape{btVector3(0, 1, 0), 0};
-  std::unique_ptr<btRigidBody> floor;
-  Dynamics() {
-    world.setGravity(btVector3(0, -9.81f, 0));
-    floor = std::make_unique<btRigidBody>(0, nullptr, &floorShape);
-    world.addRigidBody(floor.get());
-  }
-  ~Dynamics() { world.removeRigidBody(floor.get()); }
-};
 
 // Floor tolerance: Bullet's default collision margin (CONVEX_DISTANCE_MARGIN, 4 cm). The bridge's
 // hulls carry at most 2 cm of margin outside the nodes, and Bullet lets resting contacts overlap
@@ -85,7 +69,7 @@ TEST(BulletAcceptance, GlassBunnyShattersAndFragmentsRestOnBulletFloor) {
   World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
   const BodyId id = world.createBody(def).value();
   const double bunnyMass = world.stats(id).mass;
-  Dynamics dyn;
+  test::BulletWorld dyn(btVector3(0, -9.81f, 0));
   // Shards leave at up to the ball's 20 m/s; a rough floor (friction 2 x Bullet's default 0.5
   // of the hulls: 1 combined) stops them within the 3 s instead of letting them skate away.
   dyn.floor->setFriction(2);
@@ -196,7 +180,7 @@ TEST(BulletAcceptance, SoakCuttingAndHandoffKeepsMemoryFlat) {
   const double barMass = rho * length * side * side;
 
   World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
-  Dynamics dyn;
+  test::BulletWorld dyn(btVector3(0, -9.81f, 0));
   bullet::Bridge bridge(world, dyn.world);
   ASSERT_TRUE(bridge.addCollider(dyn.floor.get()).ok());
   BodyId bar{};
