@@ -1,0 +1,104 @@
+// The demo's off-screen renderer: draws surface streams (World::surface, SurfaceView) and
+// rigid shapes into an image, through Vulkan (any device the loader finds: a GPU, or Mesa's
+// lavapipe on the CPU) or an OpenGL context from EGL when no Vulkan device exists. No window,
+// no display. Both back ends draw the same scene with the same shading so a golden image holds
+// for either within a small tolerance.
+#pragma once
+
+#include <graphfrac/status.h>
+
+#include <cstdint>
+#include <glm/mat4x4.hpp>
+#include <glm/vec3.hpp>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace gf::demo {
+
+/// An 8-bit RGBA image, rows top to bottom.
+struct Image {
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgba;  ///< 4 * width * height bytes
+};
+
+enum class RendererKind { Auto, Vulkan, Gl };
+
+struct RendererOptions {
+  RendererKind kind = RendererKind::Auto;  ///< Auto: Vulkan if a device exists, else GL (EGL)
+  int width = 640, height = 360;
+  int samples = 4;          ///< MSAA samples (clamped to what the device supports)
+  bool validation = false;  ///< Vulkan: enable VK_LAYER_KHRONOS_validation (error if missing)
+};
+
+struct Camera {
+  glm::vec3 eye{1.5f, 1.0f, 1.5f};
+  glm::vec3 target{0.0f, 0.2f, 0.0f};
+  glm::vec3 up{0.0f, 1.0f, 0.0f};
+  float fovYDegrees = 45.0f;
+  float nearPlane = 0.01f, farPlane = 50.0f;
+};
+
+/// One mesh this frame. Mesh i of a frame keeps its GPU buffers in slot i across frames: the
+/// renderer re-uploads vertices and indices when topologyVersion (or the size) changes, and
+/// otherwise only the vertices in [dirtyBegin, dirtyEnd). The spans are read during render()
+/// only.
+struct MeshFrame {
+  std::span<const float> positions;    ///< 3 per vertex, in model space
+  std::span<const float> normals;      ///< 3 per vertex, unit
+  std::span<const uint32_t> indices;   ///< 3 per triangle, counter-clockwise from outside
+  std::span<const uint8_t> crackMask;  ///< per triangle, 1 = crack face; empty = none
+  std::span<const float> scalar;       ///< per vertex in [0, 1] for the colour map; empty = off
+  uint64_t topologyVersion = 0;
+  uint32_t dirtyBegin = 0, dirtyEnd = 0;
+  glm::mat4 model{1.0f};                      ///< model to world
+  glm::vec3 colour{0.8f, 0.8f, 0.8f};         ///< linear RGB of the original surface
+  glm::vec3 crackColour{0.95f, 0.55f, 0.3f};  ///< linear RGB of crack faces
+};
+
+/// What one render() cost.
+struct FrameStats {
+  uint64_t uploadedBytes = 0;  ///< bytes copied to the device this frame (vertices + indices)
+  uint64_t surfaceBytes = 0;   ///< bytes a full re-upload of every mesh would have copied
+  double renderMs = 0;         ///< upload + draw + readback, wall clock
+};
+
+class Renderer {
+ public:
+  virtual ~Renderer() = default;
+  /// Back end and device, e.g. "Vulkan, llvmpipe (LLVM 15.0.6, 256 bits), CPU".
+  virtual const std::string& description() const = 0;
+  /// Draws the meshes over a ground-free sky-coloured background, lit by a fixed directional
+  /// light plus ambient, and reads the resolved image back into `out` (resized to fit).
+  virtual Result<FrameStats> render(std::span<const MeshFrame> meshes, const Camera& camera,
+                                    Image& out) = 0;
+  /// Errors and warnings the Vulkan validation layers reported so far (RendererOptions::
+  /// validation); always empty for GL.
+  virtual std::vector<std::string> validationMessages() const { return {}; }
+};
+
+/// Creates the renderer `options.kind` asks for; Auto tries Vulkan, then GL through EGL. The
+/// error names what was tried and why each failed.
+Result<std::unique_ptr<Renderer>> createRenderer(const RendererOptions& options);
+
+// Back ends (each compiled only when its dependency was found; otherwise these return an error
+// saying it was not built).
+Result<std::unique_ptr<Renderer>> createVulkanRenderer(const RendererOptions& options);
+Result<std::unique_ptr<Renderer>> createGlRenderer(const RendererOptions& options);
+
+/// Writes an RGBA image as PNG; the error names the path and the reason.
+Result<void> writePng(const std::string& path, const Image& image);
+/// Reads a PNG (any colour type, converted to 8-bit RGBA).
+Result<Image> readPng(const std::string& path);
+
+/// How two images of the same size differ.
+struct ImageDiff {
+  double meanAbs = 0;       ///< mean absolute difference per channel, in 0..255
+  int maxAbs = 0;           ///< largest per-channel difference
+  double fractionOver = 0;  ///< fraction of pixels with some channel differing by > threshold
+};
+/// Compares RGB channels; error when the sizes differ.
+Result<ImageDiff> compareImages(const Image& a, const Image& b, int threshold);
+
+}  // namespace gf::demo
