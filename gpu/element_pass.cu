@@ -1,8 +1,7 @@
 // CUDA launcher for the per-element pass: one thread per tet runs the same GF_HD kernel as the
 // CPU loop in runtime/src/fem/integrator.cpp (energy, gradient and PSD Hessian, SPEC §1).
-// Built whenever the CUDA toolkit is found, so CI proves the kernels compile for the device;
-// tests/gpu checks it against the CPU kernel on a GPU machine;
-// the World uses it once the CUDA backend lands (issue 4).
+// Built whenever the CUDA toolkit is found, so CI proves the kernels compile for the device, and
+// tests/gpu checks it against the CPU kernel on a GPU machine. The World does not use it yet.
 #include <cuda_runtime.h>
 
 #include "gpu/element_pass.h"
