@@ -24,9 +24,13 @@ struct FemModel {
   MaterialCoeffs coeffs;
   Material material;
   SolverSettings solver;
-  std::vector<uint8_t> fixedNode;     ///< 1 where a grip prescribes the velocity
-  std::vector<double> gripVelocity;   ///< 3 per node (zero where not fixed)
-  bool movingGrips = false;           ///< some grip has a non-zero velocity
+  std::vector<uint8_t> fixedNode;    ///< 1 where a grip prescribes the velocity
+  std::vector<double> gripVelocity;  ///< 3 per node (zero where not fixed)
+  bool movingGrips = false;          ///< some grip has a non-zero velocity
+  /// Per tet, 1 when its nodes all lie in fragments handed to rigid physics: it moves rigidly
+  /// from its rest shape (World::setFragmentTransform), so it has no strain, energy or stress
+  /// and the element pass skips it. Empty until a fragment is detached.
+  std::vector<uint8_t> rigidTet;
   std::vector<double> externalForce;  ///< 3 per node, constant point forces
   FractureSettings fracture;
   PlasticitySettings plasticity;

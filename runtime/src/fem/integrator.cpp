@@ -1,5 +1,6 @@
 #include "fem/integrator.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -114,6 +115,13 @@ double Integrator::elementPass(const FemModel& model, const double* x, bool with
   double* stressOut = m_stressOut;
   jobs.parallelFor(uint32_t(model.tetCount), kElementGrain, [&](uint32_t b, uint32_t e) {
     for (uint32_t t = b; t < e; ++t) {
+      if (!model.rigidTet.empty() && model.rigidTet[t]) {
+        m_elemEnergy[t] = 0;
+        std::fill_n(&m_elemGrad[12 * t], 12, 0.0);
+        if (withHessian) std::fill_n(&m_elemHess[144 * t], 144, 0.0);
+        if (stressOut) std::fill_n(stressOut + 6 * t, 6, 0.0);
+        continue;
+      }
       Vec3 xe[4];
       for (int a = 0; a < 4; ++a) xe[a] = load3(x, model.tets[4 * t + a]);
       Mat12* H = withHessian ? reinterpret_cast<Mat12*>(&m_elemHess[144 * t]) : nullptr;

@@ -55,6 +55,9 @@ struct BodyRecord {
   // detach order. rigidMoved: setFragmentTransform moved nodes since the surface was updated.
   std::vector<std::pair<int32_t, Vec3>> rigid;
   bool rigidMoved = false;
+  // Every node is in a detached fragment: the body only moves rigidly, so a step just advances
+  // the nodes by their prescribed velocities (what the integrator would do, without its cost).
+  bool allRigid = false;
 };
 
 detail::BladePose toPose(const glm::mat4& m) {
@@ -398,6 +401,14 @@ StepStatus World::step(double dt) {
       BodyRecord* b = w.slots[si].body.get();
       if (!b) continue;
       const BodyId id{uint32_t(si + 1), w.slots[si].generation};
+      if (b->allRigid) {
+        // The integrator's own update of prescribed nodes, x += h v, v = grip velocity.
+        for (size_t i = 0; i < b->state.x.size(); ++i) {
+          b->state.x[i] += h * b->model.gripVelocity[i];
+          b->state.v[i] = b->model.gripVelocity[i];
+        }
+        continue;
+      }
       const detail::BodyStepReport r = b->integrator->step(b->model, b->state, ctx, *w.jobs);
       if (b->fracture) w.collectEvents(id, *b);
       w.timings.fractureMs += r.fractureMs;
@@ -954,6 +965,22 @@ RigidFragmentInfo toInfo(const detail::RigidProperties& p) {
   return info;
 }
 
+// Marks the tets whose nodes all lie in detached fragments (FemModel::rigidTet) and whether
+// the whole body is rigid now.
+void markRigidTets(BodyRecord& b) {
+  const std::span<const int32_t> fragmentOf = b.fracture->fragments().nodeFragment();
+  std::vector<uint8_t> rigidNode(fragmentOf.size(), 0);
+  for (size_t n = 0; n < fragmentOf.size(); ++n)
+    rigidNode[n] = detachedCentre(b, fragmentOf[n]) != nullptr;
+  detail::FemModel& m = b.model;
+  m.rigidTet.assign(size_t(m.tetCount), 0);
+  for (int32_t t = 0; t < m.tetCount; ++t)
+    m.rigidTet[size_t(t)] =
+        rigidNode[size_t(m.tets[4 * t])] && rigidNode[size_t(m.tets[4 * t + 1])] &&
+        rigidNode[size_t(m.tets[4 * t + 2])] && rigidNode[size_t(m.tets[4 * t + 3])];
+  b.allRigid = std::all_of(rigidNode.begin(), rigidNode.end(), [](uint8_t r) { return r != 0; });
+}
+
 // Prescribes the rigid velocity field v + w x (x - c) on a detached fragment's nodes (the
 // integrator moves them by it and reports it as their velocity).
 void setRigidVelocities(BodyRecord& b, int32_t fragment, glm::dvec3 v, glm::dvec3 w, glm::dvec3 c) {
@@ -995,6 +1022,7 @@ Result<RigidFragmentInfo> World::detachFragment(BodyId id, int32_t fragment) {
   setRigidVelocities(*b, fragment, info.linearVelocity, info.angularVelocity, info.centreOfMass);
   b->integrator->refreshFixedNodes(b->model);
   b->rigid.emplace_back(fragment, p.restCentre);
+  markRigidTets(*b);
 
   HandoffEvent ev;
   ev.body = id;
