@@ -1,6 +1,6 @@
 # Runs as `cmake -P` from the install.find_package test (see CMakeLists.txt beside it).
 # Inputs: GF_BUILD_DIR GF_WORK_DIR GF_CONSUMER_DIR GF_CONFIG GF_GENERATOR GF_CXX_COMPILER
-#         GF_EXTRA_FLAGS GF_PREFIX_PATH ('|'-separated).
+#         GF_EXTRA_FLAGS GF_PREFIX_PATH ('|'-separated) GF_EXPECT_BULLET (ON/OFF).
 cmake_minimum_required(VERSION 3.25)
 
 set(prefix ${GF_WORK_DIR}/prefix)
@@ -36,6 +36,7 @@ step("configure the consumer"
      -DCMAKE_CXX_COMPILER=${GF_CXX_COMPILER} ${build_type_arg}
      "-DCMAKE_PREFIX_PATH=${prefix_path_arg}"
      "-DCMAKE_CXX_FLAGS=${GF_EXTRA_FLAGS}" "-DCMAKE_EXE_LINKER_FLAGS=${GF_EXTRA_FLAGS}"
+     -DGF_REQUIRE_BULLET=${GF_EXPECT_BULLET}
      # Only the fresh prefix may satisfy find_package(graphfrac), never a copy elsewhere.
      -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF -DCMAKE_FIND_USE_SYSTEM_PACKAGE_REGISTRY=OFF)
 
@@ -58,4 +59,16 @@ execute_process(COMMAND ${consumer_exe} RESULT_VARIABLE rc OUTPUT_VARIABLE out E
 message("${out}")
 if(NOT rc EQUAL 0 OR NOT out MATCHES "graphfrac consumer: ok")
   message(FATAL_ERROR "install test: the consumer failed (exit ${rc})")
+endif()
+
+# The Bullet component, when this build has it.
+if(GF_EXPECT_BULLET)
+  find_program(bullet_exe graphfrac_consumer_bullet PATHS ${consumer_build}
+               ${consumer_build}/${GF_CONFIG} NO_DEFAULT_PATH REQUIRED)
+  message(STATUS "install test: run ${bullet_exe}")
+  execute_process(COMMAND ${bullet_exe} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE out)
+  message("${out}")
+  if(NOT rc EQUAL 0 OR NOT out MATCHES "graphfrac bullet consumer: ok")
+    message(FATAL_ERROR "install test: the Bullet consumer failed (exit ${rc})")
+  endif()
 endif()
