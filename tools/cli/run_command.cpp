@@ -407,6 +407,11 @@ int runCommand(int argc, char** argv) {
         if (st.has(kFlagNames[k].flag)) ++flagCounts[k];
       }
     }
+    // World::surface() updates a surface lazily: bring the written ones up to date before the
+    // row so that its ms_surface column holds this frame's cost.
+    if (opt.surface && frame % opt.surfaceEvery == 0)
+      for (const BodyRecord& b : bodies)
+        if (b.fracture) (void)world.surface(b.id);
     Result<void> r = csv.row(
         {int64_t{frame}, world.time(), t.stats.kineticEnergy, t.stats.elasticEnergy,
          t.stats.gravityEnergy, t.total(), int64_t{st.newtonIterations},

@@ -63,7 +63,7 @@ struct RigidFragmentInfo {
 /// Timing of the last step, per stage [ms].
 struct StepTimings {
   double fractureMs = 0;  ///< Stresses, criterion, fragments (0 without fracture).
-  double surfaceMs = 0;   ///< Render-surface update (0 until a surface is requested).
+  double surfaceMs = 0;   ///< Render-surface updates that surface() did since this step.
   double elementsMs = 0;  ///< Per-element energy, forces and Hessians.
   double assemblyMs = 0;  ///< Gathering element blocks into the sparse matrix.
   double solveMs = 0;     ///< Linear solves.
@@ -156,9 +156,11 @@ class World {
   /// Fragments detached since the last step began, sorted by (body, fragment). Valid until
   /// the next step.
   std::span<const HandoffEvent> handoffEvents() const;
-  /// The render surface of a body, built on the first call and kept up to date by every step
-  /// from then on (a body nobody renders pays nothing). Empty for an invalid id or when called
-  /// while step() runs.
+  /// The render surface of a body, built on the first call and brought up to date by each
+  /// later call after the body moved (a body nobody renders pays nothing, and one rendered once
+  /// per frame pays once per frame, however many steps or substeps the frame took). The dirty
+  /// range covers the vertices moved since the previous call. Empty for an invalid id or when
+  /// called while step() runs.
   SurfaceView surface(BodyId id);
   /// Timings of the last step.
   const StepTimings& timings() const;

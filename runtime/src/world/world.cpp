@@ -52,9 +52,11 @@ struct BodyRecord {
   std::vector<Grip> grips;                         // node lists for setGripVelocity
   std::vector<double> pendingForce;                // applyForce, next step only; empty: none
   // Fragments handed to rigid physics (detachFragment): id and rest centre of mass, in
-  // detach order. rigidMoved: setFragmentTransform moved nodes since the surface was updated.
+  // detach order.
   std::vector<std::pair<int32_t, Vec3>> rigid;
-  bool rigidMoved = false;
+  // A step or setFragmentTransform moved nodes since the render surface was updated; the next
+  // surface() call updates it (once per rendered frame, not once per step or substep).
+  bool surfaceStale = false;
   // Every node is in a detached fragment: the body only moves rigidly, so a step just advances
   // the nodes by their prescribed velocities (what the integrator would do, without its cost).
   bool allRigid = false;
@@ -450,10 +452,8 @@ StepStatus World::step(double dt) {
     s.body->model.externalForce = std::move(constantForces[swapped++]);
     s.body->pendingForce.clear();
   }
-  const auto ts = Clock::now();
   for (Slot& s : w.slots)
-    if (s.body && s.body->surface) w.updateSurface(*s.body);
-  w.timings.surfaceMs = ms(ts);
+    if (s.body && s.body->surface) s.body->surfaceStale = true;
   w.time += dt;
   w.timings.totalMs =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -591,8 +591,13 @@ std::span<const int32_t> World::nodeFragments(BodyId id) const {
 SurfaceView World::surface(BodyId id) {
   BodyRecord* b = m_impl->get(id);
   if (!b || m_impl->stepping.load()) return {};
-  if (b->surface && b->rigidMoved) m_impl->updateSurface(*b);
-  b->rigidMoved = false;
+  if (b->surface && b->surfaceStale) {
+    const auto t0 = std::chrono::steady_clock::now();
+    m_impl->updateSurface(*b);
+    m_impl->timings.surfaceMs +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  }
+  b->surfaceStale = false;
   if (!b->surface) {
     auto r = std::make_unique<SurfaceRecord>();
     r->rest.positions = b->model.restPositions;
@@ -1070,7 +1075,7 @@ Result<void> World::setFragmentTransform(BodyId id, int32_t fragment, glm::dvec3
   }
   setRigidVelocities(*b, fragment, linearVelocity, angularVelocity,
                      R * toGlm(*restCentre) + translation);
-  b->rigidMoved = true;
+  b->surfaceStale = true;
   return {};
 }
 
