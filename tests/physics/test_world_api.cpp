@@ -3,6 +3,7 @@
 #include <graphfrac/jobs.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -267,6 +268,43 @@ TEST(WorldApi, RestoreReplaysFractureBitForBit) {
   ASSERT_TRUE(world.destroyBody(extra).ok());
   EXPECT_TRUE(world.restore(snap).ok());
   EXPECT_FALSE(world.restore(WorldSnapshot{}).ok());
+}
+
+// surface() updates lazily: asked for every 5th step only, the surface of a fracturing bar
+// must be the one a renderer asking every step sees (same triangles, same vertex positions),
+// and its dirty range must cover every vertex that moved since the previous call.
+TEST(WorldApi, SurfaceAskedForRarelyMatchesSurfaceAskedForEveryStep) {
+  World every(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
+  World rarely(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
+  const BodyId a = every.createBody(fracturingBar()).value();
+  const BodyId b = rarely.createBody(fracturingBar()).value();
+  (void)every.surface(a);
+  std::vector<float> last(rarely.surface(b).positions.begin(), rarely.surface(b).positions.end());
+  int checks = 0;
+  for (int s = 1; s <= 60; ++s) {
+    (void)every.step(0.01);
+    (void)rarely.step(0.01);
+    const SurfaceView va = every.surface(a);
+    if (s % 5 != 0) continue;
+    const SurfaceView vb = rarely.surface(b);
+    ASSERT_EQ(va.indices.size(), vb.indices.size()) << "step " << s;
+    EXPECT_TRUE(std::equal(va.indices.begin(), va.indices.end(), vb.indices.begin()));
+    EXPECT_TRUE(std::equal(va.crackMask.begin(), va.crackMask.end(), vb.crackMask.begin()));
+    ASSERT_EQ(va.positions.size(), vb.positions.size());
+    EXPECT_EQ(0, std::memcmp(va.positions.data(), vb.positions.data(),
+                             va.positions.size() * sizeof(float)));
+    // Every vertex outside the dirty range is where the previous call left it.
+    if (last.size() == vb.positions.size())
+      for (size_t i = 0; i < last.size(); ++i) {
+        if (i / 3 < vb.dirtyBegin || i / 3 >= vb.dirtyEnd) {
+          EXPECT_EQ(last[i], vb.positions[i]);
+        }
+      }
+    last.assign(vb.positions.begin(), vb.positions.end());
+    ++checks;
+  }
+  EXPECT_EQ(checks, 12);
+  EXPECT_GT(rarely.fractureStats(b).brokenEdges, 0);  // topology changed on the way
 }
 
 TEST(WorldApi, RestoreCarriesCommandsAndPendingForces) {
