@@ -1,6 +1,8 @@
 // Issue 5 acceptance with Bullet: a glass bunny hit by a Bullet ball shatters and its fragments
 // come to rest on the Bullet floor without falling through it; and a soak test that breaks and
 // hands off fragments for 5000 steps with resident memory flat after warm-up and no NaN.
+#include <BulletCollision/CollisionShapes/btConvexHullShape.h>
+#include <LinearMath/btConvexHullComputer.h>
 #include <btBulletDynamicsCommon.h>
 #include <graphfrac/bullet/bridge.h>
 #include <gtest/gtest.h>
@@ -129,7 +131,9 @@ TEST(BulletAcceptance, GlassBunnyShattersAndFragmentsRestOnBulletFloor) {
     double worst = 1e300, maxSpeed = 0, maxMargin = 0;
     for (const bullet::RigidFragment& f : bridge.fragments()) {
       maxSpeed = std::max(maxSpeed, double(f.rigidBody->getLinearVelocity().length()));
-      maxMargin = std::max(maxMargin, double(f.rigidBody->getCollisionShape()->getMargin()));
+      const btCollisionShape* shape = f.rigidBody->getCollisionShape();
+      if (shape->isCompound()) shape = static_cast<const btCompoundShape*>(shape)->getChildShape(0);
+      maxMargin = std::max(maxMargin, double(shape->getMargin()));
     }
     for (double l : lowest) worst = std::min(worst, l);
     std::printf(
@@ -139,6 +143,50 @@ TEST(BulletAcceptance, GlassBunnyShattersAndFragmentsRestOnBulletFloor) {
         "%u, wall %.1f s\n",
         firstBreak, ballSpeed, steps, fragments, bridge.fragments().size(), handedMass, bunnyMass,
         worst, kTolerance, maxMargin, maxSpeed, flags, wall);
+    // Does the collision shape fit the piece (issue 5: compound hulls "if you measure it is
+    // needed")? Volume of the fragment's hull (of its nodes) against the fragment's own volume
+    // (that of its corner cells, which reach past the nodes to edge midpoints and centroids):
+    // above 1 means a concave piece rests on points that are not there, below 1 a thin shard
+    // whose hull is slimmer than the piece drawn. Printed, not asserted (docs/validation.md).
+    auto convexVolume = [](const btConvexHullShape* hull) {
+      btConvexHullComputer computer;
+      computer.compute(&hull->getUnscaledPoints()->getX(), sizeof(btVector3), hull->getNumPoints(),
+                       0, 0);
+      double volume = 0;  // sum of tets from the first vertex over the faces' fans
+      const btVector3 o = computer.vertices[0];
+      for (int fi = 0; fi < computer.faces.size(); ++fi) {
+        const btConvexHullComputer::Edge* e0 = &computer.edges[computer.faces[fi]];
+        const btVector3 a = computer.vertices[e0->getSourceVertex()];
+        for (const btConvexHullComputer::Edge* e = e0->getNextEdgeOfFace();
+             e->getTargetVertex() != e0->getSourceVertex(); e = e->getNextEdgeOfFace()) {
+          const btVector3 b = computer.vertices[e->getSourceVertex()];
+          const btVector3 c = computer.vertices[e->getTargetVertex()];
+          volume += double((a - o).dot((b - o).cross(c - o))) / 6;
+        }
+      }
+      return std::abs(volume);
+    };
+    double worstRatio = 0, meanRatio = 0;
+    int hulls = 0;
+    for (const bullet::RigidFragment& f : bridge.fragments()) {
+      const btCollisionShape* shape = f.rigidBody->getCollisionShape();
+      double volume = 0;
+      if (shape->isCompound()) {
+        const auto* compound = static_cast<const btCompoundShape*>(shape);
+        for (int c = 0; c < compound->getNumChildShapes(); ++c, ++hulls)
+          volume += convexVolume(static_cast<const btConvexHullShape*>(compound->getChildShape(c)));
+      } else {
+        volume = convexVolume(static_cast<const btConvexHullShape*>(shape));
+        ++hulls;
+      }
+      const double ratio = volume / world.fragmentInfo(id, f.fragment).value().volume;
+      worstRatio = std::max(worstRatio, ratio);
+      meanRatio += ratio / double(bridge.fragments().size());
+    }
+    std::printf(
+        "[ info ] %d convex hulls for %zu fragments; hull volume / fragment volume: mean %.2f, "
+        "worst %.2f\n",
+        hulls, bridge.fragments().size(), meanRatio, worstRatio);
     EXPECT_LT(ballSpeed, 19);  // the ball hit the bunny (without it the bunny does not break)
     EXPECT_NEAR(handedMass, bunnyMass, 1e-9 * bunnyMass);  // every piece went, none twice
     EXPECT_LT(maxSpeed, 0.3);                              // settled (a few cm/s of creep)
