@@ -29,6 +29,19 @@ GF_HD Mat3 deformationGradient(const Vec3 x[4], const Mat3& DmInv) {
   return fromColumns(x[1] - x[0], x[2] - x[0], x[3] - x[0]) * DmInv;
 }
 
+/// Largest principal value of the Lagrangian finite strain E = (F^T F - I) / 2 (thesis sec
+/// 2.1.1.1, E_FS): the stretch measure of the strain colour map (figs 4.2, 5.14).
+GF_HD double maxPrincipalStrain(const Mat3& F) {
+  Mat3 E = transpose(F) * F;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) E(i, j) = 0.5 * (E(i, j) - (i == j ? 1.0 : 0.0));
+  double values[3];
+  Mat3 vectors;
+  symmetricEigen(E, values, vectors);
+  const double m = values[0] > values[1] ? values[0] : values[1];
+  return m > values[2] ? m : values[2];
+}
+
 /// Rest-space gradients of the four linear shape functions, B(a, j) = dN_a/dX_j.
 GF_HD Mat<4, 3> shapeGradients(const Mat3& DmInv) {
   Mat<4, 3> b;

@@ -307,6 +307,39 @@ TEST(WorldApi, SurfaceAskedForRarelyMatchesSurfaceAskedForEveryStep) {
   EXPECT_GT(rarely.fractureStats(b).brokenEdges, 0);  // topology changed on the way
 }
 
+// The strain colour map's field: a box stretched uniformly by (1.1, 0.95, 1) has the Green
+// strain (1.1^2 - 1) / 2 = 0.105 as its largest principal value at every node; rotated
+// rigidly as well, still 0.105; and surface vertices carry their node's value.
+TEST(WorldApi, NodeStrainIsTheLargestPrincipalGreenStrain) {
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  BodyDef def = freeCube();
+  const BodyId id = world.createBody(def).value();
+  const double c = std::cos(0.7), s = std::sin(0.7);
+  std::vector<double> x(def.mesh.positions.size());
+  for (size_t n = 0; n < x.size() / 3; ++n) {
+    const double X = 1.1 * def.mesh.positions[3 * n], Y = 0.95 * def.mesh.positions[3 * n + 1];
+    x[3 * n] = c * X - s * Y + 0.3;  // stretch, then turn about z and move
+    x[3 * n + 1] = s * X + c * Y;
+    x[3 * n + 2] = def.mesh.positions[3 * n + 2];
+  }
+  ASSERT_TRUE(world.setPositions(id, x).ok());
+  const std::span<const double> e = world.nodeStrain(id);
+  ASSERT_EQ(e.size(), def.mesh.nodeCount());
+  for (double v : e) EXPECT_NEAR(v, 0.5 * (1.1 * 1.1 - 1), 1e-12);
+  const SurfaceView sv = world.surface(id);
+  ASSERT_EQ(sv.vertexNode.size(), sv.positions.size() / 3);
+  for (size_t v = 0; v < sv.vertexNode.size(); ++v) {
+    const int32_t n = sv.vertexNode[v];
+    ASSERT_TRUE(n >= 0 && size_t(n) < def.mesh.nodeCount());
+    // The vertex lies in one of its node's tets (cells 0.05 m, stretched by at most 1.1).
+    const glm::dvec3 d(sv.positions[3 * v] - x[3 * size_t(n)],
+                       sv.positions[3 * v + 1] - x[3 * size_t(n) + 1],
+                       sv.positions[3 * v + 2] - x[3 * size_t(n) + 2]);
+    EXPECT_LE(glm::length(d), 0.05 * 1.1 * std::sqrt(3.0) + 1e-5);
+  }
+  EXPECT_TRUE(world.nodeStrain(BodyId{}).empty());
+}
+
 TEST(WorldApi, RestoreCarriesCommandsAndPendingForces) {
   // Commands issued before a snapshot (strengths, material, grip velocity, a pending force)
   // are part of the state: a replay from it matches the original run bit for bit.

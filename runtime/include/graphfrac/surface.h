@@ -16,6 +16,7 @@ struct SurfaceView {
   std::span<const uint32_t> indices;        ///< 3 per triangle, counter-clockwise seen from outside
   std::span<const uint8_t> crackMask;       ///< per triangle: 1 = crack face, 0 = original boundary
   std::span<const int32_t> vertexFragment;  ///< per vertex: the fragment it belongs to
+  std::span<const int32_t> vertexNode;      ///< per vertex: the node whose data it shows
   uint64_t topologyVersion = 0;             ///< changes only when fractures change the triangles
   uint32_t dirtyBegin = 0, dirtyEnd = 0;    ///< vertices whose positions changed since last step
 };

@@ -133,6 +133,11 @@ class World {
   FractureStats fractureStats(BodyId id) const;
   /// Fragment id of every node (empty for an invalid id or a body without fracture).
   std::span<const int32_t> nodeFragments(BodyId id) const;
+  /// Per node, the largest principal Lagrangian strain (F^T F - I) / 2 of its tets, averaged
+  /// with the tets' rest volumes as weights: what a strain colour map shows (map it to the
+  /// surface with SurfaceView::vertexNode). Computed on each call, O(tets); valid until the
+  /// next call, step or body creation/destruction. Empty for an invalid id or during step().
+  std::span<const double> nodeStrain(BodyId id);
 
   // Hand-off of fragments to rigid-body physics (integration/bullet). A detached fragment's
   // nodes leave the FEM solve: they move as the game's rigid body says (setFragmentTransform)

@@ -57,6 +57,8 @@ struct BodyRecord {
   // A step or setFragmentTransform moved nodes since the render surface was updated; the next
   // surface() call updates it (once per rendered frame, not once per step or substep).
   bool surfaceStale = false;
+  std::vector<double> nodeStrain;  // World::nodeStrain's output
+  std::vector<double> nodeWeight;  // its scratch
   // Every node is in a detached fragment: the body only moves rigidly, so a step just advances
   // the nodes by their prescribed velocities (what the integrator would do, without its cost).
   bool allRigid = false;
@@ -588,6 +590,30 @@ std::span<const int32_t> World::nodeFragments(BodyId id) const {
   return b->fracture->fragments().nodeFragment();
 }
 
+std::span<const double> World::nodeStrain(BodyId id) {
+  BodyRecord* b = m_impl->get(id);
+  if (!b || m_impl->stepping.load()) return {};
+  const detail::FemModel& m = b->model;
+  b->nodeStrain.assign(size_t(m.nodeCount), 0.0);
+  b->nodeWeight.assign(size_t(m.nodeCount), 0.0);
+  for (int32_t t = 0; t < m.tetCount; ++t) {
+    Vec3 xe[4];
+    for (int a = 0; a < 4; ++a) {
+      const double* p = &b->state.x[3 * size_t(m.tets[4 * t + a])];
+      xe[a] = {p[0], p[1], p[2]};
+    }
+    const double e = maxPrincipalStrain(deformationGradient(xe, m.restInverse[size_t(t)]));
+    for (int a = 0; a < 4; ++a) {
+      const size_t n = size_t(m.tets[4 * t + a]);
+      b->nodeStrain[n] += m.restVolume[size_t(t)] * e;
+      b->nodeWeight[n] += m.restVolume[size_t(t)];
+    }
+  }
+  for (size_t n = 0; n < b->nodeStrain.size(); ++n)
+    if (b->nodeWeight[n] > 0) b->nodeStrain[n] /= b->nodeWeight[n];
+  return b->nodeStrain;
+}
+
 SurfaceView World::surface(BodyId id) {
   BodyRecord* b = m_impl->get(id);
   if (!b || m_impl->stepping.load()) return {};
@@ -629,6 +655,7 @@ SurfaceView World::surface(BodyId id) {
   v.indices = s.indices();
   v.crackMask = s.crackFlags();
   v.vertexFragment = s.vertexFragment();
+  v.vertexNode = s.vertexNode();
   v.topologyVersion = s.topologyVersion();
   v.dirtyBegin = s.dirty().begin;
   v.dirtyEnd = s.dirty().end;
