@@ -388,6 +388,10 @@ TEST(Cli, SceneErrorsExitWithCodeTwoAndWriteNothing) {
   EXPECT_FALSE(fs::exists(dir / "out" / "stats.csv"));
   EXPECT_EQ(run({"run"}), gf::cli::kExitUsage);
   EXPECT_EQ(run({"run", (dir / "missing.json").string(), "--quiet"}), gf::cli::kExitScene);
+  // A scene with Bullet rigid bodies is refused rather than run without them.
+  const std::string bullet = std::string(GF_SOURCE_DIR) + "/scenes/bunny_bullet.json";
+  EXPECT_EQ(run({"run", bullet, "--out", (dir / "out2").string(), "--quiet"}), gf::cli::kExitScene);
+  EXPECT_FALSE(fs::exists(dir / "out2" / "stats.csv"));
 }
 
 }  // namespace

@@ -7,6 +7,10 @@
 // settings on the thesis's chapter-6 bodies at 4k, 28k, 35k and 160k tets.
 // `graphfrac bench overhead` (issue 5 item 2): World::step of a pure-deformation body against
 // the raw integrator step it wraps, in alternating rounds on one thread.
+// `graphfrac bench stages` (issue 5): per-stage ms per frame (fracture, elements, assembly,
+// solve, surface, Bullet) of whole scenes run through the Bullet bridge, the glass bunny hit
+// by a Bullet ball and the Charpy bar by default.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -20,6 +24,9 @@
 #include "graphfrac/jobs.h"
 #include "graphfrac/world.h"
 #include "scene/scene.h"
+#ifdef GF_CLI_HAS_BULLET
+#include "scene/bullet_scene.h"
+#endif
 
 namespace gf::cli {
 namespace {
@@ -306,6 +313,88 @@ int benchOverhead(int argc, char** argv) {
   return kExitOk;
 }
 
+int benchStages(int argc, char** argv) {
+  int frames = 0, threads = 1;
+  std::vector<std::string> scenes;
+  for (int i = 2; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--frames")) frames = std::max(1, std::atoi(argv[i + 1]));
+    if (!std::strcmp(argv[i], "--threads")) threads = std::max(0, std::atoi(argv[i + 1]));
+    if (!std::strcmp(argv[i], "--scene")) scenes.push_back(argv[i + 1]);
+  }
+  if (scenes.empty()) scenes = {"scenes/bunny_bullet.json", "scenes/charpy.json"};
+#ifndef GF_CLI_HAS_BULLET
+  (void)frames;
+  (void)threads;
+  std::fprintf(stderr,
+               "graphfrac bench stages: this graphfrac was built without Bullet "
+               "(GF_WITH_BULLET); the stages include the Bullet step\n");
+  return kExitScene;
+#else
+  std::printf(
+      "# per frame, mean over the frames after one warm-up frame; every body's render surface "
+      "is requested once per frame, as a renderer would; bullet = the bridge outside World::step "
+      "(colliders, "
+      "impulses, hand-off, Bullet steps, fragment transforms)\n");
+  std::printf(
+      "scene,tets,threads,frames,substeps,ms_frame,ms_fracture,ms_elements,ms_assembly,"
+      "ms_solve,ms_surface,ms_bullet,ms_other,broken_edges,fragments,in_bullet\n");
+  for (const std::string& path : scenes) {
+    gf::Result<scene::Scene> sc = scene::loadScene(path);
+    if (!sc.ok()) {
+      std::fprintf(stderr, "%s\n", sc.error().message.c_str());
+      return kExitScene;
+    }
+    size_t tets = 0;
+    for (const scene::SceneBody& b : sc.value().bodies) tets += b.def.mesh.tetCount();
+    gf::Result<std::unique_ptr<scene::BulletScene> > run =
+        scene::BulletScene::create(sc.value(), threads);
+    if (!run.ok()) {
+      std::fprintf(stderr, "%s\n", run.error().message.c_str());
+      return kExitScene;
+    }
+    scene::BulletScene& bs = *run.value();
+    const int n = frames > 0 ? frames : std::max(1, sc.value().frames - 1);
+    for (size_t b = 0; b < bs.bodyCount(); ++b) (void)bs.world().surface(bs.body(b));
+    (void)bs.step();  // warm-up: first-use allocations, the surfaces' first build
+    StepTimings sum;
+    double bullet = 0, total = 0;
+    for (int f = 0; f < n; ++f) {
+      const StepStatus st = bs.step();
+      if (st.has(kStepInvalidInput) || st.has(kStepNanContained)) {
+        std::fprintf(stderr, "%s: frame %d: %s\n", path.c_str(), bs.frame(), st.message.c_str());
+        return kExitFlagged;
+      }
+      // A renderer asks for each surface once per frame; World::surface() updates it then.
+      const auto ts = std::chrono::steady_clock::now();
+      for (size_t b = 0; b < bs.bodyCount(); ++b) (void)bs.world().surface(bs.body(b));
+      const double surfaceMs =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - ts).count();
+      const scene::FrameTimings& t = bs.timings();
+      sum.fractureMs += t.world.fractureMs;
+      sum.elementsMs += t.world.elementsMs;
+      sum.assemblyMs += t.world.assemblyMs;
+      sum.solveMs += t.world.solveMs;
+      sum.surfaceMs += surfaceMs;
+      bullet += t.bulletMs;
+      total += t.totalMs + surfaceMs;
+    }
+    int32_t broken = 0, fragments = 0;
+    for (size_t b = 0; b < bs.bodyCount(); ++b) {
+      broken += bs.world().fractureStats(bs.body(b)).brokenEdges;
+      fragments += bs.world().fractureStats(bs.body(b)).fragments;
+    }
+    const double other = total - sum.fractureMs - sum.elementsMs - sum.assemblyMs - sum.solveMs -
+                         sum.surfaceMs - bullet;
+    std::printf("%s,%zu,%d,%d,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%d,%d,%zu\n",
+                sc.value().name.c_str(), tets, threads, n, sc.value().world.substeps, total / n,
+                sum.fractureMs / n, sum.elementsMs / n, sum.assemblyMs / n, sum.solveMs / n,
+                sum.surfaceMs / n, bullet / n, other / n, broken, fragments, bs.handedOff());
+    std::fflush(stdout);
+  }
+  return kExitOk;
+#endif
+}
+
 }  // namespace
 
 int runBenchCommand(int argc, char** argv) {
@@ -317,12 +406,17 @@ int runBenchCommand(int argc, char** argv) {
         "  ms per frame and per stage of the default multigrid and PCG settings on 4k, 28k,\n"
         "  35k and 160k tets, next to the thesis's GPU fps (table 6.2)\n"
         "       graphfrac bench overhead [--cells NX] [--steps S] [--rounds R]\n"
-        "  World::step of a pure-deformation beam against the raw integrator step");
+        "  World::step of a pure-deformation beam against the raw integrator step\n"
+        "       graphfrac bench stages [--scene FILE]... [--frames N] [--threads T]\n"
+        "  per-stage ms per frame (fracture, elements, assembly, solve, surface, Bullet) of\n"
+        "  scenes run through the Bullet bridge; default scenes/bunny_bullet.json and\n"
+        "  scenes/charpy.json, all their frames");
     return argc < 2 ? kExitUsage : kExitOk;
   }
   if (!std::strcmp(argv[1], "fracture")) return benchFracture(argc, argv);
   if (!std::strcmp(argv[1], "multigrid")) return benchMultigrid(argc, argv);
   if (!std::strcmp(argv[1], "overhead")) return benchOverhead(argc, argv);
+  if (!std::strcmp(argv[1], "stages")) return benchStages(argc, argv);
   std::fprintf(stderr, "graphfrac bench: unknown benchmark '%s'\n", argv[1]);
   return kExitUsage;
 }

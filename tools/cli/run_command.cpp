@@ -282,6 +282,15 @@ int runCommand(int argc, char** argv) {
     return kExitScene;
   }
   scene::Scene sc = std::move(loaded).value();
+  // Running such a scene without its rigid bodies would be a different experiment.
+  if (scene::needsBullet(sc)) {
+    std::fprintf(stderr,
+                 "%s: the scene has Bullet rigid bodies or a hand-off policy, which graphfrac "
+                 "run does not simulate; run it with graphfrac-demo, or time it with "
+                 "`graphfrac bench stages --scene %s`\n",
+                 opt.scene.c_str(), opt.scene.c_str());
+    return kExitScene;
+  }
   const int frames = opt.frames.value_or(sc.frames);
   const int threads = opt.threads.value_or(sc.threads);
 

@@ -617,13 +617,178 @@ bool validName(const std::string& s) {
   });
 }
 
+// ---- demo: colours, hand-off, rigid bodies, camera ----------------------------------------
+
+/// Default surface colours of bodies without "colour", by index: distinct, light enough for
+/// crack faces (orange) to stand out, and off the demo's sky blue.
+constexpr std::array<glm::vec3, 6> kBodyPalette = {
+    glm::vec3(0.72f, 0.8f, 0.62f), glm::vec3(0.55f, 0.75f, 0.9f),  glm::vec3(0.85f, 0.7f, 0.5f),
+    glm::vec3(0.8f, 0.55f, 0.65f), glm::vec3(0.75f, 0.75f, 0.55f), glm::vec3(0.6f, 0.6f, 0.85f)};
+
+/// Linear RGB, each channel in [0, 1].
+glm::vec3 readColour(const json& v, const std::string& path) {
+  readArray(v, path, 3, "numbers in [0, 1] (linear RGB)");
+  glm::vec3 c;
+  for (int i = 0; i < 3; ++i) {
+    c[i] = static_cast<float>(
+        readInRange(v[size_t(i)], indexPath(path, size_t(i)), 0, 1, false, false));
+  }
+  return c;
+}
+
+SceneHandoff readHandoff(const json& v, const std::string& path, bool fracture) {
+  ObjReader o(v, path);
+  o.keys({"policy", "max_volume"});
+  const std::string p =
+      readChoice(o.require("policy"), o.at("policy"), {"never", "every", "below_volume"});
+  SceneHandoff h;
+  h.policy = p == "every"          ? SceneHandoff::Policy::Every
+             : p == "below_volume" ? SceneHandoff::Policy::BelowVolume
+                                   : SceneHandoff::Policy::Never;
+  if (h.policy == SceneHandoff::Policy::BelowVolume) {
+    h.maxVolume = readPositive(o.require("max_volume"), o.at("max_volume"));
+  } else if (o.has("max_volume")) {
+    throw SceneError{o.at("max_volume"), "only with \"policy\": \"below_volume\""};
+  }
+  // Only fragments are handed off; a body that never breaks has none.
+  if (h.policy != SceneHandoff::Policy::Never && !fracture) {
+    throw SceneError{o.at("policy"),
+                     "needs a \"fracture\" block on the body (only fragments "
+                     "of a fracturing body are handed to Bullet)"};
+  }
+  o.finish();
+  return h;
+}
+
+/// {"axis": [..], "angle_deg": a} or {"quaternion": [w, x, y, z]} (normalised).
+glm::dquat readOrientation(const json& v, const std::string& path) {
+  ObjReader o(v, path);
+  o.keys({"axis", "angle_deg", "quaternion"});
+  const bool axisForm = o.has("axis") || o.has("angle_deg");
+  if (axisForm == o.has("quaternion")) {
+    throw SceneError{path, "needs either \"axis\" and \"angle_deg\" or \"quaternion\""};
+  }
+  glm::dquat q(1, 0, 0, 0);
+  if (axisForm) {
+    const glm::dvec3 axis = readDirection(o.require("axis"), o.at("axis"));
+    const double a = readNumber(o.require("angle_deg"), o.at("angle_deg")) * std::numbers::pi / 180;
+    q = glm::angleAxis(a, axis);
+  } else {
+    const std::string qp = o.at("quaternion");
+    const json& qj = readArray(o.require("quaternion"), qp, 4, "numbers [w, x, y, z]");
+    for (int i = 0; i < 4; ++i) {
+      const double c = readNumber(qj[size_t(i)], indexPath(qp, size_t(i)));
+      (i == 0 ? q.w : q[i - 1]) = c;
+    }
+    const double len = std::sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z);
+    if (!(len > 0)) throw SceneError{qp, "expected a non-zero quaternion, got " + describe(qj)};
+    q = q / len;
+  }
+  o.finish();
+  return q;
+}
+
+SceneRigidBody readRigidBody(const json& v, const std::string& path, size_t index) {
+  ObjReader o(v, path);
+  SceneRigidBody r;
+  const std::string shape =
+      readChoice(o.require("shape"), o.at("shape"), {"sphere", "box", "plane"});
+  if (shape == "plane") {
+    o.keys({"name", "shape", "normal", "offset", "point", "render_size", "mass", "friction",
+            "rolling_friction", "restitution", "colour", "touches_bodies"});
+    r.shape = SceneRigidBody::Shape::Plane;
+    if (const json* n = o.find("normal")) r.normal = readDirection(*n, o.at("normal"));
+    if (o.has("offset") && o.has("point")) {
+      throw SceneError{path, "give at most one of \"offset\" or \"point\""};
+    }
+    if (const json* d = o.find("offset")) r.offset = readNumber(*d, o.at("offset"));
+    if (const json* p = o.find("point")) {
+      r.offset = glm::dot(r.normal, readVec3(*p, o.at("point")));
+    }
+    if (const json* s = o.find("render_size")) r.renderSize = readPositive(*s, o.at("render_size"));
+    // Bullet's btStaticPlaneShape is static only.
+    if (const json* m = o.find("mass"); m != nullptr && readNonNegative(*m, o.at("mass")) != 0) {
+      throw SceneError{o.at("mass"), "a plane is static: expected 0, got " + describe(*m)};
+    }
+  } else {
+    o.keys({"name", "shape", "radius", "size", "mass", "position", "orientation", "velocity",
+            "angular_velocity", "friction", "rolling_friction", "restitution", "colour",
+            "touches_bodies"});
+    if (shape == "sphere") {
+      r.shape = SceneRigidBody::Shape::Sphere;
+      r.radius = readPositive(o.require("radius"), o.at("radius"));
+    } else {
+      r.shape = SceneRigidBody::Shape::Box;
+      r.halfExtents = 0.5 * readPositiveVec3(o.require("size"), o.at("size"));
+    }
+    r.mass = readNonNegative(o.require("mass"), o.at("mass"));
+    r.position = readVec3(o.require("position"), o.at("position"));
+    if (const json* q = o.find("orientation"))
+      r.orientation = readOrientation(*q, o.at("orientation"));
+    for (const char* key : {"velocity", "angular_velocity"}) {
+      const json* vel = o.find(key);
+      if (vel == nullptr) continue;
+      if (r.mass == 0) {
+        throw SceneError{o.at(key), "a static body (mass 0) does not move; give it a mass > 0"};
+      }
+      (std::string_view(key) == "velocity" ? r.velocity : r.angularVelocity) =
+          readVec3(*vel, o.at(key));
+    }
+  }
+  r.name = "rigid" + std::to_string(index);
+  if (const json* n = o.find("name")) {
+    r.name = readString(*n, o.at("name"));
+    if (!validName(r.name)) {
+      throw SceneError{o.at("name"),
+                       "expected 1-64 letters, digits, '_', '-' or '.', got " + describe(*n)};
+    }
+  }
+  if (const json* f = o.find("friction")) r.friction = readNonNegative(*f, o.at("friction"));
+  if (const json* f = o.find("rolling_friction")) {
+    r.rollingFriction = readNonNegative(*f, o.at("rolling_friction"));
+  }
+  if (const json* e = o.find("restitution")) {
+    r.restitution = readInRange(*e, o.at("restitution"), 0, 1, false, false);
+  }
+  if (const json* c = o.find("colour")) r.colour = readColour(*c, o.at("colour"));
+  if (const json* t = o.find("touches_bodies"))
+    r.touchesBodies = readBool(*t, o.at("touches_bodies"));
+  o.finish();
+  return r;
+}
+
+SceneCamera readCamera(const json& v, const std::string& path) {
+  ObjReader o(v, path);
+  o.keys({"eye", "target", "up", "fov"});
+  SceneCamera c;
+  c.eye = readVec3(o.require("eye"), o.at("eye"));
+  c.target = readVec3(o.require("target"), o.at("target"));
+  if (!(glm::length(c.target - c.eye) > 0)) {
+    throw SceneError{o.at("target"), "must differ from \"eye\""};
+  }
+  if (const json* u = o.find("up")) c.up = readDirection(*u, o.at("up"));
+  const glm::dvec3 view = glm::normalize(c.target - c.eye);
+  if (!(glm::length(glm::cross(view, glm::normalize(c.up))) > 1e-6)) {
+    throw SceneError{o.has("up") ? o.at("up") : path,
+                     "the view direction (target - eye) is parallel to \"up\" " +
+                         std::string(o.has("up") ? "" : "([0, 1, 0] by default) ") +
+                         "so the camera's roll is undefined"};
+  }
+  if (const json* f = o.find("fov"))
+    c.fovDegrees = readInRange(*f, o.at("fov"), 0, 180, true, true);
+  o.finish();
+  return c;
+}
+
 SceneBody readBody(const json& v, const std::string& path, size_t index,
                    const std::string& baseDir) {
   ObjReader o(v, path);
   o.keys({"name", "mesh", "translate", "material", "solver", "pins", "grips", "forces",
-          "initial_velocity", "fracture", "plasticity", "fibre_field"});
+          "initial_velocity", "fracture", "plasticity", "fibre_field", "handoff", "colour",
+          "crack_colour"});
   SceneBody body;
   body.name = "body" + std::to_string(index);
+  body.colour = kBodyPalette[index % kBodyPalette.size()];
   if (const json* n = o.find("name")) {
     body.name = readString(*n, o.at("name"));
     if (!validName(body.name)) {
@@ -658,6 +823,12 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
   if (const json* p = o.find("plasticity")) {
     body.def.plasticity = readPlasticity(*p, o.at("plasticity"));
   }
+  if (const json* h = o.find("handoff")) {
+    body.handoff = readHandoff(*h, o.at("handoff"), body.def.fracture.enabled);
+  }
+  if (const json* c = o.find("colour")) body.colour = readColour(*c, o.at("colour"));
+  if (const json* c = o.find("crack_colour"))
+    body.crackColour = readColour(*c, o.at("crack_colour"));
   if (const json* ff = o.find("fibre_field")) {
     body.def.fibreField = readFibreField(*ff, o.at("fibre_field"), body.def.mesh);
     // The field only steers the fibre term; without it the field would be silently ignored.
@@ -797,7 +968,7 @@ Collider readCollider(const json& v, const std::string& path) {
 Scene readScene(const json& root, const std::string& source, const std::string& baseDir) {
   ObjReader o(root, "");
   o.keys({"name", "description", "dt", "frames", "substeps", "threads", "gravity", "backend",
-          "colliders", "bodies", "cuts"});
+          "colliders", "bodies", "cuts", "rigid_bodies", "camera"});
   Scene scene;
   scene.source = source;
   scene.name = std::filesystem::path(source).stem().string();
@@ -836,6 +1007,21 @@ Scene readScene(const json& root, const std::string& source, const std::string& 
     }
     scene.bodies.push_back(std::move(b));
   }
+  if (const json* v = o.find("rigid_bodies")) {
+    readArray(*v, o.at("rigid_bodies"), 0, "rigid bodies");
+    for (size_t i = 0; i < v->size(); ++i) {
+      const std::string path = indexPath(o.at("rigid_bodies"), i);
+      SceneRigidBody r = readRigidBody((*v)[i], path, i);
+      for (size_t j = 0; j < scene.rigidBodies.size(); ++j) {
+        if (scene.rigidBodies[j].name == r.name) {
+          throw SceneError{path + ".name", "duplicate rigid body name \"" + r.name +
+                                               "\" (also rigid_bodies[" + std::to_string(j) + "])"};
+        }
+      }
+      scene.rigidBodies.push_back(std::move(r));
+    }
+  }
+  if (const json* v = o.find("camera")) scene.camera = readCamera(*v, o.at("camera"));
   if (const json* v = o.find("cuts")) {
     readArray(*v, o.at("cuts"), 0, "cuts");
     for (size_t i = 0; i < v->size(); ++i) {
@@ -849,6 +1035,13 @@ Scene readScene(const json& root, const std::string& source, const std::string& 
 }
 
 }  // namespace
+
+bool needsBullet(const Scene& scene) {
+  if (!scene.rigidBodies.empty()) return true;
+  return std::any_of(scene.bodies.begin(), scene.bodies.end(), [](const SceneBody& b) {
+    return b.handoff.policy != SceneHandoff::Policy::Never;
+  });
+}
 
 Result<Scene> parseScene(const std::string& text, const std::string& source,
                          const std::string& baseDir) {

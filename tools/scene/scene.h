@@ -1,23 +1,67 @@
 // JSON scene files: a world (gravity, colliders, substeps), its bodies (mesh or generator,
-// material, boundary conditions, solver settings, fracture, plasticity, fibre field), the cuts
-// applied during the run and the run length (dt, frames). This is
-// tooling for the CLI, the tests and the demo, not part of the runtime's public API; the format
-// is documented in docs/scene_format.md.
+// material, boundary conditions, solver settings, fracture, plasticity, fibre field, Bullet
+// hand-off, render colours), the Bullet rigid bodies, the cuts applied during the run, a camera
+// and the run length (dt, frames). This is tooling for the CLI, the tests and the demo, not
+// part of the runtime's public API; the format is documented in docs/scene_format.md. Plain
+// data only: tools/scene/bullet_scene.h turns the rigid bodies into Bullet objects.
 #pragma once
 
 #include <graphfrac/defs.h>
 #include <graphfrac/status.h>
 #include <graphfrac/world.h>
 
+#include <glm/gtc/quaternion.hpp>
+#include <glm/vec3.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 namespace gf::scene {
 
+/// Which fragments of a body go to Bullet once it splits (gf::bullet::HandoffPolicy).
+struct SceneHandoff {
+  enum class Policy : uint8_t { Never, Every, BelowVolume };
+  Policy policy = Policy::Never;
+  double maxVolume = 0;  ///< [m^3], BelowVolume only.
+};
+
 /// One body of a scene: the name it is reported and written under, and its definition.
 struct SceneBody {
   std::string name;  ///< Unique in the scene; letters, digits, '_', '-' and '.' only.
   BodyDef def;       ///< Mesh already generated/loaded and translated; pins and grips resolved.
+  SceneHandoff handoff;
+  glm::vec3 colour{0.8f};                     ///< Linear RGB of the surface (a palette default).
+  glm::vec3 crackColour{0.95f, 0.55f, 0.3f};  ///< Linear RGB of crack faces.
+};
+
+/// A Bullet rigid body of the scene (tools/scene/bullet_scene.h builds it).
+struct SceneRigidBody {
+  enum class Shape : uint8_t { Sphere, Box, Plane };
+  std::string name;  ///< Unique among the rigid bodies; "rigid<i>" by default.
+  Shape shape = Shape::Sphere;
+  double radius = 0;                   ///< Sphere [m].
+  glm::dvec3 halfExtents{0};           ///< Box, along its own axes [m] (half the "size").
+  glm::dvec3 normal{0, 1, 0};          ///< Plane: unit normal; the plane is normal . x = offset.
+  double offset = 0;                   ///< Plane [m].
+  double renderSize = 4;               ///< Plane: side of the square drawn for it [m].
+  double mass = 0;                     ///< [kg]; 0 = static (a plane always is).
+  glm::dvec3 position{0};              ///< Centre [m] (sphere, box).
+  glm::dquat orientation{1, 0, 0, 0};  ///< Body-to-world rotation, unit (box, sphere).
+  glm::dvec3 velocity{0};              ///< [m/s], dynamic bodies only.
+  glm::dvec3 angularVelocity{0};       ///< [rad/s], dynamic bodies only.
+  double friction = 0.5;               ///< Bullet's defaults.
+  double rollingFriction = 0;
+  double restitution = 0;
+  bool touchesBodies = true;  ///< Two-way contact with the deformable bodies (Bridge::addCollider).
+  glm::vec3 colour{0.6f};     ///< Linear RGB.
+};
+
+/// Where the demo looks from.
+struct SceneCamera {
+  glm::dvec3 eye{1.5, 1.0, 1.5};
+  glm::dvec3 target{0, 0.2, 0};
+  glm::dvec3 up{0, 1, 0};
+  double fovDegrees = 45;  ///< Vertical field of view.
 };
 
 /// A blade applied to one body before a given frame is stepped (World::cut).
@@ -35,11 +79,18 @@ struct Scene {
   std::string source;       ///< The path the scene was loaded from (or the source label).
   WorldDef world;
   std::vector<SceneBody> bodies;
-  std::vector<SceneCut> cuts;  ///< Sorted by frame; file order within a frame.
-  double dt = 1.0 / 60;        ///< Time per frame [s]; World::step(dt) is called once per frame.
-  int frames = 120;            ///< Frames to run.
-  int threads = 1;             ///< Worker threads; 0 = hardware concurrency.
+  std::vector<SceneCut> cuts;               ///< Sorted by frame; file order within a frame.
+  std::vector<SceneRigidBody> rigidBodies;  ///< Bullet rigid bodies, file order.
+  std::optional<SceneCamera> camera;        ///< Absent: the demo frames the bodies itself.
+  double dt = 1.0 / 60;  ///< Time per frame [s]; World::step(dt) is called once per frame.
+  int frames = 120;      ///< Frames to run.
+  int threads = 1;       ///< Worker threads; 0 = hardware concurrency.
 };
+
+/// True when the scene needs Bullet to run as written: it has rigid bodies or a body whose
+/// hand-off policy is not "never". A runner without Bullet must refuse such a scene rather
+/// than run it without them.
+bool needsBullet(const Scene& scene);
 
 /// Reads, parses and checks a scene file. Relative mesh paths resolve against the directory of
 /// `path`. Errors read `<path>: <json path>: <reason>` (or `<path>:<line>:<column>: ...` for a
