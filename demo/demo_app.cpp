@@ -1,0 +1,618 @@
+// graphfrac-demo: one World/bridge frame per scene frame (BulletScene), then one render of every
+// body's surface stream and every rigid body, written as a PNG. Mesh slots are fixed for the
+// whole run (the scene's bodies, then its rigid bodies), so the renderer keeps each buffer and
+// uploads only what changed: a body's dirty vertex range, or everything after a fracture
+// changed its topology; the rigid shapes upload once and move by their model matrix.
+#include "demo_app.h"
+
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <memory>
+#include <numbers>
+#include <string_view>
+
+#include "cli/progress.h"
+#include "scene/bullet_scene.h"
+
+extern char** environ;
+
+namespace gf::demo {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+constexpr const char* kUsage =
+    "usage: graphfrac-demo SCENE [options]\n"
+    "\n"
+    "Simulates a JSON scene (docs/scene_format.md) with its Bullet rigid bodies and renders\n"
+    "every frame off-screen to OUT/frames/frame_NNNN.png; prints and writes OUT/summary.txt\n"
+    "(ms per frame in simulation and rendering, fragments, broken edges, bodies handed to\n"
+    "Bullet, bytes streamed to the renderer per frame).\n"
+    "\n"
+    "options:\n"
+    "  --frames N                 frames to run (default: the scene's \"frames\")\n"
+    "  --size WxH                 image size (default 640x360)\n"
+    "  --out DIR                  output directory (default: out/<scene name>)\n"
+    "  --video                    also encode OUT/demo.mp4 with ffmpeg (H.264), if installed\n"
+    "  --renderer auto|vulkan|gl  back end (default auto: Vulkan, else OpenGL through EGL)\n"
+    "  --validation               Vulkan validation layers on; exit 1 if they report anything\n"
+    "  --quiet                    no progress and no summary on the terminal\n"
+    "  -h, --help                 this text\n"
+    "\n"
+    "exit codes: 0 ok, 1 failure, 2 usage\n";
+
+bool parseInt(std::string_view s, int lo, int hi, int& out) {
+  if (s.empty()) return false;
+  char* end = nullptr;
+  const std::string str(s);
+  const long v = std::strtol(str.c_str(), &end, 10);
+  if (end != str.c_str() + str.size() || v < lo || v > hi) return false;
+  out = static_cast<int>(v);
+  return true;
+}
+
+/// Parses argv (argv[0] = the program); returns an error message or empty.
+std::string parseArgs(int argc, char** argv, DemoOptions& o, bool& help) {
+  for (int i = 1; i < argc; ++i) {
+    std::string arg = argv[i];
+    std::string value;
+    bool hasValue = false;
+    if (arg.rfind("--", 0) == 0) {
+      const size_t eq = arg.find('=');
+      if (eq != std::string::npos) {
+        value = arg.substr(eq + 1);
+        arg = arg.substr(0, eq);
+        hasValue = true;
+      }
+    }
+    auto takeValue = [&]() -> bool {
+      if (hasValue) return true;
+      if (i + 1 >= argc) return false;
+      value = argv[++i];
+      return true;
+    };
+    if (arg == "-h" || arg == "--help") {
+      help = true;
+    } else if (arg == "--quiet" || arg == "-q") {
+      o.quiet = true;
+    } else if (arg == "--video") {
+      o.video = true;
+    } else if (arg == "--validation") {
+      o.validation = true;
+    } else if (arg == "--frames") {
+      int n = 0;
+      if (!takeValue() || !parseInt(value, 1, 100'000'000, n))
+        return "--frames needs an integer >= 1";
+      o.frames = n;
+    } else if (arg == "--size") {
+      const size_t x = takeValue() ? value.find('x') : std::string::npos;
+      if (x == std::string::npos ||
+          !parseInt(std::string_view(value).substr(0, x), 1, 8192, o.width) ||
+          !parseInt(std::string_view(value).substr(x + 1), 1, 8192, o.height))
+        return "--size needs WxH with 1 <= W, H <= 8192 (e.g. 640x360)";
+    } else if (arg == "--out") {
+      if (!takeValue() || value.empty()) return "--out needs a directory";
+      o.out = value;
+    } else if (arg == "--renderer") {
+      if (!takeValue() || (value != "auto" && value != "vulkan" && value != "gl"))
+        return "--renderer needs auto, vulkan or gl";
+      o.renderer = value == "vulkan" ? RendererKind::Vulkan
+                   : value == "gl"   ? RendererKind::Gl
+                                     : RendererKind::Auto;
+    } else if (!arg.empty() && arg[0] == '-') {
+      return "unknown option '" + arg + "'";
+    } else if (o.scene.empty()) {
+      o.scene = arg;
+    } else {
+      return "more than one scene given ('" + o.scene + "' and '" + arg + "')";
+    }
+  }
+  if (!help && o.scene.empty()) return "no scene given";
+  return {};
+}
+
+/// A unit vector perpendicular to the unit vector a.
+glm::dvec3 anyPerpendicular(const glm::dvec3& a) {
+  const glm::dvec3 helper = std::abs(a.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+  return glm::normalize(glm::cross(a, helper));
+}
+
+void pushVec(std::vector<float>& v, const glm::dvec3& p) {
+  v.push_back(float(p.x));
+  v.push_back(float(p.y));
+  v.push_back(float(p.z));
+}
+
+/// A square as 4 vertices and 2 triangles: corners c +- a +- b, facing n = a x b / |a x b|.
+void addQuad(ShapeMesh& m, const glm::dvec3& c, const glm::dvec3& a, const glm::dvec3& b,
+             const glm::dvec3& n) {
+  const auto base = uint32_t(m.positions.size() / 3);
+  for (const glm::dvec3& p : {c - a - b, c + a - b, c + a + b, c - a + b}) {
+    pushVec(m.positions, p);
+    pushVec(m.normals, n);
+  }
+  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) m.indices.push_back(base + i);
+}
+
+/// Every point the camera should see of a rigid body (its bounding box corners; the square of
+/// a plane) in world space.
+std::vector<glm::dvec3> rigidBoundPoints(const scene::SceneRigidBody& r) {
+  std::vector<glm::dvec3> pts;
+  if (r.shape == scene::SceneRigidBody::Shape::Plane) {
+    const ShapeMesh m = rigidMesh(r);
+    for (size_t i = 0; i < m.positions.size(); i += 3)
+      pts.emplace_back(m.positions[i], m.positions[i + 1], m.positions[i + 2]);
+    return pts;
+  }
+  const double extent = r.shape == scene::SceneRigidBody::Shape::Sphere
+                            ? r.radius
+                            : glm::length(r.halfExtents);  // any orientation
+  for (int k = 0; k < 8; ++k) {
+    pts.push_back(r.position + extent * glm::dvec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1));
+  }
+  return pts;
+}
+
+/// A static collider of the scene ("colliders") as the shape it is drawn with.
+scene::SceneRigidBody colliderShape(const Collider& c) {
+  scene::SceneRigidBody r;
+  r.position = glm::dvec3(c.point);
+  r.colour = glm::vec3(0.5f, 0.5f, 0.53f);
+  switch (c.kind) {
+    case Collider::Kind::Sphere:
+      r.shape = scene::SceneRigidBody::Shape::Sphere;
+      r.radius = c.radius;
+      break;
+    case Collider::Kind::Box:
+      r.shape = scene::SceneRigidBody::Shape::Box;
+      r.halfExtents = glm::dvec3(c.halfExtents);
+      r.orientation = glm::normalize(glm::dquat(c.rotation));
+      break;
+    case Collider::Kind::Plane:
+      r.shape = scene::SceneRigidBody::Shape::Plane;
+      r.normal = glm::normalize(glm::dvec3(c.normal));
+      r.offset = glm::dot(r.normal, r.position);
+      break;
+  }
+  return r;
+}
+
+/// Fracture totals over the bodies, as `graphfrac run` counts them.
+struct Totals {
+  int64_t brokenEdges = 0, edgeCount = 0, fragments = 0;
+};
+Totals totals(const World& world, const scene::BulletScene& sim) {
+  Totals t;
+  for (size_t i = 0; i < sim.bodyCount(); ++i) {
+    const FractureStats f = world.fractureStats(sim.body(i));
+    if (f.edgeCount > 0) {
+      t.brokenEdges += f.brokenEdges;
+      t.edgeCount += f.edgeCount;
+      t.fragments += f.fragments;
+    } else {
+      t.fragments += 1;
+    }
+  }
+  return t;
+}
+
+/// The first executable named `name` on PATH, or empty.
+std::string findOnPath(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  if (path == nullptr) return {};
+  std::string_view rest(path);
+  while (true) {
+    const size_t colon = rest.find(':');
+    const std::string dir(rest.substr(0, colon));
+    const std::string candidate = (dir.empty() ? std::string(".") : dir) + "/" + name;
+    if (access(candidate.c_str(), X_OK) == 0) return candidate;
+    if (colon == std::string_view::npos) return {};
+    rest.remove_prefix(colon + 1);
+  }
+}
+
+/// Runs a program without a shell (paths need no quoting); returns its exit status or an error.
+Result<int> runProgram(const std::vector<std::string>& args) {
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  if (const int e = posix_spawn(&pid, args[0].c_str(), nullptr, nullptr, argv.data(), environ);
+      e != 0)
+    return fail("cannot start ", args[0], ": ", std::strerror(e));
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) return fail("waiting for ", args[0], ": ", std::strerror(errno));
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+std::string formatBytes(double b) {
+  char buf[32];
+  if (b >= 1024.0 * 1024.0)
+    std::snprintf(buf, sizeof buf, "%.2f MB", b / (1024.0 * 1024.0));
+  else
+    std::snprintf(buf, sizeof buf, "%.1f kB", b / 1024.0);
+  return buf;
+}
+
+}  // namespace
+
+ShapeMesh rigidMesh(const scene::SceneRigidBody& r) {
+  using Shape = scene::SceneRigidBody::Shape;
+  ShapeMesh m;
+  if (r.shape == Shape::Sphere) {
+    // Latitude theta from the +y pole, longitude phi; d/dphi x d/dtheta points outwards, so
+    // (a, a+1, b) and (a+1, b+1, b) are counter-clockwise seen from outside.
+    constexpr uint32_t kRings = 16, kSegments = 32;
+    for (uint32_t i = 0; i <= kRings; ++i) {
+      const double theta = std::numbers::pi * i / kRings;
+      for (uint32_t j = 0; j <= kSegments; ++j) {
+        const double phi = 2 * std::numbers::pi * j / kSegments;
+        const glm::dvec3 n(std::sin(theta) * std::cos(phi), std::cos(theta),
+                           std::sin(theta) * std::sin(phi));
+        pushVec(m.positions, r.radius * n);
+        pushVec(m.normals, n);
+      }
+    }
+    for (uint32_t i = 0; i < kRings; ++i) {
+      for (uint32_t j = 0; j < kSegments; ++j) {
+        const uint32_t a = i * (kSegments + 1) + j, b = a + kSegments + 1;
+        if (i != 0) m.indices.insert(m.indices.end(), {a, a + 1, b});  // not at the poles
+        if (i + 1 != kRings) m.indices.insert(m.indices.end(), {a + 1, b + 1, b});
+      }
+    }
+  } else if (r.shape == Shape::Box) {
+    // Per face: its normal n and axes u, v with u x v = n, so the quad faces outwards.
+    const glm::dvec3 h = r.halfExtents;
+    const glm::dvec3 x(1, 0, 0), y(0, 1, 0), z(0, 0, 1);
+    const std::array<std::array<glm::dvec3, 3>, 6> faces = {{{x, y * h.y, z * h.z},
+                                                             {-x, z * h.z, y * h.y},
+                                                             {y, z * h.z, x * h.x},
+                                                             {-y, x * h.x, z * h.z},
+                                                             {z, x * h.x, y * h.y},
+                                                             {-z, y * h.y, x * h.x}}};
+    for (const auto& f : faces) addQuad(m, f[0] * glm::dot(glm::abs(f[0]), h), f[1], f[2], f[0]);
+  } else {
+    const glm::dvec3 n = r.normal;
+    const glm::dvec3 u = anyPerpendicular(n), w = glm::cross(n, u);  // u x w = n
+    const double half = 0.5 * r.renderSize;
+    addQuad(m, r.offset * n, half * u, half * w, n);
+  }
+  return m;
+}
+
+Camera sceneCamera(const scene::Scene& sc) {
+  std::vector<glm::dvec3> pts;
+  glm::dvec3 lo(1e300), hi(-1e300);
+  auto add = [&](const glm::dvec3& p, bool frame) {
+    pts.push_back(p);
+    if (!frame) return;
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  };
+  for (const scene::SceneBody& b : sc.bodies) {
+    const std::vector<double>& x = b.def.mesh.positions;
+    for (size_t i = 0; i + 2 < x.size(); i += 3) add({x[i], x[i + 1], x[i + 2]}, true);
+  }
+  std::vector<scene::SceneRigidBody> shapes = sc.rigidBodies;
+  for (const Collider& c : sc.world.colliders) shapes.push_back(colliderShape(c));
+  for (const scene::SceneRigidBody& r : shapes) {
+    const bool plane = r.shape == scene::SceneRigidBody::Shape::Plane;
+    for (const glm::dvec3& p : rigidBoundPoints(r)) add(p, !plane);
+  }
+  Camera c;
+  if (sc.camera) {
+    c.eye = glm::vec3(sc.camera->eye);
+    c.target = glm::vec3(sc.camera->target);
+    c.up = glm::vec3(sc.camera->up);
+    c.fovYDegrees = float(sc.camera->fovDegrees);
+  } else if (lo.x <= hi.x) {
+    // Looking at the bounds' centre from the front right, far enough to hold their sphere.
+    const glm::dvec3 centre = 0.5 * (lo + hi);
+    const double radius = std::max(0.5 * glm::length(hi - lo), 1e-3);
+    const double fov = double(c.fovYDegrees) * std::numbers::pi / 180;
+    const double dist = 1.15 * radius / std::sin(0.5 * fov);
+    c.target = glm::vec3(centre);
+    c.eye = glm::vec3(centre + dist * glm::normalize(glm::dvec3(0.8, 0.55, 1.3)));
+  }
+  const glm::dvec3 eye(c.eye);
+  const double view = glm::length(glm::dvec3(c.target) - eye);
+  double farthest = 2 * view;
+  for (const glm::dvec3& p : pts) farthest = std::max(farthest, glm::length(p - eye));
+  c.nearPlane = float(0.02 * view);
+  c.farPlane = float(1.5 * farthest);
+  return c;
+}
+
+std::string formatSummary(const DemoSummary& s) {
+  std::string out;
+  char line[512];
+  auto add = [&](const char* fmt, auto... args) {
+    std::snprintf(line, sizeof line, fmt, args...);
+    out += line;
+  };
+  add("graphfrac-demo: %s: %d frames of %.6g s (%d substep%s), %dx%d\n", s.scene.c_str(), s.frames,
+      s.dt, s.substeps, s.substeps == 1 ? "" : "s", s.width, s.height);
+  add("  renderer:   %s\n", s.renderer.c_str());
+  add("  simulation: %.2f ms/frame mean, %.2f max (Bullet %.2f ms/frame mean)\n", s.simMsMean,
+      s.simMsMax, s.bulletMsMean);
+  add("  rendering:  %.2f ms/frame mean, %.2f max (upload, draw, readback; PNG writing %.2f "
+      "ms/frame more)\n",
+      s.renderMsMean, s.renderMsMax, s.pngMsMean);
+  add("  fracture:   %lld fragments, %lld broken edges of %lld, %zu fragment%s handed to Bullet\n",
+      static_cast<long long>(s.fragments), static_cast<long long>(s.brokenEdges),
+      static_cast<long long>(s.edgeCount), s.handedOff, s.handedOff == 1 ? "" : "s");
+  if (s.frames > 1) {
+    add("  streaming:  %s uploaded per frame vs %s for full surfaces (%.1f %%), mean after the "
+        "first frame\n",
+        formatBytes(s.uploadedBytesMean).c_str(), formatBytes(s.surfaceBytesMean).c_str(),
+        s.surfaceBytesMean > 0 ? 100 * s.uploadedBytesMean / s.surfaceBytesMean : 0.0);
+  }
+  if (s.flaggedFrames > 0)
+    add("  flagged:    %d frame%s; first: %s\n", s.flaggedFrames, s.flaggedFrames == 1 ? "" : "s",
+        s.firstFlag.c_str());
+  add("  wall time:  %s\n", cli::formatDuration(s.wallSeconds).c_str());
+  add("  frames:     %s/frames/frame_0001.png .. frame_%04d.png\n", s.outDir.c_str(), s.frames);
+  if (!s.video.empty()) add("  video:      %s\n", s.video.c_str());
+  if (s.validation)
+    add("  validation: %zu message%s from the Vulkan validation layers\n",
+        s.validationMessages.size(), s.validationMessages.size() == 1 ? "" : "s");
+  return out;
+}
+
+Result<DemoSummary> runDemo(const DemoOptions& opt) {
+  const auto wallStart = Clock::now();
+  Result<scene::Scene> loaded = scene::loadScene(opt.scene);
+  if (!loaded) return loaded.error();
+  const scene::Scene sc = std::move(loaded).value();
+  const int frames = opt.frames.value_or(sc.frames);
+  if (frames < 1) return fail("graphfrac-demo: frames must be >= 1, got ", std::to_string(frames));
+
+  Result<std::unique_ptr<scene::BulletScene>> created = scene::BulletScene::create(sc);
+  if (!created) return created.error();
+  scene::BulletScene& sim = *created.value();
+  World& world = sim.world();
+
+  RendererOptions ro;
+  ro.kind = opt.renderer;
+  ro.width = opt.width;
+  ro.height = opt.height;
+  ro.validation = opt.validation;
+  Result<std::unique_ptr<Renderer>> madeRenderer = createRenderer(ro);
+  if (!madeRenderer) return fail("graphfrac-demo: ", madeRenderer.error().message);
+  Renderer& renderer = *madeRenderer.value();
+
+  DemoSummary s;
+  s.scene = sc.name;
+  s.renderer = renderer.description();
+  s.frames = frames;
+  s.width = opt.width;
+  s.height = opt.height;
+  s.dt = sc.dt;
+  s.substeps = std::max(sc.world.substeps, 1);
+  s.camera = sceneCamera(sc);
+  const fs::path outDir = opt.out.empty() ? fs::path("out") / sc.name : fs::path(opt.out);
+  s.outDir = outDir.string();
+  const fs::path frameDir = outDir / "frames";
+  std::error_code ec;
+  fs::create_directories(frameDir, ec);
+  if (ec) return fail("graphfrac-demo: cannot create ", frameDir.string(), ": ", ec.message());
+  // Frames of an earlier, longer run would continue this run's sequence in the video.
+  for (const fs::directory_entry& e : fs::directory_iterator(frameDir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.size() == 14 && name.rfind("frame_", 0) == 0 && e.path().extension() == ".png")
+      fs::remove(e.path(), ec);
+  }
+
+  if (!opt.quiet) {
+    std::printf("graphfrac-demo: %s: %zu bod%s, %zu rigid bod%s; %d frames of %.6g s; %dx%d\n",
+                sc.name.c_str(), sc.bodies.size(), sc.bodies.size() == 1 ? "y" : "ies",
+                sc.rigidBodies.size(), sc.rigidBodies.size() == 1 ? "y" : "ies", frames, sc.dt,
+                opt.width, opt.height);
+    std::printf("  renderer: %s\n  output:   %s\n", s.renderer.c_str(), s.outDir.c_str());
+    std::fflush(stdout);
+  }
+
+  // Mesh slots: the bodies' surface streams, then the rigid bodies and the static colliders
+  // (uploaded once, moved by their model matrix).
+  std::vector<scene::SceneRigidBody> drawn = sc.rigidBodies;
+  for (const Collider& c : sc.world.colliders) drawn.push_back(colliderShape(c));
+  std::vector<ShapeMesh> shapes;
+  for (const scene::SceneRigidBody& r : drawn) shapes.push_back(rigidMesh(r));
+  const size_t slots = sc.bodies.size() + shapes.size();
+  std::vector<MeshFrame> meshes(slots);
+  std::vector<uint64_t> lastVersion(slots, 0), lastVertices(slots, 0), lastTriangles(slots, 0);
+  for (size_t i = 0; i < sc.bodies.size(); ++i) {
+    meshes[i].colour = sc.bodies[i].colour;
+    meshes[i].crackColour = sc.bodies[i].crackColour;
+  }
+  for (size_t k = 0; k < shapes.size(); ++k) {
+    MeshFrame& m = meshes[sc.bodies.size() + k];
+    m.positions = shapes[k].positions;
+    m.normals = shapes[k].normals;
+    m.indices = shapes[k].indices;
+    m.topologyVersion = 1;
+    m.colour = drawn[k].colour;
+  }
+
+  cli::Progress progress(frames, cli::Progress::detect(stderr, opt.quiet));
+  Image image;
+  double simSum = 0, bulletSum = 0, renderSum = 0, pngSum = 0, upSum = 0, fullSum = 0;
+  for (int frame = 1; frame <= frames; ++frame) {
+    const StepStatus st = sim.step();
+    if (st.has(kStepInvalidInput))
+      return fail(opt.scene, ": frame ", std::to_string(frame), ": ", st.message);
+    if (!st.ok() && s.flaggedFrames++ == 0)
+      s.firstFlag = "frame " + std::to_string(frame) + ": " + st.message;
+    DemoFrame f;
+    f.simMs = sim.timings().totalMs;
+    f.bulletMs = sim.timings().bulletMs;
+
+    for (size_t i = 0; i < sc.bodies.size(); ++i) {
+      const SurfaceView v = world.surface(sim.body(i));
+      MeshFrame& m = meshes[i];
+      m.positions = v.positions;
+      m.normals = v.normals;
+      m.indices = v.indices;
+      m.crackMask = v.crackMask;
+      m.topologyVersion = v.topologyVersion;
+      m.dirtyBegin = v.dirtyBegin;
+      m.dirtyEnd = v.dirtyEnd;
+    }
+    for (size_t k = 0; k < shapes.size(); ++k) {
+      MeshFrame& m = meshes[sc.bodies.size() + k];
+      if (k < sc.rigidBodies.size()) {
+        m.model = sim.rigidTransform(k);
+      } else {
+        // The scene's colliders come first in World::colliders(); a moving one has moved.
+        const Collider& now = world.colliders()[k - sc.rigidBodies.size()];
+        const glm::vec3 start(drawn[k].position);
+        m.model = drawn[k].shape == scene::SceneRigidBody::Shape::Plane
+                      ? glm::translate(glm::mat4(1.0f), now.point - start)
+                      : glm::translate(glm::mat4(1.0f), now.point) *
+                            glm::mat4_cast(glm::normalize(now.rotation));
+      }
+      m.dirtyBegin = 0;
+      m.dirtyEnd = frame == 1 ? uint32_t(shapes[k].positions.size() / 3) : 0;
+    }
+    for (size_t i = 0; i < slots; ++i) {
+      const MeshFrame& m = meshes[i];
+      const bool changed = frame == 1 || m.topologyVersion != lastVersion[i] ||
+                           m.positions.size() != lastVertices[i] ||
+                           m.indices.size() != lastTriangles[i];
+      if (changed)
+        ++f.topologyChanges;
+      else
+        f.dirtyVertices += m.dirtyEnd - m.dirtyBegin;
+      lastVersion[i] = m.topologyVersion;
+      lastVertices[i] = m.positions.size();
+      lastTriangles[i] = m.indices.size();
+    }
+
+    Result<FrameStats> rs = renderer.render(meshes, s.camera, image);
+    if (!rs) return fail("graphfrac-demo: frame ", std::to_string(frame), ": ", rs.error().message);
+    f.renderMs = rs.value().renderMs;
+    f.uploadedBytes = rs.value().uploadedBytes;
+    f.surfaceBytes = rs.value().surfaceBytes;
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%04d.png", frame);
+    const auto tp = Clock::now();
+    if (Result<void> w = writePng((frameDir / name).string(), image); !w)
+      return fail("graphfrac-demo: ", w.error().message);
+    f.pngMs = msSince(tp);
+
+    const Totals t = totals(world, sim);
+    f.brokenEdges = t.brokenEdges;
+    f.fragments = t.fragments;
+    f.handedOff = sim.handedOff();
+    simSum += f.simMs;
+    bulletSum += f.bulletMs;
+    renderSum += f.renderMs;
+    pngSum += f.pngMs;
+    s.simMsMax = std::max(s.simMsMax, f.simMs);
+    s.renderMsMax = std::max(s.renderMsMax, f.renderMs);
+    if (frame > 1) {
+      upSum += double(f.uploadedBytes);
+      fullSum += double(f.surfaceBytes);
+    }
+    s.perFrame.push_back(f);
+    char note[96];
+    std::snprintf(note, sizeof note, "sim %.0f ms, render %.0f ms, %lld fragments", f.simMs,
+                  f.renderMs, static_cast<long long>(f.fragments));
+    progress.update(frame, note);
+  }
+  progress.finish();
+
+  const Totals t = totals(world, sim);
+  s.brokenEdges = t.brokenEdges;
+  s.edgeCount = t.edgeCount;
+  s.fragments = t.fragments;
+  s.handedOff = sim.handedOff();
+  s.simMsMean = simSum / frames;
+  s.bulletMsMean = bulletSum / frames;
+  s.renderMsMean = renderSum / frames;
+  s.pngMsMean = pngSum / frames;
+  if (frames > 1) {
+    s.uploadedBytesMean = upSum / (frames - 1);
+    s.surfaceBytesMean = fullSum / (frames - 1);
+  }
+  s.validation = opt.validation;
+  s.validationMessages = renderer.validationMessages();
+
+  std::string videoNote;
+  if (opt.video) {
+    const std::string ffmpeg = findOnPath("ffmpeg");
+    if (ffmpeg.empty()) {
+      videoNote = "  video:      skipped: ffmpeg is not on PATH (install it for --video)\n";
+    } else {
+      const long fps = std::max(1L, std::lround(1.0 / sc.dt));
+      const std::string video = (outDir / "demo.mp4").string();
+      // H.264 in yuv420p needs even sizes: pad odd ones by a pixel.
+      Result<int> r = runProgram(
+          {ffmpeg, "-y", "-loglevel", "error", "-framerate", std::to_string(fps), "-start_number",
+           "1", "-i", (frameDir / "frame_%04d.png").string(), "-vf",
+           "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264", "-pix_fmt", "yuv420p", video});
+      if (!r) return fail("graphfrac-demo: ", r.error().message);
+      if (r.value() != 0)
+        return fail("graphfrac-demo: ffmpeg failed (exit status ", std::to_string(r.value()),
+                    ") making ", video);
+      s.video = video + " (H.264, " + std::to_string(fps) + " fps)";
+    }
+  }
+  s.wallSeconds = std::chrono::duration<double>(Clock::now() - wallStart).count();
+  const std::string text = formatSummary(s) + videoNote;
+  const fs::path summaryPath = outDir / "summary.txt";
+  std::ofstream file(summaryPath);
+  file << text;
+  file.close();
+  if (!file) return fail("graphfrac-demo: cannot write ", summaryPath.string());
+  if (!opt.quiet) std::fputs(text.c_str(), stdout);
+  return s;
+}
+
+int demoMain(int argc, char** argv) {
+  DemoOptions opt;
+  bool help = false;
+  if (const std::string err = parseArgs(argc, argv, opt, help); !err.empty()) {
+    std::fprintf(stderr, "graphfrac-demo: %s\n(see graphfrac-demo --help)\n", err.c_str());
+    return 2;
+  }
+  if (help) {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
+  Result<DemoSummary> r = runDemo(opt);
+  if (!r) {
+    std::fprintf(stderr, "%s\n", r.error().message.c_str());
+    return 1;
+  }
+  if (opt.validation) {
+    const std::vector<std::string>& msgs = r.value().validationMessages;
+    for (size_t i = 0; i < msgs.size() && i < 10; ++i)
+      std::fprintf(stderr, "  validation: %s\n", msgs[i].c_str());
+    if (!msgs.empty()) return 1;
+  }
+  return 0;
+}
+
+}  // namespace gf::demo
