@@ -15,6 +15,10 @@ namespace gf::detail {
 
 namespace {
 
+// Largest stretch (and inverse of the smallest) an affine vertex frame may have; see
+// computeFrames. Real material strain in a frame's 1-ring stays far below it.
+constexpr double kMaxFrameStretch = 3.0;
+
 // Local edge index of local nodes (a, b), either order; -1 on the diagonal.
 struct LocalEdgeTable {
   int8_t e[4][4];
@@ -421,8 +425,14 @@ void CrackSurface::computeFrames(const double* x) {
       std::copy_n(&m_frameCinv[9 * fr], 9, Cinv.m);
       const Mat3 F = A * Cinv;
       if (det(F) > 1e-2) {
-        R = F;
-        done = true;
+        // A fit that stretches or squashes a direction beyond kMaxFrameStretch comes from a
+        // neighbourhood that is thin or being torn apart, not from the material: it would throw
+        // the vertices it places far off the body, so the best rotation stands in for it.
+        const Svd3 fs = svd3(F);
+        if (fs.s.x < kMaxFrameStretch && fs.s.z > 1 / kMaxFrameStretch) {
+          R = F;
+          done = true;
+        }
       }
     }
     const Svd3 svd = done ? Svd3{} : svd3(A);
