@@ -55,6 +55,9 @@ constexpr const char* kUsage =
     "  --video                    also encode OUT/demo.mp4 with ffmpeg (H.264), if installed\n"
     "  --renderer auto|vulkan|gl  back end (default auto: Vulkan, else OpenGL through EGL)\n"
     "  --validation               Vulkan validation layers on; exit 1 if they report anything\n"
+    "  --strain MAX               colour the bodies by their largest principal strain, blue\n"
+    "                             at 0 to red at MAX (the thesis's strain profiles, figs 4.2,\n"
+    "                             5.14); crack faces keep their colour\n"
     "  --quiet                    no progress and no summary on the terminal\n"
     "  -h, --help                 this text\n"
     "\n"
@@ -112,6 +115,12 @@ std::string parseArgs(int argc, char** argv, DemoOptions& o, bool& help) {
     } else if (arg == "--out") {
       if (!takeValue() || value.empty()) return "--out needs a directory";
       o.out = value;
+    } else if (arg == "--strain") {
+      char* end = nullptr;
+      const double v = takeValue() ? std::strtod(value.c_str(), &end) : 0;
+      if (!end || *end != '\0' || !(v > 0) || !std::isfinite(v))
+        return "--strain needs the strain shown as red, a number > 0 (e.g. 0.05)";
+      o.strainMax = v;
     } else if (arg == "--renderer") {
       if (!takeValue() || (value != "auto" && value != "vulkan" && value != "gl"))
         return "--renderer needs auto, vulkan or gl";
@@ -455,6 +464,7 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
     m.colour = drawn[k].colour;
   }
 
+  std::vector<std::vector<float>> strain(sc.bodies.size());  // --strain: per vertex, 0..1
   cli::Progress progress(frames, cli::Progress::detect(stderr, opt.quiet));
   Image image;
   double simSum = 0, bulletSum = 0, renderSum = 0, pngSum = 0, upSum = 0, fullSum = 0;
@@ -478,6 +488,16 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
       m.topologyVersion = v.topologyVersion;
       m.dirtyBegin = v.dirtyBegin;
       m.dirtyEnd = v.dirtyEnd;
+      if (opt.strainMax > 0) {
+        // Strain changes everywhere, so every vertex is dirty in this mode.
+        const std::span<const double> e = world.nodeStrain(sim.body(i));
+        strain[i].resize(v.vertexNode.size());
+        for (size_t k = 0; k < v.vertexNode.size(); ++k)
+          strain[i][k] = float(std::clamp(e[size_t(v.vertexNode[k])] / opt.strainMax, 0.0, 1.0));
+        m.scalar = strain[i];
+        m.dirtyBegin = 0;
+        m.dirtyEnd = uint32_t(v.vertexNode.size());
+      }
     }
     for (size_t k = 0; k < shapes.size(); ++k) {
       MeshFrame& m = meshes[sc.bodies.size() + k];

@@ -26,6 +26,8 @@ struct DemoOptions {
   RendererKind renderer = RendererKind::Auto;
   bool validation = false;
   bool quiet = false;  ///< No progress, summary or notes on stdout/stderr (summary.txt still).
+  /// > 0: colour the bodies by World::nodeStrain, saturating (red) at this strain.
+  double strainMax = 0;
 };
 
 /// One rendered frame.
