@@ -11,6 +11,8 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #if GF_HAVE_CHOLMOD
+#include <dlfcn.h>
+
 #include <Eigen/CholmodSupport>
 #endif
 #include <algorithm>
@@ -22,6 +24,23 @@
 #include "solver/vector_ops.h"
 
 namespace gf::detail {
+
+// CHOLMOD's BLAS is OpenBLAS on Debian, which starts a thread per core that spin-waits
+// (sched_yield) between calls: on the bread scene that doubled the CPU time and put half of it
+// in the kernel, and threaded BLAS may sum in a different order from run to run. The world has
+// its own JobSystem, so BLAS runs on the calling thread. Looked up at run time: another BLAS
+// may be installed in its place, and then there is nothing to do.
+void blasOnOneThread() {
+#if GF_HAVE_CHOLMOD
+  static const bool once = [] {
+    using SetThreads = void (*)(int);
+    if (void* f = dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))
+      reinterpret_cast<SetThreads>(f)(1);
+    return true;
+  }();
+  (void)once;
+#endif
+}
 
 struct CholeskySolver::Impl {
   using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
@@ -43,6 +62,7 @@ CholeskySolver::CholeskySolver(CholeskySolver&&) noexcept = default;
 CholeskySolver& CholeskySolver::operator=(CholeskySolver&&) noexcept = default;
 
 Result<void> CholeskySolver::analyze(const BlockSparseMatrix& A) {
+  blasOnOneThread();
   Impl& s = *m_impl;
   s.n = -1;
   // The pattern must be a valid, symmetric block-CSR with every diagonal block present.

@@ -8,6 +8,9 @@
 
 namespace gf::detail {
 
+/// Keeps the BLAS under CHOLMOD (OpenBLAS) on the calling thread; call before factorising.
+void blasOnOneThread();
+
 /// Sparse LL^T (CHOLMOD supernodal, or Eigen SimplicialLLT) of the scalar expansion of a
 /// BlockSparseMatrix. The symbolic analysis runs once per pattern; solve() copies the values
 /// through a precomputed map and refactorises. Eigen stays inside cholesky.cpp.

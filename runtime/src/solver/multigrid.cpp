@@ -19,6 +19,8 @@
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+
+#include "solver/cholesky.h"
 #if GF_HAVE_CHOLMOD
 #include <Eigen/CholmodSupport>
 #endif
@@ -256,6 +258,7 @@ struct MultigridSolver::Impl {
 #if GF_HAVE_CHOLMOD
     coarseLlt.cholmod().print = 0;  // a failed factorisation is retried below, not printed
 #endif
+    blasOnOneThread();
     if (coarseLower.cols() > 0) coarseLlt.analyzePattern(coarseLower);
   }
 
