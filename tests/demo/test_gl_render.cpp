@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "demo/golden_scene.h"
+#include "demo/render_checks.h"
 #include "renderer.h"
 
 namespace gf::demo {
@@ -98,28 +99,6 @@ glm::mat4 viewProj(const Camera& c, int w, int h) {
   return glm::perspective(glm::radians(c.fovYDegrees), float(w) / float(h), c.nearPlane,
                           c.farPlane) *
          glm::lookAt(c.eye, c.target, c.up);
-}
-
-// Area of the convex hull (Andrew's monotone chain, shoelace formula).
-double hullArea(std::vector<glm::dvec2> p) {
-  std::sort(p.begin(), p.end(),
-            [](auto a, auto b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
-  auto cross = [](glm::dvec2 o, glm::dvec2 a, glm::dvec2 b) {
-    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
-  };
-  std::vector<glm::dvec2> hull(2 * p.size());
-  size_t k = 0;
-  for (size_t i = 0; i < p.size(); ++i) {
-    while (k >= 2 && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
-    hull[k++] = p[i];
-  }
-  for (size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
-    while (k >= t && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
-    hull[k++] = p[i];
-  }
-  double area = 0;
-  for (size_t i = 0; i + 1 < k; ++i) area += hull[i].x * hull[i + 1].y - hull[i + 1].x * hull[i].y;
-  return 0.5 * std::abs(area);
 }
 
 bool isBackground(const Image& im, size_t pixel) {
@@ -206,7 +185,7 @@ TEST(GlRender, CubeSilhouetteMatchesProjectedHullArea) {
         vp * glm::vec4(i & 1 ? 0.5f : -0.5f, i & 2 ? 0.5f : -0.5f, i & 4 ? 0.5f : -0.5f, 1.0f);
     corners.push_back({(clip.x / clip.w * 0.5 + 0.5) * w, (clip.y / clip.w * 0.5 + 0.5) * h});
   }
-  const double area = hullArea(corners);
+  const double area = test::convexHullArea(corners);
   const double counted = double(foregroundPixels(im));
   std::printf("[ GL ] cube outline: %.1f pixels analytic, %.0f rendered (%.3f %%)\n", area, counted,
               100.0 * (counted - area) / area);
@@ -231,20 +210,10 @@ glm::vec3 colourMap(float s) {
   return glm::mix(stops[i], stops[i + 1], x - float(i));
 }
 
-// The shading model (/tmp/briefs/shading.md, shared with the Vulkan shaders) on the CPU for a
-// world point with world normal n facing the eye.
+// The shading model on the CPU (render_checks.h), for a world normal n facing the eye.
 glm::vec3 shade(const glm::vec3& base, glm::vec3 n, const glm::vec3& p, const glm::vec3& eye) {
-  n = glm::normalize(n);
-  const glm::vec3 l = glm::normalize(glm::vec3(0.4f, 1.0f, 0.3f));
-  const glm::vec3 v = glm::normalize(eye - p), hv = glm::normalize(l + v);
-  const float ambient = 0.18f + (0.38f - 0.18f) * 0.5f * (n.y + 1.0f);
-  const float diffuse = 0.72f * std::max(glm::dot(n, l), 0.0f);
-  const float specular = 0.12f * std::pow(std::max(glm::dot(n, hv), 0.0f), 48.0f);
-  glm::vec3 out;
-  for (int c = 0; c < 3; ++c)
-    out[c] = 255.0f * std::pow(std::clamp(base[c] * (ambient + diffuse) + specular, 0.0f, 1.0f),
-                               1.0f / 2.2f);
-  return out;
+  return glm::vec3(
+      test::shade(glm::dvec3(base), glm::normalize(glm::dvec3(n)), glm::dvec3(p), glm::dvec3(eye)));
 }
 
 // A tilted quad (two triangles, the second a crack face) filling most of a 64x64 frame: pixels

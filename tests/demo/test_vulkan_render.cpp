@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "demo/golden_scene.h"
+#include "demo/render_checks.h"
 #include "renderer.h"
 #include "vulkan_renderer.h"
 
@@ -90,46 +91,6 @@ bool isBackground(const Image& im, int x, int y) {
   return std::abs(p[0] - 158) <= 1 && std::abs(p[1] - 179) <= 1 && std::abs(p[2] - 204) <= 1;
 }
 
-// Area of the convex hull of 2D points (monotone chain, then the shoelace formula).
-double convexHullArea(std::vector<glm::dvec2> pts) {
-  std::sort(pts.begin(), pts.end(),
-            [](glm::dvec2 a, glm::dvec2 b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
-  auto cross = [](glm::dvec2 o, glm::dvec2 a, glm::dvec2 b) {
-    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
-  };
-  std::vector<glm::dvec2> hull(2 * pts.size());
-  size_t k = 0;
-  for (size_t i = 0; i < pts.size(); ++i) {
-    while (k >= 2 && cross(hull[k - 2], hull[k - 1], pts[i]) <= 0) --k;
-    hull[k++] = pts[i];
-  }
-  for (size_t i = pts.size() - 1, t = k + 1; i-- > 0;) {
-    while (k >= t && cross(hull[k - 2], hull[k - 1], pts[i]) <= 0) --k;
-    hull[k++] = pts[i];
-  }
-  hull.resize(k - 1);
-  double area = 0;
-  for (size_t i = 0; i < hull.size(); ++i) {
-    const glm::dvec2 a = hull[i], b = hull[(i + 1) % hull.size()];
-    area += a.x * b.y - b.x * a.y;
-  }
-  return std::abs(area) / 2;
-}
-
-// The shared shading model (/tmp/briefs/shading.md), evaluated in double on the CPU.
-glm::dvec3 shade(glm::dvec3 base, glm::dvec3 n, glm::dvec3 world, glm::dvec3 eye) {
-  const glm::dvec3 l = glm::normalize(glm::dvec3(0.4, 1.0, 0.3));
-  const glm::dvec3 v = glm::normalize(eye - world);
-  const glm::dvec3 h = glm::normalize(l + v);
-  const double ambient = 0.18 + (0.38 - 0.18) * 0.5 * (n.y + 1.0);
-  const double diffuse = 0.72 * std::max(glm::dot(n, l), 0.0);
-  const double specular = 0.12 * std::pow(std::max(glm::dot(n, h), 0.0), 48.0);
-  const glm::dvec3 linear = base * (ambient + diffuse) + glm::dvec3(specular);
-  glm::dvec3 out;
-  for (int c = 0; c < 3; ++c) out[c] = 255.0 * std::pow(std::clamp(linear[c], 0.0, 1.0), 1 / 2.2);
-  return out;
-}
-
 TEST(VulkanRender, CubeSilhouetteAndShadingMatchTheCpu) {
   const int w = 320, h = 240;
   // One sample: a pixel is covered exactly when its centre is, so the count estimates the area.
@@ -163,7 +124,7 @@ TEST(VulkanRender, CubeSilhouetteAndShadingMatchTheCpu) {
   std::vector<glm::dvec2> corners;
   for (int i = 0; i < 8; ++i)
     corners.push_back(toPixel({i & 1 ? 0.5 : -0.5, i & 2 ? 0.5 : -0.5, i & 4 ? 0.5 : -0.5}));
-  const double area = convexHullArea(corners);
+  const double area = test::convexHullArea(corners);
   EXPECT_GT(area, 0.1 * w * h);  // the cube fills a good part of the frame
   EXPECT_NEAR(covered, area, 0.01 * area);
   std::printf("cube silhouette: %d px covered, projected hull %.1f px (%+.3f %%)\n", covered, area,
@@ -182,7 +143,7 @@ TEST(VulkanRender, CubeSilhouetteAndShadingMatchTheCpu) {
     const glm::dvec3 p0 = glm::dvec3(a) / a.w, p1 = glm::dvec3(b) / b.w;
     const double t = (0.5 - p0[axis]) / (p1[axis] - p0[axis]);
     const glm::dvec3 expected =
-        shade(glm::dvec3(frame.colour), n, p0 + t * (p1 - p0), glm::dvec3(cam.eye));
+        test::shade(glm::dvec3(frame.colour), n, p0 + t * (p1 - p0), glm::dvec3(cam.eye));
     const uint8_t* got = &im.rgba[4 * (size_t(px.y) * w + size_t(px.x))];
     for (int c = 0; c < 3; ++c) {
       EXPECT_NEAR(got[c], expected[c], 1.5) << "face " << axis << " channel " << c;
