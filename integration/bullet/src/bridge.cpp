@@ -166,8 +166,10 @@ int Bridge::handOffNewFragments() {
     const int32_t count = m_world.fractureStats(p.body).fragments;
     if (count < 2 || count == p.seenFragments) continue;
     p.seenFragments = count;
+    m_nodeCount.assign(size_t(count), 0);
+    for (int32_t f : m_world.nodeFragments(p.body)) ++m_nodeCount[size_t(f)];
     for (int32_t f = 0; f < count; ++f) {
-      if (rigidBody(p.body, f)) continue;
+      if (m_nodeCount[size_t(f)] < kMinHandoffNodes || rigidBody(p.body, f)) continue;
       if (p.policy == HandoffPolicy::BelowVolume) {
         const Result<RigidFragmentInfo> info = m_world.fragmentInfo(p.body, f);
         if (!info || info.value().volume >= p.maxVolume) continue;
