@@ -168,14 +168,29 @@ int Bridge::handOffNewFragments() {
     p.seenFragments = count;
     m_nodeCount.assign(size_t(count), 0);
     for (int32_t f : m_world.nodeFragments(p.body)) ++m_nodeCount[size_t(f)];
+    m_candidates.clear();
+    int32_t inBullet = 0;
     for (int32_t f = 0; f < count; ++f) {
-      if (m_nodeCount[size_t(f)] < kMinHandoffNodes || rigidBody(p.body, f)) continue;
+      if (rigidBody(p.body, f))
+        ++inBullet;
+      else
+        m_candidates.push_back(f);
+    }
+    // Most nodes first, then by id: deterministic, and a capped body keeps its big pieces.
+    std::stable_sort(m_candidates.begin(), m_candidates.end(), [&](int32_t a, int32_t b) {
+      return m_nodeCount[size_t(a)] > m_nodeCount[size_t(b)];
+    });
+    for (int32_t f : m_candidates) {
+      if (inBullet >= kMaxRigidFragments) break;
       if (p.policy == HandoffPolicy::BelowVolume) {
         const Result<RigidFragmentInfo> info = m_world.fragmentInfo(p.body, f);
         if (!info || info.value().volume >= p.maxVolume) continue;
       }
       // A gripped fragment refuses; it is tried again when the body splits next.
-      if (handOff(p.body, f)) ++handed;
+      if (handOff(p.body, f)) {
+        ++handed;
+        ++inBullet;
+      }
     }
   }
   return handed;
