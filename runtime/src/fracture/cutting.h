@@ -1,4 +1,4 @@
-// Cutting (issue 3 item 7, SPEC §2): a blade, a triangle mesh moved rigidly over one step,
+// Cutting (SPEC §2): a blade, a triangle mesh moved rigidly over one step,
 // breaks every unbroken edge whose CURRENT segment crosses the surface it sweeps.
 //
 // Design: the swept surface is approximated by triangles: the blade at the end pose, at the

@@ -36,7 +36,7 @@ inline RestMeshView restView(const TetMesh& m) {
   return {m.positions.data(), m.tets.data(), int32_t(m.nodeCount()), int32_t(m.tetCount())};
 }
 
-/// One edge broken by the criterion, a brittle crack plane or a cut (issue 3 item 10).
+/// One edge broken by the criterion, a brittle crack plane or a cut.
 struct EdgeBreak {
   int32_t edge = -1;  ///< Edge id in the EdgeGraph.
   int32_t tet = -1;   ///< Tet that reported it (criterion, brittle seed); -1 for a cut.

@@ -1,6 +1,6 @@
-// Fragments: connected components of the node graph over unbroken edges (SPEC §2, issue 3
-// item 8). A node is never split, so a fragment is a set of nodes and a body breaks into pieces
-// only by losing edges; damage never heals, so fragments only ever split, never merge.
+// Fragments: connected components of the node graph over unbroken edges (SPEC §2). A node is
+// never split, so a fragment is a set of nodes and a body breaks into pieces only by losing
+// edges; damage never heals, so fragments only ever split, never merge.
 //
 // Design:
 // - Ids are dense, 0..count()-1, and stable: when a fragment splits, the piece that holds the

@@ -1,4 +1,4 @@
-// Bullet bridge (issue 5 item 3): fragments that break off a graphfrac body become Bullet rigid
+// Bullet bridge: fragments that break off a graphfrac body become Bullet rigid
 // bodies. After each World::step the bridge reads the fragment events, detaches the fragments
 // each body's policy picks (World::detachFragment) and creates a btRigidBody for each: a convex
 // hull of the fragment's nodes in its principal frame, the fragment's mass and principal
