@@ -17,7 +17,8 @@
 //   twist = 2 psi_I1 / (s_i + s_j) + 2 psi_I2 + psi_I3 s_k + 4 psi_I4 (s_i^2 - s_i s_j + s_j^2)
 // so repeated singular values need no special case (the flip limit A_ii - A_ij comes out
 // exactly), and only a psi_I1 term (co-rotational) can divide by s_i + s_j -> 0, where that
-// energy really has a kink; there the denominator is bounded by kTwistDenominatorMin.
+// energy really has a kink; there the denominator is bounded by kTwistDenominatorMin. The
+// signed SVD (s0 >= s1 >= |s2|) keeps s_i + s_j >= 0 for inverted elements too.
 // Clamping negative eigenvalues to zero gives the PSD projection that keeps the implicit
 // system SPD; without projection the sum of the modes is the exact Hessian.
 //
@@ -268,6 +269,9 @@ GF_HD double isotropicEvaluate(const MaterialCoeffs& c, const Svd3& svd, Mat3& P
     const double flip = 2.0 * r.d[1] - r.d[2] * sk + 4.0 * r.d[3] * (si * si + si * sj + sj * sj);
     double twist = 2.0 * r.d[1] + r.d[2] * sk + 4.0 * r.d[3] * (si * si - si * sj + sj * sj);
     if (r.d[0] != 0) {
+      // svd3 puts the sign of det F on the singular value of smallest magnitude, so
+      // s_i + s_j >= 0 even for inverted elements; a negative sum is round-off at the kink
+      // s_j = -s_i, whose side is the positive one.
       double den = si + sj;
       if (den < kTwistDenominatorMin) den = kTwistDenominatorMin;
       twist += 2.0 * r.d[0] / den;

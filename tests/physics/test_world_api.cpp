@@ -196,6 +196,9 @@ class ReentrantJobs final : public JobSystem {
       accepted.push_back(world->restore(world->snapshot()).ok());
       accepted.push_back(world->step(0.01).ok());
       accepted.push_back(!world->surface(body).positions.empty());
+      // Read-only diagnostics answer nothing rather than race the step's buffers.
+      accepted.push_back(world->stats(body).mass > 0);
+      accepted.push_back(!world->gripForces(body).empty());
     }
     if (count > 0) fn(0, count);
   }
@@ -213,7 +216,7 @@ TEST(WorldApi, CallsDuringStepAreRefused) {
   jobs.calls = 0;
   (void)world.step(0.01);
   (void)reference.step(0.01);
-  ASSERT_EQ(jobs.accepted.size(), 8u);
+  ASSERT_EQ(jobs.accepted.size(), 10u);
   for (size_t i = 0; i < jobs.accepted.size(); ++i) EXPECT_FALSE(jobs.accepted[i]) << "call " << i;
   EXPECT_TRUE(world.isValid(id));
   EXPECT_TRUE(sameBits(copy(reference.positions(rid)), world.positions(id)));
@@ -305,6 +308,117 @@ TEST(WorldApi, SurfaceAskedForRarelyMatchesSurfaceAskedForEveryStep) {
   }
   EXPECT_EQ(checks, 12);
   EXPECT_GT(rarely.fractureStats(b).brokenEdges, 0);  // topology changed on the way
+}
+
+// The dirty range is exact: empty when nothing moved, and every vertex outside it is where the
+// previous call left it when only part of the body moved.
+TEST(WorldApi, SurfaceDirtyRangeCoversExactlyWhatMoved) {
+  World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
+  BodyDef def = fracturingBar();
+  // Every node held still, so nothing moves, not even by round-off (a free body at rest
+  // moves its nodes by ~1e-17 m per step, which the float surface does show).
+  def.grips.resize(1);
+  def.grips[0].velocity = glm::vec3(0);
+  for (int32_t n = 0; n < int32_t(def.mesh.nodeCount()); ++n) def.grips[0].nodes.push_back(n);
+  const BodyId id = world.createBody(def).value();
+  const SurfaceView first = world.surface(id);
+  EXPECT_EQ(first.dirtyBegin, 0u);
+  EXPECT_EQ(first.dirtyEnd, uint32_t(first.positions.size() / 3));  // a new surface: all
+  (void)world.step(0.01);
+  const SurfaceView still = world.surface(id);
+  EXPECT_EQ(still.dirtyBegin, still.dirtyEnd) << "nothing moved, yet vertices are dirty";
+
+  // Move one boundary node: only its vertices (and the normals around it) change.
+  const std::vector<float> before(still.positions.begin(), still.positions.end());
+  std::vector<double> x = copy(world.positions(id));
+  const int32_t node = int32_t(x.size() / 3 / 2);
+  x[3 * size_t(node) + 1] += 1e-3;
+  ASSERT_TRUE(world.setPositions(id, x).ok());
+  const SurfaceView moved = world.surface(id);
+  const uint32_t nv = uint32_t(moved.positions.size() / 3);
+  ASSERT_LT(moved.dirtyBegin, moved.dirtyEnd);
+  EXPECT_LT(moved.dirtyEnd - moved.dirtyBegin, nv);  // not the whole surface
+  int changed = 0;
+  for (uint32_t v = 0; v < nv; ++v) {
+    const bool same = std::memcmp(&before[3 * v], &moved.positions[3 * v], 3 * sizeof(float)) == 0;
+    changed += same ? 0 : 1;
+    if (!same) {
+      EXPECT_GE(v, moved.dirtyBegin);
+      EXPECT_LT(v, moved.dirtyEnd);
+    }
+    if (moved.vertexNode[v] == node) {
+      EXPECT_FALSE(same) << "vertex " << v << " of the moved node";
+    }
+  }
+  EXPECT_GT(changed, 0);
+  const SurfaceView again = world.surface(id);  // asked twice: nothing new
+  EXPECT_EQ(again.dirtyBegin, again.dirtyEnd);
+}
+
+// World::edges names the nodes of the edge ids that events and setEdgeStrengths use: weakening
+// the edges that cross the plane x = 0.52 (inside the 13th of 24 cells) makes the bar break
+// there and nowhere else.
+TEST(WorldApi, EdgesLetTheGameChooseWhereABodyBreaks) {
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  const BodyId id = world.createBody(fracturingBar(1e9)).value();
+  const std::span<const int32_t> edges = world.edges(id);
+  const std::span<const double> x = world.positions(id);
+  ASSERT_EQ(edges.size(), 2 * size_t(world.fractureStats(id).edgeCount));
+  std::vector<double> strength(edges.size() / 2, 1e9);
+  auto crosses = [&](size_t e) {
+    const double xa = x[3 * size_t(edges[2 * e])], xb = x[3 * size_t(edges[2 * e + 1])];
+    return (xa - 0.52) * (xb - 0.52) < 0;
+  };
+  int weakened = 0;
+  for (size_t e = 0; e < strength.size(); ++e)
+    if (crosses(e)) strength[e] = 1e3, ++weakened;
+  ASSERT_GT(weakened, 0);
+  ASSERT_TRUE(world.setEdgeStrengths(id, strength).ok());
+  int events = 0;
+  for (int s = 0; s < 40; ++s) {
+    (void)world.step(0.01);
+    for (const FractureEvent& ev : world.fractureEvents()) {
+      ++events;
+      EXPECT_TRUE(crosses(size_t(ev.edge))) << "edge " << ev.edge;
+      EXPECT_EQ(ev.nodeA, edges[2 * size_t(ev.edge)]);
+      EXPECT_EQ(ev.nodeB, edges[2 * size_t(ev.edge) + 1]);
+    }
+  }
+  EXPECT_GT(events, 0);
+  EXPECT_EQ(world.fractureStats(id).fragments, 2);
+  const std::span<const uint8_t> broken = world.brokenEdges(id);
+  ASSERT_EQ(broken.size(), strength.size());
+  for (size_t e = 0; e < broken.size(); ++e)
+    if (broken[e]) {
+      EXPECT_TRUE(crosses(e)) << "edge " << e;
+    }
+  EXPECT_TRUE(world.edges(BodyId{}).empty());
+  const BodyId plain = world.createBody(freeCube()).value();
+  EXPECT_TRUE(world.edges(plain).empty());  // no fracture graph
+}
+
+// A bar hanging from a pinned top face: once settled, the grip holds exactly its weight.
+TEST(WorldApi, GripForcesBalanceTheWeight) {
+  const glm::vec3 g(0, -9.81f, 0);
+  World world(WorldDef{g, Backend::Cpu, nullptr, 1, {}});
+  BodyDef def;
+  def.mesh = gen::box(0.1, 0.5, 0.1, 2, 10, 2);
+  def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
+  def.material.massDamping = 20;  // settles in a second
+  def.solver.linearSolver = LinearSolverKind::Direct;
+  Grip top;
+  top.nodes = test::selectNodes(def.mesh, [](double, double y, double) { return y > 0.5 - 1e-9; });
+  def.grips = {top};
+  const BodyId id = world.createBody(def).value();
+  EXPECT_EQ(world.gripForces(id)[0], glm::dvec3(0));  // before the first step
+  for (int s = 0; s < 240; ++s) (void)world.step(1.0 / 120);
+  const double weight = world.stats(id).mass * 9.81;
+  const glm::dvec3 f = world.gripForces(id)[0];
+  std::printf("grip: force (%.4f, %.4f, %.4f) N, weight %.4f N\n", f.x, f.y, f.z, weight);
+  EXPECT_NEAR(f.y, weight, 1e-3 * weight);
+  EXPECT_NEAR(f.x, 0, 1e-6 * weight);
+  EXPECT_NEAR(f.z, 0, 1e-6 * weight);
+  EXPECT_TRUE(world.gripForces(BodyId{}).empty());
 }
 
 // The strain colour map's field: a box stretched uniformly by (1.1, 0.95, 1) has the Green

@@ -90,6 +90,13 @@ std::vector<NamedF> testDeformations() {
       {"inverted-b", randomRotation(rng) * diag(0.9, 0.7, -0.05) * transpose(randomRotation(rng))});
   out.push_back(
       {"inverted-c", randomRotation(rng) * diag(1.5, 1.0, -0.6) * transpose(randomRotation(rng))});
+  // The inverted axis is not the shortest: a naive signed SVD would give s1 + s2 = -0.3, where
+  // the co-rotational twist eigenvalue 2 psi_I1 / (s1 + s2) changes sign; svd3 moves the sign
+  // to the smallest magnitude instead, and the exact Hessian must still match differences.
+  out.push_back({"inverted-long",
+                 randomRotation(rng) * diag(1.0, 0.3, -0.6) * transpose(randomRotation(rng))});
+  out.push_back({"inverted-most",
+                 randomRotation(rng) * diag(0.5, 0.3, -1.4) * transpose(randomRotation(rng))});
   out.push_back({"rotated", randomRotation(rng) * diag(1.05, 0.97, 1.02)});
   out.push_back(
       {"stretched", randomRotation(rng) * diag(1.6, 1.4, 1.3) * transpose(randomRotation(rng))});

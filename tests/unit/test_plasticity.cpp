@@ -10,6 +10,9 @@
 #include <cstring>
 #include <random>
 
+#include "fem/fem_body.h"
+#include "fracture/fracture_body.h"
+#include "graphfrac/jobs.h"
 #include "kernels/edge_stress.h"
 #include "kernels/materials.h"
 #include "kernels/plasticity.h"
@@ -224,6 +227,49 @@ TEST(Plasticity, HardeningRaisesTheThreshold) {
   // K dt ||sigma|| per update, has passed the stress.
   EXPECT_GE(snK, thrK);
   EXPECT_LT(snK, p.yieldStress + p.hardening * deltaK);
+}
+
+// The fracture criterion judges the elastic stress of Fe = F Fp^-1 (eq 2.3), as the element
+// pass does: a body that flowed plastically into its current shape carries no stress, so an edge
+// strength far below the stress of the total F breaks nothing. Checked on the path that
+// evaluates every tet itself (moving grips, damaged tets), with a uniform plastic stretch.
+TEST(Plasticity, FractureCriterionSeesTheElasticStressOnly) {
+  gf::BodyDef def;
+  def.mesh = gf::gen::box(0.3, 0.1, 0.1, 6, 2, 2);
+  def.material = gf::Material::stableNeoHookean(kE, kNu, 1000);
+  def.fracture.enabled = true;
+  def.fracture.strength = 1e3;  // the total stretch of 1.2 gives ~2e5 Pa
+  def.plasticity.enabled = true;
+  const gf::detail::FemModel model = gf::detail::buildFemModel(def);
+  const Mat3 Fp = diag(1.2, 1 / std::sqrt(1.2), 1 / std::sqrt(1.2));  // volume preserving
+  const Mat3 FpInv = diag(1 / 1.2, std::sqrt(1.2), std::sqrt(1.2));
+  std::vector<Mat3> plasticInverse(model.restInverse.size());
+  for (size_t t = 0; t < plasticInverse.size(); ++t)
+    plasticInverse[t] = model.restInverse[t] * FpInv;
+  std::vector<double> x(model.restPositions.size()), v(x.size(), 0.0);
+  for (size_t n = 0; n < x.size() / 3; ++n)
+    for (int i = 0; i < 3; ++i) x[3 * n + i] = Fp(i, i) * model.restPositions[3 * n + i];
+
+  int broken[2];
+  double maxStress[2];
+  for (const bool plastic : {false, true}) {
+    auto fb = gf::detail::FractureBody::create(model, gf::serialJobs());
+    ASSERT_TRUE(fb.ok());
+    if (plastic) fb.value()->attachPlasticity(&plasticInverse);
+    broken[plastic] = fb.value()->detect(model, x.data(), v.data(), gf::serialJobs(),
+                                         /*stressesReady=*/false);
+    maxStress[plastic] = 0;
+    const double* s = fb.value()->stressBuffer();
+    for (size_t k = 0; k < 6 * size_t(model.tetCount); ++k)
+      maxStress[plastic] = std::max(maxStress[plastic], std::fabs(s[k]));
+  }
+  std::printf(
+      "  criterion on a plastic stretch of 1.2: total F breaks %d edges (stress %.3g Pa), "
+      "Fe breaks %d (stress %.3g Pa)\n",
+      broken[0], maxStress[0], broken[1], maxStress[1]);
+  EXPECT_GT(broken[0], 0);  // the check can fail: the total F is far over the strength
+  EXPECT_EQ(broken[1], 0);
+  EXPECT_LT(maxStress[1], 1e-6 * kE);
 }
 
 }  // namespace

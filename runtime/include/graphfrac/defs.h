@@ -39,7 +39,7 @@ struct Material {
   static Material stvk(double E, double nu, double rho);
   static Material neoHookean(double E, double nu, double rho);
   static Material stableNeoHookean(double E, double nu, double rho);
-  /// Empty when valid; otherwise names the field and the reason.
+  /// Empty when valid; otherwise names the field ("material.density: ...") and the reason.
   Result<void> check() const;
 };
 
@@ -78,6 +78,8 @@ struct MultigridSettings {
   int coarseRefreshInterval = 1;
   /// Re-bind vertices whose handle sits across a crack (SPEC §5) when edges break.
   bool crackRebinding = true;
+  /// Empty when valid; otherwise names the field ("levels: ...") and the reason.
+  Result<void> check() const;
 };
 
 /// How the implicit backward Euler step (eq 2.7, 3.13) is solved.
@@ -94,6 +96,9 @@ struct SolverSettings {
   MultigridSettings multigrid;  ///< Used when linearSolver == Multigrid.
   int maxLinearIterations = 200;
   double linearTolerance = 1e-6;  ///< Relative residual |r|/|b| for PCG.
+  /// Empty when valid (the multigrid settings are checked when linearSolver is Multigrid);
+  /// otherwise names the field ("newtonIterations: ...", "multigrid.levels: ...") and the reason.
+  Result<void> check() const;
 };
 
 /// How a damaged element's energy follows from its broken edges (SPEC §2).
@@ -125,6 +130,8 @@ struct FractureSettings {
   /// regions each start a crack plane normal to the maximum principal stress.
   bool brittle = false;
   int regions = 1;
+  /// Empty when valid or disabled; otherwise names the field ("strength: ...") and the reason.
+  Result<void> check() const;
 };
 
 /// Multiplicative plasticity F = Fe Fp (eq 2.3-2.5). Disabled by default: no Fp is stored.
@@ -133,6 +140,8 @@ struct PlasticitySettings {
   double yieldStress = 1e5;  ///< sigma_p [Pa]
   double flowRate = 1;       ///< v in eq 2.5, in [0, 1]
   double hardening = 0;      ///< K in eq 2.5 [1/s]
+  /// Empty when valid or disabled; otherwise names the field ("yieldStress: ...") and the reason.
+  Result<void> check() const;
 };
 
 /// Nodes whose velocity is prescribed: a pin (velocity 0) or a grip that pulls.
@@ -160,6 +169,11 @@ struct BodyDef {
   /// Optional per-tet rest-space fibre directions (one per tet) overriding
   /// material.fibreDirection; used only when material.fibreStiffness > 0.
   std::vector<glm::vec3> fibreField;
+  /// Everything World::createBody checks before it allocates: the mesh (validate()), the
+  /// material, solver, fracture and plasticity settings, node indices of grips and forces,
+  /// finite vectors, the fibre field. Empty when valid; otherwise names the field
+  /// ("grips[1].nodes: ...") and the reason.
+  Result<void> check() const;
 };
 
 /// An obstacle; contact is a one-sided penalty whose energy enters the implicit step. A
@@ -178,10 +192,18 @@ struct Collider {
   double stiffness = 0;
   glm::vec3 velocity{0, 0, 0};     ///< Translation velocity [m/s] (no spin).
   glm::quat rotation{1, 0, 0, 0};  ///< Box: box-to-world rotation (unit, or normalised).
+  /// Empty when valid; otherwise names the field ("stiffness: ...") and the reason. Finite
+  /// values are also bounded (|point|, |velocity|, sizes <= 1e9 m, stiffness <= 1e18) so that
+  /// the penalty energy and impulses stay finite.
+  Result<void> check() const;
 };
 
 /// Which backend runs the bodies.
-enum class Backend : uint8_t { Auto, Cpu, Cuda };
+enum class Backend : uint8_t {
+  Auto,  ///< The best one available: the CPU in this version.
+  Cpu,   ///< The CPU, threaded through WorldDef::jobs.
+  Cuda,  ///< Not available in this version: WorldDef::check reports it.
+};
 
 /// A world: gravity, backend, threading, substeps and static colliders.
 struct WorldDef {
@@ -190,6 +212,9 @@ struct WorldDef {
   JobSystem* jobs = nullptr;  ///< Not owned; null = serial.
   int substeps = 1;           ///< Fixed internal substeps per step(dt).
   std::vector<Collider> colliders;
+  /// Empty when valid; otherwise names the field ("WorldDef.colliders[2].stiffness: ...") and
+  /// the reason.
+  Result<void> check() const;
 };
 
 }  // namespace gf

@@ -39,7 +39,7 @@ template <>
 class [[nodiscard]] Result<void> {
  public:
   Result() = default;
-  Result(Error error) : m_error(std::move(error.message)), m_failed(true) {}  // NOLINT
+  Result(Error error) : m_error(std::move(error)), m_failed(true) {}  // NOLINT
   bool ok() const { return !m_failed; }
   explicit operator bool() const { return ok(); }
   const Error& error() const { return m_error; }
@@ -71,8 +71,10 @@ void assertFailed(const char* condition, const char* message, const char* file, 
 enum StepFlag : uint32_t {
   kStepOk = 0,
   kStepNotConverged = 1u << 0,  ///< Newton or the linear solver stopped at its iteration cap.
-  kStepNanContained = 1u << 1,  ///< A NaN/Inf appeared; the body was rolled back to its last state.
-  kStepInvalidInput = 1u << 2,  ///< The call was rejected (e.g. dt <= 0); nothing changed.
+  /// A NaN/Inf appeared or the elastic energy blew up (over 1e6 x Young's modulus x volume: a
+  /// diverged solve); the body was rolled back to its last state and the message says which.
+  kStepNanContained = 1u << 1,
+  kStepInvalidInput = 1u << 2,      ///< The call was rejected (e.g. dt <= 0); nothing changed.
   kStepLineSearchFailed = 1u << 3,  ///< Newton's line search hit its minimum step.
 };
 

@@ -18,7 +18,10 @@ struct SurfaceView {
   std::span<const int32_t> vertexFragment;  ///< per vertex: the fragment it belongs to
   std::span<const int32_t> vertexNode;      ///< per vertex: the node whose data it shows
   uint64_t topologyVersion = 0;             ///< changes only when fractures change the triangles
-  uint32_t dirtyBegin = 0, dirtyEnd = 0;    ///< vertices whose positions changed since last step
+  /// The vertices whose position or normal changed since the previous World::surface call for
+  /// this body lie in [dirtyBegin, dirtyEnd); empty (begin == end) when none did. Every vertex
+  /// is dirty when topologyVersion changed.
+  uint32_t dirtyBegin = 0, dirtyEnd = 0;
 };
 
 }  // namespace gf

@@ -62,11 +62,12 @@ struct RigidFragmentInfo {
 
 /// Timing of the last step, per stage [ms].
 struct StepTimings {
-  double fractureMs = 0;  ///< Stresses, criterion, fragments (0 without fracture).
-  double surfaceMs = 0;   ///< Render-surface updates that surface() did since this step.
-  double elementsMs = 0;  ///< Per-element energy, forces and Hessians.
-  double assemblyMs = 0;  ///< Gathering element blocks into the sparse matrix.
-  double solveMs = 0;     ///< Linear solves.
+  double fractureMs = 0;    ///< Stresses, criterion, fragments (0 without fracture).
+  double plasticityMs = 0;  ///< Plastic flow after each substep (0 without plasticity).
+  double surfaceMs = 0;     ///< Render-surface updates that surface() did since this step.
+  double elementsMs = 0;    ///< Per-element energy, forces and Hessians.
+  double assemblyMs = 0;    ///< Gathering element blocks into the sparse matrix.
+  double solveMs = 0;       ///< Linear solves.
   double totalMs = 0;
 };
 
@@ -89,15 +90,17 @@ class WorldSnapshot {
 
 class World {
  public:
-  /// Creates a world; an invalid def (e.g. substeps < 1) is reported by the first step and
-  /// replaced by defaults.
+  /// Creates a world. An invalid def (WorldDef::check fails: e.g. substeps < 1, a collider
+  /// with an infinite stiffness, Backend::Cuda in this version) makes a world that refuses to
+  /// run: createBody returns the def's error and every step returns kStepInvalidInput with it.
   explicit World(const WorldDef& def = {});
   ~World();
   World(const World&) = delete;
   World& operator=(const World&) = delete;
 
-  /// Validates the def (mesh, material, node indices of grips and forces) and adds a body.
-  /// On error the world is unchanged.
+  /// Validates the def (BodyDef::check) and adds a body. On error, including a body too large
+  /// for the memory the process can get (the message says how much it needs), the world is
+  /// unchanged.
   Result<BodyId> createBody(BodyDef def);
   /// Removes a body; a stale or null id is an error.
   Result<void> destroyBody(BodyId id);
@@ -111,15 +114,17 @@ class World {
   std::span<const double> positions(BodyId id) const;
   std::span<const double> velocities(BodyId id) const;
   /// Overwrites the velocity of every node (e.g. an initial swing); error for a bad id or
-  /// a non-finite value.
+  /// a value that is not finite or above 1e9 m/s.
   Result<void> setVelocity(BodyId id, glm::dvec3 v);
-  /// Overwrites all node velocities (3 per node); error for a bad id, a wrong size or a
-  /// non-finite value.
+  /// Overwrites all node velocities (3 per node); error for a bad id, a wrong size or a value
+  /// that is not finite or above 1e9 m/s.
   Result<void> setVelocities(BodyId id, std::span<const double> v);
   /// Overwrites all node positions (3 per node), e.g. to teleport a body or to start from a
-  /// deformed shape; error for a bad id, a wrong size or a non-finite value.
+  /// deformed shape; error for a bad id, a wrong size or a coordinate that is not finite or
+  /// farther than 1e9 m from the origin (a unit mistake the float render surface cannot hold).
   Result<void> setPositions(BodyId id, std::span<const double> x);
-  /// Energies and momenta; zeroes for an invalid id.
+  /// Energies and momenta; zeroes for an invalid id or during step(). Reads the body only, so
+  /// threads may call it between steps.
   BodyStats stats(BodyId id) const;
   /// Cuts a body with a blade; the edges it crosses break at the start of the next step and
   /// show up in that step's events. Error for a bad id, a body without fracture, an empty
@@ -133,6 +138,19 @@ class World {
   FractureStats fractureStats(BodyId id) const;
   /// Fragment id of every node (empty for an invalid id or a body without fracture).
   std::span<const int32_t> nodeFragments(BodyId id) const;
+  /// The two nodes of every edge of the fracture graph, 2 per edge, in the order that
+  /// setEdgeStrengths, brokenEdges and FractureEvent::edge use. Empty for an invalid id or a
+  /// body without fracture. Fixed for the body's lifetime.
+  std::span<const int32_t> edges(BodyId id) const;
+  /// Per edge (same order as edges()), 1 when broken. Empty for an invalid id or a body
+  /// without fracture. Valid until the next step.
+  std::span<const uint8_t> brokenEdges(BodyId id) const;
+  /// Per grip of BodyDef::grips, the force [N] it exerts on the body at the end of the last
+  /// step: what holds its nodes on their prescribed path against inertia, elasticity, gravity,
+  /// applied forces and contact (the residual of the implicit step's momentum balance on them).
+  /// Zero before the first step. Computed on each call, O(tets); valid until the next call,
+  /// step or body creation/destruction. Empty for an invalid id or during step().
+  std::span<const glm::dvec3> gripForces(BodyId id);
   /// Per node, the largest principal Lagrangian strain (F^T F - I) / 2 of its tets, averaged
   /// with the tets' rest volumes as weights: what a strain colour map shows (map it to the
   /// surface with SurfaceView::vertexNode). Computed on each call, O(tets); valid until the
@@ -218,8 +236,9 @@ class World {
   /// Copies the whole world state for rollback and replays (O(state), no solver work).
   WorldSnapshot snapshot() const;
   /// Puts the world back into a snapshot's state: the steps that follow repeat bit for bit.
-  /// The world must hold exactly the snapshot's bodies (same ids and meshes); otherwise, for an
-  /// empty snapshot, or during step(), it is an error and nothing changes. Render surfaces are
+  /// The snapshot must have been taken of this world, which must hold exactly the snapshot's
+  /// bodies (same ids and meshes); otherwise, for an empty snapshot, or during step(), it is an
+  /// error and nothing changes. Render surfaces are
   /// rebuilt; events are those of the step before the snapshot. With a multigrid solver the
   /// crack re-binding history is replayed (one re-bind per step that broke edges), unless it
   /// is unchanged since the snapshot. A body with fragments handed to rigid physics

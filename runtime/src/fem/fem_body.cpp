@@ -78,4 +78,32 @@ FemModel buildFemModel(const BodyDef& def) {
   return m;
 }
 
+double estimateBodyBytes(const BodyDef& def) {
+  const double tets = double(def.mesh.tetCount()), nodes = double(def.mesh.nodeCount());
+  // A tet mesh has about as many edges as nodes and tets together (Euler: V - E + F - T = 1
+  // with F ~ 2T); the matrix holds a diagonal block per node and two blocks per edge.
+  const double edges = nodes + tets;
+  const double blocks = nodes + 2 * edges;
+  const double d = sizeof(double);
+  // Per tet: element Hessian (144), gradient (12), energy, rest inverse (9), volume, corners,
+  // node references and the gather plan's 16 block slots.
+  double bytes = tets * (d * (144 + 12 + 1 + 9 + 1) + 4 * (4 + 4 + 16));
+  // Per block: 9 values and a column index; the damping matrix doubles it.
+  const double matrices = def.material.stiffnessDamping > 0 ? 2 : 1;
+  bytes += matrices * blocks * (9 * d + 4);
+  // Per node: about 16 work vectors of 3 and the contact Hessian.
+  bytes += nodes * d * (16 * 3 + 9 + 4);
+  if (def.solver.linearSolver == LinearSolverKind::Multigrid) bytes += 0.5 * blocks * (9 * d + 4);
+  if (def.solver.linearSolver == LinearSolverKind::Direct) bytes += 4 * blocks * (9 * d + 4);
+  if (def.fracture.enabled) {
+    // Stresses (6), rest edge directions (6), chi, mask and the tets' edges; the projection
+    // model's 6x6 edge matrix and its inverse; per edge strength, flags and graph entries.
+    bytes += tets * (d * 13 + 1 + 4 * 6);
+    if (def.fracture.model == DamageModel::Projection) bytes += tets * 2 * 36 * d;
+    bytes += edges * (d * 2 + 1 + 4 * 8);
+  }
+  if (def.plasticity.enabled) bytes += tets * d * (3 * 9 + 1);
+  return bytes;
+}
+
 }  // namespace gf::detail

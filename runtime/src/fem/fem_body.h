@@ -50,6 +50,12 @@ struct FemState {
 /// Builds the model from a validated definition (mesh already checked by the caller).
 FemModel buildFemModel(const BodyDef& def);
 
+/// Bytes a body of this def holds once created (model, state, element buffers, the sparse
+/// matrix, solver, fracture and plasticity data), from its node and tet counts: what
+/// World::createBody reports when the allocation fails. Within about 25 % of the measured
+/// growth of the process (tests/unit/test_world_memory.cpp).
+double estimateBodyBytes(const BodyDef& def);
+
 /// Lamé-based kernel coefficients of a public Material.
 MaterialCoeffs toCoeffs(const Material& m);
 

@@ -1,22 +1,18 @@
 #include "fem/integrator.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
+#include "step/timing.h"
 
 namespace gf::detail {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 constexpr uint32_t kElementGrain = 128;
 constexpr uint32_t kNodeGrain = 512;
@@ -31,6 +27,10 @@ constexpr int kMaxContactIterations = 2;
 constexpr double kNewtonRoundOff = 1e-12;
 // Round-off of the incremental potential relative to the summed size of its terms.
 constexpr double kEnergyRoundOff = 1e-11;
+// A step whose elastic energy exceeds this times Young's modulus times the body's volume (a
+// mean stretch of about a thousand) diverged: no material holds together there, so it is
+// rolled back like a NaN instead of handing the game an exploded body.
+constexpr double kBlowUpEnergyDensity = 1e6;
 
 Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i + 2]}; }
 
@@ -57,10 +57,10 @@ Integrator::Integrator(const FemModel& model) {
   m_elemEnergy.resize(nt);
   m_elemGrad.resize(12 * nt);
   m_elemHess.resize(144 * nt);
-  for (auto* v :
-       {&m_elasticGrad, &m_grad, &m_contactGrad, &m_x, &m_dx, &m_rhs, &m_tmp, &m_diff, &m_kdiff})
+  for (auto* v : {&m_elasticGrad, &m_grad, &m_x, &m_dx, &m_rhs, &m_tmp, &m_diff, &m_kdiff})
     v->assign(3 * nn, 0.0);
   m_contactHess.resize(nn);
+  for (double v : model.restVolume) m_restVolume += v;
   m_contactSeen.assign(nn, 0);
   if (model.solver.linearSolver == LinearSolverKind::Direct) {
     m_cholesky = std::make_unique<CholeskySolver>();
@@ -107,11 +107,30 @@ Result<void> Integrator::restoreSolver(const FemModel& model, const std::vector<
   return {};
 }
 
+double Integrator::elementEnergy(const FemModel& model, const double* x, uint32_t t, double* grad,
+                                 Mat12* hessian, Mat3* stress) const {
+  // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
+  const Mat3& restInverse = m_plasticInverse ? (*m_plasticInverse)[t] : model.restInverse[t];
+  Vec3 xe[4];
+  for (int a = 0; a < 4; ++a) xe[a] = load3(x, model.tets[4 * t + a]);
+  MaterialCoeffs c = model.coeffs;
+  if (!model.fibreDir.empty()) c.fibreDir = model.fibreDir[t];
+  const uint8_t mask = m_fracture ? m_fracture->tetMask()[t] : 0;
+  if (mask == 0)
+    return elementForces(c, xe, restInverse, model.restVolume[t], grad, hessian,
+                         /*projectPsd=*/true, stress);
+  // A damaged element (one of its edges broke, fig 4.5): eq 4.25-4.27 or 4.32-4.33.
+  const FractureBody& fb = *m_fracture;
+  uint8_t brokenLocal[6];
+  for (int k = 0; k < 6; ++k) brokenLocal[k] = (mask >> k) & 1;
+  return damagedElementForces(fb.damageModel(), c, fb.edgeMatrix(int32_t(t)),
+                              fb.edgeMatrixInverse(int32_t(t)), fb.chi()[t], brokenLocal, xe,
+                              restInverse, model.restVolume[t], grad, hessian,
+                              /*projectPsd=*/true);
+}
+
 double Integrator::elementPass(const FemModel& model, const double* x, bool withHessian,
                                JobSystem& jobs) {
-  // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
-  const Mat3* restInverse = m_plasticInverse ? m_plasticInverse->data() : model.restInverse.data();
-  const FractureBody* fb = m_fracture;
   double* stressOut = m_stressOut;
   jobs.parallelFor(uint32_t(model.tetCount), kElementGrain, [&](uint32_t b, uint32_t e) {
     for (uint32_t t = b; t < e; ++t) {
@@ -122,27 +141,14 @@ double Integrator::elementPass(const FemModel& model, const double* x, bool with
         if (stressOut) std::fill_n(stressOut + 6 * t, 6, 0.0);
         continue;
       }
-      Vec3 xe[4];
-      for (int a = 0; a < 4; ++a) xe[a] = load3(x, model.tets[4 * t + a]);
       Mat12* H = withHessian ? reinterpret_cast<Mat12*>(&m_elemHess[144 * t]) : nullptr;
-      MaterialCoeffs c = model.coeffs;
-      if (!model.fibreDir.empty()) c.fibreDir = model.fibreDir[t];
-      const uint8_t mask = fb ? fb->tetMask()[t] : 0;
-      if (mask == 0) {
-        Mat3 S;
-        m_elemEnergy[t] =
-            elementForces(c, xe, restInverse[t], model.restVolume[t], &m_elemGrad[12 * t], H,
-                          /*projectPsd=*/true, stressOut ? &S : nullptr);
-        if (stressOut) toVoigt(S, stressOut + 6 * t);
-      } else {
-        // A damaged element (one of its edges broke, fig 4.5): eq 4.25-4.27 or 4.32-4.33.
-        uint8_t brokenLocal[6];
-        for (int k = 0; k < 6; ++k) brokenLocal[k] = (mask >> k) & 1;
-        m_elemEnergy[t] = damagedElementForces(fb->damageModel(), c, fb->edgeMatrix(int32_t(t)),
-                                               fb->edgeMatrixInverse(int32_t(t)), fb->chi()[t],
-                                               brokenLocal, xe, restInverse[t], model.restVolume[t],
-                                               &m_elemGrad[12 * t], H, /*projectPsd=*/true);
-      }
+      // Damaged tets get their criterion stress from FractureBody (stressesReady covers
+      // undamaged ones only).
+      const bool undamaged = !m_fracture || m_fracture->tetMask()[t] == 0;
+      Mat3 S;
+      m_elemEnergy[t] =
+          elementEnergy(model, x, t, &m_elemGrad[12 * t], H, stressOut && undamaged ? &S : nullptr);
+      if (stressOut && undamaged) toVoigt(S, stressOut + 6 * t);
     }
   });
   double psi = 0;  // serial sum: same order for any thread count
@@ -172,6 +178,7 @@ double Integrator::incrementalPotential(const FemModel& model, const double* xn,
   const double dt = ctx.dt, dt2 = dt * dt;
   const double r1 = model.material.massDamping, r2 = model.material.stiffnessDamping;
   const double psi = elementPass(model, x, withHessian, jobs);
+  m_lastPsi = psi;
   if (withGradient) gatherGradient(model, jobs);
 
   // Contact, inertia, gravity and constant forces are per node.
@@ -238,9 +245,17 @@ bool Integrator::enteredUnseenContact(const FemModel& model, const StepContext& 
 }
 
 EnergyBreakdown Integrator::energies(const FemModel& model, const double* x, const StepContext& ctx,
-                                     JobSystem& jobs) {
+                                     JobSystem& jobs) const {
+  // Its own buffer, so that a diagnostic between steps never races or clobbers the step's.
+  std::vector<double> energy(size_t(model.tetCount), 0.0);
+  jobs.parallelFor(uint32_t(model.tetCount), kElementGrain, [&](uint32_t b, uint32_t e) {
+    double grad[12];
+    for (uint32_t t = b; t < e; ++t)
+      if (model.rigidTet.empty() || !model.rigidTet[t])
+        energy[t] = elementEnergy(model, x, t, grad, nullptr, nullptr);
+  });
   EnergyBreakdown out;
-  out.elastic = elementPass(model, x, false, jobs);
+  for (double v : energy) out.elastic += v;  // serial sum: same order for any thread count
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     Vec3 g;
     Mat3 h;
@@ -248,6 +263,17 @@ EnergyBreakdown Integrator::energies(const FemModel& model, const double* x, con
       out.contact += nodeContact(ctx.colliders[c], load3(x, n), model.nodeMass[n], g, h);
   }
   return out;
+}
+
+void Integrator::prescribedNodeForces(const FemModel& model, const FemState& state,
+                                      const StepContext& ctx, JobSystem& jobs,
+                                      std::vector<double>& out) {
+  // m_xStart and m_vStart still hold the last step's start, which fixes the inertia target y.
+  (void)incrementalPotential(model, m_xStart.data(), state.x.data(), ctx, true, false, jobs);
+  const double dt2 = ctx.dt * ctx.dt;
+  out.assign(state.x.size(), 0.0);
+  for (size_t i = 0; i < out.size(); ++i)
+    if (model.fixedNode[i / 3]) out[i] = m_grad[i] / dt2;
 }
 
 BodyStepReport Integrator::step(const FemModel& model, FemState& state, const StepContext& ctx,
@@ -277,6 +303,9 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   const int iterationCap = fullNewton ? maxNewton : 1 + kMaxContactIterations;
   double firstStepNorm = 0;
   bool converged = !fullNewton;
+  // Whether the elastic energy at the final positions is known (the accepted line-search
+  // trial), or the final step was too small to matter (below the potential's round-off).
+  bool finalPsiKnown = false, finalStepNegligible = false;
   for (int it = 0; it < iterationCap; ++it) {
     auto t0 = Clock::now();
     if (it == 0) m_dampKValid = false;
@@ -370,7 +399,11 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     double alpha = 1.0;
     // A predicted decrease below E's resolution cannot be judged by evaluating E: trust the
     // Newton step then (it is at round-off level anyway).
-    if (model.solver.lineSearch && slope < 0 && -slope > kEnergyRoundOff * m_energyMagnitude) {
+    const bool search =
+        model.solver.lineSearch && slope < 0 && -slope > kEnergyRoundOff * m_energyMagnitude;
+    finalPsiKnown = search;
+    finalStepNegligible = model.solver.lineSearch && !search && slope < 0;
+    if (search) {
       // Backtracking (Armijo) on the incremental potential: the step never raises it.
       t0 = Clock::now();
       for (;;) {
@@ -403,16 +436,33 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     }
   }
   if (!converged) rep.flags |= kStepNotConverged;
+  double psi = 0;
+  if (!finalStepNegligible)
+    psi = finalPsiKnown ? m_lastPsi : elementPass(model, m_x.data(), false, jobs);
+  const double blowUp = kBlowUpEnergyDensity *
+                        std::max(model.material.youngsModulus, model.material.fibreStiffness) *
+                        m_restVolume;
 
   // v_{n+1} = (x_{n+1} - x_n) / dt; prescribed nodes move at exactly their grip velocity.
   for (size_t i = 0; i < n3; ++i) {
     state.v[i] = model.fixedNode[i / 3] ? model.gripVelocity[i] : (m_x[i] - m_xStart[i]) / dt;
     state.x[i] = m_x[i];
   }
-  if (!allFinite(state.x) || !allFinite(state.v)) {
+  if (!allFinite(state.x) || !allFinite(state.v) || !std::isfinite(psi)) {
     state.x = m_xStart;
     state.v = m_vStart;
     rep.flags |= kStepNanContained;
+    rep.message = "produced a non-finite state and was restored to the start of the step";
+  } else if (psi > blowUp) {
+    state.x = m_xStart;
+    state.v = m_vStart;
+    rep.flags |= kStepNanContained;
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "diverged (elastic energy %.3g J, over 1e6 x E x V = %.3g J) and was restored to "
+                  "the start of the step; use a smaller dt or substeps",
+                  psi, blowUp);
+    rep.message = text;
   } else if (ctx.colliderImpulse) {
     // The last Newton step solved the linearisation at m_xLin, so the contact force that
     // entered the momentum balance is the linearised one, g + H (x - x_lin) (equal to the

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "fem/fem_body.h"
@@ -47,6 +48,7 @@ struct BodyStepReport {
   int linearIterations = 0;
   double residual = 0;
   double elementsMs = 0, assemblyMs = 0, solveMs = 0, fractureMs = 0;
+  std::string message;  // why the state was rolled back (kStepNanContained), else empty
 };
 
 /// Energies of a configuration (for diagnostics).
@@ -84,11 +86,21 @@ class Integrator {
   /// the re-binds replayed on the broken sets of the attached fracture's break-order prefixes
   /// (its state must already be restored). No-op when the history is the current one.
   Result<void> restoreSolver(const FemModel& model, const std::vector<int32_t>& history);
-  /// Elastic and contact energy at positions x.
+  /// Elastic and contact energy at positions x. Touches no scratch buffer of the step.
   EnergyBreakdown energies(const FemModel& model, const double* x, const StepContext& ctx,
-                           JobSystem& jobs);
+                           JobSystem& jobs) const;
+  /// The force [N] each prescribed node (grip or detached fragment) needs to stay on its path
+  /// at the end of the last step: the gradient of that step's incremental potential at
+  /// state.x over dt^2 (zero for free nodes, whose gradient the step drove to zero), 3 per node
+  /// into `out`. Valid while `state` is the one the last step() produced.
+  void prescribedNodeForces(const FemModel& model, const FemState& state, const StepContext& ctx,
+                            JobSystem& jobs, std::vector<double>& out);
 
  private:
+  // Energy of tet t at x; its gradient into grad (12) and, when non-null, its PSD Hessian and
+  // the material stress (undamaged tets only).
+  double elementEnergy(const FemModel& model, const double* x, uint32_t t, double* grad,
+                       Mat12* hessian, Mat3* stress) const;
   // Per-element pass: energies, gradients and (optionally) PSD Hessians into the buffers.
   double elementPass(const FemModel& model, const double* x, bool withHessian, JobSystem& jobs);
   // Node gradient of the elastic energy from the element gradients (deterministic gather).
@@ -109,9 +121,10 @@ class Integrator {
   std::vector<double> m_elemEnergy, m_elemGrad, m_elemHess;
   std::vector<double> m_elasticGrad;   // dPsi/dx per node
   std::vector<double> m_grad;          // gradient of the incremental potential
-  std::vector<double> m_contactGrad;   // per node
   std::vector<Mat3> m_contactHess;     // per node
   double m_energyMagnitude = 0;        // summed |terms| of the last potential (round-off scale)
+  double m_lastPsi = 0;                // elastic energy of the last incrementalPotential call
+  double m_restVolume = 0;             // of the whole body, for the blow-up test
   std::vector<uint8_t> m_contactSeen;  // contact was in the last linearisation
   BlockSparseMatrix m_dampK;           // K(x_n) for Rayleigh r2, only when r2 > 0
   bool m_dampKValid = false;           // m_dampK belongs to the current step

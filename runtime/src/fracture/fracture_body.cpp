@@ -63,7 +63,8 @@ Mat3 FractureBody::undamagedStress(const FemModel& fem, const double* x, int32_t
   for (int a = 0; a < 4; ++a) xe[a] = load3(x, fem.tets[4 * t + a]);
   MaterialCoeffs c = fem.coeffs;
   if (!fem.fibreDir.empty()) c.fibreDir = fem.fibreDir[t];
-  return materialStress(c, deformationGradient(xe, fem.restInverse[t]));
+  const Mat3& restInverse = m_plasticInverse ? (*m_plasticInverse)[t] : fem.restInverse[t];
+  return materialStress(c, deformationGradient(xe, restInverse));
 }
 
 void FractureBody::computeStresses(const FemModel& fem, const double* x, bool undamagedToo,

@@ -51,22 +51,14 @@ void CentroidGrid::build(const std::vector<double>& centroids, int32_t count, do
 Result<FractureModel> FractureModel::build(const RestMeshView& rest, const EdgeGraph& graph,
                                            const FractureSettings& settings, JobSystem* jobs,
                                            const FibreView& fibres) {
-  if (!(settings.strength > 0) || !std::isfinite(settings.strength))
-    return fail("FractureSettings.strength: ", std::to_string(settings.strength),
-                " is not a positive finite stress");
-  if (!(settings.radius >= 0) || !std::isfinite(settings.radius))
-    return fail("FractureSettings.radius: ", std::to_string(settings.radius),
-                " is not a finite value >= 0");
+  // The model is built only for a fracturing body, whatever `enabled` says.
+  FractureSettings checked = settings;
+  checked.enabled = true;
+  if (Result<void> r = checked.check(); !r) return fail("FractureSettings.", r.error().message);
   const double ratio = settings.fibreStrengthRatio;
-  if (!(ratio > 0) || !std::isfinite(ratio))
-    return fail("FractureSettings.fibreStrengthRatio: ", std::to_string(ratio),
-                " is not a positive finite ratio");
   if (ratio != 1 && !fibres.present)
     return fail("FractureSettings.fibreStrengthRatio: ", std::to_string(ratio),
                 " needs fibres (material.fibreStiffness > 0); use 1 for an isotropic strength");
-  if (settings.brittle && settings.regions < 1)
-    return fail("FractureSettings.regions: ", std::to_string(settings.regions),
-                " must be at least 1");
   if (rest.tetCount < 0 || graph.tetEdges.size() != 6 * size_t(rest.tetCount) ||
       graph.nodeCount != rest.nodeCount)
     return fail("FractureModel: edge graph (", std::to_string(graph.tetEdges.size() / 6), " tets, ",

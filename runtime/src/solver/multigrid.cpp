@@ -25,21 +25,16 @@
 #include <Eigen/CholmodSupport>
 #endif
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <string>
 
 #include "solver/vector_ops.h"
+#include "step/timing.h"
 
 namespace gf::detail {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 // Power iterations for the largest eigenvalue of D^-1 A, and the margin put on the estimate
 // (the Rayleigh quotient approaches it from below).
@@ -496,16 +491,7 @@ Result<void> MultigridSolver::setup(const MultigridSettings& settings, const dou
   const auto t0 = Clock::now();
   Impl& s = *m_impl;
   s.fineBlocks = -1;
-  if (settings.levels.empty()) return fail("multigrid.levels: at least one coarse level is needed");
-  if (settings.preSweeps < 0 || settings.postSweeps < 0 ||
-      settings.preSweeps + settings.postSweeps == 0)
-    return fail("multigrid.preSweeps/postSweeps: must be >= 0 and not both 0 (got ",
-                std::to_string(settings.preSweeps), ", ", std::to_string(settings.postSweeps), ")");
-  if (settings.cycles < 1)
-    return fail("multigrid.cycles: must be >= 1 (got ", std::to_string(settings.cycles), ")");
-  if (settings.coarseRefreshInterval < 1)
-    return fail("multigrid.coarseRefreshInterval: must be >= 1 (got ",
-                std::to_string(settings.coarseRefreshInterval), ")");
+  if (Result<void> r = settings.check(); !r) return fail("multigrid.", r.error().message);
   // Settings list the coarsest level first; the hierarchy wants the finest coarse level first.
   const std::vector<int32_t> counts(settings.levels.rbegin(), settings.levels.rend());
   if (Result<void> r = s.hierarchy.build(counts, restPositions, fixedNode, A); !r.ok()) return r;

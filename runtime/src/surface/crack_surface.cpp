@@ -401,6 +401,7 @@ void CrackSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment, c
   m_frameR.resize(9 * m_frameNode.size());
 
   ++m_topologyVersion;
+  m_positionsF.clear();  // new vertices: every one of them is dirty
   updatePositions(x);
 }
 
@@ -537,10 +538,27 @@ void CrackSurface::updatePositions(const double* x) {
     }
   }
 
+  // The dirty range grows by the vertices whose float position or normal (what a renderer
+  // uploads) changed; vertices that kept both stay out of it.
+  const bool sameLayout = m_positionsF.size() == 3 * nv && m_normalsF.size() == 3 * nv;
+  uint32_t lo = static_cast<uint32_t>(nv), hi = 0;
+  for (size_t v = 0; v < nv; ++v) {
+    bool changed = !sameLayout;
+    for (size_t k = 3 * v; k < 3 * v + 3 && !changed; ++k)
+      changed = static_cast<float>(m_positions[k]) != m_positionsF[k] ||
+                static_cast<float>(m_normals[k]) != m_normalsF[k];
+    if (!changed) continue;
+    lo = std::min(lo, static_cast<uint32_t>(v));
+    hi = static_cast<uint32_t>(v + 1);
+  }
   m_positionsF.assign(m_positions.begin(), m_positions.end());
   m_normalsF.assign(m_normals.begin(), m_normals.end());
   ++m_positionVersion;
-  m_dirty = {0, static_cast<uint32_t>(nv)};
+  if (lo < hi) {
+    m_dirty = m_dirty.begin < m_dirty.end
+                  ? DirtyRange{std::min(m_dirty.begin, lo), std::max(m_dirty.end, hi)}
+                  : DirtyRange{lo, hi};
+  }
 }
 
 std::vector<double> CrackSurface::cellRestVolumes() const {

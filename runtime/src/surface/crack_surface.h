@@ -104,6 +104,7 @@ class CrackSurface {
   /// updatePositions().
   void rebuild(const uint8_t* broken, const int32_t* nodeFragment, const double* x);
   /// Recomputes positions and normals for node positions `x` (3 per node); topology unchanged.
+  /// Widens the dirty range to cover the vertices whose position or normal changed.
   void updatePositions(const double* x);
 
   /// Positions, 3 floats per vertex (for the renderer).
@@ -131,7 +132,8 @@ class CrackSurface {
   uint64_t topologyVersion() const { return m_topologyVersion; }
   /// Incremented by every rebuild() and updatePositions().
   uint64_t positionVersion() const { return m_positionVersion; }
-  /// Vertices changed since the last clearDirty().
+  /// The smallest range holding every vertex changed since the last clearDirty() (empty when
+  /// none changed; everything after a rebuild()).
   DirtyRange dirty() const { return m_dirty; }
   /// Marks everything as uploaded.
   void clearDirty() { m_dirty = {}; }

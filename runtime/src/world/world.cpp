@@ -3,12 +3,12 @@
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
 #include <limits>
+#include <new>
 #include <string>
 #include <utility>
 #include <vector>
@@ -20,8 +20,10 @@
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
 #include "kernels/plasticity.h"
+#include "step/timing.h"
 #include "surface/crack_surface.h"
 #include "world/rigid_fragment.h"
+#include "world/validation.h"
 
 namespace gf {
 
@@ -31,7 +33,18 @@ namespace {
 // and rests g dt^2 / 100 deep.
 constexpr double kAutoContactStiffnessDt2 = 100.0;
 
+// Positions [m] and velocities [m/s] beyond this are unit mistakes that overflow squared
+// lengths and the float render surface; the commands refuse them.
+constexpr double kMaxMagnitude = 1e9;
+
 bool finite3(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool bounded3(glm::vec3 v) {
+  return finite3(v) && std::abs(v.x) <= kMaxMagnitude && std::abs(v.y) <= kMaxMagnitude &&
+         std::abs(v.z) <= kMaxMagnitude;
+}
+
+// Distinguishes worlds so that a snapshot is restored only into the world it was taken of.
+std::atomic<uint64_t> g_nextWorldId{1};
 
 // The render surface of a body, created on the first World::surface() call.
 struct SurfaceRecord {
@@ -57,8 +70,13 @@ struct BodyRecord {
   // A step or setFragmentTransform moved nodes since the render surface was updated; the next
   // surface() call updates it (once per rendered frame, not once per step or substep).
   bool surfaceStale = false;
-  std::vector<double> nodeStrain;  // World::nodeStrain's output
-  std::vector<double> nodeWeight;  // its scratch
+  std::vector<double> nodeStrain;      // World::nodeStrain's output
+  std::vector<double> nodeWeight;      // its scratch
+  std::vector<glm::dvec3> gripForces;  // World::gripForces's output
+  std::vector<double> nodeForce;       // its scratch
+  // The integrator still holds the start of the step that led to the current state, so the
+  // grips' forces can be evaluated (false before the first step and after state overwrites).
+  bool stepEndValid = false;
   // Every node is in a detached fragment: the body only moves rigidly, so a step just advances
   // the nodes by their prescribed velocities (what the integrator would do, without its cost).
   bool allRigid = false;
@@ -97,6 +115,39 @@ ColliderData toData(const Collider& c) {
   return d;
 }
 
+// Builds a body's model, state, solver and fracture from a checked def; throws std::bad_alloc
+// when the machine has not the memory for it.
+Result<std::unique_ptr<BodyRecord>> buildBody(BodyDef&& def, JobSystem& jobs) {
+  auto body = std::make_unique<BodyRecord>();
+  body->model = detail::buildFemModel(def);
+  body->state.x = body->model.restPositions;
+  body->state.v.resize(body->state.x.size());
+  for (size_t i = 0; i < body->state.v.size(); ++i)
+    body->state.v[i] = def.initialVelocity[int(i % 3)];
+  body->integrator = std::make_unique<detail::Integrator>(body->model);
+  if (Result<void> r = body->integrator->setupSolver(body->model); !r.ok()) return r.error();
+  if (def.fracture.enabled) {
+    auto fb = detail::FractureBody::create(body->model, jobs);
+    if (!fb) return fb.error();
+    body->fracture = std::move(fb.value());
+  }
+  if (def.plasticity.enabled) {
+    const size_t nt = body->model.tetCount;
+    body->state.Fp.assign(nt, Mat3::identity());
+    body->state.FpInv.assign(nt, Mat3::identity());
+    body->state.plasticDelta.assign(nt, 0.0);
+    body->state.plasticInverse = body->model.restInverse;
+  }
+  const std::vector<Mat3>* plasticInverse =
+      def.plasticity.enabled ? &body->state.plasticInverse : nullptr;
+  body->integrator->attach(body->fracture.get(), plasticInverse);
+  if (body->fracture) body->fracture->attachPlasticity(plasticInverse);
+
+  body->gripForces.assign(def.grips.size(), glm::dvec3(0));
+  body->grips = std::move(def.grips);
+  return body;
+}
+
 struct Slot {
   uint32_t generation = 1;
   std::unique_ptr<BodyRecord> body;  // null when free
@@ -104,7 +155,9 @@ struct Slot {
 }  // namespace
 
 struct World::Impl {
+  const uint64_t id = g_nextWorldId++;
   WorldDef def;
+  std::string defError;  // WorldDef::check's message; non-empty: the world refuses to run
   JobSystem* jobs = nullptr;
   std::vector<Slot> slots;
   std::vector<ColliderData> colliders;  // at their current pose (def.colliders: as given)
@@ -116,7 +169,6 @@ struct World::Impl {
   std::vector<HandoffEvent> handoffEvents;
   double time = 0;
   double lastSubstep = 1.0 / 60;  // contact stiffness of stats() follows the last step
-  std::string pendingWarning;
   // Set while step() runs: calls that change the world are refused then (a job callback
   // re-entering the world would race the step).
   std::atomic<bool> stepping{false};
@@ -206,11 +258,15 @@ struct World::Impl {
     }
   }
 
-  detail::StepContext context(double dt) {
+  // The colliders with their stiffness for substep dt filled in.
+  void setColliderStiffness(double dt) {
     for (size_t c = 0; c < colliders.size(); ++c) {
       const double k = def.colliders[c].stiffness;
       colliders[c].stiffness = k > 0 ? k : kAutoContactStiffnessDt2 / (dt * dt);
     }
+  }
+  // What a body step reads; the colliders' stiffness must be set for dt.
+  detail::StepContext context(double dt) const {
     detail::StepContext ctx;
     ctx.dt = dt;
     ctx.gravity = {def.gravity.x, def.gravity.y, def.gravity.z};
@@ -224,16 +280,13 @@ World::World(const WorldDef& def) : m_impl(std::make_unique<Impl>()) {
   Impl& w = *m_impl;
   w.def = def;
   w.jobs = def.jobs ? def.jobs : &serialJobs();
-  if (w.def.substeps < 1) {
-    w.pendingWarning =
-        "WorldDef.substeps: must be >= 1, got " + std::to_string(def.substeps) + "; using 1";
+  if (Result<void> r = def.check(); !r) {
+    w.defError = r.error().message + "; the world does not run (check WorldDef before creating it)";
+    w.def.colliders.clear();  // nothing of an invalid def is used
     w.def.substeps = 1;
   }
-  if (!finite3(w.def.gravity)) {
-    w.pendingWarning = "WorldDef.gravity: not finite; using zero gravity";
-    w.def.gravity = glm::vec3(0);
-  }
   for (const Collider& c : w.def.colliders) w.colliders.push_back(toData(c));
+  w.setColliderStiffness(w.lastSubstep);
   w.impulses.assign(w.colliders.size(), glm::dvec3(0));
   w.angularImpulses = w.impulses;
 }
@@ -242,103 +295,29 @@ World::~World() = default;
 
 Result<BodyId> World::createBody(BodyDef def) {
   if (std::string e = m_impl->busy("createBody"); !e.empty()) return fail(e);
+  if (!m_impl->defError.empty()) return fail("createBody: ", m_impl->defError);
   if (def.mesh.tetCount() == 0) return fail("BodyDef.mesh: has no tetrahedra");
-  int flipped = 0;
-  if (auto r = validate(def.mesh, "BodyDef.mesh", &flipped); !r) return r.error();
-  if (auto r = def.material.check(); !r) return fail("BodyDef.", r.error().message);
-  const int32_t nn = int32_t(def.mesh.nodeCount());
-  for (size_t g = 0; g < def.grips.size(); ++g) {
-    if (!finite3(def.grips[g].velocity))
-      return fail("BodyDef.grips[", std::to_string(g), "].velocity: not finite");
-    for (int32_t n : def.grips[g].nodes)
-      if (n < 0 || n >= nn)
-        return fail("BodyDef.grips[", std::to_string(g), "].nodes: node ", std::to_string(n),
-                    " out of range [0, ", std::to_string(nn), ")");
-  }
-  for (size_t f = 0; f < def.forces.size(); ++f) {
-    if (def.forces[f].node < 0 || def.forces[f].node >= nn)
-      return fail("BodyDef.forces[", std::to_string(f),
-                  "].node: ", std::to_string(def.forces[f].node), " out of range [0, ",
-                  std::to_string(nn), ")");
-    if (!finite3(def.forces[f].force))
-      return fail("BodyDef.forces[", std::to_string(f), "].force: not finite");
-  }
-  if (!finite3(def.initialVelocity)) return fail("BodyDef.initialVelocity: not finite");
-  if (def.plasticity.enabled) {
-    const PlasticitySettings& p = def.plasticity;
-    if (!(std::isfinite(p.yieldStress) && p.yieldStress > 0))
-      return fail("BodyDef.plasticity.yieldStress: must be positive and finite");
-    if (!(p.flowRate >= 0 && p.flowRate <= 1))
-      return fail("BodyDef.plasticity.flowRate: must lie in [0, 1]");
-    if (!(std::isfinite(p.hardening) && p.hardening >= 0))
-      return fail("BodyDef.plasticity.hardening: must be >= 0 and finite");
-  }
-  if (!def.fibreField.empty()) {
-    if (def.fibreField.size() != def.mesh.tetCount())
-      return fail("BodyDef.fibreField: expected one direction per tet (",
-                  std::to_string(def.mesh.tetCount()), "), got ",
-                  std::to_string(def.fibreField.size()));
-    for (size_t t = 0; t < def.fibreField.size(); ++t) {
-      const glm::vec3 f = def.fibreField[t];
-      if (!finite3(f) || double(f.x) * f.x + double(f.y) * f.y + double(f.z) * f.z < 1e-12)
-        return fail("BodyDef.fibreField[", std::to_string(t), "]: must be finite and non-zero");
-    }
-  }
-  if (def.fracture.enabled && (def.fracture.regions < 1))
-    return fail("BodyDef.fracture.regions: must be >= 1");
-  const SolverSettings& s = def.solver;
-  if (s.newtonIterations < 1) return fail("BodyDef.solver.newtonIterations: must be >= 1");
-  if (!(s.newtonTolerance > 0)) return fail("BodyDef.solver.newtonTolerance: must be > 0");
-  if (s.maxLinearIterations < 1) return fail("BodyDef.solver.maxLinearIterations: must be >= 1");
-  if (!(s.linearTolerance > 0)) return fail("BodyDef.solver.linearTolerance: must be > 0");
-  if (s.linearSolver == LinearSolverKind::Multigrid) {
-    const MultigridSettings& mg = s.multigrid;
-    if (mg.levels.empty())
-      return fail("BodyDef.solver.multigrid.levels: needs at least one coarse level");
-    for (size_t i = 0; i < mg.levels.size(); ++i) {
-      if (mg.levels[i] < 1 || (i > 0 && mg.levels[i] <= mg.levels[i - 1]))
-        return fail(
-            "BodyDef.solver.multigrid.levels: handle counts must be >= 1 and strictly "
-            "increasing, coarsest first");
-    }
-    if (mg.preSweeps < 0 || mg.postSweeps < 0 || mg.preSweeps + mg.postSweeps < 1)
-      return fail("BodyDef.solver.multigrid: preSweeps and postSweeps must be >= 0, together >= 1");
-    if (mg.cycles < 1) return fail("BodyDef.solver.multigrid.cycles: must be >= 1");
-    if (mg.coarseRefreshInterval < 1)
-      return fail("BodyDef.solver.multigrid.coarseRefreshInterval: must be >= 1");
-  }
-
-  auto body = std::make_unique<BodyRecord>();
-  body->model = detail::buildFemModel(def);
-  body->state.x = body->model.restPositions;
-  body->state.v.resize(body->state.x.size());
-  for (size_t i = 0; i < body->state.v.size(); ++i)
-    body->state.v[i] = def.initialVelocity[int(i % 3)];
-  body->integrator = std::make_unique<detail::Integrator>(body->model);
-  if (Result<void> r = body->integrator->setupSolver(body->model); !r.ok()) return r.error();
-  Impl& w0 = *m_impl;
-  if (def.fracture.enabled) {
-    auto fb = detail::FractureBody::create(body->model, *w0.jobs);
-    if (!fb) return fb.error();
-    body->fracture = std::move(fb.value());
-  }
-  if (def.plasticity.enabled) {
-    const size_t nt = body->model.tetCount;
-    body->state.Fp.assign(nt, Mat3::identity());
-    body->state.FpInv.assign(nt, Mat3::identity());
-    body->state.plasticDelta.assign(nt, 0.0);
-    body->state.plasticInverse = body->model.restInverse;
-  }
-  body->integrator->attach(body->fracture.get(),
-                           def.plasticity.enabled ? &body->state.plasticInverse : nullptr);
-
+  // No exception crosses the API: a body too large for the machine is an error that says how
+  // much it needs, and the world stays as it was.
   Impl& w = *m_impl;
-  size_t slot = 0;
-  while (slot < w.slots.size() && w.slots[slot].body) ++slot;
-  if (slot == w.slots.size()) w.slots.emplace_back();
-  w.slots[slot].body = std::move(body);
-  w.slots[slot].body->grips = std::move(def.grips);
-  return BodyId{uint32_t(slot + 1), w.slots[slot].generation};
+  const size_t tets = def.mesh.tetCount(), nodes = def.mesh.nodeCount();
+  const double bytes = detail::estimateBodyBytes(def);
+  try {
+    int flipped = 0;
+    if (auto r = validate(def.mesh, "BodyDef.mesh", &flipped); !r) return r.error();
+    if (auto r = detail::checkBodySettings(def); !r) return fail("BodyDef.", r.error().message);
+    Result<std::unique_ptr<BodyRecord>> built = buildBody(std::move(def), *w.jobs);
+    if (!built) return built.error();
+    size_t slot = 0;
+    while (slot < w.slots.size() && w.slots[slot].body) ++slot;
+    if (slot == w.slots.size()) w.slots.emplace_back();
+    w.slots[slot].body = std::move(built.value());
+    return BodyId{uint32_t(slot + 1), w.slots[slot].generation};
+  } catch (const std::bad_alloc&) {
+    return fail("BodyDef.mesh: not enough memory for a body of ", std::to_string(tets),
+                " tets and ", std::to_string(nodes), " nodes: it needs about ",
+                std::to_string(int64_t(std::ceil(bytes / 1048576.0))), " MiB");
+  }
 }
 
 Result<void> World::destroyBody(BodyId id) {
@@ -360,6 +339,11 @@ StepStatus World::step(double dt) {
     st.message = "step: dt must be positive and finite, got " + std::to_string(dt);
     return st;
   }
+  if (!w.defError.empty()) {
+    st.flags = kStepInvalidInput;
+    st.message = "step: " + w.defError;
+    return st;
+  }
   if (w.stepping.exchange(true)) {
     st.flags = kStepInvalidInput;
     st.message = "step: called while step() runs; nothing changed";
@@ -374,21 +358,14 @@ StepStatus World::step(double dt) {
     constantForces.push_back(f);
     for (size_t i = 0; i < f.size(); ++i) f[i] += s.body->pendingForce[i];
   }
-  if (!w.pendingWarning.empty()) {
-    st.message = w.pendingWarning;
-    w.pendingWarning.clear();
-  }
-  const auto t0 = std::chrono::steady_clock::now();
-  using Clock = std::chrono::steady_clock;
-  auto ms = [](Clock::time_point a) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - a).count();
-  };
+  const auto t0 = detail::Clock::now();
   w.timings = {};
   w.fractureEvents.clear();
   w.fragmentEvents.clear();
   w.handoffEvents.clear();
   const double h = dt / w.def.substeps;
   w.lastSubstep = h;
+  w.setColliderStiffness(h);
   detail::StepContext ctx = w.context(h);
   // Moving colliders: each substep sees them at its end pose; the sums of their impulses are
   // over bodies and substeps.
@@ -415,18 +392,22 @@ StepStatus World::step(double dt) {
       }
       const detail::BodyStepReport r = b->integrator->step(b->model, b->state, ctx, *w.jobs);
       if (b->fracture) w.collectEvents(id, *b);
+      b->stepEndValid = true;
       w.timings.fractureMs += r.fractureMs;
       st.flags |= r.flags;
+      if ((r.flags & kStepNanContained) && st.message.empty())
+        st.message = "body " + std::to_string(si + 1) + ": " + r.message;
       st.newtonIterations += r.newtonIterations;
       st.linearIterations += r.linearIterations;
       st.residual = std::max(st.residual, r.residual);
       w.timings.elementsMs += r.elementsMs;
       w.timings.assemblyMs += r.assemblyMs;
       w.timings.solveMs += r.solveMs;
-      if (b->model.plasticity.enabled) {
-        const auto tp = Clock::now();
+      // A rolled-back body is where it was before the substep: nothing flowed.
+      if (b->model.plasticity.enabled && !(r.flags & kStepNanContained)) {
+        const auto tp = detail::Clock::now();
         w.plasticUpdate(*b, h);
-        w.timings.fractureMs += ms(tp);
+        w.timings.plasticityMs += detail::msSince(tp);
       }
     }
   }
@@ -437,7 +418,7 @@ StepStatus World::step(double dt) {
     const Vec3 p = w.colliders[c].point;
     w.def.colliders[c].point = glm::vec3(float(p.x), float(p.y), float(p.z));
   }
-  // Events sorted by body, then edge / fragment (ARCHITECTURE.md: determinism).
+  // Events sorted by body, then edge / fragment: the same order for any thread count.
   std::stable_sort(w.fractureEvents.begin(), w.fractureEvents.end(),
                    [](const FractureEvent& a, const FractureEvent& b) {
                      return a.body.index != b.body.index ? a.body.index < b.body.index
@@ -457,12 +438,15 @@ StepStatus World::step(double dt) {
   for (Slot& s : w.slots)
     if (s.body && s.body->surface) s.body->surfaceStale = true;
   w.time += dt;
-  w.timings.totalMs =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  if (st.has(kStepNanContained) && st.message.empty())
-    st.message = "a body produced a non-finite state and was restored to its previous step";
-  else if (st.has(kStepNotConverged) && st.message.empty())
-    st.message = "the solver stopped at its iteration cap";
+  w.timings.totalMs = detail::msSince(t0);
+  if (st.message.empty()) {
+    if (st.has(kStepNotConverged))
+      st.message = "the solver stopped at its iteration cap";
+    else if (st.has(kStepLineSearchFailed))
+      st.message =
+          "Newton's line search reached its smallest step without lowering the incremental "
+          "potential: the time step is too large for the load (try substeps or a smaller dt)";
+  }
   w.stepping.store(false);
   return st;
 }
@@ -481,19 +465,22 @@ Result<void> World::setVelocity(BodyId id, glm::dvec3 v) {
   BodyRecord* b = m_impl->get(id);
   if (std::string e = m_impl->busy("setVelocity"); !e.empty()) return fail(e);
   if (!b) return fail("setVelocity: stale or null BodyId");
-  if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
-    return fail("setVelocity: velocity is not finite");
+  if (!bounded3(glm::vec3(v)) || !std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+    return fail("setVelocity: velocity must be finite, at most 1e9 m/s");
   for (size_t i = 0; i < b->state.v.size(); ++i) b->state.v[i] = v[int(i % 3)];
   return {};
 }
 
 namespace {
-Result<void> overwrite(std::vector<double>& dst, std::span<const double> src, const char* what) {
+Result<void> overwrite(std::vector<double>& dst, std::span<const double> src, const char* what,
+                       const char* unit) {
   if (src.size() != dst.size())
     return fail(what, ": expected ", std::to_string(dst.size()), " values, got ",
                 std::to_string(src.size()));
   for (size_t i = 0; i < src.size(); ++i)
-    if (!std::isfinite(src[i])) return fail(what, ": value ", std::to_string(i), " is not finite");
+    if (!(std::isfinite(src[i]) && std::abs(src[i]) <= kMaxMagnitude))
+      return fail(what, ": value ", std::to_string(i), " (node ", std::to_string(i / 3), ") is ",
+                  std::to_string(src[i]), "; must be finite, at most 1e9 ", unit);
   dst.assign(src.begin(), src.end());
   return {};
 }
@@ -503,20 +490,23 @@ Result<void> World::setPositions(BodyId id, std::span<const double> x) {
   BodyRecord* b = m_impl->get(id);
   if (std::string e = m_impl->busy("setPositions"); !e.empty()) return fail(e);
   if (!b) return fail("setPositions: stale or null BodyId");
-  return overwrite(b->state.x, x, "setPositions");
+  if (Result<void> r = overwrite(b->state.x, x, "setPositions", "m"); !r) return r;
+  b->surfaceStale = true;
+  b->stepEndValid = false;
+  return {};
 }
 
 Result<void> World::setVelocities(BodyId id, std::span<const double> v) {
   BodyRecord* b = m_impl->get(id);
   if (std::string e = m_impl->busy("setVelocities"); !e.empty()) return fail(e);
   if (!b) return fail("setVelocities: stale or null BodyId");
-  return overwrite(b->state.v, v, "setVelocities");
+  return overwrite(b->state.v, v, "setVelocities", "m/s");
 }
 
 BodyStats World::stats(BodyId id) const {
   BodyStats s;
-  BodyRecord* b = m_impl->get(id);
-  if (!b) return s;
+  const BodyRecord* b = m_impl->get(id);
+  if (!b || m_impl->stepping.load()) return s;
   const auto& m = b->model;
   const auto& x = b->state.x;
   const auto& v = b->state.v;
@@ -531,7 +521,6 @@ BodyStats World::stats(BodyId id) const {
     s.linearMomentum += mi * vi;
     s.angularMomentum += glm::cross(xi, mi * vi);
   }
-  // The element buffers are scratch between steps, so evaluating energies here is safe.
   const detail::StepContext ctx = m_impl->context(m_impl->lastSubstep);
   const detail::EnergyBreakdown e = b->integrator->energies(m, x.data(), ctx, *m_impl->jobs);
   s.elasticEnergy = e.elastic;
@@ -590,6 +579,32 @@ std::span<const int32_t> World::nodeFragments(BodyId id) const {
   return b->fracture->fragments().nodeFragment();
 }
 
+std::span<const int32_t> World::edges(BodyId id) const {
+  const BodyRecord* b = m_impl->get(id);
+  if (!b || !b->fracture) return {};
+  return b->fracture->graph().edgeNodes;
+}
+
+std::span<const uint8_t> World::brokenEdges(BodyId id) const {
+  const BodyRecord* b = m_impl->get(id);
+  if (!b || !b->fracture) return {};
+  return b->fracture->broken();
+}
+
+std::span<const glm::dvec3> World::gripForces(BodyId id) {
+  BodyRecord* b = m_impl->get(id);
+  if (!b || m_impl->stepping.load()) return {};
+  std::fill(b->gripForces.begin(), b->gripForces.end(), glm::dvec3(0));
+  if (!b->stepEndValid || b->allRigid) return b->gripForces;
+  const detail::StepContext ctx = m_impl->context(m_impl->lastSubstep);
+  b->integrator->prescribedNodeForces(b->model, b->state, ctx, *m_impl->jobs, b->nodeForce);
+  for (size_t g = 0; g < b->grips.size(); ++g)
+    for (int32_t n : b->grips[g].nodes)
+      b->gripForces[g] += glm::dvec3(b->nodeForce[3 * size_t(n)], b->nodeForce[3 * size_t(n) + 1],
+                                     b->nodeForce[3 * size_t(n) + 2]);
+  return b->gripForces;
+}
+
 std::span<const double> World::nodeStrain(BodyId id) {
   BodyRecord* b = m_impl->get(id);
   if (!b || m_impl->stepping.load()) return {};
@@ -617,11 +632,12 @@ std::span<const double> World::nodeStrain(BodyId id) {
 SurfaceView World::surface(BodyId id) {
   BodyRecord* b = m_impl->get(id);
   if (!b || m_impl->stepping.load()) return {};
+  // The view's dirty range covers what changed since the previous call.
+  if (b->surface) b->surface->surface.clearDirty();
   if (b->surface && b->surfaceStale) {
-    const auto t0 = std::chrono::steady_clock::now();
+    const auto t0 = detail::Clock::now();
     m_impl->updateSurface(*b);
-    m_impl->timings.surfaceMs +=
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    m_impl->timings.surfaceMs += detail::msSince(t0);
   }
   b->surfaceStale = false;
   if (!b->surface) {
@@ -709,7 +725,7 @@ Result<void> checkPointCommand(const std::string& busy, const void* body, const 
                                glm::vec3 point, glm::vec3 vec, const char* vecName) {
   if (!busy.empty()) return fail(busy);
   if (!body) return fail(call, ": stale or null BodyId");
-  if (!finite3(point)) return fail(call, ": point is not finite");
+  if (!bounded3(point)) return fail(call, ": point must be finite, within 1e9 m of the origin");
   if (!finite3(vec)) return fail(call, ": ", vecName, " is not finite");
   return {};
 }
@@ -825,6 +841,7 @@ struct BodySnapshot {
 };
 
 struct WorldSnapshot::Data {
+  uint64_t world = 0;  // the World it was taken of
   double time = 0, lastSubstep = 0;
   std::vector<Collider> colliderDefs;  // moving colliders are state too
   std::vector<ColliderData> colliders;
@@ -839,6 +856,7 @@ double WorldSnapshot::time() const { return m_data ? m_data->time : 0.0; }
 WorldSnapshot World::snapshot() const {
   const Impl& w = *m_impl;
   auto d = std::make_shared<WorldSnapshot::Data>();
+  d->world = w.id;
   d->time = w.time;
   d->lastSubstep = w.lastSubstep;
   d->colliderDefs = w.def.colliders;
@@ -877,7 +895,9 @@ Result<void> World::restore(const WorldSnapshot& snapshot) {
   if (snapshot.empty()) return fail("restore: the snapshot is empty");
   Impl& w = *m_impl;
   const WorldSnapshot::Data& d = *snapshot.m_data;
-  // All checks first, so a mismatch changes nothing.
+  // All checks first, so a mismatch changes nothing. Another world with the same body slots
+  // would pass the checks below and get colliders and states that are not its own.
+  if (d.world != w.id) return fail("restore: the snapshot was taken of another World");
   size_t live = 0;
   for (const Slot& s : w.slots) live += s.body ? 1 : 0;
   if (live != d.bodies.size())
@@ -909,6 +929,7 @@ Result<void> World::restore(const WorldSnapshot& snapshot) {
     b.model.movingGrips = s.movingGrips;
     b.pendingForce = s.pendingForce;
     if (b.fracture) b.fracture->restoreState(s.fracture);
+    b.stepEndValid = false;
     // Cannot fail: the same set-up succeeded when the body was created.
     if (Result<void> r = b.integrator->restoreSolver(b.model, s.rebindHistory); !r)
       return fail("restore: body ", std::to_string(s.slot + 1), ": ", r.error().message);
@@ -948,7 +969,7 @@ uint64_t World::stateHash() const {
   return h;
 }
 
-// ---- Hand-off of fragments to rigid-body physics (issue 5 item 3) ----
+// ---- Hand-off of fragments to rigid-body physics ----
 
 namespace {
 glm::dvec3 toGlm(Vec3 v) { return {v.x, v.y, v.z}; }
@@ -1064,7 +1085,7 @@ Result<RigidFragmentInfo> World::detachFragment(BodyId id, int32_t fragment) {
   ev.centreOfMass = glm::vec3(info.centreOfMass);
   ev.velocity = glm::vec3(info.linearVelocity);
   ev.angularVelocity = glm::vec3(info.angularVelocity);
-  // Kept sorted by (body, fragment) as the calls come (ARCHITECTURE.md: determinism).
+  // Kept sorted by (body, fragment) as the calls come, whatever order the game detaches in.
   std::vector<HandoffEvent>& events = m_impl->handoffEvents;
   const auto at = std::upper_bound(
       events.begin(), events.end(), ev, [](const HandoffEvent& a, const HandoffEvent& c) {
@@ -1108,37 +1129,18 @@ Result<void> World::setFragmentTransform(BodyId id, int32_t fragment, glm::dvec3
 
 std::span<const HandoffEvent> World::handoffEvents() const { return m_impl->handoffEvents; }
 
-// ---- Colliders the game moves between steps (issue 5 item 3: two-way rigid contact) ----
+// ---- Colliders the game moves between steps (two-way contact with its rigid bodies) ----
 
 Result<void> World::setColliders(std::span<const Collider> colliders) {
   if (std::string e = m_impl->busy("setColliders"); !e.empty()) return fail(e);
-  for (size_t i = 0; i < colliders.size(); ++i) {
-    const Collider& c = colliders[i];
-    const std::string which = "setColliders: colliders[" + std::to_string(i) + "].";
-    if (c.kind != Collider::Kind::Plane && c.kind != Collider::Kind::Box &&
-        c.kind != Collider::Kind::Sphere)
-      return fail(which, "kind: ", std::to_string(int(c.kind)), " is not a Collider::Kind");
-    if (!finite3(c.point)) return fail(which, "point: not finite");
-    if (!finite3(c.velocity)) return fail(which, "velocity: not finite");
-    if (!(std::isfinite(c.stiffness) && c.stiffness >= 0))
-      return fail(which, "stiffness: must be >= 0 and finite (0 picks one)");
-    if (c.kind == Collider::Kind::Plane && !(finite3(c.normal) && glm::length(c.normal) > 0))
-      return fail(which, "normal: must be finite and non-zero");
-    if (c.kind == Collider::Kind::Box) {
-      if (!(finite3(c.halfExtents) && c.halfExtents.x > 0 && c.halfExtents.y > 0 &&
-            c.halfExtents.z > 0))
-        return fail(which, "halfExtents: must be positive and finite");
-      const glm::vec4 q(c.rotation.x, c.rotation.y, c.rotation.z, c.rotation.w);
-      if (!(std::isfinite(glm::length(q)) && glm::length(q) > 0))
-        return fail(which, "rotation: must be a finite non-zero quaternion");
-    }
-    if (c.kind == Collider::Kind::Sphere && !(std::isfinite(c.radius) && c.radius > 0))
-      return fail(which, "radius: must be positive and finite");
-  }
+  for (size_t i = 0; i < colliders.size(); ++i)
+    if (Result<void> r = colliders[i].check(); !r)
+      return fail("setColliders: colliders[", std::to_string(i), "].", r.error().message);
   Impl& w = *m_impl;
   w.def.colliders.assign(colliders.begin(), colliders.end());
   w.colliders.clear();
   for (const Collider& c : colliders) w.colliders.push_back(toData(c));
+  w.setColliderStiffness(w.lastSubstep);
   w.impulses.assign(w.colliders.size(), glm::dvec3(0));
   w.angularImpulses = w.impulses;
   return {};

@@ -1,0 +1,215 @@
+// The checks of everything an engine hands the world: one routine per kind of input, used by the
+// World, its commands and the scene loader alike. Messages name the field relative to the struct
+// checked ("levels: ...") so each caller can prefix its own path.
+#include <cmath>
+#include <string>
+
+#include "graphfrac/defs.h"
+
+namespace gf {
+
+namespace {
+// Beyond these, finite inputs overflow the penalty energy, the impulses or the mesh tests
+// (squares of lengths, k x^2): a world of 1e9 m or a stiffness of 1e18 N/m/kg is a unit
+// mistake, not a scene.
+constexpr double kMaxLength = 1e9;
+constexpr double kMaxColliderStiffness = 1e18;
+
+bool positiveFinite(double v) { return std::isfinite(v) && v > 0; }
+bool finite3(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool bounded3(glm::vec3 v) {
+  return finite3(v) && std::abs(v.x) <= kMaxLength && std::abs(v.y) <= kMaxLength &&
+         std::abs(v.z) <= kMaxLength;
+}
+std::string num(double v) { return std::to_string(v); }
+}  // namespace
+
+Result<void> Material::check() const {
+  if (static_cast<unsigned>(model) > static_cast<unsigned>(MaterialModel::StableNeoHookean))
+    return fail("material.model: unknown model ", std::to_string(static_cast<int>(model)));
+  if (!positiveFinite(youngsModulus))
+    return fail("material.youngsModulus: must be positive and finite, got ", num(youngsModulus));
+  // nu -> 0.5 makes lambda (eq 4.29) infinite; nu <= -1 makes mu negative.
+  if (!std::isfinite(poissonRatio) || poissonRatio <= -1.0 || poissonRatio >= 0.5)
+    return fail("material.poissonRatio: must lie in (-1, 0.5), got ", num(poissonRatio));
+  if (!positiveFinite(density))
+    return fail("material.density: must be positive and finite, got ", num(density));
+  if (!std::isfinite(fibreStiffness) || fibreStiffness < 0)
+    return fail("material.fibreStiffness: must be >= 0 and finite, got ", num(fibreStiffness));
+  if (fibreStiffness > 0) {
+    const double len2 = double(fibreDirection.x) * fibreDirection.x +
+                        double(fibreDirection.y) * fibreDirection.y +
+                        double(fibreDirection.z) * fibreDirection.z;
+    if (!std::isfinite(len2) || len2 < 1e-12)
+      return fail("material.fibreDirection: must be a finite non-zero vector");
+  }
+  if (!std::isfinite(massDamping) || massDamping < 0)
+    return fail("material.massDamping: must be >= 0 and finite, got ", num(massDamping));
+  if (!std::isfinite(stiffnessDamping) || stiffnessDamping < 0)
+    return fail("material.stiffnessDamping: must be >= 0 and finite, got ", num(stiffnessDamping));
+  return {};
+}
+
+Result<void> MultigridSettings::check() const {
+  if (levels.empty()) return fail("levels: needs at least one coarse level");
+  for (size_t i = 0; i < levels.size(); ++i) {
+    if (levels[i] < 1)
+      return fail("levels[", std::to_string(i), "]: handle count ", std::to_string(levels[i]),
+                  " is not positive");
+    if (i > 0 && levels[i] <= levels[i - 1])
+      return fail("levels[", std::to_string(i),
+                  "]: handle counts must increase from coarse to fine", " (",
+                  std::to_string(levels[i - 1]), " then ", std::to_string(levels[i]), ")");
+  }
+  if (static_cast<unsigned>(smoother) > static_cast<unsigned>(Smoother::Chebyshev))
+    return fail("smoother: unknown smoother ", std::to_string(static_cast<int>(smoother)));
+  if (preSweeps < 0 || postSweeps < 0 || preSweeps + postSweeps < 1)
+    return fail("preSweeps, postSweeps: must be >= 0 and together >= 1 (got ",
+                std::to_string(preSweeps), ", ", std::to_string(postSweeps), ")");
+  if (cycles < 1) return fail("cycles: must be >= 1, got ", std::to_string(cycles));
+  if (coarseRefreshInterval < 1)
+    return fail("coarseRefreshInterval: must be >= 1, got ", std::to_string(coarseRefreshInterval));
+  return {};
+}
+
+Result<void> SolverSettings::check() const {
+  if (newtonIterations < 1)
+    return fail("newtonIterations: must be >= 1, got ", std::to_string(newtonIterations));
+  if (!positiveFinite(newtonTolerance))
+    return fail("newtonTolerance: must be positive and finite, got ", num(newtonTolerance));
+  if (static_cast<unsigned>(linearSolver) > static_cast<unsigned>(LinearSolverKind::Multigrid))
+    return fail("linearSolver: unknown solver ", std::to_string(static_cast<int>(linearSolver)));
+  if (maxLinearIterations < 1)
+    return fail("maxLinearIterations: must be >= 1, got ", std::to_string(maxLinearIterations));
+  if (!positiveFinite(linearTolerance))
+    return fail("linearTolerance: must be positive and finite, got ", num(linearTolerance));
+  if (linearSolver == LinearSolverKind::Multigrid)
+    if (Result<void> r = multigrid.check(); !r) return fail("multigrid.", r.error().message);
+  return {};
+}
+
+Result<void> FractureSettings::check() const {
+  if (!enabled) return {};
+  if (!positiveFinite(strength))
+    return fail("strength: must be a positive finite stress, got ", num(strength));
+  if (!positiveFinite(fibreStrengthRatio))
+    return fail("fibreStrengthRatio: must be positive and finite, got ", num(fibreStrengthRatio));
+  if (!(std::isfinite(radius) && radius >= 0))
+    return fail("radius: must be >= 0 and finite, got ", num(radius));
+  if (static_cast<unsigned>(model) > static_cast<unsigned>(DamageModel::Degradation))
+    return fail("model: unknown damage model ", std::to_string(static_cast<int>(model)));
+  if (regions < 1) return fail("regions: must be >= 1, got ", std::to_string(regions));
+  return {};
+}
+
+Result<void> PlasticitySettings::check() const {
+  if (!enabled) return {};
+  if (!positiveFinite(yieldStress))
+    return fail("yieldStress: must be positive and finite, got ", num(yieldStress));
+  if (!(flowRate >= 0 && flowRate <= 1))
+    return fail("flowRate: must lie in [0, 1], got ", num(flowRate));
+  if (!(std::isfinite(hardening) && hardening >= 0))
+    return fail("hardening: must be >= 0 and finite, got ", num(hardening));
+  return {};
+}
+
+Result<void> Collider::check() const {
+  if (kind != Kind::Plane && kind != Kind::Box && kind != Kind::Sphere)
+    return fail("kind: ", std::to_string(static_cast<int>(kind)), " is not a Collider::Kind");
+  if (!bounded3(point)) return fail("point: must be finite, within 1e9 m of the origin");
+  if (!bounded3(velocity)) return fail("velocity: must be finite, at most 1e9 m/s");
+  if (!(std::isfinite(stiffness) && stiffness >= 0 && stiffness <= kMaxColliderStiffness))
+    return fail("stiffness: must lie in [0, 1e18] (0 picks one from the time step), got ",
+                num(stiffness));
+  if (kind == Kind::Plane) {
+    const double len2 =
+        double(normal.x) * normal.x + double(normal.y) * normal.y + double(normal.z) * normal.z;
+    if (!(finite3(normal) && std::isfinite(len2) && len2 > 1e-24))
+      return fail("normal: must be finite and non-zero");
+  }
+  if (kind == Kind::Box) {
+    if (!(bounded3(halfExtents) && halfExtents.x > 0 && halfExtents.y > 0 && halfExtents.z > 0))
+      return fail("halfExtents: must be positive and at most 1e9 m");
+    const double q2 = double(rotation.x) * rotation.x + double(rotation.y) * rotation.y +
+                      double(rotation.z) * rotation.z + double(rotation.w) * rotation.w;
+    if (!(std::isfinite(q2) && q2 > 1e-24))
+      return fail("rotation: must be a finite non-zero quaternion");
+  }
+  if (kind == Kind::Sphere && !(std::isfinite(radius) && radius > 0 && radius <= kMaxLength))
+    return fail("radius: must be positive and at most 1e9 m, got ", num(radius));
+  return {};
+}
+
+Result<void> WorldDef::check() const {
+  if (substeps < 1) return fail("WorldDef.substeps: must be >= 1, got ", std::to_string(substeps));
+  if (!finite3(gravity)) return fail("WorldDef.gravity: must be finite");
+  switch (backend) {
+    case Backend::Auto:
+    case Backend::Cpu:
+      break;
+    case Backend::Cuda:
+      return fail(
+          "WorldDef.backend: Cuda is not available in this version (the bodies run on the CPU); "
+          "use Backend::Auto or Backend::Cpu");
+    default:
+      return fail("WorldDef.backend: unknown backend ", std::to_string(static_cast<int>(backend)));
+  }
+  for (size_t i = 0; i < colliders.size(); ++i)
+    if (Result<void> r = colliders[i].check(); !r)
+      return fail("WorldDef.colliders[", std::to_string(i), "].", r.error().message);
+  return {};
+}
+
+namespace detail {
+// BodyDef::check without the mesh, for World::createBody, which validates (and repairs) the
+// mesh itself.
+Result<void> checkBodySettings(const BodyDef& def) {
+  if (auto r = def.material.check(); !r) return r;
+  if (auto r = def.solver.check(); !r) return fail("solver.", r.error().message);
+  if (auto r = def.fracture.check(); !r) return fail("fracture.", r.error().message);
+  if (def.fracture.enabled && def.fracture.fibreStrengthRatio != 1 &&
+      !(def.material.fibreStiffness > 0))
+    return fail("fracture.fibreStrengthRatio: ", num(def.fracture.fibreStrengthRatio),
+                " needs fibres (material.fibreStiffness > 0); use 1 for an isotropic strength");
+  if (auto r = def.plasticity.check(); !r) return fail("plasticity.", r.error().message);
+  const int64_t nn = int64_t(def.mesh.nodeCount());
+  for (size_t g = 0; g < def.grips.size(); ++g) {
+    if (!bounded3(def.grips[g].velocity))
+      return fail("grips[", std::to_string(g), "].velocity: must be finite, at most 1e9 m/s");
+    for (int32_t n : def.grips[g].nodes)
+      if (n < 0 || n >= nn)
+        return fail("grips[", std::to_string(g), "].nodes: node ", std::to_string(n),
+                    " out of range [0, ", std::to_string(nn), ")");
+  }
+  for (size_t f = 0; f < def.forces.size(); ++f) {
+    if (def.forces[f].node < 0 || def.forces[f].node >= nn)
+      return fail("forces[", std::to_string(f), "].node: ", std::to_string(def.forces[f].node),
+                  " out of range [0, ", std::to_string(nn), ")");
+    if (!finite3(def.forces[f].force))
+      return fail("forces[", std::to_string(f), "].force: not finite");
+  }
+  if (!bounded3(def.initialVelocity))
+    return fail("initialVelocity: must be finite, at most 1e9 m/s");
+  if (!def.fibreField.empty()) {
+    if (def.fibreField.size() != def.mesh.tetCount())
+      return fail("fibreField: expected one direction per tet (",
+                  std::to_string(def.mesh.tetCount()), "), got ",
+                  std::to_string(def.fibreField.size()));
+    for (size_t t = 0; t < def.fibreField.size(); ++t) {
+      const glm::vec3 f = def.fibreField[t];
+      if (!finite3(f) || double(f.x) * f.x + double(f.y) * f.y + double(f.z) * f.z < 1e-12)
+        return fail("fibreField[", std::to_string(t), "]: must be finite and non-zero");
+    }
+  }
+  return {};
+}
+}  // namespace detail
+
+Result<void> BodyDef::check() const {
+  if (mesh.tetCount() == 0) return fail("mesh: has no tetrahedra");
+  TetMesh copy = mesh;  // validate() repairs flipped tets; a check must not change the def
+  if (auto r = validate(copy, "mesh"); !r) return r;
+  return detail::checkBodySettings(*this);
+}
+
+}  // namespace gf
