@@ -23,8 +23,8 @@ int runBenchCommand(int argc, char** argv);
 int runReportCommand(int argc, char** argv);
 
 /// `graphfrac mesh SUBCOMMAND ...`; argv[0] is "mesh", argv[1] the subcommand:
-///   from-surface IN.obj OUT.msh [--max-volume V] [--quality Q] [--tetgen PATH] [--keep-temp]
-///     (tetrahedralises a closed OBJ surface with the tetgen program, run as a tool)
+///   from-surface IN OUT.msh [--max-volume V] [--quality Q] [--tetgen PATH] [--keep-temp]
+///     (tetrahedralises a closed OBJ or PLY surface with the tetgen program, run as a tool)
 ///   info FILE
 ///   convert IN OUT          (IN: .msh/.node/.ele; OUT: .msh/.obj/.ply)
 /// Returns kExitOk, kExitUsage, or kExitScene when an input cannot be read or meshed.

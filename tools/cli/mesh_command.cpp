@@ -1,6 +1,11 @@
-// `graphfrac mesh`: from-surface runs the tetgen program as a subprocess (it is AGPL and never
-// linked), on a .smesh written from the OBJ, and reads its .node/.ele back through the
-// runtime's validated reader. info and convert are thin wrappers over gf::TetMesh.
+// `graphfrac mesh`: from-surface reads a triangle surface (Wavefront OBJ, or PLY in ASCII or
+// binary), runs the tetgen program as a subprocess (it is AGPL and never linked) on a .smesh
+// written from it, and reads its .node/.ele back through the runtime's validated reader.
+// tetgen answers bad input with an abort and no reason, so what it would fail on is checked here
+// first and reported in the file's own terms (lines, vertex and face numbers): coordinates that
+// overflow, open edges. Finding crossing faces takes a second tetgen run, so only a failed run is
+// followed by `tetgen -d`, whose list of crossing facets is translated back to the file.
+// info and convert are thin wrappers over gf::TetMesh.
 #include <fcntl.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -9,7 +14,6 @@
 #include <algorithm>
 #include <array>
 #include <cerrno>
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -17,12 +21,15 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
-#include <sstream>
+#include <numeric>
+#include <set>
 #include <string>
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/surface_reader.h"
 #include "graphfrac/mesh.h"
 
 extern char** environ;
@@ -33,10 +40,19 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr const char* kUsage =
-    "usage: graphfrac mesh from-surface IN.obj OUT.msh [--max-volume V] [--quality Q]\n"
+    "usage: graphfrac mesh from-surface IN OUT.msh [--max-volume V] [--quality Q]\n"
     "                                  [--tetgen PATH] [--keep-temp]\n"
+    "         IN: a closed triangle surface, Wavefront OBJ (.obj) or PLY (.ply, ASCII or\n"
+    "         binary); polygons are split into triangles\n"
     "       graphfrac mesh info FILE            (.msh, .node or .ele)\n"
     "       graphfrac mesh convert IN OUT       (IN .msh/.node/.ele; OUT .msh/.obj/.ply)\n";
+
+// Problems listed in full are cut after this many lines, then "... and N more".
+constexpr size_t kListed = 6;
+
+// A tet's six-volume is a triple product of coordinate differences, at most 6 (2M)^3 < 64 M^3
+// for coordinates up to M; above this M it overflows and every volume check reads inf.
+const double kMaxCoordinate = std::cbrt(std::numeric_limits<double>::max() / 64);
 
 int usage(const std::string& why) {
   std::fprintf(stderr, "graphfrac mesh: %s\n%s", why.c_str(), kUsage);
@@ -49,144 +65,121 @@ int failure(const std::string& why) {
   return kExitScene;
 }
 
-// ---- OBJ reading -------------------------------------------------------------------------
+// "7 open edges" / "1 open edge".
+std::string plural(size_t n, const std::string& what) {
+  return std::to_string(n) + " " + what + (n == 1 ? "" : "s");
+}
+
+bool parseNumber(const std::string& s, double& v) { return numberProblem(s, v).empty(); }
+
+// ---- the surface given to tetgen ---------------------------------------------------------
 
 struct Surface {
-  std::vector<double> positions;   // 3 per vertex
-  std::vector<int32_t> triangles;  // 3 per triangle, 0-based
+  std::vector<double> positions;       // 3 per vertex
+  std::vector<int32_t> triangles;      // 3 per triangle, 0-based
+  std::vector<size_t> vertexSource;    // the file's vertex each one comes from (the first
+                                       // of those merged)
+  std::vector<size_t> triangleSource;  // the file's triangle each one comes from
   int mergedVertices = 0, droppedFaces = 0, unusedVertices = 0;
+  size_t parts = 0;  // connected through shared vertices
 };
 
-bool parseNumber(const std::string& s, double& v) {
-  const char* b = s.data();
-  const char* e = b + s.size();
-  if (b != e && *b == '+') ++b;
-  auto [p, ec] = std::from_chars(b, e, v);
-  return ec == std::errc() && p == e && b != e && std::isfinite(v);
+size_t findRoot(std::vector<size_t>& parent, size_t i) {
+  while (parent[i] != i) i = parent[i] = parent[parent[i]];
+  return i;
 }
 
-bool parseIndex(const std::string& s, int64_t& v) {
-  const std::string head = s.substr(0, s.find('/'));  // "i/t/n": the vertex index comes first
-  const char* b = head.data();
-  const char* e = b + head.size();
-  auto [p, ec] = std::from_chars(b, e, v);
-  return ec == std::errc() && p == e && b != e;
-}
+// Merges vertices with identical coordinates (OBJ exporters split them at UV seams), drops
+// faces that become degenerate and vertices no face uses, then checks what tetgen needs but
+// does not explain when missing: finite volumes and a closed surface.
+Result<Surface> prepareSurface(const SurfaceFile& f) {
+  const size_t nv = f.vertexCount();
+  if (nv > static_cast<size_t>(INT32_MAX)) return fail(f.path, ": too many vertices");
+  std::vector<char> referenced(nv, 0);
+  for (int64_t v : f.triangles) referenced[static_cast<size_t>(v)] = 1;
+  for (size_t i = 0; i < nv; ++i) {
+    for (size_t k = 0; referenced[i] && k < 3; ++k) {
+      const double x = f.positions[3 * i + k];
+      if (std::abs(x) > kMaxCoordinate) {
+        return fail(f.vertexAt(i), ": coordinate ", std::string(1, char('x' + k)), " = ",
+                    formatDouble(x), " is too large: above ", formatDouble(kMaxCoordinate),
+                    " the volume of a tetrahedron overflows a double (scale the model down)");
+      }
+    }
+  }
 
-// Reads v and f lines; polygons become fans; vt, vn, groups and materials are ignored.
-// Then merges vertices with identical coordinates, drops faces that become degenerate and
-// vertices no face uses, so tetgen gets a clean closed surface.
-Result<Surface> readObj(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return fail(path, ": cannot open");
   Surface s;
-  std::vector<int> faceLine;  // line of each triangle, for index errors found at the end
-  std::vector<int64_t> faceIdx;
-  std::string line, tok;
-  int ln = 0;
-  while (std::getline(in, line)) {
-    ++ln;
-    const std::string where = path + ":" + std::to_string(ln) + ": ";
-    std::istringstream ss(line);
-    if (!(ss >> tok) || tok[0] == '#') continue;
-    if (tok == "v") {
-      double x[3];
-      for (double& c : x) {
-        if (!(ss >> tok) || !parseNumber(tok, c)) {
-          return fail(where, "vertex needs 3 finite coordinates");
-        }
-      }
-      s.positions.insert(s.positions.end(), x, x + 3);
-    } else if (tok == "f") {
-      std::vector<int64_t> poly;
-      const int64_t nv = static_cast<int64_t>(s.positions.size() / 3);
-      while (ss >> tok) {
-        int64_t i = 0;
-        if (!parseIndex(tok, i) || i == 0) return fail(where, "bad face index '", tok, "'");
-        if (i < 0) {
-          i += nv;  // relative to the vertices so far
-          if (i < 0) return fail(where, "relative face index '", tok, "' points before vertex 1");
-        } else {
-          i -= 1;
-        }
-        poly.push_back(i);
-      }
-      if (poly.size() < 3) return fail(where, "face needs at least 3 vertices");
-      for (size_t k = 1; k + 1 < poly.size(); ++k) {
-        faceIdx.insert(faceIdx.end(), {poly[0], poly[k], poly[k + 1]});
-        faceLine.push_back(ln);
-      }
-    }
-  }
-  if (in.bad()) return fail(path, ": read error");
-  const int64_t nv = static_cast<int64_t>(s.positions.size() / 3);
-  if (nv == 0) return fail(path, ": no vertices ('v' lines)");
-  if (faceIdx.empty()) return fail(path, ": no faces ('f' lines)");
-  for (size_t i = 0; i < faceIdx.size(); ++i) {
-    if (faceIdx[i] >= nv) {
-      return fail(path, ":", std::to_string(faceLine[i / 3]), ": face index ",
-                  std::to_string(faceIdx[i] + 1), " exceeds the ", std::to_string(nv),
-                  " vertices of the file");
-    }
-  }
-
-  // Merge exact duplicates (OBJ exporters split vertices at UV seams).
   std::map<std::array<double, 3>, int32_t> unique;
-  std::vector<int32_t> remap(static_cast<size_t>(nv));
+  std::vector<int32_t> remap(nv);
   std::vector<double> merged;
-  for (int64_t i = 0; i < nv; ++i) {
-    const std::array<double, 3> p = {s.positions[3 * i], s.positions[3 * i + 1],
-                                     s.positions[3 * i + 2]};
+  std::vector<size_t> mergedSource;
+  for (size_t i = 0; i < nv; ++i) {
+    const std::array<double, 3> p = {f.positions[3 * i], f.positions[3 * i + 1],
+                                     f.positions[3 * i + 2]};
     auto [it, inserted] = unique.emplace(p, static_cast<int32_t>(merged.size() / 3));
-    if (inserted) merged.insert(merged.end(), p.begin(), p.end());
-    remap[static_cast<size_t>(i)] = it->second;
+    if (inserted) {
+      merged.insert(merged.end(), p.begin(), p.end());
+      mergedSource.push_back(i);
+    }
+    remap[i] = it->second;
   }
-  s.mergedVertices = static_cast<int>(nv - static_cast<int64_t>(merged.size() / 3));
+  s.mergedVertices = static_cast<int>(nv - merged.size() / 3);
   std::vector<int32_t> used(merged.size() / 3, -1);
-  std::vector<double> compact;
-  std::vector<int> keptLine;  // source line of each kept triangle
-  for (size_t f = 0; f < faceIdx.size(); f += 3) {
-    int32_t t[3];
-    for (int k = 0; k < 3; ++k)
-      t[k] = remap[static_cast<size_t>(faceIdx[f + static_cast<size_t>(k)])];
-    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+  for (size_t t = 0; t < f.triangles.size() / 3; ++t) {
+    int32_t tri[3];
+    for (size_t k = 0; k < 3; ++k) tri[k] = remap[static_cast<size_t>(f.triangles[3 * t + k])];
+    if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]) {
       ++s.droppedFaces;
       continue;
     }
-    for (int32_t& v : t) {
-      if (used[static_cast<size_t>(v)] < 0) {
-        used[static_cast<size_t>(v)] = static_cast<int32_t>(compact.size() / 3);
-        compact.insert(compact.end(), &merged[3 * static_cast<size_t>(v)],
-                       &merged[3 * static_cast<size_t>(v)] + 3);
+    for (int32_t& v : tri) {
+      const size_t m = static_cast<size_t>(v);
+      if (used[m] < 0) {
+        used[m] = static_cast<int32_t>(s.positions.size() / 3);
+        s.positions.insert(s.positions.end(), &merged[3 * m], &merged[3 * m] + 3);
+        s.vertexSource.push_back(mergedSource[m]);
       }
-      v = used[static_cast<size_t>(v)];
+      v = used[m];
     }
-    s.triangles.insert(s.triangles.end(), t, t + 3);
-    keptLine.push_back(faceLine[f / 3]);
+    s.triangles.insert(s.triangles.end(), tri, tri + 3);
+    s.triangleSource.push_back(t);
   }
-  s.unusedVertices = static_cast<int>(merged.size() / 3 - compact.size() / 3);
-  s.positions = std::move(compact);
-  if (s.triangles.empty()) return fail(path, ": all faces are degenerate");
+  s.unusedVertices = static_cast<int>(merged.size() / 3 - s.positions.size() / 3);
+  if (s.triangles.empty()) return fail(f.path, ": all faces are degenerate");
 
-  // tetgen needs a closed surface; an edge on one face only is a hole, found here with a
-  // line number instead of as an empty tetgen output.
-  std::map<std::pair<int32_t, int32_t>, std::pair<int, size_t>> edges;  // uses, first face
-  for (size_t f = 0; f < s.triangles.size(); f += 3) {
-    for (int k = 0; k < 3; ++k) {
-      int32_t a = s.triangles[f + static_cast<size_t>(k)],
-              b = s.triangles[f + static_cast<size_t>(k + 1) % 3];
+  std::vector<size_t> parent(s.positions.size() / 3);
+  std::iota(parent.begin(), parent.end(), size_t{0});
+  std::map<std::pair<int32_t, int32_t>, std::pair<int, size_t>> edges;  // uses, first triangle
+  for (size_t t = 0; t < s.triangles.size() / 3; ++t) {
+    for (size_t k = 0; k < 3; ++k) {
+      int32_t a = s.triangles[3 * t + k], b = s.triangles[3 * t + (k + 1) % 3];
+      parent[findRoot(parent, static_cast<size_t>(a))] = findRoot(parent, static_cast<size_t>(b));
       if (a > b) std::swap(a, b);
-      auto [it, inserted] = edges.emplace(std::make_pair(a, b), std::make_pair(0, f / 3));
+      auto [it, inserted] = edges.emplace(std::make_pair(a, b), std::make_pair(0, t));
       ++it->second.first;
     }
   }
+  for (size_t i = 0; i < parent.size(); ++i) s.parts += findRoot(parent, i) == i;
+
+  // tetgen needs a closed surface; all the holes are listed at once, so that one round of
+  // repair in a modeller is enough.
+  std::vector<std::pair<size_t, std::pair<int32_t, int32_t>>> open;  // triangle, edge
   for (const auto& [edge, use] : edges) {
-    if (use.first == 1) {
-      return fail(path, ": surface is not closed: an edge of the face on line ",
-                  std::to_string(keptLine[use.second]), " belongs to no other face");
-    }
+    if (use.first == 1) open.push_back({use.second, edge});
   }
-  return s;
+  if (open.empty()) return s;
+  std::sort(open.begin(), open.end());  // in file order
+  std::string why = f.path + ": surface is not closed: " + plural(open.size(), "open edge") +
+                    " (on one face only), in " + plural(s.parts, "connected part") + ":";
+  for (size_t i = 0; i < std::min(open.size(), kListed); ++i) {
+    const auto [t, edge] = open[i];
+    why += "\n  " + f.vertex(s.vertexSource[static_cast<size_t>(edge.first)]) + " - " +
+           f.vertex(s.vertexSource[static_cast<size_t>(edge.second)]) + ", of the " +
+           f.face(s.triangleSource[t]);
+  }
+  if (open.size() > kListed)
+    why += "\n  ... and " + std::to_string(open.size() - kListed) + " more";
+  return fail(why);
 }
 
 // ---- tetgen subprocess -------------------------------------------------------------------
@@ -223,9 +216,9 @@ std::string tail(const std::string& path, size_t lines) {
   return out;
 }
 
-// Runs `tetgen switches input` with stdout and stderr going to `log`.
-Result<void> runTetgen(const std::string& tetgen, const std::string& switches,
-                       const std::string& input, const std::string& log) {
+// Runs `tetgen switches input` with stdout and stderr going to `log`; returns its wait status.
+Result<int> runTetgen(const std::string& tetgen, const std::string& switches,
+                      const std::string& input, const std::string& log) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(),
@@ -249,16 +242,50 @@ Result<void> runTetgen(const std::string& tetgen, const std::string& switches,
   while (waitpid(pid, &status, 0) < 0) {
     if (errno != EINTR) return fail("waiting for tetgen failed: ", std::strerror(errno));
   }
+  return status;
+}
+
+// tetgen 1.5 aborts on faces that cross ("terminate called after throwing an instance of
+// 'int'"); its -d switch lists them instead, as "Facet #A intersects facet #B", counting the
+// .smesh facets from 1, each pair usually more than once. Returns the pairs in the file's terms,
+// or "" when tetgen -d finds none (or cannot run): then the failure has another cause.
+std::string crossingFaces(const std::string& tetgen, const std::string& smesh,
+                          const std::string& log, const SurfaceFile& f, const Surface& s) {
+  if (!runTetgen(tetgen, "-d", smesh, log)) return "";
+  std::ifstream in(log);
+  std::vector<std::pair<size_t, size_t>> pairs;
+  std::set<std::pair<size_t, size_t>> seen;
+  const size_t nt = s.triangles.size() / 3;
+  for (std::string line; std::getline(in, line);) {
+    size_t a = 0, b = 0;
+    if (std::sscanf(line.c_str(), " Facet #%zu intersects facet #%zu", &a, &b) != 2) continue;
+    if (a < 1 || b < 1 || a > nt || b > nt || a == b) continue;
+    const std::pair<size_t, size_t> p(std::min(a, b) - 1, std::max(a, b) - 1);
+    if (seen.insert(p).second) pairs.push_back(p);
+  }
+  if (pairs.empty()) return "";
+  std::string why = f.path + ": surface intersects itself: " + plural(pairs.size(), "pair") +
+                    " of faces cross (found by tetgen -d):";
+  for (size_t i = 0; i < std::min(pairs.size(), kListed); ++i) {
+    why += "\n  " + f.face(s.triangleSource[pairs[i].first]) + " and " +
+           f.face(s.triangleSource[pairs[i].second]);
+  }
+  if (pairs.size() > kListed) {
+    why += "\n  ... and " + std::to_string(pairs.size() - kListed) + " more";
+  }
+  return why;
+}
+
+std::string tetgenFailure(const std::string& switches, int status, const std::string& log) {
+  std::string why = "tetgen " + switches;
   if (WIFSIGNALED(status)) {
-    return fail("tetgen ", switches, " crashed (signal ", std::to_string(WTERMSIG(status)),
-                "); its last output:\n", tail(log, 12));
+    why += " crashed (signal " + std::to_string(WTERMSIG(status)) + ")";
+  } else if (WIFEXITED(status) && WEXITSTATUS(status) != 0) {
+    why += " failed (exit " + std::to_string(WEXITSTATUS(status)) + ")";
+  } else {
+    why += " produced no tetrahedra";
   }
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    return fail("tetgen ", switches, " failed (exit ", std::to_string(WEXITSTATUS(status)),
-                "; is the surface closed and free of self-intersections?); its last output:\n",
-                tail(log, 12));
-  }
-  return {};
+  return why + "; its last output:\n" + tail(log, 12);
 }
 
 struct TempDir {
@@ -306,14 +333,17 @@ int fromSurface(const std::vector<std::string>& args) {
       return usage("unexpected argument " + a);
     }
   }
-  if (in.empty() || out.empty()) return usage("from-surface needs IN.obj and OUT.msh");
+  if (in.empty() || out.empty()) return usage("from-surface needs IN (.obj or .ply) and OUT.msh");
   const auto t0 = std::chrono::steady_clock::now();
 
-  Result<Surface> surface = readObj(in);
+  Result<SurfaceFile> file = readSurfaceFile(in);
+  if (!file) return failure(file.error().message);
+  Result<Surface> surface = prepareSurface(file.value());
   if (!surface) return failure(surface.error().message);
   const Surface& s = surface.value();
   std::printf("surface %s: %zu vertices, %zu triangles", in.c_str(), s.positions.size() / 3,
               s.triangles.size() / 3);
+  if (s.parts > 1) std::printf(", %zu separate parts", s.parts);
   if (s.mergedVertices || s.droppedFaces || s.unusedVertices) {
     std::printf(" (merged %d duplicate vertices, dropped %d degenerate faces, %d unused vertices)",
                 s.mergedVertices, s.droppedFaces, s.unusedVertices);
@@ -326,8 +356,14 @@ int fromSurface(const std::vector<std::string>& args) {
   if (!mkdtemp(pattern.data()))
     return failure(std::string("cannot create a temporary directory: ") + std::strerror(errno));
   tmp.path = pattern;
+  // Said now and again with an error, so the files can be found however the run ends.
+  if (keep) std::printf("temporary files in %s (kept: --keep-temp)\n", tmp.path.c_str());
+  auto failed = [&](std::string why) {
+    if (keep) why += "\n(temporary files kept in " + tmp.path + ")";
+    return failure(why);
+  };
   const std::string smesh = tmp.path + "/surface.smesh";
-  if (Result<void> r = writeSmesh(s, smesh); !r) return failure(r.error().message);
+  if (Result<void> r = writeSmesh(s, smesh); !r) return failed(r.error().message);
 
   // p: tetrahedralise a piecewise linear complex; q: radius-edge bound; a: max volume.
   char sw[96];
@@ -337,22 +373,22 @@ int fromSurface(const std::vector<std::string>& args) {
     std::snprintf(sw, sizeof sw, "-pq%g", quality);
   }
   const auto t1 = std::chrono::steady_clock::now();
-  if (Result<void> r = runTetgen(tetgen, sw, smesh, tmp.path + "/tetgen.log"); !r) {
-    return failure(r.error().message);
-  }
+  const std::string log = tmp.path + "/tetgen.log";
+  Result<int> status = runTetgen(tetgen, sw, smesh, log);
+  if (!status) return failed(status.error().message);
   const double tetgenSeconds = seconds(t1);
 
   const std::string node = tmp.path + "/surface.1.node", ele = tmp.path + "/surface.1.ele";
-  if (!fs::exists(ele)) {
-    return failure(
-        "tetgen produced no tetrahedra (is the surface closed and free of "
-        "self-intersections?); its last output:\n" +
-        tail(tmp.path + "/tetgen.log", 12));
+  const int st = status.value();
+  if (!WIFEXITED(st) || WEXITSTATUS(st) != 0 || !fs::exists(ele)) {
+    const std::string crossing =
+        crossingFaces(tetgen, smesh, tmp.path + "/intersections.log", file.value(), s);
+    return failed(crossing.empty() ? tetgenFailure(sw, st, log) : crossing);
   }
   MeshLoadInfo info;
   Result<TetMesh> mesh = TetMesh::fromTetGen(node, ele, &info);
-  if (!mesh) return failure("tetgen output is not a valid mesh: " + mesh.error().message);
-  if (Result<void> w = mesh.value().writeMsh(out); !w) return failure(w.error().message);
+  if (!mesh) return failed("tetgen output is not a valid mesh: " + mesh.error().message);
+  if (Result<void> w = mesh.value().writeMsh(out); !w) return failed(w.error().message);
   const TetMesh& m = mesh.value();
   std::printf(
       "tetgen %s: %zu nodes, %zu tets, volume %.6g (%d tets reoriented), %.2f s tetgen, %.2f s "

@@ -1,0 +1,308 @@
+// `graphfrac mesh from-surface` on good and bad surfaces: it reads OBJ and PLY (ASCII and both
+// binary byte orders) to the same tet mesh, names other formats, and when the input cannot be
+// meshed says why in the file's terms (line, vertex and face numbers) with every open edge and
+// every pair of crossing faces, not the first problem alone or tetgen's abort. Cases that run
+// tetgen are skipped where the program is not installed (tools/setup installs it).
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli/commands.h"
+#include "graphfrac/mesh.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Outcome {
+  int code = -1;
+  std::string out, err;
+};
+
+Outcome mesh(std::vector<std::string> args) {
+  args.insert(args.begin(), "mesh");
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  Outcome o;
+  o.code = gf::cli::runMeshCommand(static_cast<int>(argv.size()), argv.data());
+  o.out = testing::internal::GetCapturedStdout();
+  o.err = testing::internal::GetCapturedStderr();
+  return o;
+}
+
+bool haveTetgen() {
+  std::stringstream path(std::getenv("PATH") ? std::getenv("PATH") : "");
+  for (std::string dir; std::getline(path, dir, ':');) {
+    if (access((fs::path(dir) / "tetgen").c_str(), X_OK) == 0) return true;
+  }
+  return false;
+}
+
+#define REQUIRE_TETGEN() \
+  if (!haveTetgen()) GTEST_SKIP() << "the tetgen program is not installed (tools/setup tools)"
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("gf_mesh_test_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// The unit cube at `origin`, 8 vertices (index = 4x + 2y + z) and 12 outward triangles.
+struct Tris {
+  std::vector<std::array<double, 3>> v;
+  std::vector<std::array<int, 3>> f;  // 0-based
+};
+
+Tris cube(std::array<double, 3> o = {0, 0, 0}, double size = 1) {
+  Tris t;
+  for (int x = 0; x < 2; ++x) {
+    for (int y = 0; y < 2; ++y) {
+      for (int z = 0; z < 2; ++z)
+        t.v.push_back({o[0] + size * x, o[1] + size * y, o[2] + size * z});
+    }
+  }
+  const int quads[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1},
+                           {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
+  for (const auto& q : quads) {
+    t.f.push_back({q[0], q[1], q[2]});
+    t.f.push_back({q[0], q[2], q[3]});
+  }
+  return t;
+}
+
+Tris join(Tris a, const Tris& b) {
+  const int n = static_cast<int>(a.v.size());
+  a.v.insert(a.v.end(), b.v.begin(), b.v.end());
+  for (auto f : b.f) a.f.push_back({f[0] + n, f[1] + n, f[2] + n});
+  return a;
+}
+
+// Vertices on lines 1..n, faces on lines n+1.. .
+void writeObj(const fs::path& path, const Tris& t) {
+  std::ofstream out(path);
+  out.precision(17);
+  for (const auto& p : t.v) out << "v " << p[0] << ' ' << p[1] << ' ' << p[2] << '\n';
+  for (const auto& f : t.f) out << "f " << f[0] + 1 << ' ' << f[1] + 1 << ' ' << f[2] + 1 << '\n';
+}
+
+template <class T>
+void put(std::ofstream& out, T x, bool little) {
+  char b[sizeof x];
+  std::memcpy(b, &x, sizeof x);
+  if (little != (std::endian::native == std::endian::little)) std::reverse(b, b + sizeof x);
+  out.write(b, sizeof x);
+}
+
+// Binary PLY with an extra per-vertex colour and an extra element, which must be read past.
+void writeBinaryPly(const fs::path& path, const Tris& t, bool little) {
+  std::ofstream out(path, std::ios::binary);
+  out << "ply\nformat binary_" << (little ? "little" : "big") << "_endian 1.0\n"
+      << "comment written by test_mesh_command\n"
+      << "element vertex " << t.v.size() << "\nproperty float x\nproperty double y\n"
+      << "property uchar red\nproperty float z\n"
+      << "element face " << t.f.size() << "\nproperty list uchar uint vertex_indices\n"
+      << "element edge 1\nproperty int vertex1\nproperty int vertex2\nend_header\n";
+  for (const auto& p : t.v) {
+    put(out, static_cast<float>(p[0]), little);
+    put(out, p[1], little);
+    put(out, uint8_t{200}, little);
+    put(out, static_cast<float>(p[2]), little);
+  }
+  for (const auto& f : t.f) {
+    put(out, uint8_t{3}, little);
+    for (int i : f) put(out, static_cast<uint32_t>(i), little);
+  }
+  put(out, int32_t{0}, little);
+  put(out, int32_t{1}, little);
+}
+
+double meshVolume(const fs::path& msh) {
+  gf::Result<gf::TetMesh> m = gf::TetMesh::fromFile(msh.string());
+  EXPECT_TRUE(m.ok()) << (m.ok() ? "" : m.error().message);
+  return m.ok() ? m.value().volume() : 0;
+}
+
+TEST(MeshFromSurface, UsageNamesTheFormats) {
+  const Outcome o = mesh({"help"});
+  EXPECT_EQ(o.code, gf::cli::kExitOk);
+  EXPECT_NE(o.out.find("Wavefront OBJ (.obj) or PLY (.ply, ASCII or"), std::string::npos) << o.out;
+}
+
+TEST(MeshFromSurface, ReadsAsciiAndBinaryPly) {
+  REQUIRE_TETGEN();
+  const fs::path dir = scratch("ply");
+  // ASCII with quads (split into fans) and a normal per vertex.
+  {
+    std::ofstream out(dir / "ascii.ply");
+    const Tris c = cube();
+    out << "ply\r\nformat ascii 1.0\r\nelement vertex 8\r\nproperty double x\r\n"
+        << "property double y\r\nproperty double z\r\nproperty float nx\r\n"
+        << "element face 6\r\nproperty list uchar int vertex_index\r\nend_header\r\n";
+    for (const auto& p : c.v) out << p[0] << ' ' << p[1] << ' ' << p[2] << " 0.5\n";
+    const int quads[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1},
+                             {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
+    for (const auto& q : quads)
+      out << "4 " << q[0] << ' ' << q[1] << ' ' << q[2] << ' ' << q[3] << '\n';
+  }
+  writeBinaryPly(dir / "le.ply", cube(), true);
+  writeBinaryPly(dir / "be.ply", cube(), false);
+  for (const char* name : {"ascii", "le", "be"}) {
+    const fs::path in = dir / (std::string(name) + ".ply"),
+                   out = dir / (std::string(name) + ".msh");
+    const Outcome o = mesh({"from-surface", in.string(), out.string()});
+    ASSERT_EQ(o.code, gf::cli::kExitOk) << name << "\n" << o.err;
+    EXPECT_NE(o.out.find("8 vertices, 12 triangles"), std::string::npos) << o.out;
+    EXPECT_NEAR(meshVolume(out), 1.0, 1e-12) << name;
+  }
+}
+
+TEST(MeshFromSurface, NamesFormatsItDoesNotRead) {
+  const fs::path dir = scratch("formats");
+  std::ofstream(dir / "cube.stl") << "solid cube\n  facet normal 0 0 1\n";
+  {
+    std::ofstream glb(dir / "model.bin", std::ios::binary);
+    glb.write("glTF\2\0\0\0", 8);
+  }
+  std::ofstream(dir / "off.txt") << "OFF\n8 12 0\n";
+  const struct {
+    const char* file;
+    const char* what;
+  } cases[] = {{"cube.stl", "(got an STL file)"},
+               {"model.bin", "(got a glTF file)"},
+               {"off.txt", "(got an OFF file)"}};
+  for (const auto& c : cases) {
+    const Outcome o = mesh({"from-surface", (dir / c.file).string(), (dir / "out.msh").string()});
+    EXPECT_EQ(o.code, gf::cli::kExitScene) << c.file;
+    EXPECT_NE(o.err.find(std::string(c.file) + ": reads Wavefront OBJ and PLY only " + c.what),
+              std::string::npos)
+        << o.err;
+  }
+}
+
+TEST(MeshFromSurface, PlyErrorsNameTheElement) {
+  const fs::path dir = scratch("plyerr");
+  Tris c = cube();
+  c.f[3][1] = 9;  // face 3 points past the 8 vertices
+  writeBinaryPly(dir / "range.ply", c, true);
+  Outcome o = mesh({"from-surface", (dir / "range.ply").string(), (dir / "o.msh").string()});
+  EXPECT_EQ(o.code, gf::cli::kExitScene);
+  EXPECT_NE(o.err.find("range.ply: face 3: vertex index 9 is outside the 8 vertices"),
+            std::string::npos)
+      << o.err;
+
+  // Cut short in the faces.
+  writeBinaryPly(dir / "short.ply", cube(), false);
+  fs::resize_file(dir / "short.ply", fs::file_size(dir / "short.ply") - 20);
+  o = mesh({"from-surface", (dir / "short.ply").string(), (dir / "o.msh").string()});
+  EXPECT_EQ(o.code, gf::cli::kExitScene);
+  EXPECT_NE(o.err.find("short.ply: face 11: vertex_indices: unexpected end of file"),
+            std::string::npos)
+      << o.err;
+}
+
+TEST(MeshFromSurface, KeepTempSaysWhereTheFilesAre) {
+  const fs::path dir = scratch("keep");
+  writeObj(dir / "cube.obj", cube());
+  // A tetgen that cannot start: the run fails after the temporary files are written.
+  const Outcome o = mesh({"from-surface", (dir / "cube.obj").string(), (dir / "o.msh").string(),
+                          "--keep-temp", "--tetgen", (dir / "no-such-tetgen").string()});
+  EXPECT_EQ(o.code, gf::cli::kExitScene);
+  const std::string key = "temporary files kept in ";
+  const size_t at = o.err.find(key);
+  ASSERT_NE(at, std::string::npos) << o.err;
+  const std::string kept = o.err.substr(at + key.size(), o.err.find(')', at) - at - key.size());
+  EXPECT_NE(o.out.find("temporary files in " + kept), std::string::npos) << o.out;
+  EXPECT_TRUE(fs::exists(fs::path(kept) / "surface.smesh")) << kept;
+  fs::remove_all(kept);
+}
+
+TEST(MeshFromSurface, OpenSurfaceListsEveryOpenEdgeAndThePartCount) {
+  const fs::path dir = scratch("open");
+  // A cube without its x = 1 side (a square hole: 4 open edges) and a lone triangle apart
+  // (3 open edges): 7 in all, in 2 parts.
+  Tris t = cube();
+  t.f.erase(t.f.begin() + 2, t.f.begin() + 4);  // faces on lines 11 and 12
+  t.v.push_back({5, 0, 0});
+  t.v.push_back({6, 0, 0});
+  t.v.push_back({5, 1, 0});
+  t.f.push_back({8, 9, 10});
+  writeObj(dir / "open.obj", t);
+  const Outcome o = mesh({"from-surface", (dir / "open.obj").string(), (dir / "o.msh").string()});
+  EXPECT_EQ(o.code, gf::cli::kExitScene);
+  EXPECT_NE(o.err.find("open.obj: surface is not closed: 7 open edges (on one face only), in 2 "
+                       "connected parts:"),
+            std::string::npos)
+      << o.err;
+  // The hole's rim, in file order, with the file's vertex numbers and positions.
+  EXPECT_NE(o.err.find("vertex 5 (1, 0, 0) - vertex 6 (1, 0, 1), of the face on line 14 "
+                       "(vertices 1 5 6)"),
+            std::string::npos)
+      << o.err;
+  EXPECT_NE(o.err.find("... and 1 more"), std::string::npos) << o.err;
+}
+
+TEST(MeshFromSurface, SelfIntersectionNamesTheCrossingFaces) {
+  REQUIRE_TETGEN();
+  const fs::path dir = scratch("cross");
+  // Two cubes overlapping by half in each direction, written as one surface.
+  writeObj(dir / "cross.obj", join(cube(), cube({0.5, 0.5, 0.5})));
+  const Outcome o = mesh({"from-surface", (dir / "cross.obj").string(), (dir / "o.msh").string()});
+  EXPECT_EQ(o.code, gf::cli::kExitScene);
+  EXPECT_EQ(o.err.find("crashed"), std::string::npos) << o.err;
+  EXPECT_NE(o.err.find("cross.obj: surface intersects itself: 18 pairs of faces cross"),
+            std::string::npos)
+      << o.err;
+  // Each listed pair: a face of the first cube (lines 17..28) and one of the second (29..40).
+  std::stringstream lines(o.err);
+  int listed = 0;
+  for (std::string l; std::getline(lines, l);) {
+    int a = 0, b = 0;
+    if (std::sscanf(l.c_str(), "  face on line %d (vertices %*d %*d %*d) and face on line %d", &a,
+                    &b) != 2) {
+      continue;
+    }
+    ++listed;
+    EXPECT_TRUE(a >= 17 && a <= 28 && b >= 29 && b <= 40) << l;
+  }
+  EXPECT_EQ(listed, 6);
+  EXPECT_NE(o.err.find("\n  ... and 12 more"), std::string::npos) << o.err;
+}
+
+TEST(MeshFromSurface, HugeOrNonFiniteCoordinatesNameTheLine) {
+  const fs::path dir = scratch("huge");
+  Tris t = cube();
+  t.v[1][2] = 1e300;  // vertex 2, line 2
+  writeObj(dir / "huge.obj", t);
+  Outcome o = mesh({"from-surface", (dir / "huge.obj").string(), (dir / "o.msh").string()});
+  EXPECT_EQ(o.code, gf::cli::kExitScene);
+  EXPECT_NE(o.err.find("huge.obj:2: vertex 2: coordinate z = 1e+300 is too large"),
+            std::string::npos)
+      << o.err;
+
+  std::ofstream(dir / "inf.obj") << "v 0 0 0\nv 1 inf 0\n";
+  o = mesh({"from-surface", (dir / "inf.obj").string(), (dir / "o.msh").string()});
+  EXPECT_NE(o.err.find("inf.obj:2: vertex coordinate y: 'inf' is not finite"), std::string::npos)
+      << o.err;
+  std::ofstream(dir / "over.obj") << "# big\nv 0 0 0\nv 1 0 1e400\n";
+  o = mesh({"from-surface", (dir / "over.obj").string(), (dir / "o.msh").string()});
+  EXPECT_NE(o.err.find("over.obj:3: vertex coordinate z: '1e400' is out of the range of a double"),
+            std::string::npos)
+      << o.err;
+}
+
+}  // namespace
