@@ -25,6 +25,7 @@
 #include <numbers>
 #include <string_view>
 
+#include "cli/args.h"
 #include "cli/progress.h"
 #include "scene/bullet_scene.h"
 
@@ -35,10 +36,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 constexpr const char* kUsage =
     "usage: graphfrac-demo SCENE [options]\n"
@@ -63,36 +60,11 @@ constexpr const char* kUsage =
     "\n"
     "exit codes: 0 ok, 1 failure, 2 usage\n";
 
-bool parseInt(std::string_view s, int lo, int hi, int& out) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  const std::string str(s);
-  const long v = std::strtol(str.c_str(), &end, 10);
-  if (end != str.c_str() + str.size() || v < lo || v > hi) return false;
-  out = static_cast<int>(v);
-  return true;
-}
-
 /// Parses argv (argv[0] = the program); returns an error message or empty.
 std::string parseArgs(int argc, char** argv, DemoOptions& o, bool& help) {
-  for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    std::string value;
-    bool hasValue = false;
-    if (arg.rfind("--", 0) == 0) {
-      const size_t eq = arg.find('=');
-      if (eq != std::string::npos) {
-        value = arg.substr(eq + 1);
-        arg = arg.substr(0, eq);
-        hasValue = true;
-      }
-    }
-    auto takeValue = [&]() -> bool {
-      if (hasValue) return true;
-      if (i + 1 >= argc) return false;
-      value = argv[++i];
-      return true;
-    };
+  cli::ArgParser a(argc, argv);
+  while (a.next()) {
+    const std::string& arg = a.name();
     if (arg == "-h" || arg == "--help") {
       help = true;
     } else if (arg == "--quiet" || arg == "-q") {
@@ -103,31 +75,28 @@ std::string parseArgs(int argc, char** argv, DemoOptions& o, bool& help) {
       o.validation = true;
     } else if (arg == "--frames") {
       int n = 0;
-      if (!takeValue() || !parseInt(value, 1, 100'000'000, n))
-        return "--frames needs an integer >= 1";
+      if (!a.intValue(1, 100'000'000, n)) return "--frames needs an integer >= 1";
       o.frames = n;
     } else if (arg == "--size") {
-      const size_t x = takeValue() ? value.find('x') : std::string::npos;
+      std::string value;
+      const size_t x = a.value(value) ? value.find('x') : std::string::npos;
       if (x == std::string::npos ||
-          !parseInt(std::string_view(value).substr(0, x), 1, 8192, o.width) ||
-          !parseInt(std::string_view(value).substr(x + 1), 1, 8192, o.height))
+          !cli::parseInt(std::string_view(value).substr(0, x), 1, 8192, o.width) ||
+          !cli::parseInt(std::string_view(value).substr(x + 1), 1, 8192, o.height))
         return "--size needs WxH with 1 <= W, H <= 8192 (e.g. 640x360)";
     } else if (arg == "--out") {
-      if (!takeValue() || value.empty()) return "--out needs a directory";
-      o.out = value;
+      if (!a.nonEmptyValue(o.out)) return "--out needs a directory";
     } else if (arg == "--strain") {
-      char* end = nullptr;
-      const double v = takeValue() ? std::strtod(value.c_str(), &end) : 0;
-      if (!end || *end != '\0' || !(v > 0) || !std::isfinite(v))
+      if (!a.positiveValue(o.strainMax))
         return "--strain needs the strain shown as red, a number > 0 (e.g. 0.05)";
-      o.strainMax = v;
     } else if (arg == "--renderer") {
-      if (!takeValue() || (value != "auto" && value != "vulkan" && value != "gl"))
+      std::string value;
+      if (!a.value(value) || (value != "auto" && value != "vulkan" && value != "gl"))
         return "--renderer needs auto, vulkan or gl";
       o.renderer = value == "vulkan" ? RendererKind::Vulkan
                    : value == "gl"   ? RendererKind::Gl
                                      : RendererKind::Auto;
-    } else if (!arg.empty() && arg[0] == '-') {
+    } else if (a.isOption()) {
       return "unknown option '" + arg + "'";
     } else if (o.scene.empty()) {
       o.scene = arg;
@@ -137,12 +106,6 @@ std::string parseArgs(int argc, char** argv, DemoOptions& o, bool& help) {
   }
   if (!help && o.scene.empty()) return "no scene given";
   return {};
-}
-
-/// A unit vector perpendicular to the unit vector a.
-glm::dvec3 anyPerpendicular(const glm::dvec3& a) {
-  const glm::dvec3 helper = std::abs(a.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
-  return glm::normalize(glm::cross(a, helper));
 }
 
 void pushVec(std::vector<float>& v, const glm::dvec3& p) {
@@ -303,7 +266,7 @@ ShapeMesh rigidMesh(const scene::SceneRigidBody& r) {
     for (const auto& f : faces) addQuad(m, f[0] * glm::dot(glm::abs(f[0]), h), f[1], f[2], f[0]);
   } else {
     const glm::dvec3 n = r.normal;
-    const glm::dvec3 u = anyPerpendicular(n), w = glm::cross(n, u);  // u x w = n
+    const glm::dvec3 u = scene::anyPerpendicular(n), w = glm::cross(n, u);  // u x w = n
     const double half = 0.5 * r.renderSize;
     addQuad(m, r.offset * n, half * u, half * w, n);
   }
@@ -539,7 +502,7 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
     const auto tp = Clock::now();
     if (Result<void> w = writePng((frameDir / name).string(), image); !w)
       return fail("graphfrac-demo: ", w.error().message);
-    f.pngMs = msSince(tp);
+    f.pngMs = cli::msSince(tp);
 
     const Totals t = totals(world, sim);
     f.brokenEdges = t.brokenEdges;

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "scene/scene.h"
 
 namespace fs = std::filesystem;
 
@@ -224,6 +225,35 @@ void expectEventsMatchCsv(const std::vector<std::vector<std::string>>& events,
   }
 }
 
+/// A VTK XML UnstructuredGrid read back: its counts and every named DataArray.
+struct Vtu {
+  size_t points = 0, cells = 0;
+  std::map<std::string, std::vector<double>> arrays;
+};
+
+Vtu readVtu(const fs::path& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in.good()) << path;
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string text = ss.str();
+  Vtu v;
+  EXPECT_EQ(std::sscanf(text.c_str() + text.find("<Piece"),
+                        "<Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\"", &v.points, &v.cells),
+            2);
+  for (size_t at = text.find("<DataArray"); at != std::string::npos;
+       at = text.find("<DataArray", at + 1)) {
+    const size_t name = text.find("Name=\"", at) + 6;
+    const size_t open = text.find('>', at) + 1;
+    const size_t close = text.find("</DataArray>", open);
+    std::stringstream values(text.substr(open, close - open));
+    std::vector<double>& a = v.arrays[text.substr(name, text.find('"', name) - name)];
+    for (double x; values >> x;) a.push_back(x);
+  }
+  EXPECT_NE(text.find("</VTKFile>"), std::string::npos) << path << " is cut short";
+  return v;
+}
+
 TEST(Cli, BarPulledApartEndsInTwoClosedPieces) {
   // A V-notched bar (brittle mode, one crack region) pulled at both ends: the stress peaks at
   // the notch tip and one crack plane runs from there through the section.
@@ -238,10 +268,10 @@ TEST(Cli, BarPulledApartEndsInTwoClosedPieces) {
       "grips": [
         {"region": {"min": [0, 0, 0], "max": [0, 0.1, 0.1]}, "velocity": [-0.2, 0, 0]},
         {"region": {"min": [0.4, 0, 0], "max": [0.4, 0.1, 0.1]}, "velocity": [0.2, 0, 0]}]}]})";
-  ASSERT_EQ(
-      run({"run", (dir / "bar.json").string(), "--out", (dir / "out").string(), "--surface", "obj",
-           "--surface-every", "80", "--events", (dir / "events.csv").string(), "--quiet"}),
-      gf::cli::kExitOk);
+  ASSERT_EQ(run({"run", (dir / "bar.json").string(), "--out", (dir / "out").string(), "--surface",
+                 "obj", "--surface-every", "80", "--vtk", "--vtk-every", "80", "--events",
+                 (dir / "events.csv").string(), "--quiet"}),
+            gf::cli::kExitOk);
   const auto rows = readCsv(dir / "out" / "stats.csv");
   ASSERT_EQ(rows.size(), 81u);
   EXPECT_EQ(rows.front().at("broken_edges"), 0);
@@ -252,7 +282,23 @@ TEST(Cli, BarPulledApartEndsInTwoClosedPieces) {
     EXPECT_GE(rows[i].at("broken_edges"), rows[i - 1].at("broken_edges")) << "edges healed";
     EXPECT_GE(rows[i].at("ms_fracture"), 0);
   }
-  expectEventsMatchCsv(readEvents(dir / "events.csv"), rows, {"stress", "brittle"});
+  const auto events = readEvents(dir / "events.csv");
+  expectEventsMatchCsv(events, rows, {"stress", "brittle"});
+
+  // The field file of the last frame: a node is damaged exactly when one of its edges broke
+  // (the event log names both nodes of every broken edge), and the fragment ids split the
+  // nodes in two.
+  const Vtu vtu = readVtu(dir / "out" / "vtk" / "bar_00080.vtu");
+  std::set<int> brokenNodes;
+  for (const auto& e : events) brokenNodes.insert({std::stoi(e[3]), std::stoi(e[4])});
+  const std::vector<double>& damage = vtu.arrays.at("damage");
+  ASSERT_EQ(damage.size(), vtu.points);
+  for (size_t n = 0; n < damage.size(); ++n) {
+    EXPECT_EQ(damage[n] > 0, brokenNodes.count(int(n)) != 0) << "node " << n;
+    EXPECT_LE(damage[n], 1.0);
+  }
+  const std::vector<double>& fragment = vtu.arrays.at("fragment");
+  EXPECT_EQ(std::set<double>(fragment.begin(), fragment.end()), (std::set<double>{0, 1}));
 
   // Frame 0: no crack group yet. Last frame: crack faces in their own group, every edge used
   // twice (once per direction), and two solid pieces whose volumes add up to the bar's
@@ -378,6 +424,168 @@ TEST(Cli, PlanarCutSplitsACylinderInTwo) {
   EXPECT_EQ(red, size_t(std::count(obj.groups.begin(), obj.groups.end(), "crack")));
   EXPECT_GT(red, 0u);
   EXPECT_EQ(crackFragments.size(), 2u);
+}
+
+TEST(Cli, VtkFieldsHoldTheFreeFallDisplacement) {
+  // Backward Euler free fall from rest: v_n = -n g dt, so x_n - X = -g dt^2 n (n + 1) / 2 for
+  // every node, and the body does not deform.
+  const fs::path dir = scratch("vtk");
+  std::ofstream(dir / "fall.json") << R"({
+    "dt": 0.01, "frames": 4, "gravity": [0, -9.81, 0],
+    "bodies": [{"name": "cube", "mesh": {"generator": "box", "size": [1, 1, 1], "cells": 2},
+                "material": {"model": "stvk", "E": 1e6, "nu": 0.3, "rho": 1000}}]})";
+  ASSERT_EQ(run({"run", (dir / "fall.json").string(), "--out", (dir / "out").string(), "--vtk",
+                 "--vtk-every", "3", "--quiet"}),
+            gf::cli::kExitOk);
+  EXPECT_FALSE(fs::exists(dir / "out" / "vtk" / "cube_00001.vtu"));  // every 3rd frame only
+  const Vtu vtu = readVtu(dir / "out" / "vtk" / "cube_00003.vtu");
+  EXPECT_EQ(vtu.points, 27u);
+  EXPECT_EQ(vtu.cells, 8u * 6);
+  const double g = double(9.81f), dt = 0.01, dy = -g * dt * dt * 3 * 4 / 2;
+  const std::vector<double>& u = vtu.arrays.at("displacement");
+  ASSERT_EQ(u.size(), 3 * vtu.points);
+  for (size_t n = 0; n < vtu.points; ++n) {
+    EXPECT_NEAR(u[3 * n], 0, 1e-9) << n;
+    EXPECT_NEAR(u[3 * n + 1], dy, 1e-6 * std::abs(dy)) << n;
+    EXPECT_NEAR(u[3 * n + 2], 0, 1e-9) << n;
+  }
+  // Points are the current positions: the rest grid moved by the displacement.
+  const std::vector<double>& x = vtu.arrays.at("points");
+  ASSERT_EQ(x.size(), 3 * vtu.points);
+  for (size_t n = 0; n < vtu.points; ++n) {
+    const double restY = x[3 * n + 1] - u[3 * n + 1];
+    EXPECT_NEAR(restY * 2, std::round(restY * 2), 1e-9) << n;  // y in {0, 0.5, 1}
+  }
+  EXPECT_EQ(vtu.arrays.at("connectivity").size(), 4 * vtu.cells);
+  EXPECT_EQ(vtu.arrays.at("types"), std::vector<double>(vtu.cells, 10.0));  // VTK_TETRA
+  EXPECT_EQ(vtu.arrays.at("strain").size(), vtu.points);
+  for (double e : vtu.arrays.at("strain")) EXPECT_NEAR(e, 0, 1e-9);
+  for (double d : vtu.arrays.at("damage")) EXPECT_EQ(d, 0);  // no fracture
+
+  // The collection lists frames 0 and 3 at their times, with files that exist.
+  std::ifstream pvd(dir / "out" / "fields.pvd");
+  std::vector<std::pair<double, std::string>> sets;
+  for (std::string line; std::getline(pvd, line);) {
+    double t = 0;
+    char file[256] = {};
+    if (std::sscanf(line.c_str(),
+                    " <DataSet timestep=\"%lf\" group=\"\" part=\"0\" file=\"%255[^\"]", &t,
+                    file) == 2)
+      sets.emplace_back(t, file);
+  }
+  ASSERT_EQ(sets.size(), 2u);
+  EXPECT_EQ(sets[0].first, 0.0);
+  EXPECT_NEAR(sets[1].first, 0.03, 1e-12);
+  EXPECT_EQ(sets[1].second, "vtk/cube_00003.vtu");
+  for (const auto& [t, file] : sets) EXPECT_TRUE(fs::exists(dir / "out" / file)) << file;
+}
+
+/// Rows of a CSV with text columns, by column name.
+std::vector<std::map<std::string, std::string>> readCsvText(const fs::path& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in.good()) << path;
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> header;
+  std::stringstream hs(line);
+  for (std::string h; std::getline(hs, h, ',');) header.push_back(h);
+  std::vector<std::map<std::string, std::string>> rows;
+  while (std::getline(in, line)) {
+    std::stringstream ls(line);
+    std::map<std::string, std::string> row;
+    size_t i = 0;
+    for (std::string v; std::getline(ls, v, ',') && i < header.size(); ++i) row[header[i]] = v;
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+TEST(Cli, PinnedGripCarriesTheWeightOfAHangingBar) {
+  // A bar hanging from a pin at its top face, damped so that it settles: at rest the pin
+  // holds the whole weight, m g upwards (the pinned nodes' own weight included).
+  const fs::path dir = scratch("hang");
+  std::ofstream(dir / "hang.json") << R"({
+    "dt": 0.01, "frames": 150, "gravity": [0, -9.81, 0],
+    "bodies": [{"name": "bar", "mesh": {"generator": "box", "size": [0.1, 0.5, 0.1],
+                                        "cells": [2, 10, 2]},
+                "material": {"E": 1e6, "nu": 0.3, "rho": 1000, "damping": {"mass": 20}},
+                "pins": [{"region": {"min": [0, 0.5, 0], "max": [0.1, 0.5, 0.1]}}]}]})";
+  ASSERT_EQ(run({"run", (dir / "hang.json").string(), "--out", (dir / "out").string(), "--quiet"}),
+            gf::cli::kExitOk);
+  EXPECT_FALSE(fs::exists(dir / "out" / "colliders.csv"));  // the scene has none
+  const auto rows = readCsvText(dir / "out" / "grips.csv");
+  ASSERT_EQ(rows.size(), 150u);  // one grip, frames 1..150
+  const auto& last = rows.back();
+  EXPECT_EQ(last.at("frame"), "150");
+  EXPECT_EQ(last.at("body"), "bar");
+  EXPECT_EQ(last.at("grip"), "pins[0]");
+  const double weight = 1000 * 0.1 * 0.5 * 0.1 * double(9.81f);
+  EXPECT_NEAR(std::stod(last.at("fy")), weight, 0.02 * weight);
+  EXPECT_NEAR(std::stod(last.at("fx")), 0, 1e-3 * weight);
+  EXPECT_NEAR(std::stod(last.at("fz")), 0, 1e-3 * weight);
+}
+
+TEST(Cli, RestingBlockReportsContactEnergyAndColliderImpulse) {
+  // A block dropped a little onto a plane and damped to rest: the plane's impulse per frame
+  // settles at m g dt upwards, its penalty energy shows in contact_energy, and total_energy
+  // is the sum of the four energies.
+  const fs::path dir = scratch("rest");
+  std::ofstream(dir / "rest.json") << R"({
+    "dt": 0.01, "frames": 200, "gravity": [0, -9.81, 0],
+    "colliders": [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0]}],
+    "bodies": [{"name": "block", "mesh": {"generator": "box", "size": [0.2, 0.2, 0.2],
+                                          "cells": 2},
+                "translate": [-0.1, 0.01, -0.1],
+                "material": {"E": 1e6, "nu": 0.3, "rho": 1000, "damping": {"mass": 10}}}]})";
+  ASSERT_EQ(run({"run", (dir / "rest.json").string(), "--out", (dir / "out").string(), "--quiet"}),
+            gf::cli::kExitOk);
+  EXPECT_FALSE(fs::exists(dir / "out" / "grips.csv"));  // no grips
+  const auto stats = readCsv(dir / "out" / "stats.csv");
+  ASSERT_EQ(stats.size(), 201u);
+  EXPECT_EQ(stats.front().at("contact_energy"), 0.0);  // not touching yet
+  EXPECT_GT(stats.back().at("contact_energy"), 0.0);
+  for (const auto& row : stats) {
+    const double sum = row.at("kinetic_energy") + row.at("elastic_energy") +
+                       row.at("gravity_energy") + row.at("contact_energy");
+    EXPECT_NEAR(row.at("total_energy"), sum, 1e-8 * (std::abs(sum) + 1)) << row.at("frame");
+  }
+  const auto rows = readCsvText(dir / "out" / "colliders.csv");
+  ASSERT_EQ(rows.size(), 200u);  // one collider, frames 1..200
+  const auto& last = rows.back();
+  EXPECT_EQ(last.at("collider"), "0");
+  const double weight = 1000 * 0.2 * 0.2 * 0.2 * double(9.81f);
+  EXPECT_NEAR(std::stod(last.at("jy")), weight * 0.01, 0.02 * weight * 0.01);
+  EXPECT_NEAR(std::stod(last.at("jx")), 0, 1e-3 * weight * 0.01);
+  // Centred on the plane's point: the moment of a symmetric load about it is zero.
+  EXPECT_NEAR(std::stod(last.at("ax")), 0, 1e-3 * weight * 0.01);
+  EXPECT_NEAR(std::stod(last.at("az")), 0, 1e-3 * weight * 0.01);
+}
+
+TEST(Cli, RunStartsBodiesInTheSceneInitialState) {
+  // angular_velocity and initial_deformation reach the world through scene::addBody: frame 0
+  // of stats.csv has the spin's kinetic energy and the stretch's elastic energy.
+  const fs::path dir = scratch("spin");
+  const std::string text = R"({
+    "dt": 0.01, "frames": 1, "gravity": [0, 0, 0],
+    "bodies": [{"name": "cube", "mesh": {"generator": "box", "size": [1, 1, 1], "cells": 2},
+                "angular_velocity": [0, 0, 3],
+                "initial_deformation": [[1.01, 0, 0], [0, 1, 0], [0, 0, 1]],
+                "material": {"model": "stvk", "E": 1e6, "nu": 0.3, "rho": 1000}}]})";
+  std::ofstream(dir / "spin.json") << text;
+  ASSERT_EQ(run({"run", (dir / "spin.json").string(), "--out", (dir / "out").string(), "--quiet"}),
+            gf::cli::kExitOk);
+  const auto rows = readCsv(dir / "out" / "stats.csv");
+  ASSERT_EQ(rows.size(), 2u);
+  const gf::Result<gf::scene::Scene> sc = gf::scene::parseScene(text, "spin", "");
+  ASSERT_TRUE(sc.ok()) << sc.error().message;
+  gf::World world(sc.value().world);
+  const gf::Result<gf::BodyId> id = gf::scene::addBody(world, sc.value().bodies[0]);
+  ASSERT_TRUE(id.ok()) << id.error().message;
+  const gf::BodyStats s = world.stats(id.value());
+  EXPECT_GT(s.kineticEnergy, 0.1);
+  EXPECT_GT(s.elasticEnergy, 1.0);
+  EXPECT_NEAR(rows[0].at("kinetic_energy"), s.kineticEnergy, 1e-9 * s.kineticEnergy);
+  EXPECT_NEAR(rows[0].at("elastic_energy"), s.elasticEnergy, 1e-9 * s.elasticEnergy);
 }
 
 TEST(Cli, SceneErrorsExitWithCodeTwoAndWriteNothing) {

@@ -1,13 +1,14 @@
-// `graphfrac bench fracture`: the cost of fracture at run time (issue 3). The same body is
+// `graphfrac bench fracture`: the cost of fracture at run time, per stage. The same body is
 // stepped as plain FEM, with fracture on but nothing broken, with about a thousand broken
 // edges, and with nearly every edge broken (a connected strip left), all in one process. The
 // linear solver runs a fixed number of PCG iterations so the configurations do equal solver
 // work and the differences are fracture's. Prints per-stage ms per step and the ratios.
-// `graphfrac bench multigrid` (issue 4): per-stage ms and fps of the default multigrid and PCG
+// `graphfrac bench multigrid`: per-stage ms and fps of the default multigrid and PCG
 // settings on the thesis's chapter-6 bodies at 4k, 28k, 35k and 160k tets.
-// `graphfrac bench overhead` (issue 5 item 2): World::step of a pure-deformation body against
-// the raw integrator step it wraps, in alternating rounds on one thread.
-// `graphfrac bench stages` (issue 5): per-stage ms per frame (fracture, elements, assembly,
+// `graphfrac bench overhead`: what the World API costs on top of the solver: World::step of a
+// pure-deformation body against the raw integrator step it wraps, in alternating rounds on
+// one thread.
+// `graphfrac bench stages`: per-stage ms per frame (fracture, elements, assembly,
 // solve, surface, Bullet) of whole scenes run through the Bullet bridge, the glass bunny hit
 // by a Bullet ball and the Charpy bar by default.
 #include <algorithm>
@@ -19,6 +20,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/progress.h"
 #include "fem/fem_body.h"
 #include "fem/integrator.h"
 #include "graphfrac/jobs.h"
@@ -108,8 +110,7 @@ ConfigResult runConfig(const Config& cfg, int nx, int steps) {
     r.assembly += t.assemblyMs;
     r.solve += t.solveMs;
   }
-  r.total =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  r.total = msSince(t0);
   for (double* v : {&r.total, &r.fracture, &r.elements, &r.assembly, &r.solve}) *v /= steps;
   const FractureStats fs = world.fractureStats(id);
   r.broken = fs.brokenEdges;
@@ -217,7 +218,7 @@ int benchMultigrid(int argc, char** argv) {
       wdef.jobs = jobs.get();
       World world(wdef);
       const size_t tets = sc.value().bodies[0].def.mesh.tetCount();
-      gf::Result<BodyId> id = world.createBody(std::move(sc.value().bodies[0].def));
+      gf::Result<BodyId> id = scene::addBody(world, sc.value().bodies[0]);
       if (!id.ok()) {
         std::fprintf(stderr, "%s: %s\n", c.name, id.error().message.c_str());
         return kExitScene;
@@ -236,9 +237,7 @@ int benchMultigrid(int argc, char** argv) {
         solve += t.solveMs;
         fracture += t.fractureMs;
       }
-      const double ms =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() /
-          frames;
+      const double ms = msSince(t0) / frames;
       std::printf("%s,%s,%zu,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%s\n", c.name, sv[0], tets, ms,
                   1000 / ms, elements / frames, assembly / frames, solve / frames,
                   fracture / frames, double(linear) / frames, c.thesisFps);
@@ -295,12 +294,10 @@ int benchOverhead(int argc, char** argv) {
   for (int r = 0; r < rounds; ++r) {
     auto t0 = Clock::now();
     for (int s = 0; s < steps; ++s) (void)integrator.step(model, state, ctx, serialJobs());
-    rawBest =
-        std::min(rawBest, std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    rawBest = std::min(rawBest, msSince(t0));
     t0 = Clock::now();
     for (int s = 0; s < steps; ++s) (void)world.step(dt);
-    worldBest =
-        std::min(worldBest, std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    worldBest = std::min(worldBest, msSince(t0));
   }
   const auto wx = world.positions(id.value());
   const bool same = wx.size() == state.x.size() &&
@@ -367,8 +364,7 @@ int benchStages(int argc, char** argv) {
       // A renderer asks for each surface once per frame; World::surface() updates it then.
       const auto ts = std::chrono::steady_clock::now();
       for (size_t b = 0; b < bs.bodyCount(); ++b) (void)bs.world().surface(bs.body(b));
-      const double surfaceMs =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - ts).count();
+      const double surfaceMs = msSince(ts);
       const scene::FrameTimings& t = bs.timings();
       sum.fractureMs += t.world.fractureMs;
       sum.elementsMs += t.world.elementsMs;

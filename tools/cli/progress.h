@@ -40,4 +40,11 @@ class Progress {
 /// "1:05" or "12.3 s" style duration for humans.
 std::string formatDuration(double seconds);
 
+/// Wall-clock milliseconds since t0 on the steady clock: the one stopwatch of the tools (frame
+/// timings of BulletScene, the demo, the benchmarks). Inline so that the scene library can use
+/// it without linking the CLI.
+inline double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
 }  // namespace gf::cli

@@ -1,6 +1,6 @@
 // `graphfrac report error-vs-time SCENE`: what accuracy each solver setting pays for its speed
-// (issue 4, thesis sec 6.3.3-6.3.4). The scene runs once per solver setting, all in one
-// process on the same machine state: first the reference (sparse Cholesky inside full Newton
+// (the multigrid trade-off of thesis sec 6.3.3-6.3.4). The scene runs once per solver setting, all
+// in one process on the same machine state: first the reference (sparse Cholesky inside full Newton
 // to 1e-10, i.e. the converged backward Euler step), then the direct solver with the scene's
 // Newton count, PCG with several iteration caps, and multigrid setups as fixed V-cycle counts
 // and as CG preconditioner. For each: ms per frame, the relative displacement error against
@@ -20,6 +20,7 @@
 
 #include "cli/commands.h"
 #include "cli/csv_writer.h"
+#include "cli/progress.h"
 #include "cli/svg_plot.h"
 #include "graphfrac/jobs.h"
 #include "graphfrac/world.h"
@@ -204,7 +205,8 @@ Outcome runOnce(const scene::Scene& sc, const SolverConfig& cfg, int frames, int
   std::vector<std::vector<int32_t>> tets;
   double v0 = 0;
   for (const scene::SceneBody& sb : sc.bodies) {
-    BodyDef def = sb.def;
+    scene::SceneBody body = sb;
+    BodyDef& def = body.def;
     SolverSettings& s = def.solver;
     s.linearSolver = cfg.kind;
     if (cfg.newton > 0) s.newtonIterations = cfg.newton;
@@ -214,7 +216,7 @@ Outcome runOnce(const scene::Scene& sc, const SolverConfig& cfg, int frames, int
     if (cfg.multigrid) s.multigrid = *cfg.multigrid;
     v0 += signedVolume(def.mesh.positions.data(), def.mesh.tets.data(), def.mesh.tetCount());
     tets.push_back(def.mesh.tets);
-    Result<BodyId> id = world.createBody(std::move(def));
+    Result<BodyId> id = scene::addBody(world, body);
     if (!id.ok()) {
       out.error = sb.name + ": " + id.error().message;
       return out;
@@ -235,7 +237,7 @@ Outcome runOnce(const scene::Scene& sc, const SolverConfig& cfg, int frames, int
     const auto t0 = std::chrono::steady_clock::now();
     const double c0 = processCpuMs();
     const StepStatus st = world.step(sc.dt);
-    ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    ms += msSince(t0);
     cpuMs += processCpuMs() - c0;
     linear += st.linearIterations;
     if (!st.ok()) ++out.flaggedFrames;

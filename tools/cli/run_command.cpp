@@ -1,17 +1,15 @@
 // `graphfrac run`: loads a scene, steps the world frame by frame (applying the scene's cuts
 // before their frames), writes DIR/stats.csv (one row per frame, frame 0 = the initial state),
-// optional surfaces (the render surface with crack faces for fracturing bodies) and an optional
-// fracture-event log, shows progress and ends with a summary. Results are written even when a
-// step is flagged (exit code 3) so that a failing run can be inspected.
+// the grips' reaction forces and the colliders' impulses per frame, optional surfaces (the
+// render surface with crack faces for fracturing bodies), optional ParaView field files and an
+// optional fracture-event log, shows progress and ends with a summary. Results are written
+// even when a step is flagged (exit code 3) so that a failing run can be inspected.
 #include <graphfrac/jobs.h>
 #include <graphfrac/world.h>
 
-#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <glm/geometric.hpp>
 #include <memory>
@@ -21,10 +19,12 @@
 #include <string_view>
 #include <vector>
 
+#include "cli/args.h"
 #include "cli/commands.h"
 #include "cli/csv_writer.h"
 #include "cli/progress.h"
 #include "cli/surface_writer.h"
+#include "cli/vtk_writer.h"
 #include "scene/scene.h"
 
 namespace gf::cli {
@@ -35,10 +35,21 @@ constexpr const char* kRunUsage =
     "\n"
     "Simulates a JSON scene (docs/scene_format.md) and writes DIR/stats.csv with one row per\n"
     "frame (frame 0 is the initial state): frame,time,kinetic_energy,elastic_energy,\n"
-    "gravity_energy,total_energy,newton_iterations,linear_iterations,residual,flags,\n"
-    "ms_elements,ms_assembly,ms_solve,ms_total,broken_edges,fragments,ms_fracture,\n"
-    "ms_surface. Energies [J], broken edges and fragments are summed over bodies;\n"
-    "total_energy also counts the collider penalty energy. Times are per frame [ms].\n"
+    "gravity_energy,contact_energy,total_energy,newton_iterations,linear_iterations,residual,\n"
+    "flags,ms_elements,ms_assembly,ms_solve,ms_total,broken_edges,fragments,ms_fracture,\n"
+    "ms_surface. Energies [J], iterations, broken edges and fragments are summed over\n"
+    "bodies. contact_energy is the colliders' penalty energy; total_energy = kinetic +\n"
+    "elastic + gravity + contact (the penalty is a spring: its energy is part of the\n"
+    "mechanical energy, and a moving collider's work changes the total).\n"
+    "newton_iterations sums bodies and substeps: 1 per substep by default (linearly\n"
+    "implicit), plus up to 2 more in a substep where a node hits a collider the\n"
+    "linearisation did not see; up to solver.newton_iterations with full Newton.\n"
+    "Times are per frame [ms].\n"
+    "With grips or pins: DIR/grips.csv (frame,body,grip,fx,fy,fz), the force [N] each grip\n"
+    "exerts on its body at the end of the frame (World::gripForces; grip = its entry in the\n"
+    "scene, e.g. pins[0]). With colliders: DIR/colliders.csv (frame,collider,jx,jy,jz,ax,ay,\n"
+    "az), the impulse [N s] each collider gave the bodies during the frame and its moment\n"
+    "about the collider's point [N m s] (collider = its index in \"colliders\").\n"
     "\n"
     "options:\n"
     "  --frames N         frames to run (default: the scene's \"frames\")\n"
@@ -49,6 +60,11 @@ constexpr const char* kRunUsage =
     "                     crack faces (OBJ group \"crack\", red PLY faces) for fracturing\n"
     "                     bodies, the plain boundary for the others\n"
     "  --surface-every K  write surfaces every K-th frame only (default 1)\n"
+    "  --vtk              also write ParaView field files: DIR/vtk/<body>_<frame:05>.vtu (the\n"
+    "                     tet mesh with point data displacement, velocity, strain, damage =\n"
+    "                     the fraction of a node's fracture edges that are broken, fragment)\n"
+    "                     and DIR/fields.pvd, which ties them to simulated times\n"
+    "  --vtk-every K      write field files every K-th frame only (default 1)\n"
     "  --events FILE      write every fracture event to FILE (CSV: frame,body,edge,nodeA,\n"
     "                     nodeB,x,y,z,stress,cause)\n"
     "  --quiet            no progress and no summary (errors are still printed)\n"
@@ -64,70 +80,48 @@ struct RunOptions {
   std::string out;
   std::optional<SurfaceFormat> surface;
   int surfaceEvery = 1;
+  bool vtk = false;
+  int vtkEvery = 1;
   std::string events;
   bool quiet = false;
   bool help = false;
 };
 
-bool parseInt(std::string_view s, int lo, int hi, int& out) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  const std::string str(s);
-  const long v = std::strtol(str.c_str(), &end, 10);
-  if (end != str.c_str() + str.size() || v < lo || v > hi) return false;
-  out = static_cast<int>(v);
-  return true;
-}
-
 /// Parses argv (argv[0] = "run"); returns an error message or empty.
 std::string parseArgs(int argc, char** argv, RunOptions& o) {
-  for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    std::string value;
-    bool hasValue = false;
-    // Both "--frames 10" and "--frames=10".
-    if (arg.rfind("--", 0) == 0) {
-      const size_t eq = arg.find('=');
-      if (eq != std::string::npos) {
-        value = arg.substr(eq + 1);
-        arg = arg.substr(0, eq);
-        hasValue = true;
-      }
-    }
-    auto takeValue = [&]() -> bool {
-      if (hasValue) return true;
-      if (i + 1 >= argc) return false;
-      value = argv[++i];
-      return true;
-    };
+  ArgParser a(argc, argv);
+  while (a.next()) {
+    const std::string& arg = a.name();
     if (arg == "-h" || arg == "--help") {
       o.help = true;
     } else if (arg == "--quiet" || arg == "-q") {
       o.quiet = true;
     } else if (arg == "--frames") {
       int n = 0;
-      if (!takeValue() || !parseInt(value, 0, 100'000'000, n)) {
-        return "--frames needs an integer >= 0";
-      }
+      if (!a.intValue(0, 100'000'000, n)) return "--frames needs an integer >= 0";
       o.frames = n;
     } else if (arg == "--threads") {
       int n = 0;
-      if (!takeValue() || !parseInt(value, 0, 1024, n)) return "--threads needs an integer >= 0";
+      if (!a.intValue(0, 1024, n)) return "--threads needs an integer >= 0";
       o.threads = n;
     } else if (arg == "--out") {
-      if (!takeValue() || value.empty()) return "--out needs a directory";
-      o.out = value;
+      if (!a.nonEmptyValue(o.out)) return "--out needs a directory";
     } else if (arg == "--surface") {
-      if (!takeValue() || (value != "obj" && value != "ply")) return "--surface needs obj or ply";
+      std::string value;
+      if (!a.value(value) || (value != "obj" && value != "ply"))
+        return "--surface needs obj or ply";
       o.surface = value == "obj" ? SurfaceFormat::Obj : SurfaceFormat::Ply;
     } else if (arg == "--surface-every") {
-      if (!takeValue() || !parseInt(value, 1, 100'000'000, o.surfaceEvery)) {
+      if (!a.intValue(1, 100'000'000, o.surfaceEvery)) {
         return "--surface-every needs an integer >= 1";
       }
+    } else if (arg == "--vtk") {
+      o.vtk = true;
+    } else if (arg == "--vtk-every") {
+      if (!a.intValue(1, 100'000'000, o.vtkEvery)) return "--vtk-every needs an integer >= 1";
     } else if (arg == "--events") {
-      if (!takeValue() || value.empty()) return "--events needs a file name";
-      o.events = value;
-    } else if (!arg.empty() && arg[0] == '-') {
+      if (!a.nonEmptyValue(o.events)) return "--events needs a file name";
+    } else if (a.isOption()) {
       return "unknown option '" + arg + "'";
     } else if (o.scene.empty()) {
       o.scene = arg;
@@ -143,10 +137,12 @@ std::string parseArgs(int argc, char** argv, RunOptions& o) {
 struct BodyRecord {
   std::string name;
   BodyId id;
-  std::vector<double> rest;  // initial positions, for displacements
+  std::vector<double> rest;  // rest positions, for displacements
   size_t tets = 0;
   bool fracture = false;  // fracturing bodies write World::surface, the others `surface`
   SurfaceTopology surface;
+  std::vector<int32_t> tetNodes;       // --vtk: the cells
+  std::vector<std::string> gripNames;  // the scene entry of each BodyDef::grips
 };
 
 struct FrameTotals {
@@ -179,11 +175,10 @@ FrameTotals sumStats(const World& world, const std::vector<BodyRecord>& bodies) 
 }
 
 const std::vector<std::string> kColumns = {
-    "frame",          "time",         "kinetic_energy",    "elastic_energy",
-    "gravity_energy", "total_energy", "newton_iterations", "linear_iterations",
-    "residual",       "flags",        "ms_elements",       "ms_assembly",
-    "ms_solve",       "ms_total",     "broken_edges",      "fragments",
-    "ms_fracture",    "ms_surface"};
+    "frame",          "time",         "kinetic_energy",    "elastic_energy",    "gravity_energy",
+    "contact_energy", "total_energy", "newton_iterations", "linear_iterations", "residual",
+    "flags",          "ms_elements",  "ms_assembly",       "ms_solve",          "ms_total",
+    "broken_edges",   "fragments",    "ms_fracture",       "ms_surface"};
 
 const char* causeName(FractureEvent::Cause c) {
   switch (c) {
@@ -236,11 +231,39 @@ std::string describeStep(const StepStatus& st) {
   return s.empty() ? "flags " + std::to_string(st.flags) : s;
 }
 
-std::string surfacePath(const std::filesystem::path& dir, const std::string& body, int frame,
-                        SurfaceFormat format) {
+/// "<body>_<frame:05>.<ext>", the name of a per-frame file.
+std::string frameFile(const std::string& body, int frame, const char* ext) {
   char name[64];
-  std::snprintf(name, sizeof name, "_%05d.%s", frame, format == SurfaceFormat::Obj ? "obj" : "ply");
-  return (dir / (body + name)).string();
+  std::snprintf(name, sizeof name, "_%05d.%s", frame, ext);
+  return body + name;
+}
+
+/// Appends each grip's force on its body (World::gripForces) to grips.csv.
+Result<void> writeGripForces(CsvWriter& csv, int frame, World& world,
+                             const std::vector<BodyRecord>& bodies) {
+  for (const BodyRecord& b : bodies) {
+    const std::span<const glm::dvec3> f = world.gripForces(b.id);
+    for (size_t g = 0; g < f.size(); ++g) {
+      const std::string grip = g < b.gripNames.size() ? b.gripNames[g] : std::to_string(g);
+      if (Result<void> r = csv.row({int64_t(frame), b.name, grip, f[g].x, f[g].y, f[g].z}); !r)
+        return r;
+    }
+  }
+  return {};
+}
+
+/// Appends each collider's impulse and its moment over the last step to colliders.csv.
+Result<void> writeColliderImpulses(CsvWriter& csv, int frame, const World& world) {
+  const std::span<const glm::dvec3> j = world.colliderImpulses();
+  const std::span<const glm::dvec3> a = world.colliderAngularImpulses();
+  for (size_t c = 0; c < j.size(); ++c) {
+    const glm::dvec3 m = c < a.size() ? a[c] : glm::dvec3(0);
+    if (Result<void> r =
+            csv.row({int64_t(frame), int64_t(c), j[c].x, j[c].y, j[c].z, m.x, m.y, m.z});
+        !r)
+      return r;
+  }
+  return {};
 }
 
 /// Prints the largest node displacement of each body (the tip of a cantilever, the lowest
@@ -301,6 +324,7 @@ int runCommand(int argc, char** argv) {
   World world(wdef);
 
   std::vector<BodyRecord> bodies;
+  bool anyGrips = false;
   for (size_t i = 0; i < sc.bodies.size(); ++i) {
     scene::SceneBody& sb = sc.bodies[i];
     BodyRecord rec;
@@ -308,8 +332,11 @@ int runCommand(int argc, char** argv) {
     rec.rest = sb.def.mesh.positions;
     rec.tets = sb.def.mesh.tetCount();
     rec.fracture = sb.def.fracture.enabled;
+    rec.gripNames = sb.gripNames;
+    anyGrips = anyGrips || !sb.def.grips.empty();
     if (opt.surface && !rec.fracture) rec.surface = surfaceTopology(sb.def.mesh);
-    Result<BodyId> id = world.createBody(std::move(sb.def));
+    if (opt.vtk) rec.tetNodes = sb.def.mesh.tets;
+    Result<BodyId> id = scene::addBody(world, sb);
     if (!id.ok()) {
       std::fprintf(stderr, "%s: bodies[%zu] (\"%s\"): %s\n", opt.scene.c_str(), i, sb.name.c_str(),
                    id.error().message.c_str());
@@ -323,17 +350,42 @@ int runCommand(int argc, char** argv) {
   namespace fs = std::filesystem;
   const fs::path outDir = opt.out.empty() ? fs::path("out") / sc.name : fs::path(opt.out);
   const fs::path surfDir = outDir / "surface";
-  std::error_code ec;
-  fs::create_directories(opt.surface ? surfDir : outDir, ec);
-  if (ec) {
-    std::fprintf(stderr, "graphfrac run: cannot create %s: %s\n",
-                 (opt.surface ? surfDir : outDir).string().c_str(), ec.message().c_str());
-    return kExitOutput;
+  const fs::path vtkDir = outDir / "vtk";
+  for (const fs::path& dir : {outDir, opt.surface ? surfDir : outDir, opt.vtk ? vtkDir : outDir}) {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) {
+      std::fprintf(stderr, "graphfrac run: cannot create %s: %s\n", dir.string().c_str(),
+                   ec.message().c_str());
+      return kExitOutput;
+    }
   }
   CsvWriter csv;
   if (Result<void> r = csv.open((outDir / "stats.csv").string(), kColumns); !r.ok()) {
     std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
     return kExitOutput;
+  }
+  // Reactions: only for scenes that have something to report, so a plain run writes no
+  // empty files.
+  CsvWriter gripCsv, colliderCsv;
+  const bool writeGrips = anyGrips;
+  const bool writeColliders = !world.colliders().empty();
+  if (writeGrips) {
+    if (Result<void> r = gripCsv.open((outDir / "grips.csv").string(),
+                                      {"frame", "body", "grip", "fx", "fy", "fz"});
+        !r.ok()) {
+      std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
+      return kExitOutput;
+    }
+  }
+  if (writeColliders) {
+    if (Result<void> r =
+            colliderCsv.open((outDir / "colliders.csv").string(),
+                             {"frame", "collider", "jx", "jy", "jz", "ax", "ay", "az"});
+        !r.ok()) {
+      std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
+      return kExitOutput;
+    }
   }
   CsvWriter events;
   if (!opt.events.empty()) {
@@ -347,7 +399,9 @@ int runCommand(int argc, char** argv) {
   auto writeSurfaces = [&](int frame) -> bool {
     if (!opt.surface || frame % opt.surfaceEvery != 0) return true;
     for (const BodyRecord& b : bodies) {
-      const std::string path = surfacePath(surfDir, b.name, frame, *opt.surface);
+      const std::string path =
+          (surfDir / frameFile(b.name, frame, *opt.surface == SurfaceFormat::Obj ? "obj" : "ply"))
+              .string();
       const Result<void> r =
           b.fracture ? writeRenderSurface(path, world.surface(b.id), *opt.surface)
                      : writeSurfaceFrame(path, b.surface, world.positions(b.id), *opt.surface);
@@ -355,6 +409,31 @@ int runCommand(int argc, char** argv) {
         std::fprintf(stderr, "\ngraphfrac run: %s\n", r.error().message.c_str());
         return false;
       }
+    }
+    return true;
+  };
+  PvdWriter pvd;
+  auto writeFields = [&](int frame) -> bool {
+    if (!opt.vtk || frame % opt.vtkEvery != 0) return true;
+    for (size_t i = 0; i < bodies.size(); ++i) {
+      const BodyRecord& b = bodies[i];
+      const std::string file = frameFile(b.name, frame, "vtu");
+      const std::span<const double> x = world.positions(b.id);
+      const std::vector<double> damage =
+          nodeDamage(x.size() / 3, world.edges(b.id), world.brokenEdges(b.id));
+      VtuFrame f;
+      f.positions = x;
+      f.rest = b.rest;
+      f.velocities = world.velocities(b.id);
+      f.tets = b.tetNodes;
+      f.strain = world.nodeStrain(b.id);
+      f.damage = damage;
+      f.fragment = world.nodeFragments(b.id);
+      if (Result<void> r = writeVtu((vtkDir / file).string(), f); !r.ok()) {
+        std::fprintf(stderr, "\ngraphfrac run: %s\n", r.error().message.c_str());
+        return false;
+      }
+      pvd.add(world.time(), int(i), "vtk/" + file);
     }
     return true;
   };
@@ -376,10 +455,11 @@ int runCommand(int argc, char** argv) {
   const FrameTotals initial = sumStats(world, bodies);
   bool outputOk =
       csv.row({int64_t{0}, world.time(), initial.stats.kineticEnergy, initial.stats.elasticEnergy,
-               initial.stats.gravityEnergy, initial.total(), int64_t{0}, int64_t{0}, 0.0,
-               int64_t{0}, 0.0, 0.0, 0.0, 0.0, initial.brokenEdges, initial.fragments, 0.0, 0.0})
+               initial.stats.gravityEnergy, initial.stats.contactEnergy, initial.total(),
+               int64_t{0}, int64_t{0}, 0.0, int64_t{0}, 0.0, 0.0, 0.0, 0.0, initial.brokenEdges,
+               initial.fragments, 0.0, 0.0})
           .ok() &&
-      writeSurfaces(0);
+      writeSurfaces(0) && writeFields(0);
 
   Progress progress(frames, Progress::detect(stderr, opt.quiet));
   int flaggedFrames = 0;
@@ -423,19 +503,21 @@ int runCommand(int argc, char** argv) {
         if (b.fracture) (void)world.surface(b.id);
     Result<void> r = csv.row(
         {int64_t{frame}, world.time(), t.stats.kineticEnergy, t.stats.elasticEnergy,
-         t.stats.gravityEnergy, t.total(), int64_t{st.newtonIterations},
+         t.stats.gravityEnergy, t.stats.contactEnergy, t.total(), int64_t{st.newtonIterations},
          int64_t{st.linearIterations}, st.residual, int64_t{st.flags}, tm.elementsMs, tm.assemblyMs,
          tm.solveMs, tm.totalMs, t.brokenEdges, t.fragments, tm.fractureMs, tm.surfaceMs});
     edgeEvents += static_cast<long long>(world.fractureEvents().size());
     fragmentEvents += static_cast<long long>(world.fragmentEvents().size());
     if (r.ok() && !opt.events.empty())
       r = writeEvents(events, frame, world.fractureEvents(), bodies);
+    if (r.ok() && writeGrips) r = writeGripForces(gripCsv, frame, world, bodies);
+    if (r.ok() && writeColliders) r = writeColliderImpulses(colliderCsv, frame, world);
     if (!r.ok()) {
       std::fprintf(stderr, "\ngraphfrac run: %s\n", r.error().message.c_str());
       outputOk = false;
       break;
     }
-    outputOk = writeSurfaces(frame);
+    outputOk = writeSurfaces(frame) && writeFields(frame);
     char note[96];
     std::snprintf(note, sizeof note, "%.1f ms/frame  E=%.4g J%s", msTotal / frame, t.total(),
                   flaggedFrames > 0 ? "  (flagged steps)" : "");
@@ -448,9 +530,18 @@ int runCommand(int argc, char** argv) {
     std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
     outputOk = false;
   }
-  if (Result<void> r = events.close(); !r.ok()) {
-    std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
-    outputOk = false;
+  for (CsvWriter* w : {&events, &gripCsv, &colliderCsv}) {
+    if (Result<void> r = w->close(); !r.ok()) {
+      std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
+      outputOk = false;
+    }
+  }
+  // The collection lists what was written, also when the run stopped early.
+  if (opt.vtk) {
+    if (Result<void> r = pvd.write((outDir / "fields.pvd").string()); !r.ok()) {
+      std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
+      outputOk = false;
+    }
   }
   if (cutFailed) return kExitScene;
   if (!outputOk) return kExitOutput;
@@ -496,6 +587,9 @@ int runCommand(int argc, char** argv) {
       std::printf("  all steps ok\n");
     }
     std::printf("  wrote %s\n", (outDir / "stats.csv").string().c_str());
+    if (writeGrips) std::printf("  wrote %s\n", (outDir / "grips.csv").string().c_str());
+    if (writeColliders) std::printf("  wrote %s\n", (outDir / "colliders.csv").string().c_str());
+    if (opt.vtk) std::printf("  wrote %s\n", (outDir / "fields.pvd").string().c_str());
     if (!opt.events.empty()) std::printf("  wrote %s\n", opt.events.c_str());
   } else if (flaggedFrames > 0) {
     std::fprintf(stderr, "graphfrac run: %d of %d steps flagged; first at frame %d: %s\n",

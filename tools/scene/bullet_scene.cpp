@@ -7,14 +7,13 @@
 #include <glm/gtc/type_ptr.hpp>
 #include <string>
 
+#include "cli/progress.h"
+
 namespace gf::scene {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+using cli::msSince;
 
 btVector3 bt(const glm::dvec3& v) { return btVector3(btScalar(v.x), btScalar(v.y), btScalar(v.z)); }
 
@@ -61,7 +60,7 @@ Result<std::unique_ptr<BulletScene>> BulletScene::create(const Scene& scene, int
   s->m_world = std::make_unique<World>(def);
   for (size_t i = 0; i < scene.bodies.size(); ++i) {
     const SceneBody& b = scene.bodies[i];
-    Result<BodyId> id = s->m_world->createBody(b.def);
+    Result<BodyId> id = addBody(*s->m_world, b);
     if (!id) {
       return fail(scene.source, ": bodies[", std::to_string(i), "] (\"", b.name,
                   "\"): ", id.error().message);

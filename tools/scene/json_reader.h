@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <glm/vec3.hpp>
 #include <initializer_list>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -114,6 +115,27 @@ inline int readInt(const json& v, const std::string& path, long long lo, long lo
     throw SceneError{path, want};
   }
   return static_cast<int>(x);
+}
+
+/// Any integer an int holds. Ranges are not checked here: the runtime's check() routines own
+/// the rules of the values they validate.
+inline int readInteger(const json& v, const std::string& path) {
+  if (v.is_number()) {
+    const double x = v.get<double>();
+    if (std::isfinite(x) && x == std::floor(x) && x >= std::numeric_limits<int>::min() &&
+        x <= std::numeric_limits<int>::max()) {
+      return static_cast<int>(x);
+    }
+  }
+  throw SceneError{path, "expected an integer, got " + describe(v)};
+}
+
+/// A cap against typos: beyond it a value would exhaust memory (10000 cells for 10), not break
+/// a physical rule, so it is the loader's to enforce.
+inline void requireAtMost(double x, double cap, const std::string& path, const json& v) {
+  if (x > cap) {
+    throw SceneError{path, "at most " + fmt(cap) + " (a cap against typos), got " + describe(v)};
+  }
 }
 
 inline std::string readString(const json& v, const std::string& path) {

@@ -20,14 +20,19 @@
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
+#include <glm/matrix.hpp>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <set>
+#include <span>
 #include <sstream>
 #include <string_view>
+#include <utility>
+#include <vector>
 
+#include "kernels/svd3.h"
 #include "scene/json_reader.h"
 
 namespace gf::scene {
@@ -40,6 +45,56 @@ constexpr long long kMaxCells = 4'000'000;
 constexpr int kMaxCellsPerAxis = 2000;
 constexpr int kMaxThreads = 1024;
 constexpr int kMaxSubsteps = 10000;
+
+/// Runtime field names ("material.youngsModulus") and the scene keys they are read from ("E").
+using FieldName = std::pair<std::string_view, std::string_view>;
+using FieldNames = std::span<const FieldName>;
+
+/// Reports what a runtime check() found: the runtime owns the rules (ranges, ordering,
+/// combinations) and the loader only the syntax and the JSON types, so a scene is rejected by
+/// exactly the rules createBody and setColliders apply. A message "field: reason" whose field
+/// is in `names` is reported at that key's JSON path below `path`; any other under `path`
+/// itself, with the runtime's field name.
+void requireValid(const Result<void>& r, const std::string& path, FieldNames names = {}) {
+  if (r) return;
+  const std::string& message = r.error().message;
+  if (const size_t colon = message.find(": "); colon != std::string::npos) {
+    const std::string_view field(message.data(), colon);
+    for (const auto& [runtime, key] : names) {
+      if (field == runtime) throw SceneError{joinPath(path, key), message.substr(colon + 2)};
+    }
+  }
+  throw SceneError{path, message};
+}
+
+constexpr FieldName kMaterialNames[] = {{"material.model", "model"},
+                                        {"material.youngsModulus", "E"},
+                                        {"material.poissonRatio", "nu"},
+                                        {"material.density", "rho"},
+                                        {"material.fibreStiffness", "fibre.stiffness"},
+                                        {"material.fibreDirection", "fibre.direction"},
+                                        {"material.massDamping", "damping.mass"},
+                                        {"material.stiffnessDamping", "damping.stiffness"}};
+constexpr FieldName kMultigridNames[] = {
+    {"smoother", "smoother"}, {"cycles", "cycles"}, {"coarseRefreshInterval", "refresh_interval"}};
+constexpr FieldName kSolverNames[] = {{"newtonIterations", "newton_iterations"},
+                                      {"newtonTolerance", "newton_tolerance"},
+                                      {"linearSolver", "linear"},
+                                      {"maxLinearIterations", "max_linear_iterations"},
+                                      {"linearTolerance", "linear_tolerance"}};
+constexpr FieldName kFractureNames[] = {{"strength", "strength"},
+                                        {"fibreStrengthRatio", "fibre_strength_ratio"},
+                                        {"radius", "radius"},
+                                        {"model", "model"},
+                                        {"regions", "regions"}};
+constexpr FieldName kPlasticityNames[] = {
+    {"yieldStress", "yield"}, {"flowRate", "flow_rate"}, {"hardening", "hardening"}};
+constexpr FieldName kBodyNames[] = {
+    {"fracture.fibreStrengthRatio", "fracture.fibre_strength_ratio"},
+    {"initialVelocity", "initial_velocity"}};
+constexpr FieldName kWorldNames[] = {{"WorldDef.substeps", "substeps"},
+                                     {"WorldDef.gravity", "gravity"},
+                                     {"WorldDef.backend", "backend"}};
 
 // ---- scene pieces -------------------------------------------------------------------------
 
@@ -156,9 +211,19 @@ TetMesh readGenerator(ObjReader& o) {
   const double sz = readPositive(sizeJ[1], indexPath(o.at("size"), 1));
   const double t = readPositive(o.require("thickness"), o.at("thickness"));
   const auto cells = readCells<2>(o.require("cells"), o.at("cells"), {sx, sz});
-  if (static_cast<long long>(cells[0]) * cells[1] * std::max(1.0, std::round(t / (sx / cells[0]))) >
-      kMaxCells) {
-    throw SceneError{o.at("cells"), "too many cells (at most " + std::to_string(kMaxCells) + ")"};
+  // The layers gen::slab will make: about cubic cells of the smaller in-plane cell size. In
+  // double, so that a thin-cell typo is caught here rather than narrowed to an int there.
+  const double cell = std::min(sx / cells[0], sz / cells[1]);
+  const double layers = std::max(1.0, std::round(t / cell));
+  if (layers > kMaxCellsPerAxis) {
+    throw SceneError{o.at("cells"), "gives " + fmt(layers) + " cells across the thickness " +
+                                        fmt(t) + " (at most " + std::to_string(kMaxCellsPerAxis) +
+                                        "): use fewer cells in the plane or a thinner slab"};
+  }
+  if (double(cells[0]) * cells[1] * layers > double(kMaxCells)) {
+    throw SceneError{o.at("cells"), fmt(double(cells[0]) * cells[1] * layers) +
+                                        " cells is too many (at most " + std::to_string(kMaxCells) +
+                                        ")"};
   }
   return gen::slab(sx, sz, t, cells[0], cells[1]);
 }
@@ -291,41 +356,43 @@ Material readMaterial(const json& v, const std::string& path) {
               : s == "stvk"             ? MaterialModel::StVK
                                         : MaterialModel::Corotated;
   }
-  m.youngsModulus = readPositive(o.require("E"), o.at("E"));
-  m.poissonRatio = readInRange(o.require("nu"), o.at("nu"), -1, 0.5, true, true);
-  m.density = readPositive(o.require("rho"), o.at("rho"));
+  m.youngsModulus = readNumber(o.require("E"), o.at("E"));
+  m.poissonRatio = readNumber(o.require("nu"), o.at("nu"));
+  m.density = readNumber(o.require("rho"), o.at("rho"));
   if (const json* f = o.find("fibre")) {
     ObjReader fo(*f, o.at("fibre"));
     fo.keys({"stiffness", "direction"});
-    m.fibreStiffness = readNonNegative(fo.require("stiffness"), fo.at("stiffness"));
+    m.fibreStiffness = readNumber(fo.require("stiffness"), fo.at("stiffness"));
     if (const json* d = fo.find("direction")) {
+      // Normalised for the runtime; a zero vector stays zero for Material::check to report.
       const glm::dvec3 dir = readVec3(*d, fo.at("direction"));
       const double len = glm::length(dir);
-      if (!(len > 0)) throw SceneError{fo.at("direction"), "expected a non-zero vector"};
-      m.fibreDirection = glm::vec3(dir / len);
+      m.fibreDirection = glm::vec3(len > 0 ? dir / len : dir);
     }
     fo.finish();
   }
   if (const json* d = o.find("damping")) {
     ObjReader dobj(*d, o.at("damping"));
     dobj.keys({"mass", "stiffness"});
-    if (const json* r1 = dobj.find("mass")) m.massDamping = readNonNegative(*r1, dobj.at("mass"));
+    if (const json* r1 = dobj.find("mass")) m.massDamping = readNumber(*r1, dobj.at("mass"));
     if (const json* r2 = dobj.find("stiffness")) {
-      m.stiffnessDamping = readNonNegative(*r2, dobj.at("stiffness"));
+      m.stiffnessDamping = readNumber(*r2, dobj.at("stiffness"));
     }
     dobj.finish();
   }
   o.finish();
+  requireValid(m.check(), path, kMaterialNames);
   return m;
 }
 
-/// A multigrid setup "50/1000/all": handle counts of the coarse levels, coarsest first, strictly
-/// increasing, ending with the mesh itself ("all").
+/// A multigrid setup "50/1000/all": handle counts of the coarse levels, coarsest first, ending
+/// with the mesh itself ("all"). Only the syntax is read here; MultigridSettings::check owns the
+/// rules (positive, increasing).
 std::vector<int32_t> readLevels(const json& v, const std::string& path) {
   const std::string text = readString(v, path);
   const std::string want =
-      "expected coarse handle counts, coarsest first and increasing, ending "
-      "with \"all\" (e.g. \"50/1000/all\"), got " +
+      "expected coarse handle counts separated by '/', coarsest first, ending with \"all\" "
+      "(e.g. \"50/1000/all\"), got " +
       describe(v);
   std::vector<int32_t> levels;
   size_t pos = 0;
@@ -340,9 +407,7 @@ std::vector<int32_t> readLevels(const json& v, const std::string& path) {
         part.find_first_not_of("0123456789") != std::string::npos) {
       throw SceneError{path, want};
     }
-    const int32_t n = static_cast<int32_t>(std::stol(part));
-    if (n < 1 || (!levels.empty() && n <= levels.back())) throw SceneError{path, want};
-    levels.push_back(n);
+    levels.push_back(static_cast<int32_t>(std::stol(part)));
     pos = slash + 1;
   }
 }
@@ -359,21 +424,20 @@ MultigridSettings readMultigrid(const json& v, const std::string& path) {
                  : s == "gauss_seidel" ? Smoother::GaussSeidel
                                        : Smoother::Chebyshev;
   }
-  if (const json* x = o.find("pre_sweeps")) m.preSweeps = readInt(*x, o.at("pre_sweeps"), 0, 100);
-  if (const json* x = o.find("post_sweeps")) {
-    m.postSweeps = readInt(*x, o.at("post_sweeps"), 0, 100);
-  }
+  if (const json* x = o.find("pre_sweeps")) m.preSweeps = readInteger(*x, o.at("pre_sweeps"));
+  if (const json* x = o.find("post_sweeps")) m.postSweeps = readInteger(*x, o.at("post_sweeps"));
   if (const json* x = o.find("mode")) {
     m.preconditionCG = readChoice(*x, o.at("mode"), {"cg", "cycles"}) == "cg";
   }
-  if (const json* x = o.find("cycles")) m.cycles = readInt(*x, o.at("cycles"), 1, 1000);
+  if (const json* x = o.find("cycles")) m.cycles = readInteger(*x, o.at("cycles"));
   if (const json* x = o.find("refresh_interval")) {
-    m.coarseRefreshInterval = readInt(*x, o.at("refresh_interval"), 1, 1'000'000);
+    m.coarseRefreshInterval = readInteger(*x, o.at("refresh_interval"));
   }
   if (const json* x = o.find("crack_rebinding")) {
     m.crackRebinding = readBool(*x, o.at("crack_rebinding"));
   }
   o.finish();
+  requireValid(m.check(), path, kMultigridNames);
   return m;
 }
 
@@ -383,10 +447,10 @@ SolverSettings readSolver(const json& v, const std::string& path) {
           "linear_tolerance", "multigrid"});
   SolverSettings s;
   if (const json* x = o.find("newton_iterations")) {
-    s.newtonIterations = readInt(*x, o.at("newton_iterations"), 1, 1000);
+    s.newtonIterations = readInteger(*x, o.at("newton_iterations"));
   }
   if (const json* x = o.find("newton_tolerance")) {
-    s.newtonTolerance = readPositive(*x, o.at("newton_tolerance"));
+    s.newtonTolerance = readNumber(*x, o.at("newton_tolerance"));
   }
   if (const json* x = o.find("line_search")) s.lineSearch = readBool(*x, o.at("line_search"));
   if (const json* x = o.find("linear")) {
@@ -403,12 +467,13 @@ SolverSettings readSolver(const json& v, const std::string& path) {
     }
   }
   if (const json* x = o.find("max_linear_iterations")) {
-    s.maxLinearIterations = readInt(*x, o.at("max_linear_iterations"), 1, 1'000'000);
+    s.maxLinearIterations = readInteger(*x, o.at("max_linear_iterations"));
   }
   if (const json* x = o.find("linear_tolerance")) {
-    s.linearTolerance = readPositive(*x, o.at("linear_tolerance"));
+    s.linearTolerance = readNumber(*x, o.at("linear_tolerance"));
   }
   o.finish();
+  requireValid(s.check(), path, kSolverNames);
   return s;
 }
 
@@ -440,7 +505,8 @@ class HeldNodes {
   std::map<int32_t, Entry> m_held;
 };
 
-void readBoundaryConditions(ObjReader& body, BodyDef& def) {
+/// Pins, grips and forces into `def`; `gripNames` gets the JSON entry of each grip made.
+void readBoundaryConditions(ObjReader& body, BodyDef& def, std::vector<std::string>& gripNames) {
   HeldNodes held;
   if (const json* pins = body.find("pins")) {
     const std::string path = body.at("pins");
@@ -451,7 +517,9 @@ void readBoundaryConditions(ObjReader& body, BodyDef& def) {
       Grip g;
       g.nodes = held.add(readSelection(o, def.mesh), g.velocity, o.path());
       o.finish();
-      if (!g.nodes.empty()) def.grips.push_back(std::move(g));
+      if (g.nodes.empty()) continue;
+      def.grips.push_back(std::move(g));
+      gripNames.push_back("pins[" + std::to_string(i) + "]");
     }
   }
   if (const json* grips = body.find("grips")) {
@@ -464,7 +532,9 @@ void readBoundaryConditions(ObjReader& body, BodyDef& def) {
       g.velocity = glm::vec3(readVec3(o.require("velocity"), o.at("velocity")));
       g.nodes = held.add(readSelection(o, def.mesh), g.velocity, o.path());
       o.finish();
-      if (!g.nodes.empty()) def.grips.push_back(std::move(g));
+      if (g.nodes.empty()) continue;
+      def.grips.push_back(std::move(g));
+      gripNames.push_back("grips[" + std::to_string(i) + "]");
     }
   }
   if (const json* forces = body.find("forces")) {
@@ -513,9 +583,10 @@ FractureSettings readFracture(const json& v, const std::string& path) {
   o.keys({"strength", "radius", "model", "brittle", "regions", "fibre_strength_ratio"});
   FractureSettings f;
   f.enabled = true;
-  f.strength = readPositive(o.require("strength"), o.at("strength"));
+  f.strength = readNumber(o.require("strength"), o.at("strength"));
   if (const json* r = o.find("radius")) {
-    f.radius = readInRange(*r, o.at("radius"), 0, kMaxFractureRadius, false, false);
+    f.radius = readNumber(*r, o.at("radius"));
+    requireAtMost(f.radius, kMaxFractureRadius, o.at("radius"), *r);
   }
   if (const json* m = o.find("model")) {
     f.model = readChoice(*m, o.at("model"), {"projection", "degradation"}) == "projection"
@@ -524,12 +595,14 @@ FractureSettings readFracture(const json& v, const std::string& path) {
   }
   if (const json* b = o.find("brittle")) f.brittle = readBool(*b, o.at("brittle"));
   if (const json* n = o.find("regions")) {
-    f.regions = readInt(*n, o.at("regions"), 1, kMaxBrittleRegions);
+    f.regions = readInteger(*n, o.at("regions"));
+    requireAtMost(f.regions, kMaxBrittleRegions, o.at("regions"), *n);
   }
   if (const json* r = o.find("fibre_strength_ratio")) {
-    f.fibreStrengthRatio = readPositive(*r, o.at("fibre_strength_ratio"));
+    f.fibreStrengthRatio = readNumber(*r, o.at("fibre_strength_ratio"));
   }
   o.finish();
+  requireValid(f.check(), path, kFractureNames);
   return f;
 }
 
@@ -538,12 +611,11 @@ PlasticitySettings readPlasticity(const json& v, const std::string& path) {
   o.keys({"yield", "flow_rate", "hardening"});
   PlasticitySettings p;
   p.enabled = true;
-  p.yieldStress = readPositive(o.require("yield"), o.at("yield"));
-  if (const json* r = o.find("flow_rate")) {
-    p.flowRate = readInRange(*r, o.at("flow_rate"), 0, 1, false, false);
-  }
-  if (const json* k = o.find("hardening")) p.hardening = readNonNegative(*k, o.at("hardening"));
+  p.yieldStress = readNumber(o.require("yield"), o.at("yield"));
+  if (const json* r = o.find("flow_rate")) p.flowRate = readNumber(*r, o.at("flow_rate"));
+  if (const json* k = o.find("hardening")) p.hardening = readNumber(*k, o.at("hardening"));
   o.finish();
+  requireValid(p.check(), path, kPlasticityNames);
   return p;
 }
 
@@ -555,12 +627,6 @@ glm::dvec3 tetCentroid(const TetMesh& mesh, size_t t) {
     c += glm::dvec3(mesh.positions[3 * n], mesh.positions[3 * n + 1], mesh.positions[3 * n + 2]);
   }
   return c / 4.0;
-}
-
-/// A unit vector perpendicular to the unit vector a.
-glm::dvec3 anyPerpendicular(const glm::dvec3& a) {
-  const glm::dvec3 helper = std::abs(a.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
-  return glm::normalize(glm::cross(a, helper));
 }
 
 /// Per-tet fibre directions from the rest centroids (after scale and translate).
@@ -780,12 +846,31 @@ SceneCamera readCamera(const json& v, const std::string& path) {
   return c;
 }
 
+/// "initial_deformation": a 3x3 matrix as 3 rows of 3 numbers, applied to the rest shape about
+/// its centroid. It must keep every tet the right way out (det > 0).
+glm::dmat3 readDeformation(const json& v, const std::string& path) {
+  readArray(v, path, 3, "rows [a, b, c] (a 3x3 matrix)");
+  glm::dmat3 F(1.0);
+  for (int r = 0; r < 3; ++r) {
+    const glm::dvec3 row = readVec3(v[size_t(r)], indexPath(path, size_t(r)));
+    for (int c = 0; c < 3; ++c) F[c][r] = row[c];  // glm is column-major
+  }
+  const double det = glm::determinant(F);
+  if (!(det > 0)) {
+    throw SceneError{path,
+                     "expected a matrix with a positive determinant (a negative or zero "
+                     "one turns the tets inside out or flat), got det = " +
+                         fmt(det)};
+  }
+  return F;
+}
+
 SceneBody readBody(const json& v, const std::string& path, size_t index,
                    const std::string& baseDir) {
   ObjReader o(v, path);
   o.keys({"name", "mesh", "translate", "material", "solver", "pins", "grips", "forces",
-          "initial_velocity", "fracture", "plasticity", "fibre_field", "handoff", "colour",
-          "crack_colour"});
+          "initial_velocity", "angular_velocity", "initial_deformation", "fracture", "plasticity",
+          "fibre_field", "handoff", "colour", "crack_colour"});
   SceneBody body;
   body.name = "body" + std::to_string(index);
   body.colour = kBodyPalette[index % kBodyPalette.size()];
@@ -807,19 +892,17 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
   }
   body.def.material = readMaterial(o.require("material"), o.at("material"));
   if (const json* s = o.find("solver")) body.def.solver = readSolver(*s, o.at("solver"));
-  readBoundaryConditions(o, body.def);
+  readBoundaryConditions(o, body.def, body.gripNames);
   if (const json* iv = o.find("initial_velocity")) {
     body.def.initialVelocity = glm::vec3(readVec3(*iv, o.at("initial_velocity")));
   }
-  if (const json* f = o.find("fracture")) {
-    body.def.fracture = readFracture(*f, o.at("fracture"));
-    // The ratio is relative to the fibre direction; without fibres there is none.
-    if (body.def.fracture.fibreStrengthRatio != 1 && !(body.def.material.fibreStiffness > 0)) {
-      throw SceneError{joinPath(o.at("fracture"), "fibre_strength_ratio"),
-                       "needs \"material.fibre\" with a stiffness > 0 (the ratio is relative to "
-                       "the fibre direction)"};
-    }
+  if (const json* w = o.find("angular_velocity")) {
+    body.angularVelocity = readVec3(*w, o.at("angular_velocity"));
   }
+  if (const json* d = o.find("initial_deformation")) {
+    body.initialDeformation = readDeformation(*d, o.at("initial_deformation"));
+  }
+  if (const json* f = o.find("fracture")) body.def.fracture = readFracture(*f, o.at("fracture"));
   if (const json* p = o.find("plasticity")) {
     body.def.plasticity = readPlasticity(*p, o.at("plasticity"));
   }
@@ -839,6 +922,9 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
     }
   }
   o.finish();
+  // The rules that tie settings together (fracture.fibreStrengthRatio needs fibres) and the
+  // resolved node indices, exactly as World::createBody will apply them.
+  requireValid(body.def.check(), path, kBodyNames);
   return body;
 }
 
@@ -935,33 +1021,43 @@ SceneCut readCut(const json& v, const std::string& path, const Scene& scene) {
   return cut;
 }
 
+/// A collider read for its types only, then held to World::setColliders' rules
+/// (Collider::check): what the world would reject, the scene rejects with its JSON path.
 Collider readCollider(const json& v, const std::string& path) {
   ObjReader o(v, path);
   Collider c;
   const std::string type = readChoice(o.require("type"), o.at("type"), {"plane", "box", "sphere"});
   if (type == "plane") {
-    o.keys({"type", "point", "normal", "stiffness"});
+    o.keys({"type", "point", "normal", "stiffness", "velocity"});
     c.kind = Collider::Kind::Plane;
     if (const json* p = o.find("point")) c.point = glm::vec3(readVec3(*p, o.at("point")));
     if (const json* n = o.find("normal")) {
+      // Normalised here; a zero vector stays zero for Collider::check to report.
       const glm::dvec3 d = readVec3(*n, o.at("normal"));
       const double len = glm::length(d);
-      if (!(len > 0)) throw SceneError{o.at("normal"), "expected a non-zero vector"};
-      c.normal = glm::vec3(d / len);
+      c.normal = glm::vec3(len > 0 ? d / len : d);
     }
   } else if (type == "box") {
-    o.keys({"type", "center", "half_extents", "stiffness"});
+    o.keys({"type", "center", "half_extents", "stiffness", "velocity"});
     c.kind = Collider::Kind::Box;
     c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
-    c.halfExtents = glm::vec3(readPositiveVec3(o.require("half_extents"), o.at("half_extents")));
+    c.halfExtents = glm::vec3(readVec3(o.require("half_extents"), o.at("half_extents")));
   } else {
-    o.keys({"type", "center", "radius", "stiffness"});
+    o.keys({"type", "center", "radius", "stiffness", "velocity"});
     c.kind = Collider::Kind::Sphere;
     c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
-    c.radius = static_cast<float>(readPositive(o.require("radius"), o.at("radius")));
+    c.radius = static_cast<float>(readNumber(o.require("radius"), o.at("radius")));
   }
-  if (const json* k = o.find("stiffness")) c.stiffness = readNonNegative(*k, o.at("stiffness"));
+  if (const json* k = o.find("stiffness")) c.stiffness = readNumber(*k, o.at("stiffness"));
+  if (const json* u = o.find("velocity")) c.velocity = glm::vec3(readVec3(*u, o.at("velocity")));
   o.finish();
+  // Box and sphere read their point from "center".
+  const std::string_view pointKey = c.kind == Collider::Kind::Plane ? "point" : "center";
+  const FieldName names[] = {{"kind", "type"},         {"point", pointKey},
+                             {"velocity", "velocity"}, {"stiffness", "stiffness"},
+                             {"normal", "normal"},     {"halfExtents", "half_extents"},
+                             {"radius", "radius"}};
+  requireValid(c.check(), path, names);
   return c;
 }
 
@@ -978,7 +1074,8 @@ Scene readScene(const json& root, const std::string& source, const std::string& 
   if (const json* v = o.find("dt")) scene.dt = readPositive(*v, o.at("dt"));
   if (const json* v = o.find("frames")) scene.frames = readInt(*v, o.at("frames"), 1, 100'000'000);
   if (const json* v = o.find("substeps")) {
-    scene.world.substeps = readInt(*v, o.at("substeps"), 1, kMaxSubsteps);
+    scene.world.substeps = readInteger(*v, o.at("substeps"));
+    requireAtMost(scene.world.substeps, kMaxSubsteps, o.at("substeps"), *v);
   }
   if (const json* v = o.find("threads"))
     scene.threads = readInt(*v, o.at("threads"), 0, kMaxThreads);
@@ -994,6 +1091,8 @@ Scene readScene(const json& root, const std::string& source, const std::string& 
       scene.world.colliders.push_back(readCollider((*v)[i], indexPath(o.at("colliders"), i)));
     }
   }
+  // The colliders passed Collider::check one by one above.
+  requireValid(scene.world.check(), "", kWorldNames);
   const json& bodies = readArray(o.require("bodies"), o.at("bodies"), 0, "bodies");
   if (bodies.empty()) throw SceneError{"bodies", "expected at least one body, got []"};
   for (size_t i = 0; i < bodies.size(); ++i) {
@@ -1035,6 +1134,65 @@ Scene readScene(const json& root, const std::string& source, const std::string& 
 }
 
 }  // namespace
+
+Result<BodyId> addBody(World& world, const SceneBody& body) {
+  Result<BodyId> created = world.createBody(body.def);
+  if (!created) return created;
+  const BodyId id = created.value();
+  const bool deform = body.initialDeformation != glm::dmat3(1.0);
+  const bool spin = body.angularVelocity != glm::dvec3(0.0);
+  if (!deform && !spin) return id;
+
+  // The lumped masses are a quarter of each tet's mass at its corners, so the centre of mass
+  // of a uniform body is its volume centroid, and an affine map about it keeps it in place.
+  const TetMesh& mesh = body.def.mesh;
+  auto node = [&](size_t n) {
+    return glm::dvec3(mesh.positions[3 * n], mesh.positions[3 * n + 1], mesh.positions[3 * n + 2]);
+  };
+  glm::dvec3 centre(0.0);
+  double volume = 0;
+  for (size_t t = 0; t < mesh.tetCount(); ++t) {
+    glm::dvec3 p[4];
+    for (int k = 0; k < 4; ++k) p[k] = node(size_t(mesh.tets[4 * t + k]));
+    const double v = std::abs(glm::dot(p[1] - p[0], glm::cross(p[2] - p[0], p[3] - p[0]))) / 6;
+    centre += v * 0.25 * (p[0] + p[1] + p[2] + p[3]);
+    volume += v;
+  }
+  if (volume > 0) centre /= volume;
+
+  const std::span<const double> x0 = world.positions(id);
+  std::vector<double> x(x0.begin(), x0.end());
+  if (deform) {
+    for (size_t n = 0; 3 * n + 2 < x.size(); ++n) {
+      const glm::dvec3 p = centre + body.initialDeformation * (node(n) - centre);
+      for (int k = 0; k < 3; ++k) x[3 * n + size_t(k)] = p[k];
+    }
+    if (Result<void> r = world.setPositions(id, x); !r) {
+      (void)world.destroyBody(id);
+      return fail("initial_deformation: ", r.error().message);
+    }
+  }
+  if (spin) {
+    // A rigid rotation about the centre of mass on top of the initial velocity.
+    const std::span<const double> v0 = world.velocities(id);
+    std::vector<double> v(v0.begin(), v0.end());
+    for (size_t n = 0; 3 * n + 2 < v.size(); ++n) {
+      const glm::dvec3 r(x[3 * n] - centre.x, x[3 * n + 1] - centre.y, x[3 * n + 2] - centre.z);
+      const glm::dvec3 w = glm::cross(body.angularVelocity, r);
+      for (int k = 0; k < 3; ++k) v[3 * n + size_t(k)] += w[k];
+    }
+    if (Result<void> r = world.setVelocities(id, v); !r) {
+      (void)world.destroyBody(id);
+      return fail("angular_velocity: ", r.error().message);
+    }
+  }
+  return id;
+}
+
+glm::dvec3 anyPerpendicular(const glm::dvec3& unit) {
+  const gf::Vec3 u = gf::detail::anyOrthogonal(gf::Vec3{unit.x, unit.y, unit.z});
+  return {u.x, u.y, u.z};
+}
 
 bool needsBullet(const Scene& scene) {
   if (!scene.rigidBodies.empty()) return true;

@@ -3,7 +3,9 @@
 // hand-off, render colours), the Bullet rigid bodies, the cuts applied during the run, a camera
 // and the run length (dt, frames). This is tooling for the CLI, the tests and the demo, not
 // part of the runtime's public API; the format is documented in docs/scene_format.md. Plain
-// data only: tools/scene/bullet_scene.h turns the rigid bodies into Bullet objects.
+// data, plus addBody, which puts a body into a World with the initial state BodyDef cannot
+// hold (spin, deformed shape); tools/scene/bullet_scene.h turns the rigid bodies into Bullet
+// objects.
 #pragma once
 
 #include <graphfrac/defs.h>
@@ -11,6 +13,7 @@
 #include <graphfrac/world.h>
 
 #include <glm/gtc/quaternion.hpp>
+#include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 #include <optional>
 #include <string>
@@ -32,6 +35,14 @@ struct SceneBody {
   SceneHandoff handoff;
   glm::vec3 colour{0.8f};                     ///< Linear RGB of the surface (a palette default).
   glm::vec3 crackColour{0.95f, 0.55f, 0.3f};  ///< Linear RGB of crack faces.
+  /// The JSON entry of each def.grips, in order ("pins[0]", "grips[1]"): pins and grips
+  /// share BodyDef::grips, and an entry whose nodes were all held already makes none.
+  std::vector<std::string> gripNames;
+  /// Initial spin [rad/s] about the centre of mass, added to def.initialVelocity by addBody.
+  glm::dvec3 angularVelocity{0};
+  /// Initial shape: x = c + F (X - c) about the rest centroid c, applied by addBody (identity:
+  /// the rest shape). det F > 0.
+  glm::dmat3 initialDeformation{1.0};
 };
 
 /// A Bullet rigid body of the scene (tools/scene/bullet_scene.h builds it).
@@ -86,6 +97,16 @@ struct Scene {
   int frames = 120;      ///< Frames to run.
   int threads = 1;       ///< Worker threads; 0 = hardware concurrency.
 };
+
+/// A unit vector perpendicular to the unit vector `unit` (the runtime kernels' choice, so a
+/// plane blade's square and a plane collider's drawn square turn the same way everywhere).
+glm::dvec3 anyPerpendicular(const glm::dvec3& unit);
+
+/// Creates a scene body in `world` and gives it the scene's initial state beyond BodyDef: the
+/// initial deformation (World::setPositions) and the spin about the centre of mass
+/// (World::setVelocities, v = v0 + w x (x - c)). Every runner of scenes (graphfrac run,
+/// BulletScene) creates bodies through this. On error the world is left without the body.
+Result<BodyId> addBody(World& world, const SceneBody& body);
 
 /// True when the scene needs Bullet to run as written: it has rigid bodies or a body whose
 /// hand-off policy is not "never". A runner without Bullet must refuse such a scene rather
