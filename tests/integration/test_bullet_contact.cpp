@@ -1,4 +1,4 @@
-// Two-way contact between Bullet rigid bodies and FEM bodies (issue 5 item 3): a moving collider's
+// Two-way contact between Bullet rigid bodies and FEM bodies: a moving collider's
 // reported impulse is the body's momentum change, a Bullet ball or turned box thrown at a free
 // soft block conserves the total momentum, the ball takes exactly minus the collider's impulse,
 // and a ball dropped on a block resting on a Bullet floor comes to rest with the impulses

@@ -1,4 +1,4 @@
-// Hand-off of fragments to Bullet (issue 5 item 3): conservation across the hand-off, exact
+// Hand-off of fragments to Bullet: conservation across the hand-off, exact
 // mass properties against analytic boxes, a fragment resting on a Bullet floor, and bad API use.
 #include <btBulletDynamicsCommon.h>
 #include <graphfrac/bullet/bridge.h>

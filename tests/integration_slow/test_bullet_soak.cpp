@@ -143,8 +143,8 @@ TEST(BulletAcceptance, GlassBunnyShattersAndFragmentsRestOnBulletFloor) {
         "%u, wall %.1f s\n",
         firstBreak, ballSpeed, steps, fragments, bridge.fragments().size(), handedMass, bunnyMass,
         worst, kTolerance, maxMargin, maxSpeed, flags, wall);
-    // Does the collision shape fit the piece (issue 5: compound hulls "if you measure it is
-    // needed")? Volume of the fragment's hull (of its nodes) against the fragment's own volume
+    // Does the collision shape fit the piece (compound hulls would be needed if it does not)?
+    // Volume of the fragment's hull (of its nodes) against the fragment's own volume
     // (that of its corner cells, which reach past the nodes to edge midpoints and centroids):
     // above 1 means a concave piece rests on points that are not there, below 1 a thin shard
     // whose hull is slimmer than the piece drawn. Printed, not asserted (docs/validation.md).

@@ -1,4 +1,4 @@
-// Anisotropic fracture (issue 3 item 5, thesis fig 4.15): a fibrous material tears along its
+// Anisotropic fracture (thesis fig 4.15): a fibrous material tears along its
 // fibres. The load is chosen so that it picks no direction by itself: a thin square slab with a
 // small hole in the middle, stretched equibiaxially (every boundary node moves with the
 // homogeneous field v = rate (X - centre)), so an isotropic body has no preferred crack direction

@@ -1,5 +1,5 @@
-// Determinism (ARCHITECTURE.md): the same scene gives bit-identical states for any number of
-// worker threads, because every parallel loop writes disjoint outputs and every reduction
+// Determinism, the runtime's promise to engines: the same scene gives bit-identical states for any
+// number of worker threads, because every parallel loop writes disjoint outputs and every reduction
 // sums in a fixed order.
 #include <graphfrac/jobs.h>
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Graph-based fracture against independent truths (issue 3 acceptance): the tension bar breaks
+// Graph-based fracture against independent truths: the tension bar breaks
 // at sigma_th, a rigidly rotated fractured body feels no force, a planar cut splits a cylinder
 // into two pieces whose volumes add up, closed cracks resist compression, and extreme cases stay
 // finite.

@@ -1,4 +1,4 @@
-// Does the multigrid keep the cracks? (issue 4 acceptance, SPEC §5): the doormat tear of
+// Does the multigrid keep the cracks? (SPEC §5): the doormat tear of
 // scenes/doormat_rd0.json run with the direct solver (reference) and with a fixed number of
 // multigrid V-cycles per step, with and without crack re-binding. The reference is independent
 // of the multigrid: the broken-edge set it produces is what an exact linear solve gives.

@@ -1,4 +1,4 @@
-// Engine-facing commands, re-entrancy, save/restore and determinism (issue 5 items 1 and 5),
+// Engine-facing commands, re-entrancy, save/restore, determinism, surfaces and grip forces,
 // checked against conservation laws and exact replays rather than "it runs".
 #include <graphfrac/jobs.h>
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Slow validation (ctest label "slow"): issue 4's multigrid acceptance on a 30k-tet cantilever
+// Slow validation (ctest label "slow"): the multigrid's acceptance figures on a 30k-tet cantilever
 // (1 x 0.2 x 0.2 m, 50x10x10 cells, clamped at x = 0, first implicit step at dt = 1/60 under
 // gravity), steel and rubber: residual reduction per V-cycle, MG-CG iterations to 1e-6 against
 // block-Jacobi PCG, the solution against Cholesky, and the set-up and re-binding costs.

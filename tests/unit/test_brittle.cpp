@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "common/mesh_checks.h"
@@ -179,6 +180,60 @@ TEST(Brittle, FailsWithoutFaceAdjacencyAndIgnoresCompression) {
     EXPECT_TRUE(back);
   }
   EXPECT_EQ(size_t(boundary), b.mesh.boundaryFaces().size() / 3);
+}
+
+// A crack plane carries its seed's principal stress: an edge stronger than that (a steel pin
+// through glass, a seam an artist reinforced with World::setEdgeStrengths) survives the plane
+// through it, and the crack stops in the tets around it; weaker edges elsewhere still break.
+TEST(Brittle, EdgesStrongerThanThePlaneStressHold) {
+  Body b = makeBody(gen::box(4, 1, 1, 16, 4, 4), 1);
+  const auto stress = uniaxial(b, {1, 0, 0}, [](double x) {
+    return 1e6 * (1 + 0.2 * std::exp(-(x - 2.1) * (x - 2.1) / 0.25));
+  });
+  // Without strong edges: which edges the plane crosses.
+  std::vector<uint8_t> reference(b.graph.edgeCount, 0);
+  std::vector<EdgeBreak> referenceEvents;
+  auto ref = startBrittleCracks(b.model, b.graph, restView(b.mesh), stress.data(), reference,
+                                referenceEvents, serialJobs());
+  ASSERT_TRUE(ref.ok());
+  // Reinforce every crossed edge in the half of the bar (y above or below 0.5) away from the
+  // seed: a band the crack cannot pass.
+  const double away = ref.value()[0].point.y < 0.5 ? 1 : -1;
+  int reinforced = 0;
+  for (const EdgeBreak& e : referenceEvents) {
+    const double ya = b.mesh.positions[3 * size_t(b.graph.edgeNodes[2 * size_t(e.edge)]) + 1];
+    const double yb = b.mesh.positions[3 * size_t(b.graph.edgeNodes[2 * size_t(e.edge) + 1]) + 1];
+    if (away * (ya - 0.5) > 1e-9 && away * (yb - 0.5) > 1e-9) {
+      b.model.strength[size_t(e.edge)] = 1e12;
+      ++reinforced;
+    }
+  }
+  ASSERT_GT(reinforced, 0);
+  std::vector<uint8_t> broken(b.graph.edgeCount, 0);
+  std::vector<EdgeBreak> events;
+  auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), stress.data(), broken, events,
+                              serialJobs());
+  ASSERT_TRUE(r.ok());
+  int held = 0;
+  for (int32_t e = 0; e < b.graph.edgeCount; ++e) {
+    if (b.model.strength[size_t(e)] > 1e11) {
+      EXPECT_EQ(broken[size_t(e)], 0) << "edge " << e << " of strength 1e12 broke";
+      ++held;
+    }
+    if (broken[size_t(e)]) {
+      EXPECT_TRUE(reference[size_t(e)]);  // no edge off the plane
+    }
+  }
+  EXPECT_EQ(held, reinforced);
+  EXPECT_GT(events.size(), 0u);                      // the weak half still cracks
+  EXPECT_LT(events.size(), referenceEvents.size());  // but not through the band
+  EXPECT_GT(r.value()[0].tetsArrested, 0);
+  std::vector<int> label;
+  EXPECT_EQ(components(b.graph, broken, label), 1);  // the reinforced band holds the bar together
+  std::printf(
+      "  brittle plane: %zu edges broken without strong edges, %zu with %d of them at "
+      "1e12 Pa (%d tets arrested)\n",
+      referenceEvents.size(), events.size(), reinforced, r.value()[0].tetsArrested);
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-// Cutting (issue 3 item 7): a planar blade through a cylinder breaks exactly the edges whose
+// Cutting: a planar blade through a cylinder breaks exactly the edges whose
 // endpoints lie on opposite sides (checked against the plane equation) and leaves two
 // components, one per side; a swept blade breaks exactly the edges crossing the swept strip;
 // a blade that misses breaks nothing; a node on the blade is kept on one side; 1 and 4 threads

@@ -2,6 +2,7 @@
 // World, its commands and the scene loader alike. Messages name the field relative to the struct
 // checked ("levels: ...") so each caller can prefix its own path.
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "graphfrac/defs.h"
@@ -21,7 +22,12 @@ bool bounded3(glm::vec3 v) {
   return finite3(v) && std::abs(v.x) <= kMaxLength && std::abs(v.y) <= kMaxLength &&
          std::abs(v.z) <= kMaxLength;
 }
-std::string num(double v) { return std::to_string(v); }
+// Shortest readable form ("1e+06", "0.5", "inf"), not std::to_string's fixed six decimals.
+std::string num(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
 }  // namespace
 
 Result<void> Material::check() const {
