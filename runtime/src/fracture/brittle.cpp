@@ -114,14 +114,24 @@ Result<std::vector<BrittleSeed>> startBrittleCracks(
           !(positive[0] == positive[1] && positive[1] == positive[2] && positive[2] == positive[3]);
       if (!cut) continue;  // only the seed can get here uncut (a degenerate plane)
       ++seed.tetsCut;
+      bool held = false;
       for (int k = 0; k < 6; ++k) {
         const int i = kTetEdgeNodes[k][0], j = kTetEdgeNodes[k][1];
         if (positive[i] == positive[j]) continue;
         const int32_t edge = graph.tetEdges[6 * size_t(t) + k];
+        // An edge stronger than the stress the plane carries holds, and arrests the crack.
+        if (model.strength[size_t(edge)] > seed.principal) {
+          held = true;
+          continue;
+        }
         // Split measured from the edge's first node (the smaller id).
         const bool forward = graph.edgeNodes[2 * size_t(edge)] == tn[i];
         const double da = forward ? d[i] : d[j], db = forward ? d[j] : d[i];
         cuts.push_back({edge, int32_t(p), da / (da - db)});
+      }
+      if (held) {
+        ++seed.tetsArrested;
+        continue;  // the front stops in this tet: no propagation beyond it
       }
       for (int f = 0; f < 4; ++f) {
         const int32_t nb = model.faceNeighbours[4 * size_t(t) + f];

@@ -10,8 +10,12 @@
 // seed already taken. Propagation: a flood fill over face-adjacent tets that the plane cuts
 // (nodes on both sides, a node on the plane counting as the positive side), breaking the
 // edges whose endpoints lie on opposite sides; the fill stops where the plane leaves the body,
-// so on a non-convex body a plane only cuts the sheet that contains its seed. Planes do not
-// stop at earlier cracks. Serial apart from the principal stresses; events sorted by edge id.
+// so on a non-convex body a plane only cuts the sheet that contains its seed. Strength: a plane
+// carries its seed's maximum principal stress; an edge whose strength (per edge, as
+// World::setEdgeStrengths sets it) exceeds that holds, and the fill does not go on from a tet
+// in which an edge held, so the crack front stops there (a strong inclusion or a reinforced
+// seam arrests it). Planes do not stop at earlier cracks. Serial apart from the principal
+// stresses; events sorted by edge id.
 #pragma once
 
 #include <cstdint>
@@ -34,12 +38,13 @@ struct BrittleOptions {
 
 /// One crack plane started by startBrittleCracks.
 struct BrittleSeed {
-  int32_t tet = -1;         ///< Seed tet.
-  double principal = 0;     ///< Its maximum principal stress [Pa].
-  Vec3 point;               ///< Rest centroid of the seed tet: a point of the plane.
-  Vec3 normal;              ///< Unit rest-space normal (maximum principal direction).
-  int32_t tetsCut = 0;      ///< Tets the plane crossed.
-  int32_t edgesBroken = 0;  ///< Edges this plane broke that were not broken before.
+  int32_t tet = -1;          ///< Seed tet.
+  double principal = 0;      ///< Its maximum principal stress [Pa].
+  Vec3 point;                ///< Rest centroid of the seed tet: a point of the plane.
+  Vec3 normal;               ///< Unit rest-space normal (maximum principal direction).
+  int32_t tetsCut = 0;       ///< Tets the plane crossed.
+  int32_t edgesBroken = 0;   ///< Edges this plane broke that were not broken before.
+  int32_t tetsArrested = 0;  ///< Cut tets where an edge stronger than `principal` held.
 };
 
 /// Starts up to model.settings.regions crack planes from the tets of highest maximum
