@@ -339,6 +339,19 @@ TEST(Scene, RadialFibreFieldOnTheAxisStaysPerpendicular) {
   }
 }
 
+TEST(Scene, SolverKeysLoad) {
+  const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
+      "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},
+      "solver": {"newton_iterations": 3, "line_search": false, "corotated_inertia": false}}]})";
+  const Result<Scene> r = parseScene(text, "inline", "");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const SolverSettings& s = r.value().bodies[0].def.solver;
+  EXPECT_EQ(s.newtonIterations, 3);
+  EXPECT_FALSE(s.lineSearch);
+  EXPECT_FALSE(s.corotatedInertia);
+  EXPECT_TRUE(SolverSettings{}.corotatedInertia);  // on unless a scene turns it off
+}
+
 TEST(Scene, MultigridKeysLoadEveryValue) {
   const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
       "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},

@@ -443,8 +443,8 @@ MultigridSettings readMultigrid(const json& v, const std::string& path) {
 
 SolverSettings readSolver(const json& v, const std::string& path) {
   ObjReader o(v, path);
-  o.keys({"newton_iterations", "newton_tolerance", "line_search", "linear", "max_linear_iterations",
-          "linear_tolerance", "multigrid"});
+  o.keys({"newton_iterations", "newton_tolerance", "line_search", "corotated_inertia", "linear",
+          "max_linear_iterations", "linear_tolerance", "multigrid"});
   SolverSettings s;
   if (const json* x = o.find("newton_iterations")) {
     s.newtonIterations = readInteger(*x, o.at("newton_iterations"));
@@ -453,6 +453,9 @@ SolverSettings readSolver(const json& v, const std::string& path) {
     s.newtonTolerance = readNumber(*x, o.at("newton_tolerance"));
   }
   if (const json* x = o.find("line_search")) s.lineSearch = readBool(*x, o.at("line_search"));
+  if (const json* x = o.find("corotated_inertia")) {
+    s.corotatedInertia = readBool(*x, o.at("corotated_inertia"));
+  }
   if (const json* x = o.find("linear")) {
     const std::string kind = readChoice(*x, o.at("linear"), {"pcg", "direct", "multigrid"});
     s.linearSolver = kind == "pcg"      ? LinearSolverKind::PCG

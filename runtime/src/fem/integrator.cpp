@@ -57,7 +57,7 @@ Integrator::Integrator(const FemModel& model) {
   m_elemEnergy.resize(nt);
   m_elemGrad.resize(12 * nt);
   m_elemHess.resize(144 * nt);
-  for (auto* v : {&m_elasticGrad, &m_grad, &m_x, &m_dx, &m_rhs, &m_tmp, &m_diff, &m_kdiff})
+  for (auto* v : {&m_elasticGrad, &m_grad, &m_x, &m_y, &m_dx, &m_rhs, &m_tmp, &m_diff, &m_kdiff})
     v->assign(3 * nn, 0.0);
   m_contactHess.resize(nn);
   for (double v : model.restVolume) m_restVolume += v;
@@ -185,8 +185,8 @@ double Integrator::incrementalPotential(const FemModel& model, const double* xn,
   double nodeTerms = 0, contact = 0, magnitude = 0, gradMagnitude = 0;
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     const double m = model.nodeMass[n];
-    const Vec3 xi = load3(x, n), xni = load3(xn, n), vni = load3(m_vStart.data(), n);
-    const Vec3 y = xni + dt * vni;
+    const Vec3 xi = load3(x, n), xni = load3(xn, n);
+    const Vec3 y = load3(m_y.data(), n);
     const Vec3 fext = load3(model.externalForce.data(), n) + m * ctx.gravity;
     Vec3 cg;
     Mat3 ch;
@@ -210,8 +210,9 @@ double Integrator::incrementalPotential(const FemModel& model, const double* xn,
       m_contactSeen[n] = frobeniusDot(ch, ch) > 0;
     }
   }
-  const double damping =
-      (r2 > 0 && m_dampKValid) ? dampingTerm(model, xn, x, dt, withGradient, jobs) : 0.0;
+  const double damping = (r2 > 0 && m_dampKValid)
+                             ? dampingTerm(model, m_dampRef.data(), x, dt, withGradient, jobs)
+                             : 0.0;
   // The terms cancel (gravity work against elastic energy), so E's round-off follows the
   // size of its parts, not of E itself.
   if (withGradient)
@@ -242,6 +243,159 @@ bool Integrator::enteredUnseenContact(const FemModel& model, const StepContext& 
     }
   }
   return false;
+}
+
+void Integrator::predictRigidMotion(const FemModel& model, const FemState& state, double dt) {
+  const size_t n3 = state.x.size();
+  for (size_t i = 0; i < n3; ++i) m_y[i] = state.x[i] + dt * state.v[i];
+  m_dampRef = state.x;
+  m_pieceOfNode.clear();
+  if (!model.solver.corotatedInertia) return;
+  // Per piece (a fragment, or the whole body): mass, centre, momentum, angular momentum and
+  // inertia of its lumped nodes. A piece holding a prescribed node moves as plain backward
+  // Euler says.
+  const std::span<const int32_t> fragmentOf =
+      m_fracture ? m_fracture->fragments().nodeFragment() : std::span<const int32_t>();
+  m_pieces.assign(m_fracture ? size_t(m_fracture->fragments().count()) : 1, RigidPiece{});
+  m_pieceOfNode.resize(size_t(model.nodeCount));
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    const int32_t f = fragmentOf.empty() ? 0 : fragmentOf[n];
+    m_pieceOfNode[size_t(n)] = f;
+    RigidPiece& p = m_pieces[size_t(f)];
+    const double m = model.nodeMass[n];
+    p.fixed |= model.fixedNode[n] != 0;
+    p.mass += m;
+    p.centre += m * load3(state.x.data(), n);
+    p.velocity += m * load3(state.v.data(), n);
+  }
+  for (RigidPiece& p : m_pieces) {
+    if (!(p.mass > 0)) continue;
+    p.centre = (1.0 / p.mass) * p.centre;
+    p.velocity = (1.0 / p.mass) * p.velocity;
+  }
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
+    if (p.fixed) continue;
+    const double m = model.nodeMass[n];
+    const Vec3 r = load3(state.x.data(), n) - p.centre;
+    p.spin += m * cross(r, load3(state.v.data(), n) - p.velocity);  // angular momentum for now
+    const double r2 = dot(r, r);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) p.inertia(i, j) += m * ((i == j ? r2 : 0.0) - r[i] * r[j]);
+  }
+  for (RigidPiece& p : m_pieces) {
+    p.rigid = !p.fixed && p.mass > 0;
+    if (!p.rigid) continue;
+    const double d = det(p.inertia);
+    const double scale = p.inertia(0, 0) + p.inertia(1, 1) + p.inertia(2, 2);
+    // A piece of one node or one line has no inertia about some axis: it only translates.
+    p.spin = std::isfinite(d) && d > 1e-12 * scale * scale * scale ? inverse(p.inertia) * p.spin
+                                                                   : Vec3{0, 0, 0};
+    const double angle = norm(p.spin) * dt;
+    p.rotation = Mat3::identity();
+    if (angle > 0) {
+      // Rodrigues: R = I + sin(a) K + (1 - cos(a)) K^2 about the unit axis k.
+      const Vec3 k = (1.0 / norm(p.spin)) * p.spin;
+      Mat3 K;
+      K(0, 1) = -k.z;
+      K(0, 2) = k.y;
+      K(1, 0) = k.z;
+      K(1, 2) = -k.x;
+      K(2, 0) = -k.y;
+      K(2, 1) = k.x;
+      p.rotation = Mat3::identity() + std::sin(angle) * K + (1 - std::cos(angle)) * (K * K);
+    }
+  }
+  // In the frame that turns with the piece, backward Euler on the deformation: y is the rigid
+  // motion of x_n (c + dt v_c + R r) plus the deformation's own velocity, turned, and the
+  // centrifugal and Coriolis accelerations of the turning frame; Newton starts from x_n turned
+  // (c + R r, which has the stresses of x_n: a spin stretches nothing). The rigid motion
+  // itself is carried exactly.
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
+    if (!p.rigid) continue;
+    const Vec3 r = load3(state.x.data(), n) - p.centre;
+    const Vec3 turned = p.rotation * r;
+    // Newton starts from the turn alone: the translation is linear in x and solved exactly, and
+    // a start moved along the velocity could begin inside a collider.
+    const Vec3 start = p.centre + turned;
+    const Vec3 vDef = p.rotation * (load3(state.v.data(), n) - p.velocity - cross(p.spin, r));
+    const Vec3 fictitious = -1.0 * cross(p.spin, cross(p.spin, turned)) - 2.0 * cross(p.spin, vDef);
+    const Vec3 y = start + dt * (p.velocity + vDef) + (dt * dt) * fictitious;
+    // Stiffness damping acts on the deformation: measured from the rigid motion, not x_n.
+    for (int i = 0; i < 3; ++i) {
+      m_x[3 * size_t(n) + i] = m_dampRef[3 * size_t(n) + i] = start[i];
+      m_y[3 * size_t(n) + i] = y[i];
+    }
+  }
+}
+
+void Integrator::rigidEndVelocities(const FemModel& model, FemState& state,
+                                    const StepContext& ctx) {
+  const double dt = ctx.dt;
+  if (m_pieceOfNode.empty()) return;
+  // v = (c' - c) / dt + w' x r' + (r' - R r) / dt with r' = x' - c' about the new centre: the
+  // rigid spin carried over, the deformation's change over the step, and the centre's motion
+  // exactly as backward Euler gives it (so momentum changes only by the external impulses).
+  for (RigidPiece& p : m_pieces) p.newCentre = Vec3{0, 0, 0};
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
+    if (p.rigid) p.newCentre += model.nodeMass[n] * load3(state.x.data(), n);
+  }
+  for (RigidPiece& p : m_pieces) {
+    if (!p.rigid) continue;
+    p.newCentre = (1.0 / p.mass) * p.newCentre;
+    p.newInertia = Mat3{};
+    p.momentTarget = p.inertia * p.spin;  // the angular momentum at the start
+  }
+  // The angular momentum at the end is the start's plus the moment of the external impulses
+  // over the step (internal forces of a rotation-invariant energy have none): point forces,
+  // contact as the last Newton step linearised it (what colliderImpulses reports) and the drag
+  // of mass damping; uniform gravity has no moment about the centre. Taken from the forces,
+  // not from m (x' - y), which would count an unconverged Newton step's residual as a torque.
+  // The spin w' is chosen to give exactly that with the deformation's own velocities, so a
+  // free body keeps its angular momentum, and one that stretched turns slower, as a skater
+  // who opens her arms.
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
+    if (!p.rigid) continue;
+    const double m = model.nodeMass[n];
+    const Vec3 x = load3(state.x.data(), n);
+    const Vec3 r = x - p.newCentre;
+    const Vec3 turned = p.rotation * (load3(m_xStart.data(), n) - p.centre);
+    Vec3 impulse = dt * load3(model.externalForce.data(), n) -
+                   (model.material.massDamping * m) * (x - load3(m_xStart.data(), n));
+    if (ctx.colliderCount > 0) {
+      const Vec3 xl = load3(m_xLin.data(), n);
+      for (int c = 0; c < ctx.colliderCount; ++c) {
+        Vec3 g;
+        Mat3 h;
+        if (nodeContact(ctx.colliders[c], xl, m, g, h) != 0) impulse -= dt * (g + h * (x - xl));
+      }
+    }
+    p.momentTarget += cross(r, impulse);
+    p.momentTarget -= (m / dt) * cross(r, r - turned);  // what the deformation carries
+    const double r2 = dot(r, r);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) p.newInertia(i, j) += m * ((i == j ? r2 : 0.0) - r[i] * r[j]);
+  }
+  for (RigidPiece& p : m_pieces) {
+    if (!p.rigid) continue;
+    const double d = det(p.newInertia);
+    const double scale = p.newInertia(0, 0) + p.newInertia(1, 1) + p.newInertia(2, 2);
+    p.newSpin = std::isfinite(d) && d > 1e-12 * scale * scale * scale
+                    ? inverse(p.newInertia) * p.momentTarget
+                    : p.spin;
+  }
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
+    if (!p.rigid) continue;
+    const Vec3 rNew = load3(state.x.data(), n) - p.newCentre;
+    const Vec3 turned = p.rotation * (load3(m_xStart.data(), n) - p.centre);
+    const Vec3 v = (1.0 / dt) * (p.newCentre - p.centre) + cross(p.newSpin, rNew) +
+                   (1.0 / dt) * (rNew - turned);
+    for (int i = 0; i < 3; ++i) state.v[3 * size_t(n) + i] = v[i];
+  }
 }
 
 EnergyBreakdown Integrator::energies(const FemModel& model, const double* x, const StepContext& ctx,
@@ -292,11 +446,13 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     m_fracture->detect(model, state.x.data(), state.v.data(), jobs, /*stressesReady=*/false);
     rep.fractureMs += msSince(tf);
   }
-  // Start at x_n with the prescribed nodes already moved; they stay put from here on.
+  // Start at x_n with the prescribed nodes already moved; they stay put from here on. Free
+  // pieces start at their rigid motion over the step, and their inertia target y follows it.
   m_x = state.x;
   for (int32_t n = 0; n < model.nodeCount; ++n)
     if (model.fixedNode[n])
       for (int i = 0; i < 3; ++i) m_x[3 * n + i] += dt * model.gripVelocity[3 * n + i];
+  predictRigidMotion(model, state, dt);
 
   const double* start = m_xStart.data();  // x_n
   const bool fullNewton = maxNewton > 1;
@@ -335,7 +491,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
       m_dampK.setZero();
       gatherElementBlocks(m_gather, m_elemHess.data(), 1.0, m_dampK, jobs);
       m_dampKValid = true;
-      E += dampingTerm(model, start, m_x.data(), dt, true, jobs);
+      E += dampingTerm(model, m_dampRef.data(), m_x.data(), dt, true, jobs);
     }
     m_A.setZero();
     gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs);
@@ -360,7 +516,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     std::fill(m_dx.begin(), m_dx.end(), 0.0);
     if (it == 0 && !m_cholesky)
       for (size_t i = 0; i < n3; ++i)
-        if (!model.fixedNode[i / 3]) m_dx[i] = dt * state.v[i];
+        if (!model.fixedNode[i / 3]) m_dx[i] = m_y[i] - m_x[i];
     SolveReport sr;
     if (m_cholesky) {
       sr = m_cholesky->solve(m_A, m_rhs.data(), m_dx.data());
@@ -422,7 +578,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
       }
       rep.elementsMs += msSince(t0);
     }
-    if (ctx.colliderImpulse) m_xLin = m_x;
+    if (ctx.colliderCount > 0) m_xLin = m_x;
     for (size_t i = 0; i < n3; ++i) m_x[i] += alpha * m_dx[i];
     const double relStep = firstStepNorm > 0 ? alpha * stepNorm / firstStepNorm : 0.0;
     if (fullNewton) {
@@ -448,6 +604,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     state.v[i] = model.fixedNode[i / 3] ? model.gripVelocity[i] : (m_x[i] - m_xStart[i]) / dt;
     state.x[i] = m_x[i];
   }
+  rigidEndVelocities(model, state, ctx);
   if (!allFinite(state.x) || !allFinite(state.v) || !std::isfinite(psi)) {
     state.x = m_xStart;
     state.v = m_vStart;

@@ -9,6 +9,9 @@
 // penalty energy and released as a bounce). More iterations converge to the fully implicit
 // solution, the reference for error measurements. A backtracking line search on E keeps every
 // iteration from raising the incremental potential, which bounds the energy in stiff cases.
+// Free pieces (no gripped node) are stepped in the frame that turns with them: y carries their
+// rigid motion exactly plus the frame's centrifugal and Coriolis accelerations, Newton starts
+// from x_n turned, and the end velocity keeps their angular momentum (docs/design.md).
 // Nodes with a prescribed velocity are placed first and then held (zero rows/columns).
 // The sparse pattern, the gather plan and all work arrays are built once per body.
 #pragma once
@@ -109,9 +112,15 @@ class Integrator {
   double incrementalPotential(const FemModel& model, const double* xn, const double* x,
                               const StepContext& ctx, bool withGradient, bool withHessian,
                               JobSystem& jobs);
+  // Free pieces (fragments without a prescribed node) are stepped in the frame that turns
+  // with them: fills m_y (the inertia target) and moves their start in m_x; see the .cpp.
+  void predictRigidMotion(const FemModel& model, const FemState& state, double dt);
+  // The end-of-step velocities of free pieces in that frame.
+  void rigidEndVelocities(const FemModel& model, FemState& state, const StepContext& ctx);
   // True when a free node now penetrates a collider that the last linearisation missed.
   bool enteredUnseenContact(const FemModel& model, const StepContext& ctx) const;
-  // Rayleigh stiffness-damping term dt/2 (x-x_n)^T r2 K(x_n) (x-x_n) (+ gradient into m_grad).
+  // Rayleigh stiffness-damping term dt/2 (x-x_r)^T r2 K(x_n) (x-x_r) (+ gradient into m_grad),
+  // x_r = x_n, or the rigid motion of x_n for a free piece.
   double dampingTerm(const FemModel& model, const double* xn, const double* x, double dt,
                      bool withGradient, JobSystem& jobs);
 
@@ -138,6 +147,18 @@ class Integrator {
   std::unique_ptr<MultigridSolver> m_multigrid;
   int32_t m_boundBrokenCount = 0;  // broken edges the multigrid binding has seen
   std::vector<int32_t> m_rebindHistory;
+  // One free piece's rigid motion over the step (predictRigidMotion).
+  struct RigidPiece {
+    double mass = 0;
+    Vec3 centre{0, 0, 0}, velocity{0, 0, 0}, spin{0, 0, 0}, newCentre{0, 0, 0}, newSpin{0, 0, 0},
+        momentTarget{0, 0, 0};
+    Mat3 inertia, rotation, newInertia;
+    bool fixed = false, rigid = false;
+  };
+  std::vector<RigidPiece> m_pieces;
+  std::vector<int32_t> m_pieceOfNode;  // the piece of each node at the step's start
+  std::vector<double> m_y;             // inertia target of the step
+  std::vector<double> m_dampRef;       // what stiffness damping measures the motion from
 };
 
 }  // namespace gf::detail
