@@ -1,0 +1,162 @@
+// The World's internals, shared by its source files (one concern each: world.cpp creates and
+// steps, world_commands.cpp takes the game's commands, world_surface.cpp the render surfaces,
+// world_snapshot.cpp snapshots, world_handoff.cpp the hand-off of fragments to rigid physics).
+#pragma once
+
+#include <atomic>
+#include <cmath>
+#include <glm/gtc/quaternion.hpp>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "fem/fem_body.h"
+#include "fem/integrator.h"
+#include "fracture/fracture_body.h"
+#include "graphfrac/world.h"
+#include "surface/crack_surface.h"
+
+namespace gf {
+namespace detail {
+
+// Contact penalty stiffness per unit mass when the collider names none: dt^2 k = 100 makes
+// contact a hundred times stiffer than inertia, so a node is pushed out within about a step
+// and rests g dt^2 / 100 deep.
+constexpr double kAutoContactStiffnessDt2 = 100.0;
+
+// Positions [m] and velocities [m/s] beyond this are unit mistakes that overflow squared
+// lengths and the float render surface; the commands refuse them.
+constexpr double kMaxMagnitude = 1e9;
+
+inline bool finite3(glm::vec3 v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+inline bool bounded3(glm::vec3 v) {
+  return finite3(v) && std::abs(v.x) <= kMaxMagnitude && std::abs(v.y) <= kMaxMagnitude &&
+         std::abs(v.z) <= kMaxMagnitude;
+}
+
+/// A new id for each World, so that a snapshot is restored only into the world it was taken of.
+uint64_t nextWorldId();
+
+// The render surface of a body, created on the first World::surface() call.
+struct SurfaceRecord {
+  TetMesh rest;                      // CrackSurface keeps references to these two
+  detail::EdgeGraph ownGraph;        // for bodies without fracture
+  std::vector<uint8_t> noBreaks;     // idem
+  std::vector<int32_t> oneFragment;  // idem
+  detail::CrackSurface surface;
+  uint64_t brokenCount = 0;
+};
+
+struct BodyRecord {
+  detail::FemModel model;
+  detail::FemState state;
+  std::unique_ptr<detail::Integrator> integrator;
+  std::unique_ptr<detail::FractureBody> fracture;  // null: no fracture, no edge stresses
+  std::unique_ptr<SurfaceRecord> surface;          // null until somebody asks for it
+  std::vector<Grip> grips;                         // node lists for setGripVelocity
+  std::vector<double> pendingForce;                // applyForce, next step only; empty: none
+  // Fragments handed to rigid physics (detachFragment): id and rest centre of mass, in
+  // detach order.
+  std::vector<std::pair<int32_t, Vec3>> rigid;
+  // A step or setFragmentTransform moved nodes since the render surface was updated; the next
+  // surface() call updates it (once per rendered frame, not once per step or substep).
+  bool surfaceStale = false;
+  std::vector<double> nodeStrain;      // World::nodeStrain's output
+  std::vector<double> nodeWeight;      // its scratch
+  std::vector<glm::dvec3> gripForces;  // World::gripForces's output
+  std::vector<double> nodeForce;       // its scratch
+  // The integrator still holds the start of the step that led to the current state, so the
+  // grips' forces can be evaluated (false before the first step and after state overwrites).
+  bool stepEndValid = false;
+  // Every node is in a detached fragment: the body only moves rigidly, so a step just advances
+  // the nodes by their prescribed velocities (what the integrator would do, without its cost).
+  bool allRigid = false;
+};
+
+/// Kernel form of a collider; the stiffness is filled in per step (World::Impl::context).
+ColliderData toData(const Collider& c);
+
+struct Slot {
+  uint32_t generation = 1;
+  std::unique_ptr<BodyRecord> body;  // null when free
+};
+}  // namespace detail
+
+using detail::BodyRecord;
+using detail::bounded3;
+using detail::finite3;
+using detail::kMaxMagnitude;
+using detail::Slot;
+using detail::SurfaceRecord;
+using detail::toData;
+
+struct World::Impl {
+  const uint64_t id = detail::nextWorldId();
+  WorldDef def;
+  std::string defError;  // WorldDef::check's message; non-empty: the world refuses to run
+  JobSystem* jobs = nullptr;
+  std::vector<Slot> slots;
+  std::vector<ColliderData> colliders;  // at their current pose (def.colliders: as given)
+  std::vector<double> colliderImpulse;  // 6 per collider, see StepContext::colliderImpulse
+  std::vector<glm::dvec3> impulses, angularImpulses;  // of the last step
+  StepTimings timings;
+  std::vector<FractureEvent> fractureEvents;
+  std::vector<FragmentEvent> fragmentEvents;
+  std::vector<HandoffEvent> handoffEvents;
+  double time = 0;
+  double lastSubstep = 1.0 / 60;  // contact stiffness of stats() follows the last step
+  // Set while step() runs: calls that change the world are refused then (a job callback
+  // re-entering the world would race the step).
+  std::atomic<bool> stepping{false};
+
+  // The error of a mutating call made during step(), or empty.
+  std::string busy(const char* call) const {
+    return stepping.load() ? std::string(call) + ": called while step() runs; nothing changed"
+                           : std::string();
+  }
+
+  BodyRecord* get(BodyId id) const {
+    if (id.index == 0 || id.index > slots.size()) return nullptr;
+    const Slot& s = slots[id.index - 1];
+    return (s.body && s.generation == id.generation) ? s.body.get() : nullptr;
+  }
+  // Converts a body's breaks and splits of the last detect() into public events.
+  void collectEvents(BodyId id, const BodyRecord& b);
+  // Multiplicative plasticity after the step (eq 2.3-2.5): only yielding elements change.
+  void plasticUpdate(BodyRecord& b, double h);
+
+  // Keeps a requested render surface in step with the body: topology only after fractures.
+  void updateSurface(BodyRecord& b) {
+    SurfaceRecord& r = *b.surface;
+    // Partial cracks are rendered too, so every newly broken edge changes the topology.
+    if (b.fracture && uint64_t(b.fracture->brokenCount()) != r.brokenCount) {
+      r.brokenCount = uint64_t(b.fracture->brokenCount());
+      r.surface.rebuild(b.fracture->broken().data(), b.fracture->fragments().nodeFragment().data(),
+                        b.state.x.data());
+    } else {
+      r.surface.updatePositions(b.state.x.data());
+    }
+  }
+
+  // The colliders with their stiffness for substep dt filled in.
+  void setColliderStiffness(double dt) {
+    for (size_t c = 0; c < colliders.size(); ++c) {
+      const double k = def.colliders[c].stiffness;
+      colliders[c].stiffness = k > 0 ? k : detail::kAutoContactStiffnessDt2 / (dt * dt);
+    }
+  }
+  // What a body step reads; the colliders' stiffness must be set for dt.
+  detail::StepContext context(double dt) const {
+    detail::StepContext ctx;
+    ctx.dt = dt;
+    ctx.gravity = {def.gravity.x, def.gravity.y, def.gravity.z};
+    ctx.colliders = colliders.data();
+    ctx.colliderCount = int(colliders.size());
+    return ctx;
+  }
+};
+
+}  // namespace gf

@@ -1,0 +1,84 @@
+// World: the render surface of a body, built and updated when asked for, and the strain field
+// a renderer colours it by.
+#include <vector>
+
+#include "kernels/element.h"
+#include "step/timing.h"
+#include "world/world_impl.h"
+
+namespace gf {
+
+std::span<const double> World::nodeStrain(BodyId id) {
+  BodyRecord* b = m_impl->get(id);
+  if (!b || m_impl->stepping.load()) return {};
+  const detail::FemModel& m = b->model;
+  b->nodeStrain.assign(size_t(m.nodeCount), 0.0);
+  b->nodeWeight.assign(size_t(m.nodeCount), 0.0);
+  for (int32_t t = 0; t < m.tetCount; ++t) {
+    Vec3 xe[4];
+    for (int a = 0; a < 4; ++a) {
+      const double* p = &b->state.x[3 * size_t(m.tets[4 * t + a])];
+      xe[a] = {p[0], p[1], p[2]};
+    }
+    const double e = maxPrincipalStrain(deformationGradient(xe, m.restInverse[size_t(t)]));
+    for (int a = 0; a < 4; ++a) {
+      const size_t n = size_t(m.tets[4 * t + a]);
+      b->nodeStrain[n] += m.restVolume[size_t(t)] * e;
+      b->nodeWeight[n] += m.restVolume[size_t(t)];
+    }
+  }
+  for (size_t n = 0; n < b->nodeStrain.size(); ++n)
+    if (b->nodeWeight[n] > 0) b->nodeStrain[n] /= b->nodeWeight[n];
+  return b->nodeStrain;
+}
+
+SurfaceView World::surface(BodyId id) {
+  BodyRecord* b = m_impl->get(id);
+  if (!b || m_impl->stepping.load()) return {};
+  // The view's dirty range covers what changed since the previous call.
+  if (b->surface) b->surface->surface.clearDirty();
+  if (b->surface && b->surfaceStale) {
+    const auto t0 = detail::Clock::now();
+    m_impl->updateSurface(*b);
+    m_impl->timings.surfaceMs += detail::msSince(t0);
+  }
+  b->surfaceStale = false;
+  if (!b->surface) {
+    auto r = std::make_unique<SurfaceRecord>();
+    r->rest.positions = b->model.restPositions;
+    r->rest.tets = b->model.tets;
+    const detail::EdgeGraph* graph = nullptr;
+    if (b->fracture) {
+      graph = &b->fracture->graph();
+    } else {
+      r->ownGraph =
+          detail::EdgeGraph::build(b->model.tets.data(), b->model.tetCount, b->model.nodeCount);
+      r->noBreaks.assign(r->ownGraph.edgeCount, 0);
+      r->oneFragment.assign(b->model.nodeCount, 0);
+      graph = &r->ownGraph;
+    }
+    r->surface.init(r->rest, *graph);
+    if (b->fracture) {
+      r->brokenCount = uint64_t(b->fracture->brokenCount());
+      r->surface.rebuild(b->fracture->broken().data(),
+                         b->fracture->fragments().nodeFragment().data(), b->state.x.data());
+    } else {
+      r->surface.rebuild(r->noBreaks.data(), r->oneFragment.data(), b->state.x.data());
+    }
+    b->surface = std::move(r);
+  }
+  const detail::CrackSurface& s = b->surface->surface;
+  SurfaceView v;
+  v.positions = s.positions();
+  v.normals = s.normals();
+  v.indices = s.indices();
+  v.crackMask = s.crackFlags();
+  v.vertexFragment = s.vertexFragment();
+  v.vertexNode = s.vertexNode();
+  v.topologyVersion = s.topologyVersion();
+  v.dirtyBegin = s.dirty().begin;
+  v.dirtyEnd = s.dirty().end;
+  return v;
+}
+
+}  // namespace gf
