@@ -59,6 +59,9 @@ std::vector<double> uniaxial(const Body& b, Vec3 n, Profile profile) {
   return s;
 }
 
+// Uniaxial x tension peaking near x = 2.1, so the seed sits mid-bar.
+double peakNear21(double x) { return 1e6 * (1 + 0.2 * std::exp(-(x - 2.1) * (x - 2.1) / 0.25)); }
+
 // The plane of `seed` splits the (convex) bar: exactly the straddling edges are broken, the
 // graph has two components, and each is on one side.
 void expectCleanSplit(const Body& b, const BrittleSeed& seed, const std::vector<uint8_t>& broken) {
@@ -82,10 +85,7 @@ void expectCleanSplit(const Body& b, const BrittleSeed& seed, const std::vector<
 
 TEST(Brittle, OneRegionSplitsABarInTwoNormalToTheLoad) {
   Body b = makeBody(gen::box(4, 1, 1, 16, 4, 4), 1);
-  // Uniaxial x tension peaking near x = 2.1, so the seed sits mid-bar.
-  const auto stress = uniaxial(b, {1, 0, 0}, [](double x) {
-    return 1e6 * (1 + 0.2 * std::exp(-(x - 2.1) * (x - 2.1) / 0.25));
-  });
+  const auto stress = uniaxial(b, {1, 0, 0}, peakNear21);
   std::vector<uint8_t> broken(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> events;
   auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), stress.data(), broken, events,
@@ -187,9 +187,7 @@ TEST(Brittle, FailsWithoutFaceAdjacencyAndIgnoresCompression) {
 // through it, and the crack stops in the tets around it; weaker edges elsewhere still break.
 TEST(Brittle, EdgesStrongerThanThePlaneStressHold) {
   Body b = makeBody(gen::box(4, 1, 1, 16, 4, 4), 1);
-  const auto stress = uniaxial(b, {1, 0, 0}, [](double x) {
-    return 1e6 * (1 + 0.2 * std::exp(-(x - 2.1) * (x - 2.1) / 0.25));
-  });
+  const auto stress = uniaxial(b, {1, 0, 0}, peakNear21);
   // Without strong edges: which edges the plane crosses.
   std::vector<uint8_t> reference(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> referenceEvents;

@@ -8,6 +8,7 @@
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
+#include "kernels/tet_inertia.h"
 #include "step/timing.h"
 
 namespace gf::detail {
@@ -33,6 +34,22 @@ constexpr double kEnergyRoundOff = 1e-11;
 constexpr double kBlowUpEnergyDensity = 1e6;
 
 Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i + 2]}; }
+
+// Adds a point mass m at r to the second moment sum m r r^T (inertiaFromSecondMoment turns it
+// into the inertia tensor).
+void addSecondMoment(Mat3& c, double m, Vec3 r) {
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) c(i, j) += m * r[i] * r[j];
+}
+
+// w = I^-1 L; false for a piece of one node or one line, which has no inertia about some axis.
+bool spinOf(const Mat3& inertia, Vec3 angularMomentum, Vec3& spin) {
+  const double d = det(inertia);
+  const double scale = trace(inertia);
+  if (!(std::isfinite(d) && d > 1e-12 * scale * scale * scale)) return false;
+  spin = inverse(inertia) * angularMomentum;
+  return true;
+}
 
 bool allFinite(const std::vector<double>& a) {
   for (double v : a)
@@ -248,7 +265,8 @@ bool Integrator::enteredUnseenContact(const FemModel& model, const StepContext& 
 void Integrator::predictRigidMotion(const FemModel& model, const FemState& state, double dt) {
   const size_t n3 = state.x.size();
   for (size_t i = 0; i < n3; ++i) m_y[i] = state.x[i] + dt * state.v[i];
-  m_dampRef = state.x;
+  const bool damped = model.material.stiffnessDamping > 0;
+  if (damped) m_dampRef = state.x;
   m_pieceOfNode.clear();
   if (!model.solver.corotatedInertia) return;
   // Per piece (a fragment, or the whole body): mass, centre, momentum, angular momentum and
@@ -279,18 +297,14 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
     const double m = model.nodeMass[n];
     const Vec3 r = load3(state.x.data(), n) - p.centre;
     p.spin += m * cross(r, load3(state.v.data(), n) - p.velocity);  // angular momentum for now
-    const double r2 = dot(r, r);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) p.inertia(i, j) += m * ((i == j ? r2 : 0.0) - r[i] * r[j]);
+    addSecondMoment(p.inertia, m, r);                               // the second moment for now
   }
   for (RigidPiece& p : m_pieces) {
     p.rigid = !p.fixed && p.mass > 0;
     if (!p.rigid) continue;
-    const double d = det(p.inertia);
-    const double scale = p.inertia(0, 0) + p.inertia(1, 1) + p.inertia(2, 2);
-    // A piece of one node or one line has no inertia about some axis: it only translates.
-    p.spin = std::isfinite(d) && d > 1e-12 * scale * scale * scale ? inverse(p.inertia) * p.spin
-                                                                   : Vec3{0, 0, 0};
+    p.inertia = inertiaFromSecondMoment(p.inertia);
+    // A piece without inertia about some axis only translates.
+    if (!spinOf(p.inertia, p.spin, p.spin)) p.spin = Vec3{0, 0, 0};
     const double angle = norm(p.spin) * dt;
     p.rotation = Mat3::identity();
     if (angle > 0) {
@@ -324,8 +338,9 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
     const Vec3 y = start + dt * (p.velocity + vDef) + (dt * dt) * fictitious;
     // Stiffness damping acts on the deformation: measured from the rigid motion, not x_n.
     for (int i = 0; i < 3; ++i) {
-      m_x[3 * size_t(n) + i] = m_dampRef[3 * size_t(n) + i] = start[i];
+      m_x[3 * size_t(n) + i] = start[i];
       m_y[3 * size_t(n) + i] = y[i];
+      if (damped) m_dampRef[3 * size_t(n) + i] = start[i];
     }
   }
 }
@@ -375,17 +390,12 @@ void Integrator::rigidEndVelocities(const FemModel& model, FemState& state,
     }
     p.momentTarget += cross(r, impulse);
     p.momentTarget -= (m / dt) * cross(r, r - turned);  // what the deformation carries
-    const double r2 = dot(r, r);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) p.newInertia(i, j) += m * ((i == j ? r2 : 0.0) - r[i] * r[j]);
+    addSecondMoment(p.newInertia, m, r);                // the second moment for now
   }
   for (RigidPiece& p : m_pieces) {
     if (!p.rigid) continue;
-    const double d = det(p.newInertia);
-    const double scale = p.newInertia(0, 0) + p.newInertia(1, 1) + p.newInertia(2, 2);
-    p.newSpin = std::isfinite(d) && d > 1e-12 * scale * scale * scale
-                    ? inverse(p.newInertia) * p.momentTarget
-                    : p.spin;
+    p.newInertia = inertiaFromSecondMoment(p.newInertia);
+    if (!spinOf(p.newInertia, p.momentTarget, p.newSpin)) p.newSpin = p.spin;
   }
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];

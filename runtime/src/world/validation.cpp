@@ -1,6 +1,8 @@
 // The checks of everything an engine hands the world: one routine per kind of input, used by the
 // World, its commands and the scene loader alike. Messages name the field relative to the struct
 // checked ("levels: ...") so each caller can prefix its own path.
+#include "world/validation.h"
+
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -10,18 +12,12 @@
 namespace gf {
 
 namespace {
-// Beyond these, finite inputs overflow the penalty energy, the impulses or the mesh tests
-// (squares of lengths, k x^2): a world of 1e9 m or a stiffness of 1e18 N/m/kg is a unit
-// mistake, not a scene.
-constexpr double kMaxLength = 1e9;
+using detail::bounded3;
+using detail::finite3;
+// Beyond this a collider's penalty energy k x^2 overflows: a unit mistake, not a scene.
 constexpr double kMaxColliderStiffness = 1e18;
 
 bool positiveFinite(double v) { return std::isfinite(v) && v > 0; }
-bool finite3(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
-bool bounded3(glm::vec3 v) {
-  return finite3(v) && std::abs(v.x) <= kMaxLength && std::abs(v.y) <= kMaxLength &&
-         std::abs(v.z) <= kMaxLength;
-}
 // Shortest readable form ("1e+06", "0.5", "inf"), not std::to_string's fixed six decimals.
 std::string num(double v) {
   char text[32];
@@ -141,7 +137,8 @@ Result<void> Collider::check() const {
     if (!(std::isfinite(q2) && q2 > 1e-24))
       return fail("rotation: must be a finite non-zero quaternion");
   }
-  if (kind == Kind::Sphere && !(std::isfinite(radius) && radius > 0 && radius <= kMaxLength))
+  if (kind == Kind::Sphere &&
+      !(std::isfinite(radius) && radius > 0 && radius <= detail::kMaxMagnitude))
     return fail("radius: must be positive and at most 1e9 m, got ", num(radius));
   return {};
 }

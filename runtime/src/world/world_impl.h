@@ -16,6 +16,7 @@
 #include "fracture/fracture_body.h"
 #include "graphfrac/world.h"
 #include "surface/crack_surface.h"
+#include "world/validation.h"
 
 namespace gf {
 namespace detail {
@@ -24,18 +25,6 @@ namespace detail {
 // contact a hundred times stiffer than inertia, so a node is pushed out within about a step
 // and rests g dt^2 / 100 deep.
 constexpr double kAutoContactStiffnessDt2 = 100.0;
-
-// Positions [m] and velocities [m/s] beyond this are unit mistakes that overflow squared
-// lengths and the float render surface; the commands refuse them.
-constexpr double kMaxMagnitude = 1e9;
-
-inline bool finite3(glm::vec3 v) {
-  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
-inline bool bounded3(glm::vec3 v) {
-  return finite3(v) && std::abs(v.x) <= kMaxMagnitude && std::abs(v.y) <= kMaxMagnitude &&
-         std::abs(v.z) <= kMaxMagnitude;
-}
 
 /// A new id for each World, so that a snapshot is restored only into the world it was taken of.
 uint64_t nextWorldId();
