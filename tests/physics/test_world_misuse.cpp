@@ -313,19 +313,27 @@ constexpr bool kSanitized = false;
 // The estimate createBody reports when memory runs out matches what a body really takes.
 TEST(WorldMisuse, BodyMemoryEstimateMatchesTheProcess) {
   if (kSanitized) GTEST_SKIP() << "the sanitizer's shadow memory distorts resident sizes";
-  for (const bool fracture : {false, true}) {
+  // Without fracture, with it, and with a non-local average over 0.06 m (about 75 neighbours
+  // per tet).
+  for (const int variant : {0, 1, 2}) {
+    const bool fracture = variant > 0;
     BodyDef def;
     def.mesh = gen::box(1, 1, 1, 24, 24, 24);
     def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
     def.fracture.enabled = fracture;
+    if (variant == 2) def.fracture.nonlocalLength = 0.06;
     World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
     const double before = residentBytes();
     const BodyId id = world.createBody(def).value();
     (void)world.step(1.0 / 60);  // the first step touches every buffer
     const double grown = residentBytes() - before;
     const double estimate = detail::estimateBodyBytes(def);
-    std::printf("memory: %zu tets, fracture %d: estimate %.1f MiB, process grew %.1f MiB\n",
-                def.mesh.tetCount(), int(fracture), estimate / 1048576, grown / 1048576);
+    std::printf("memory: %zu tets, %s: estimate %.1f MiB, process grew %.1f MiB\n",
+                def.mesh.tetCount(),
+                variant == 0   ? "no fracture"
+                : variant == 1 ? "fracture"
+                               : "non-local fracture",
+                estimate / 1048576, grown / 1048576);
     EXPECT_GT(estimate, 0.75 * grown);
     EXPECT_LT(estimate, 1.25 * grown);
     EXPECT_TRUE(world.isValid(id));

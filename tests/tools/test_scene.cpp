@@ -263,11 +263,14 @@ TEST(Scene, FractureKeysLoadEveryValue) {
                "radial fibre of tet " + std::to_string(t));
   }
 
-  // Slab: fracture defaults; the rotated field turns (1, 0, 0) by +90 degrees about y.
+  // Slab: fracture defaults but for an averaging length in metres; the rotated field turns
+  // (1, 0, 0) by +90 degrees about y.
   const BodyDef& slab = s.bodies[1].def;
   EXPECT_TRUE(slab.fracture.enabled);
   EXPECT_DOUBLE_EQ(slab.fracture.strength, 1e5);
   EXPECT_DOUBLE_EQ(slab.fracture.radius, 0);
+  EXPECT_DOUBLE_EQ(slab.fracture.nonlocalLength, 0.03);
+  EXPECT_DOUBLE_EQ(bar.fracture.nonlocalLength, 0);
   EXPECT_EQ(slab.fracture.model, DamageModel::Degradation);
   EXPECT_FALSE(slab.fracture.brittle);
   EXPECT_EQ(slab.fracture.regions, 1);
@@ -456,6 +459,11 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
     {"bad_fracture_brittle.json",
      {": bodies[0].fracture.brittle: expected true or false, got \"yes\""}},
     {"bad_fracture_radius.json", {": bodies[0].fracture.radius: must be >= 0 and finite, got -1"}},
+    {"bad_fracture_nonlocal_length.json",
+     {": bodies[0].fracture.nonlocal_length: must be >= 0 and at most 1e9 m, got -0.01"}},
+    {"fracture_length_and_radius.json",
+     {": bodies[0].fracture.nonlocal_length: set either nonlocalLength (metres) or radius (edge "
+      "lengths), not both (got 0.01 m and 2)"}},
     {"missing_fracture_strength.json", {": bodies[0].fracture.strength: missing (required)"}},
     {"bad_fracture_fibre_strength_ratio.json",
      {": bodies[0].fracture.fibre_strength_ratio: must be positive and finite, got -2"}},

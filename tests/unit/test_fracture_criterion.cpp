@@ -23,6 +23,7 @@ struct Body {
   FractureModel model;
 };
 
+// radius in mean edge lengths (the thesis's R_d); a negative value is -nonlocalLength [m].
 Body makeBody(TetMesh mesh, double strength, double radius, JobSystem* jobs = nullptr) {
   Body b;
   b.mesh = std::move(mesh);
@@ -30,7 +31,7 @@ Body makeBody(TetMesh mesh, double strength, double radius, JobSystem* jobs = nu
   FractureSettings s;
   s.enabled = true;
   s.strength = strength;
-  s.radius = radius;
+  (radius >= 0 ? s.radius : s.nonlocalLength) = std::abs(radius);
   auto m = FractureModel::build(restView(b.mesh), b.graph, s, jobs);
   EXPECT_TRUE(m.ok()) << (m.ok() ? "" : m.error().message);
   b.model = std::move(m).value();
@@ -354,6 +355,14 @@ TEST(FractureCriterion, BoundedNonLocalCriterionMatchesFullAverage) {
             0);
 }
 
+double tetVolume(const TetMesh& m, int32_t t) {
+  const Eigen::Vector3d o = nodeAt(m, m.tets[4 * t]);
+  return std::abs(
+             (nodeAt(m, m.tets[4 * t + 1]) - o)
+                 .dot((nodeAt(m, m.tets[4 * t + 2]) - o).cross(nodeAt(m, m.tets[4 * t + 3]) - o))) /
+         6.0;
+}
+
 void expectListsMatchBruteForce(const Body& b) {
   const FractureModel& m = b.model;
   const double R = m.radiusAbs, R2 = R * R;
@@ -377,7 +386,10 @@ void expectListsMatchBruteForce(const Body& b) {
     for (size_t s = 0; s < got.size(); ++s) {
       double d2;
       withinRadius(&m.centroids[3 * i], &m.centroids[3 * got[s]], R2, d2);
-      EXPECT_NEAR(m.neighbourWeight[m.neighbourStart[i] + s], 1 - std::sqrt(d2) / R, 1e-6);
+      // In metres the kernel is also weighted by the neighbour's rest volume.
+      const double volume = m.settings.nonlocalLength > 0 ? tetVolume(b.mesh, got[s]) : 1.0;
+      EXPECT_NEAR(m.neighbourWeight[m.neighbourStart[i] + s], (1 - std::sqrt(d2) / R) * volume,
+                  1e-6 * volume);
     }
     total += got.size();
   }
@@ -389,6 +401,45 @@ TEST(FractureCriterion, NeighbourListsMatchBruteForce) {
   expectListsMatchBruteForce(makeBody(gen::box(1, 0.7, 0.5, 6, 4, 3), 1e6, 3.0));
   expectListsMatchBruteForce(makeBody(gen::sphere(1, 6), 1e6, 2.0));
   expectListsMatchBruteForce(makeBody(gen::cylinder(0.5, 2, 12, 6, 2), 1e6, 2.5));
+  expectListsMatchBruteForce(makeBody(gen::sphere(1, 6), 1e6, -0.7));
+}
+
+// The average over a length in metres is an integral over the material: on a mesh whose tets
+// crowd towards x = 0, the mean of a stress that grows linearly in x, taken over a ball inside
+// the body, is the stress at the ball's centre (a symmetric kernel integrates a linear field
+// exactly). Counting tets instead, as R_d in edge lengths does, pulls it towards the crowd.
+TEST(FractureCriterion, AverageOverALengthIsIndependentOfTheMeshDensity) {
+  TetMesh mesh = gen::box(1, 1, 1, 14, 14, 14);
+  for (size_t n = 0; n < mesh.nodeCount(); ++n) {
+    double& x = mesh.positions[3 * n];
+    x = x * (0.25 + 0.75 * x);  // cells 7 times finer at x = 0 than at x = 1
+  }
+  const double R = 0.25;
+  Body byLength = makeBody(mesh, 1e6, -R);
+  Body byCount = makeBody(mesh, 1e6, R / makeBody(mesh, 1e6, 0).model.meanEdgeLength);
+  const int32_t T = byLength.model.tetCount;
+  std::vector<double> stress(6 * size_t(T), 0.0);
+  for (int32_t t = 0; t < T; ++t) stress[6 * size_t(t)] = byLength.model.centroids[3 * size_t(t)];
+  std::vector<double> meanByLength(6 * size_t(T)), meanByCount(6 * size_t(T));
+  averageStress(byLength.model, stress.data(), meanByLength.data(), serialJobs());
+  averageStress(byCount.model, stress.data(), meanByCount.data(), serialJobs());
+  double worstLength = 0, worstCount = 0;
+  int interior = 0;
+  for (int32_t t = 0; t < T; ++t) {
+    const double* c = &byLength.model.centroids[3 * size_t(t)];
+    if (std::max({std::abs(c[0] - 0.5), std::abs(c[1] - 0.5), std::abs(c[2] - 0.5)}) > 0.2)
+      continue;
+    ++interior;
+    worstLength = std::max(worstLength, std::abs(meanByLength[6 * size_t(t)] - c[0]));
+    worstCount = std::max(worstCount, std::abs(meanByCount[6 * size_t(t)] - c[0]));
+  }
+  std::printf(
+      "mean of sigma = x over a 0.25 m ball, %d interior tets of a graded mesh: largest "
+      "error %.2e m by volume, %.2e m by tet count\n",
+      interior, worstLength, worstCount);
+  ASSERT_GT(interior, 100);
+  EXPECT_LT(worstLength, 0.01 * R);
+  EXPECT_GT(worstCount, 5 * worstLength);
 }
 
 TEST(FractureCriterion, SameResultForOneAndFourThreads) {

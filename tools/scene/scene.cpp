@@ -82,11 +82,10 @@ constexpr FieldName kSolverNames[] = {{"newtonIterations", "newton_iterations"},
                                       {"linearSolver", "linear"},
                                       {"maxLinearIterations", "max_linear_iterations"},
                                       {"linearTolerance", "linear_tolerance"}};
-constexpr FieldName kFractureNames[] = {{"strength", "strength"},
-                                        {"fibreStrengthRatio", "fibre_strength_ratio"},
-                                        {"radius", "radius"},
-                                        {"model", "model"},
-                                        {"regions", "regions"}};
+constexpr FieldName kFractureNames[] = {
+    {"strength", "strength"}, {"fibreStrengthRatio", "fibre_strength_ratio"},
+    {"radius", "radius"},     {"nonlocalLength", "nonlocal_length"},
+    {"model", "model"},       {"regions", "regions"}};
 constexpr FieldName kPlasticityNames[] = {
     {"yieldStress", "yield"}, {"flowRate", "flow_rate"}, {"hardening", "hardening"}};
 constexpr FieldName kBodyNames[] = {
@@ -583,7 +582,8 @@ constexpr int kMaxBrittleRegions = 1'000'000;
 
 FractureSettings readFracture(const json& v, const std::string& path) {
   ObjReader o(v, path);
-  o.keys({"strength", "radius", "model", "brittle", "regions", "fibre_strength_ratio"});
+  o.keys({"strength", "radius", "nonlocal_length", "model", "brittle", "regions",
+          "fibre_strength_ratio"});
   FractureSettings f;
   f.enabled = true;
   f.strength = readNumber(o.require("strength"), o.at("strength"));
@@ -591,6 +591,8 @@ FractureSettings readFracture(const json& v, const std::string& path) {
     f.radius = readNumber(*r, o.at("radius"));
     requireAtMost(f.radius, kMaxFractureRadius, o.at("radius"), *r);
   }
+  if (const json* l = o.find("nonlocal_length"))
+    f.nonlocalLength = readNumber(*l, o.at("nonlocal_length"));
   if (const json* m = o.find("model")) {
     f.model = readChoice(*m, o.at("model"), {"projection", "degradation"}) == "projection"
                   ? DamageModel::Projection

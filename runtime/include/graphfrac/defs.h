@@ -130,8 +130,17 @@ struct FractureSettings {
   /// r > 1 makes the body split between its fibres (meat, wood); r < 1 is allowed. r != 1 needs
   /// fibres (material.fibreStiffness > 0); the direction is fibreField or material.fibreDirection.
   double fibreStrengthRatio = 1;
-  /// Non-local averaging radius R_d in mean edge lengths (eq 4.10-4.12); 0 = local.
+  /// Non-local averaging radius R_d in mean edge lengths (eq 4.10-4.12, the thesis's form);
+  /// 0 = local. It shrinks with the mesh, so where stress concentrates (clamps, contact,
+  /// notches) the first break still depends on the resolution; prefer nonlocalLength.
   double radius = 0;
+  /// Non-local averaging radius in metres, a property of the material (about the size of
+  /// its fracture process zone): each tet is judged on the mean stress of the tets within
+  /// this distance, weighted by 1 - d / length and by rest volume, so the mean approximates
+  /// an integral over the material and the load at which a body first breaks converges as
+  /// the mesh is refined. > 0 replaces `radius` (setting both is an error); 0 = off. Cost and
+  /// memory grow with (length / edge length)^3 per tet.
+  double nonlocalLength = 0;
   DamageModel model = DamageModel::Degradation;
   /// Brittle mode (sec 4.5.1.2): when the criterion first fires, the `regions` most stressed
   /// regions each start a crack plane normal to the maximum principal stress.

@@ -58,8 +58,8 @@ Result<std::vector<BrittleSeed>> startBrittleCracks(
                ? principal[size_t(a)] > principal[size_t(b)]
                : a < b;
   });
-  const double seedRadius =
-      std::max(options.seedRadius, model.settings.radius) * model.meanEdgeLength;
+  // At least the averaging radius, in whichever unit the settings give it.
+  const double seedRadius = std::max(options.seedRadius * model.meanEdgeLength, model.radiusAbs);
   const double separation2 = 4.0 * seedRadius * seedRadius;
   const auto centroid = [&](int32_t t) {
     const double* c = &model.centroids[3 * size_t(t)];

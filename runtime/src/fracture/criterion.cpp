@@ -10,7 +10,7 @@ namespace {
 constexpr uint8_t kAveragedBit = 0x80;
 constexpr uint8_t kEdgeBits = 0x3f;
 
-// eq 4.10, normalised: the list holds the tet itself with weight 1, so the sum is >= 1.
+// eq 4.10, normalised: the list holds the tet itself with a positive weight, so the sum is > 0.
 inline void averageOne(const FractureModel& model, const double* tetStress, size_t t, double* out) {
   double acc[6] = {0, 0, 0, 0, 0, 0};
   double wsum = 0;

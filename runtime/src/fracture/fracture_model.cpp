@@ -111,7 +111,20 @@ Result<FractureModel> FractureModel::build(const RestMeshView& rest, const EdgeG
     m.strength[size_t(e)] = fibreEdgeStrength(settings.strength, ratio, cos2);
   }
   m.meanEdgeLength = m.edgeCount > 0 ? lengthSum / m.edgeCount : 0;
-  m.radiusAbs = settings.radius * m.meanEdgeLength;
+  const bool byLength = settings.nonlocalLength > 0;
+  m.radiusAbs = byLength ? settings.nonlocalLength : settings.radius * m.meanEdgeLength;
+  // Rest volumes weight the metric average, so that it integrates over the material rather
+  // than counting tets (a finer patch of mesh must not pull the mean towards itself).
+  std::vector<double> volume;
+  if (byLength) {
+    volume.resize(size_t(m.tetCount));
+    for (int32_t t = 0; t < m.tetCount; ++t) {
+      const int32_t* tn = rest.tets + 4 * size_t(t);
+      const Vec3 o = node(tn[0]);
+      volume[size_t(t)] =
+          std::fabs(dot(node(tn[1]) - o, cross(node(tn[2]) - o, node(tn[3]) - o))) / 6.0;
+    }
+  }
 
   // Non-local neighbour lists (eq 4.10): count, prefix sum, fill; both passes parallel over
   // tets and each row sorted by id, so the lists never depend on the thread count.
@@ -137,8 +150,15 @@ Result<FractureModel> FractureModel::build(const RestMeshView& rest, const EdgeG
     for (int32_t i = 0; i < m.tetCount; ++i) {
       total += counts[size_t(i)];
       if (total > int64_t(std::numeric_limits<int32_t>::max()))
-        return fail("FractureSettings.radius: ", std::to_string(settings.radius),
-                    " mean edge lengths gives over 2^31 neighbour entries; use a smaller R_d");
+        return byLength
+                   ? fail("FractureSettings.nonlocalLength: ",
+                          std::to_string(settings.nonlocalLength), " m is ",
+                          std::to_string(R / m.meanEdgeLength),
+                          " mean edge lengths and gives over 2^31 neighbour entries; use a "
+                          "shorter length or a coarser mesh")
+                   : fail("FractureSettings.radius: ", std::to_string(settings.radius),
+                          " mean edge lengths gives over 2^31 neighbour entries; use a smaller "
+                          "R_d");
       m.neighbourStart[size_t(i) + 1] = int32_t(total);
     }
     m.neighbourIndex.resize(size_t(total));
@@ -156,7 +176,9 @@ Result<FractureModel> FractureModel::build(const RestMeshView& rest, const EdgeG
         for (int32_t s = 0; s < n; ++s) {
           withinRadius(ci, &m.centroids[3 * size_t(row[s])], R2, d2);
           // Linear kernel of eq 4.10: 1 at the tet itself, 0 at the support radius.
-          m.neighbourWeight[size_t(m.neighbourStart[i] + s)] = float(1.0 - std::sqrt(d2) / R);
+          const double w = 1.0 - std::sqrt(d2) / R;
+          m.neighbourWeight[size_t(m.neighbourStart[i] + s)] =
+              float(byLength ? w * volume[size_t(row[s])] : w);
         }
       }
     });

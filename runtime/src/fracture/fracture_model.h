@@ -119,9 +119,11 @@ struct FractureModel {
   std::vector<double> strength;
   std::vector<double> centroids;  ///< Rest centroid, 3 per tet.
   double meanEdgeLength = 0;      ///< Mean rest length over unique edges.
-  double radiusAbs = 0;           ///< R = settings.radius * meanEdgeLength (eq 4.10).
+  /// R: settings.nonlocalLength, else settings.radius * meanEdgeLength (eq 4.10).
+  double radiusAbs = 0;
   /// Non-local neighbours (eq 4.10): tets with |c_j - c_i| < R, self included, sorted by id,
-  /// weight w = 1 - d / R. Empty when R = 0 (local criterion).
+  /// weight w = 1 - d / R, times the neighbour's rest volume when R is nonlocalLength. Empty
+  /// when R = 0 (local criterion).
   std::vector<int32_t> neighbourStart, neighbourIndex;
   std::vector<float> neighbourWeight;
   /// The grid the lists were built with (non-local only); the criterion also uses it to

@@ -98,6 +98,14 @@ Result<void> FractureSettings::check() const {
     return fail("fibreStrengthRatio: must be positive and finite, got ", num(fibreStrengthRatio));
   if (!(std::isfinite(radius) && radius >= 0))
     return fail("radius: must be >= 0 and finite, got ", num(radius));
+  if (!(std::isfinite(nonlocalLength) && nonlocalLength >= 0 &&
+        nonlocalLength <= detail::kMaxMagnitude))
+    return fail("nonlocalLength: must be >= 0 and at most 1e9 m, got ", num(nonlocalLength));
+  if (nonlocalLength > 0 && radius > 0)
+    return fail(
+        "nonlocalLength: set either nonlocalLength (metres) or radius (edge lengths), not "
+        "both (got ",
+        num(nonlocalLength), " m and ", num(radius), ")");
   if (static_cast<unsigned>(model) > static_cast<unsigned>(DamageModel::Degradation))
     return fail("model: unknown damage model ", std::to_string(static_cast<int>(model)));
   if (regions < 1) return fail("regions: must be >= 1, got ", std::to_string(regions));
