@@ -355,6 +355,32 @@ TEST(Scene, SolverKeysLoad) {
   EXPECT_TRUE(SolverSettings{}.corotatedInertia);  // on unless a scene turns it off
 }
 
+TEST(Scene, NumericalDampingLoadsAndIsChecked) {
+  const auto scene = [](const std::string& value) {
+    return parseScene(R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
+        "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},
+        "solver": {"numerical_damping": )" +
+                          value + "}}]}",
+                      "inline", "");
+  };
+  const Result<Scene> r = scene("0.25");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r.value().bodies[0].def.solver.numericalDamping, 0.25);
+  EXPECT_EQ(SolverSettings{}.numericalDamping, 1.0);  // backward Euler unless a scene asks
+  for (const std::string bad : {"-0.1", "1.5"}) {
+    const Result<Scene> b = scene(bad);
+    ASSERT_FALSE(b.ok()) << bad;
+    EXPECT_NE(b.error().message.find("bodies[0].solver.numerical_damping: must lie in [0, 1]"),
+              std::string::npos)
+        << b.error().message;
+  }
+  const Result<Scene> text = scene("\"lively\"");
+  ASSERT_FALSE(text.ok());
+  EXPECT_NE(text.error().message.find("bodies[0].solver.numerical_damping: expected a number"),
+            std::string::npos)
+      << text.error().message;
+}
+
 TEST(Scene, MultigridKeysLoadEveryValue) {
   const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
       "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},

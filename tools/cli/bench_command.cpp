@@ -8,8 +8,9 @@
 // `graphfrac bench overhead`: what the World API costs on top of the solver: World::step of a
 // pure-deformation body against the raw integrator step it wraps, in alternating rounds on
 // one thread.
-// `graphfrac bench options`: the per-step cost of the step's options (the turning frame, the
-// fracture averaging in edge lengths or metres) against the default, in alternating rounds.
+// `graphfrac bench options`: the per-step cost of the step's options (the turning frame,
+// numerical damping, the fracture averaging in edge lengths or metres) against the default, in
+// alternating rounds.
 // `graphfrac bench stages`: per-stage ms per frame (fracture, elements, assembly,
 // solve, surface, Bullet) of whole scenes run through the Bullet bridge, the glass bunny hit
 // by a Bullet ball and the Charpy bar by default.
@@ -367,6 +368,8 @@ int benchOptions(int argc, char** argv) {
   options.push_back({"default (turning frame, backward Euler, no fracture)", base});
   options.push_back({"corotatedInertia off (plain backward Euler)", base});
   options.back().def.solver.corotatedInertia = false;
+  options.push_back({"numericalDamping 0 (implicit midpoint)", base});
+  options.back().def.solver.numericalDamping = 0;
   // Fracture with every edge's strength 5 % over the largest stress the criterion will see:
   // nothing breaks, but the Gershgorin bound lets few tets near the top skip the average (a
   // body about to break; far from its strength the criterion costs next to nothing).
@@ -524,8 +527,9 @@ int runBenchCommand(int argc, char** argv) {
         "       graphfrac bench overhead [--cells NX] [--steps S] [--rounds R]\n"
         "  World::step of a pure-deformation beam against the raw integrator step\n"
         "       graphfrac bench options [--cells N] [--steps S] [--rounds R]\n"
-        "  per-step cost of the step's options (turning frame, fracture averaging) against\n"
-        "  the default, on a spinning cube of N^3 cells (default 16: 24k tets)\n"
+        "  per-step cost of the step's options (turning frame, numerical damping, fracture\n"
+        "  averaging) against the default, on a spinning cube of N^3 cells (default 16: 24k\n"
+        "  tets)\n"
         "       graphfrac bench stages [--scene FILE]... [--frames N] [--threads T]\n"
         "  per-stage ms per frame (fracture, elements, assembly, solve, surface, Bullet) of\n"
         "  scenes run through the Bullet bridge; default scenes/bunny_bullet.json and\n"

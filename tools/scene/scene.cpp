@@ -77,11 +77,10 @@ constexpr FieldName kMaterialNames[] = {{"material.model", "model"},
                                         {"material.stiffnessDamping", "damping.stiffness"}};
 constexpr FieldName kMultigridNames[] = {
     {"smoother", "smoother"}, {"cycles", "cycles"}, {"coarseRefreshInterval", "refresh_interval"}};
-constexpr FieldName kSolverNames[] = {{"newtonIterations", "newton_iterations"},
-                                      {"newtonTolerance", "newton_tolerance"},
-                                      {"linearSolver", "linear"},
-                                      {"maxLinearIterations", "max_linear_iterations"},
-                                      {"linearTolerance", "linear_tolerance"}};
+constexpr FieldName kSolverNames[] = {
+    {"newtonIterations", "newton_iterations"},        {"newtonTolerance", "newton_tolerance"},
+    {"numericalDamping", "numerical_damping"},        {"linearSolver", "linear"},
+    {"maxLinearIterations", "max_linear_iterations"}, {"linearTolerance", "linear_tolerance"}};
 constexpr FieldName kFractureNames[] = {
     {"strength", "strength"}, {"fibreStrengthRatio", "fibre_strength_ratio"},
     {"radius", "radius"},     {"nonlocalLength", "nonlocal_length"},
@@ -442,8 +441,8 @@ MultigridSettings readMultigrid(const json& v, const std::string& path) {
 
 SolverSettings readSolver(const json& v, const std::string& path) {
   ObjReader o(v, path);
-  o.keys({"newton_iterations", "newton_tolerance", "line_search", "corotated_inertia", "linear",
-          "max_linear_iterations", "linear_tolerance", "multigrid"});
+  o.keys({"newton_iterations", "newton_tolerance", "line_search", "corotated_inertia",
+          "numerical_damping", "linear", "max_linear_iterations", "linear_tolerance", "multigrid"});
   SolverSettings s;
   if (const json* x = o.find("newton_iterations")) {
     s.newtonIterations = readInteger(*x, o.at("newton_iterations"));
@@ -454,6 +453,9 @@ SolverSettings readSolver(const json& v, const std::string& path) {
   if (const json* x = o.find("line_search")) s.lineSearch = readBool(*x, o.at("line_search"));
   if (const json* x = o.find("corotated_inertia")) {
     s.corotatedInertia = readBool(*x, o.at("corotated_inertia"));
+  }
+  if (const json* x = o.find("numerical_damping")) {
+    s.numericalDamping = readNumber(*x, o.at("numerical_damping"));
   }
   if (const json* x = o.find("linear")) {
     const std::string kind = readChoice(*x, o.at("linear"), {"pcg", "direct", "multigrid"});

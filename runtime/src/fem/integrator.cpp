@@ -51,6 +51,21 @@ bool spinOf(const Mat3& inertia, Vec3 angularMomentum, Vec3& spin) {
   return true;
 }
 
+// The turn exp(w dt) by Rodrigues: R = I + sin(a) K + (1 - cos(a)) K^2 about the unit axis k.
+Mat3 turnBy(Vec3 spin, double dt) {
+  const double angle = norm(spin) * dt;
+  if (!(angle > 0)) return Mat3::identity();
+  const Vec3 k = (1.0 / norm(spin)) * spin;
+  Mat3 K;
+  K(0, 1) = -k.z;
+  K(0, 2) = k.y;
+  K(1, 0) = k.z;
+  K(1, 2) = -k.x;
+  K(2, 0) = -k.y;
+  K(2, 1) = k.x;
+  return Mat3::identity() + std::sin(angle) * K + (1 - std::cos(angle)) * (K * K);
+}
+
 bool allFinite(const std::vector<double>& a) {
   for (double v : a)
     if (!std::isfinite(v)) return false;
@@ -262,7 +277,8 @@ bool Integrator::enteredUnseenContact(const FemModel& model, const StepContext& 
   return false;
 }
 
-void Integrator::predictRigidMotion(const FemModel& model, const FemState& state, double dt) {
+void Integrator::predictRigidMotion(const FemModel& model, const FemState& state, double dt,
+                                    double fullDt) {
   const size_t n3 = state.x.size();
   for (size_t i = 0; i < n3; ++i) m_y[i] = state.x[i] + dt * state.v[i];
   const bool damped = model.material.stiffnessDamping > 0;
@@ -305,20 +321,8 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
     p.inertia = inertiaFromSecondMoment(p.inertia);
     // A piece without inertia about some axis only translates.
     if (!spinOf(p.inertia, p.spin, p.spin)) p.spin = Vec3{0, 0, 0};
-    const double angle = norm(p.spin) * dt;
-    p.rotation = Mat3::identity();
-    if (angle > 0) {
-      // Rodrigues: R = I + sin(a) K + (1 - cos(a)) K^2 about the unit axis k.
-      const Vec3 k = (1.0 / norm(p.spin)) * p.spin;
-      Mat3 K;
-      K(0, 1) = -k.z;
-      K(0, 2) = k.y;
-      K(1, 0) = k.z;
-      K(1, 2) = -k.x;
-      K(2, 0) = -k.y;
-      K(2, 1) = k.x;
-      p.rotation = Mat3::identity() + std::sin(angle) * K + (1 - std::cos(angle)) * (K * K);
-    }
+    p.rotation = turnBy(p.spin, dt);
+    p.fullRotation = fullDt == dt ? p.rotation : turnBy(p.spin, fullDt);
   }
   // In the frame that turns with the piece, backward Euler on the deformation: y is the rigid
   // motion of x_n (c + dt v_c + R r) plus the deformation's own velocity, turned, and the
@@ -333,8 +337,19 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
     // Newton starts from the turn alone: the translation is linear in x and solved exactly, and
     // a start moved along the velocity could begin inside a collider.
     const Vec3 start = p.centre + turned;
-    const Vec3 vDef = p.rotation * (load3(state.v.data(), n) - p.velocity - cross(p.spin, r));
-    const Vec3 fictitious = -1.0 * cross(p.spin, cross(p.spin, turned)) - 2.0 * cross(p.spin, vDef);
+    const Vec3 vDefStart = load3(state.v.data(), n) - p.velocity - cross(p.spin, r);
+    Vec3 vDef = p.rotation * vDefStart;
+    Vec3 fictitious = -1.0 * cross(p.spin, cross(p.spin, turned));
+    if (fullDt == dt) {
+      fictitious -= 2.0 * cross(p.spin, vDef);
+    } else {
+      // The theta method below 1 leaves the stiff modes undamped, and an explicit Coriolis
+      // term pumps energy into them (a tumbling block gained 12 % in 2 s). So Coriolis is split
+      // off (Strang): over half a step on either side of the solve it turns the deformation
+      // velocity by exp(-2 w dt/2), the transpose of the whole step's turn, which keeps its size
+      // (thetaEndState applies the second half).
+      vDef = p.rotation * (transpose(p.fullRotation) * vDefStart);
+    }
     const Vec3 y = start + dt * (p.velocity + vDef) + (dt * dt) * fictitious;
     // Stiffness damping acts on the deformation: measured from the rigid motion, not x_n.
     for (int i = 0; i < 3; ++i) {
@@ -408,6 +423,92 @@ void Integrator::rigidEndVelocities(const FemModel& model, FemState& state,
   }
 }
 
+void Integrator::thetaEndState(const FemModel& model, FemState& state, const StepContext& inner,
+                               double dt, double theta) {
+  const double h = inner.dt;  // theta * dt, the step the solve took to z = m_x
+  const size_t n3 = state.x.size();
+  // Theta method, one-leg form (Hairer, Lubich & Wanner, Geometric Numerical Integration,
+  // sec. VI.3): z is backward Euler over theta dt; x' = x + (z - x) / theta and
+  // v' = v + (v_z - v) / theta with v_z = (z - x) / (theta dt). Prescribed nodes move exactly.
+  for (size_t i = 0; i < n3; ++i) {
+    const double x = m_xStart[i], v = m_vStart[i];
+    if (model.fixedNode[i / 3]) {
+      state.x[i] = x + dt * model.gripVelocity[i];
+      state.v[i] = model.gripVelocity[i];
+    } else {
+      state.x[i] = x + (m_x[i] - x) / theta;
+      state.v[i] = v + ((m_x[i] - x) / h - v) / theta;
+    }
+  }
+  if (m_pieceOfNode.empty()) return;
+  // Free pieces: extrapolating a turn linearly would stretch the body, so only the centre (a
+  // translation) and the deformation seen in the turning frame are extrapolated; the piece
+  // turns by its spin over the whole step. newCentre is first the centre of z.
+  for (RigidPiece& p : m_pieces) p.newCentre = Vec3{0, 0, 0};
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
+    if (p.rigid) p.newCentre += model.nodeMass[n] * load3(m_x.data(), n);
+  }
+  for (RigidPiece& p : m_pieces) {
+    if (!p.rigid) continue;
+    p.newCentre = (1.0 / p.mass) * p.newCentre;
+    p.newInertia = Mat3{};
+    p.momentTarget = p.inertia * p.spin;
+  }
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
+    if (!p.rigid) continue;
+    const double m = model.nodeMass[n];
+    const Vec3 z = load3(m_x.data(), n), x0 = load3(m_xStart.data(), n);
+    // The external impulses of the solved step, as in rigidEndVelocities, act at z over the
+    // whole step: 1 / theta of them.
+    Vec3 impulse =
+        h * load3(model.externalForce.data(), n) - (model.material.massDamping * m) * (z - x0);
+    if (inner.colliderCount > 0) {
+      const Vec3 xl = load3(m_xLin.data(), n);
+      for (int c = 0; c < inner.colliderCount; ++c) {
+        Vec3 g;
+        Mat3 hc;
+        if (nodeContact(inner.colliders[c], xl, m, g, hc) != 0) impulse -= h * (g + hc * (z - xl));
+      }
+    }
+    p.momentTarget += (1.0 / theta) * cross(z - p.newCentre, impulse);
+    // The deformation over the solved step in the frame at the step's start, extrapolated and
+    // turned over the whole step; its velocity likewise, between the two Coriolis half-turns
+    // (predictRigidMotion), whose second one undoes the frame's turn.
+    const Vec3 r0 = x0 - p.centre;
+    const Vec3 deformation = transpose(p.rotation) * (z - p.newCentre) - r0;
+    const Vec3 vDefStart =
+        transpose(p.fullRotation) * (load3(m_vStart.data(), n) - p.velocity - cross(p.spin, r0));
+    const Vec3 r = p.fullRotation * (r0 + (1.0 / theta) * deformation);
+    const Vec3 vDef = (1 - 1.0 / theta) * vDefStart + (1.0 / (theta * h)) * deformation;
+    const Vec3 centre = p.centre + (1.0 / theta) * (p.newCentre - p.centre);
+    for (int i = 0; i < 3; ++i) {
+      state.x[3 * size_t(n) + i] = centre[i] + r[i];
+      state.v[3 * size_t(n) + i] = vDef[i];  // the spin is added below
+    }
+    p.momentTarget -= m * cross(r, vDef);  // what the deformation carries
+    addSecondMoment(p.newInertia, m, r);
+  }
+  // The spin that gives the piece its angular momentum with the deformation velocities set
+  // above (rigidEndVelocities).
+  for (RigidPiece& p : m_pieces) {
+    if (!p.rigid) continue;
+    p.newInertia = inertiaFromSecondMoment(p.newInertia);
+    if (!spinOf(p.newInertia, p.momentTarget, p.newSpin)) p.newSpin = p.spin;
+  }
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
+    if (!p.rigid) continue;
+    const Vec3 centre = p.centre + (1.0 / theta) * (p.newCentre - p.centre);
+    const Vec3 centreVelocity =
+        p.velocity + (1.0 / theta) * ((1.0 / h) * (p.newCentre - p.centre) - p.velocity);
+    const Vec3 v = centreVelocity + cross(p.newSpin, load3(state.x.data(), n) - centre) +
+                   load3(state.v.data(), n);
+    for (int i = 0; i < 3; ++i) state.v[3 * size_t(n) + i] = v[i];
+  }
+}
+
 EnergyBreakdown Integrator::energies(const FemModel& model, const double* x, const StepContext& ctx,
                                      JobSystem& jobs) const {
   // Its own buffer, so that a diagnostic between steps never races or clobbers the step's.
@@ -433,36 +534,30 @@ void Integrator::prescribedNodeForces(const FemModel& model, const FemState& sta
                                       const StepContext& ctx, JobSystem& jobs,
                                       std::vector<double>& out) {
   // m_xStart and m_vStart still hold the last step's start, which fixes the inertia target y.
-  (void)incrementalPotential(model, m_xStart.data(), state.x.data(), ctx, true, false, jobs);
-  const double dt2 = ctx.dt * ctx.dt;
+  // Below theta = 1 the step solved theta dt to z (m_x), where its forces act.
+  StepContext inner = ctx;
+  inner.dt = m_theta * ctx.dt;
+  const double* x = m_theta == 1 ? state.x.data() : m_x.data();
+  (void)incrementalPotential(model, m_xStart.data(), x, inner, true, false, jobs);
+  const double dt2 = inner.dt * inner.dt;
   out.assign(state.x.size(), 0.0);
   for (size_t i = 0; i < out.size(); ++i)
     if (model.fixedNode[i / 3]) out[i] = m_grad[i] / dt2;
 }
 
-BodyStepReport Integrator::step(const FemModel& model, FemState& state, const StepContext& ctx,
-                                JobSystem& jobs) {
-  BodyStepReport rep;
+double Integrator::solve(const FemModel& model, FemState& state, const StepContext& ctx,
+                         double fullDt, bool judgeFracture, JobSystem& jobs, BodyStepReport& rep) {
   const double dt = ctx.dt, dt2 = dt * dt;
   const double r1 = model.material.massDamping, r2 = model.material.stiffnessDamping;
   const int maxNewton = model.solver.newtonIterations < 1 ? 1 : model.solver.newtonIterations;
   const size_t n3 = state.x.size();
-  m_xStart = state.x;
-  m_vStart = state.v;
-
-  // Moving grips shift the start point away from x_n, so fracture is judged on x_n first.
-  if (m_fracture && model.movingGrips) {
-    const auto tf = Clock::now();
-    m_fracture->detect(model, state.x.data(), state.v.data(), jobs, /*stressesReady=*/false);
-    rep.fractureMs += msSince(tf);
-  }
   // Start at x_n with the prescribed nodes already moved; they stay put from here on. Free
   // pieces start at their rigid motion over the step, and their inertia target y follows it.
   m_x = state.x;
   for (int32_t n = 0; n < model.nodeCount; ++n)
     if (model.fixedNode[n])
       for (int i = 0; i < 3; ++i) m_x[3 * n + i] += dt * model.gripVelocity[3 * n + i];
-  predictRigidMotion(model, state, dt);
+  predictRigidMotion(model, state, dt, fullDt);
 
   const double* start = m_xStart.data();  // x_n
   const bool fullNewton = maxNewton > 1;
@@ -478,7 +573,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     // Fracture is judged on the first pass's stresses when that pass sees x_n (no grip has
     // moved the start point); if edges broke, the damaged elements change and the pass is
     // repeated once.
-    const bool fusedFracture = it == 0 && m_fracture && !model.movingGrips;
+    const bool fusedFracture = it == 0 && judgeFracture && m_fracture && !model.movingGrips;
     if (fusedFracture) m_stressOut = m_fracture->stressBuffer();
     double E = incrementalPotential(model, start, m_x.data(), ctx, true, true, jobs);
     m_stressOut = nullptr;
@@ -605,24 +700,88 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   double psi = 0;
   if (!finalStepNegligible)
     psi = finalPsiKnown ? m_lastPsi : elementPass(model, m_x.data(), false, jobs);
+  return psi;
+}
+
+bool Integrator::nearCollider(const FemModel& model, const double* x, const double* v, double dt,
+                              const StepContext& ctx) const {
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    if (model.fixedNode[n]) continue;
+    const Vec3 xi = load3(x, n);
+    for (int c = 0; c < ctx.colliderCount; ++c) {
+      Vec3 normal;
+      if (penetration(ctx.colliders[c], xi, normal) > 0 ||
+          (v && penetration(ctx.colliders[c], xi + dt * load3(v, n), normal) > 0))
+        return true;
+    }
+  }
+  return false;
+}
+
+BodyStepReport Integrator::step(const FemModel& model, FemState& state, const StepContext& ctx,
+                                JobSystem& jobs) {
+  BodyStepReport rep;
+  const size_t n3 = state.x.size();
+  m_xStart = state.x;
+  m_vStart = state.v;
+  // theta = 1: backward Euler. Below it the solve covers theta dt (the one-leg theta method)
+  // and thetaEndState extrapolates to dt. Penalty contact is one-sided: extrapolating a step
+  // in which a node met a collider can put it deep inside, and the penalty energy stored there
+  // comes back as an explosion (the 100 m/s impact of test_stiff.cpp blew up), so a body that
+  // touches a collider, or would within the step, is stepped with backward Euler.
+  double theta = 0.5 + 0.5 * model.solver.numericalDamping;
+  if (theta < 1 && ctx.colliderCount > 0 &&
+      nearCollider(model, state.x.data(), state.v.data(), ctx.dt, ctx))
+    theta = 1;
+
+  // Moving grips shift the start point away from x_n, so fracture is judged on x_n first.
+  if (m_fracture && model.movingGrips) {
+    const auto tf = Clock::now();
+    m_fracture->detect(model, state.x.data(), state.v.data(), jobs, /*stressesReady=*/false);
+    rep.fractureMs += msSince(tf);
+  }
+  StepContext inner = ctx;
+  double psi = 0;
+  for (bool judgeFracture = true;; judgeFracture = false) {
+    inner.dt = theta * ctx.dt;
+    const uint32_t flagsBefore = rep.flags;
+    psi = solve(model, state, inner, ctx.dt, judgeFracture, jobs, rep);
+    if (theta == 1) {
+      // v_{n+1} = (x_{n+1} - x_n) / dt; prescribed nodes move at exactly their grip velocity.
+      for (size_t i = 0; i < n3; ++i) {
+        state.v[i] =
+            model.fixedNode[i / 3] ? model.gripVelocity[i] : (m_x[i] - m_xStart[i]) / inner.dt;
+        state.x[i] = m_x[i];
+      }
+      rigidEndVelocities(model, state, inner);
+      break;
+    }
+    thetaEndState(model, state, inner, ctx.dt, theta);
+    if (ctx.colliderCount == 0 || !nearCollider(model, state.x.data(), nullptr, 0, ctx)) break;
+    // The extrapolation reached into a collider: the step again, as backward Euler from the
+    // same start (fracture was judged there already).
+    state.x = m_xStart;
+    state.v = m_vStart;
+    rep.flags = flagsBefore;
+    theta = 1;
+  }
+  m_theta = theta;
+  const double dt = inner.dt;
   const double blowUp = kBlowUpEnergyDensity *
                         std::max(model.material.youngsModulus, model.material.fibreStiffness) *
                         m_restVolume;
-
-  // v_{n+1} = (x_{n+1} - x_n) / dt; prescribed nodes move at exactly their grip velocity.
-  for (size_t i = 0; i < n3; ++i) {
-    state.v[i] = model.fixedNode[i / 3] ? model.gripVelocity[i] : (m_x[i] - m_xStart[i]) / dt;
-    state.x[i] = m_x[i];
-  }
-  rigidEndVelocities(model, state, ctx);
+  // The divergence check reads the solved point's energy; the extrapolated state is checked for
+  // finite values. A rolled-back step leaves z at the start too (prescribedNodeForces).
   if (!allFinite(state.x) || !allFinite(state.v) || !std::isfinite(psi)) {
     state.x = m_xStart;
     state.v = m_vStart;
+    m_x = m_xStart;
     rep.flags |= kStepNanContained;
     rep.message = "produced a non-finite state and was restored to the start of the step";
   } else if (psi > blowUp) {
     state.x = m_xStart;
     state.v = m_vStart;
+    m_x = m_xStart;
     rep.flags |= kStepNanContained;
     char text[160];
     std::snprintf(text, sizeof text,
@@ -634,7 +793,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     // The last Newton step solved the linearisation at m_xLin, so the contact force that
     // entered the momentum balance is the linearised one, g + H (x - x_lin) (equal to the
     // force at x when the contact set and normals did not change). Serial, in node order: the
-    // same sums for any thread count.
+    // same sums for any thread count. Below theta = 1 that force acts over the whole step.
     for (int32_t n = 0; n < model.nodeCount; ++n) {
       if (model.fixedNode[n]) continue;  // prescribed nodes take no part in the balance
       const Vec3 xi = load3(m_x.data(), n), xl = load3(m_xLin.data(), n);
@@ -642,7 +801,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
         Vec3 g;
         Mat3 h;
         if (nodeContact(ctx.colliders[c], xl, model.nodeMass[n], g, h) == 0) continue;
-        const Vec3 j = -dt * (g + h * (xi - xl));
+        const Vec3 j = (-dt / theta) * (g + h * (xi - xl));
         const Vec3 moment = cross(xi - ctx.colliders[c].point, j);
         double* out = ctx.colliderImpulse + 6 * c;
         for (int i = 0; i < 3; ++i) {

@@ -12,6 +12,9 @@
 // Free pieces (no gripped node) are stepped in the frame that turns with them: y carries their
 // rigid motion exactly plus the frame's centrifugal and Coriolis accelerations, Newton starts
 // from x_n turned, and the end velocity keeps their angular momentum (docs/design.md).
+// SolverSettings::numericalDamping < 1 makes the step the theta method in its one-leg form:
+// the step above over theta dt, extrapolated to dt (free pieces: their deformation only, with
+// Coriolis split off), except for a body at a collider, which backward Euler keeps calm.
 // Nodes with a prescribed velocity are placed first and then held (zero rows/columns).
 // The sparse pattern, the gather plan and all work arrays are built once per body.
 #pragma once
@@ -114,9 +117,20 @@ class Integrator {
                               JobSystem& jobs);
   // Free pieces (fragments without a prescribed node) are stepped in the frame that turns
   // with them: fills m_y (the inertia target) and moves their start in m_x; see the .cpp.
-  void predictRigidMotion(const FemModel& model, const FemState& state, double dt);
+  // fullDt is the whole step when the solve covers only theta of it (numericalDamping < 1).
+  void predictRigidMotion(const FemModel& model, const FemState& state, double dt, double fullDt);
   // The end-of-step velocities of free pieces in that frame.
   void rigidEndVelocities(const FemModel& model, FemState& state, const StepContext& ctx);
+  // theta < 1: the end of the step extrapolated from the solved step of theta * dt (m_x).
+  void thetaEndState(const FemModel& model, FemState& state, const StepContext& inner, double dt,
+                     double theta);
+  // The Newton solve of one backward-Euler step of ctx.dt (theta times the step, fullDt) into
+  // m_x; fracture is judged in its first pass when asked. Returns the elastic energy at m_x.
+  double solve(const FemModel& model, FemState& state, const StepContext& ctx, double fullDt,
+               bool judgeFracture, JobSystem& jobs, BodyStepReport& rep);
+  // True when a free node at x, or at x + dt v (v non-null), penetrates a collider.
+  bool nearCollider(const FemModel& model, const double* x, const double* v, double dt,
+                    const StepContext& ctx) const;
   // True when a free node now penetrates a collider that the last linearisation missed.
   bool enteredUnseenContact(const FemModel& model, const StepContext& ctx) const;
   // Rayleigh stiffness-damping term dt/2 (x-x_r)^T r2 K(x_n) (x-x_r) (+ gradient into m_grad),
@@ -139,6 +153,7 @@ class Integrator {
   bool m_dampKValid = false;           // m_dampK belongs to the current step
   std::vector<double> m_xLin;          // the last linearisation point, for collider impulses
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
+  double m_theta = 1;  // of the last step; below 1, m_x keeps the solved point the forces act at
   FractureBody* m_fracture = nullptr;
   double* m_stressOut = nullptr;  // 6 per tet: the element pass also writes Biot stresses
   const std::vector<Mat3>* m_plasticInverse = nullptr;
@@ -153,6 +168,7 @@ class Integrator {
     Vec3 centre{0, 0, 0}, velocity{0, 0, 0}, spin{0, 0, 0}, newCentre{0, 0, 0}, newSpin{0, 0, 0},
         momentTarget{0, 0, 0};
     Mat3 inertia, rotation, newInertia;
+    Mat3 fullRotation;  // the turn over the whole step when the solve covers theta of it
     bool fixed = false, rigid = false;
   };
   std::vector<RigidPiece> m_pieces;

@@ -79,6 +79,8 @@ Result<void> SolverSettings::check() const {
     return fail("newtonIterations: must be >= 1, got ", std::to_string(newtonIterations));
   if (!positiveFinite(newtonTolerance))
     return fail("newtonTolerance: must be positive and finite, got ", num(newtonTolerance));
+  if (!(numericalDamping >= 0 && numericalDamping <= 1))
+    return fail("numericalDamping: must lie in [0, 1], got ", num(numericalDamping));
   if (static_cast<unsigned>(linearSolver) > static_cast<unsigned>(LinearSolverKind::Multigrid))
     return fail("linearSolver: unknown solver ", std::to_string(static_cast<int>(linearSolver)));
   if (maxLinearIterations < 1)
