@@ -360,6 +360,30 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
   }
 }
 
+Vec3 Integrator::externalImpulse(const FemModel& model, const StepContext& ctx, int32_t n,
+                                 Vec3 x) const {
+  const double m = model.nodeMass[n];
+  Vec3 impulse = ctx.dt * load3(model.externalForce.data(), n) -
+                 (model.material.massDamping * m) * (x - load3(m_xStart.data(), n));
+  if (ctx.colliderCount > 0) {
+    const Vec3 xl = load3(m_xLin.data(), n);
+    for (int c = 0; c < ctx.colliderCount; ++c) {
+      Vec3 g;
+      Mat3 h;
+      if (nodeContact(ctx.colliders[c], xl, m, g, h) != 0) impulse -= ctx.dt * (g + h * (x - xl));
+    }
+  }
+  return impulse;
+}
+
+void Integrator::solveEndSpins() {
+  for (RigidPiece& p : m_pieces) {
+    if (!p.rigid) continue;
+    p.newInertia = inertiaFromSecondMoment(p.newInertia);
+    if (!spinOf(p.newInertia, p.momentTarget, p.newSpin)) p.newSpin = p.spin;
+  }
+}
+
 void Integrator::rigidEndVelocities(const FemModel& model, FemState& state,
                                     const StepContext& ctx) {
   const double dt = ctx.dt;
@@ -393,25 +417,11 @@ void Integrator::rigidEndVelocities(const FemModel& model, FemState& state,
     const Vec3 x = load3(state.x.data(), n);
     const Vec3 r = x - p.newCentre;
     const Vec3 turned = p.rotation * (load3(m_xStart.data(), n) - p.centre);
-    Vec3 impulse = dt * load3(model.externalForce.data(), n) -
-                   (model.material.massDamping * m) * (x - load3(m_xStart.data(), n));
-    if (ctx.colliderCount > 0) {
-      const Vec3 xl = load3(m_xLin.data(), n);
-      for (int c = 0; c < ctx.colliderCount; ++c) {
-        Vec3 g;
-        Mat3 h;
-        if (nodeContact(ctx.colliders[c], xl, m, g, h) != 0) impulse -= dt * (g + h * (x - xl));
-      }
-    }
-    p.momentTarget += cross(r, impulse);
+    p.momentTarget += cross(r, externalImpulse(model, ctx, n, x));
     p.momentTarget -= (m / dt) * cross(r, r - turned);  // what the deformation carries
     addSecondMoment(p.newInertia, m, r);                // the second moment for now
   }
-  for (RigidPiece& p : m_pieces) {
-    if (!p.rigid) continue;
-    p.newInertia = inertiaFromSecondMoment(p.newInertia);
-    if (!spinOf(p.newInertia, p.momentTarget, p.newSpin)) p.newSpin = p.spin;
-  }
+  solveEndSpins();
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
     if (!p.rigid) continue;
@@ -462,17 +472,7 @@ void Integrator::thetaEndState(const FemModel& model, FemState& state, const Ste
     const Vec3 z = load3(m_x.data(), n), x0 = load3(m_xStart.data(), n);
     // The external impulses of the solved step, as in rigidEndVelocities, act at z over the
     // whole step: 1 / theta of them.
-    Vec3 impulse =
-        h * load3(model.externalForce.data(), n) - (model.material.massDamping * m) * (z - x0);
-    if (inner.colliderCount > 0) {
-      const Vec3 xl = load3(m_xLin.data(), n);
-      for (int c = 0; c < inner.colliderCount; ++c) {
-        Vec3 g;
-        Mat3 hc;
-        if (nodeContact(inner.colliders[c], xl, m, g, hc) != 0) impulse -= h * (g + hc * (z - xl));
-      }
-    }
-    p.momentTarget += (1.0 / theta) * cross(z - p.newCentre, impulse);
+    p.momentTarget += (1.0 / theta) * cross(z - p.newCentre, externalImpulse(model, inner, n, z));
     // The deformation over the solved step in the frame at the step's start, extrapolated and
     // turned over the whole step; its velocity likewise, between the two Coriolis half-turns
     // (predictRigidMotion), whose second one undoes the frame's turn.
@@ -492,11 +492,7 @@ void Integrator::thetaEndState(const FemModel& model, FemState& state, const Ste
   }
   // The spin that gives the piece its angular momentum with the deformation velocities set
   // above (rigidEndVelocities).
-  for (RigidPiece& p : m_pieces) {
-    if (!p.rigid) continue;
-    p.newInertia = inertiaFromSecondMoment(p.newInertia);
-    if (!spinOf(p.newInertia, p.momentTarget, p.newSpin)) p.newSpin = p.spin;
-  }
+  solveEndSpins();
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
     if (!p.rigid) continue;

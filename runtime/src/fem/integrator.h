@@ -121,6 +121,12 @@ class Integrator {
   void predictRigidMotion(const FemModel& model, const FemState& state, double dt, double fullDt);
   // The end-of-step velocities of free pieces in that frame.
   void rigidEndVelocities(const FemModel& model, FemState& state, const StepContext& ctx);
+  // What the outside gives node n over ctx.dt when it ends at x: point forces, mass-damping drag
+  // and contact as the last Newton step linearised it (no gravity: it has no moment about the
+  // centre).
+  Vec3 externalImpulse(const FemModel& model, const StepContext& ctx, int32_t n, Vec3 x) const;
+  // Each free piece's end spin w' from its end inertia and target angular momentum.
+  void solveEndSpins();
   // theta < 1: the end of the step extrapolated from the solved step of theta * dt (m_x).
   void thetaEndState(const FemModel& model, FemState& state, const StepContext& inner, double dt,
                      double theta);
