@@ -1,14 +1,17 @@
 // `graphfrac mesh from-surface` on good and bad surfaces: it reads OBJ and PLY (ASCII and both
-// binary byte orders) to the same tet mesh, names other formats, and when the input cannot be
-// meshed says why in the file's terms (line, vertex and face numbers) with every open edge and
-// every pair of crossing faces, not the first problem alone or tetgen's abort. Cases that run
-// tetgen are skipped where the program is not installed (tools/setup installs it).
+// binary byte orders) to the same tet mesh, reads STL, glTF, FBX and Collada through assimp in
+// metres, and when the input cannot be read or meshed says why in the file's terms (line,
+// vertex and face numbers, or meshes) with every open edge and every pair of crossing faces, not
+// the first problem alone or tetgen's abort. Cases that run tetgen are skipped where the program
+// is not installed, and cases that read assimp's test models where assimp or the models are
+// missing (tools/setup tools installs all three).
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -20,6 +23,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/surface_reader.h"
 #include "graphfrac/mesh.h"
 
 namespace fs = std::filesystem;
@@ -54,6 +58,20 @@ bool haveTetgen() {
 
 #define REQUIRE_TETGEN() \
   if (!haveTetgen()) GTEST_SKIP() << "the tetgen program is not installed (tools/setup tools)"
+
+// Debian's assimp-testmodels.
+const fs::path kModels = "/usr/share/assimp/models";
+
+#define REQUIRE_ASSIMP()                                                                 \
+  if (!gf::cli::haveAssimp())                                                            \
+  GTEST_SKIP() << "built without assimp (install libassimp-dev: tools/setup tools, and " \
+                  "configure again)"
+
+#define REQUIRE_MODELS()                                                           \
+  REQUIRE_ASSIMP();                                                                \
+  if (!fs::exists(kModels / "STL" / "Wuson.stl"))                                  \
+  GTEST_SKIP() << "assimp's test models are not installed in " << kModels.string() \
+               << " (Debian package assimp-testmodels: tools/setup tools)"
 
 fs::path scratch(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / ("gf_mesh_test_" + name);
@@ -171,26 +189,37 @@ TEST(MeshFromSurface, ReadsAsciiAndBinaryPly) {
   }
 }
 
-TEST(MeshFromSurface, NamesFormatsItDoesNotRead) {
+// Without assimp the other formats are named; with it, what assimp cannot read is reported with
+// the file name and assimp's reason.
+TEST(MeshFromSurface, NamesWhatCannotBeRead) {
   const fs::path dir = scratch("formats");
   std::ofstream(dir / "cube.stl") << "solid cube\n  facet normal 0 0 1\n";
   {
     std::ofstream glb(dir / "model.bin", std::ios::binary);
     glb.write("glTF\2\0\0\0", 8);
   }
-  std::ofstream(dir / "off.txt") << "OFF\n8 12 0\n";
+  {
+    std::ofstream fbx(dir / "broken.fbx", std::ios::binary);
+    fbx.write("Kaydara FBX Binary  \0\x1a\0", 23);
+  }
   const struct {
     const char* file;
-    const char* what;
-  } cases[] = {{"cube.stl", "(got an STL file)"},
-               {"model.bin", "(got a glTF file)"},
-               {"off.txt", "(got an OFF file)"}};
+    const char* without;  // the error without assimp, then with it
+    const char* with;
+  } cases[] = {
+      {"cube.stl", ": reads Wavefront OBJ and PLY only (got an STL file)",
+       ": assimp cannot read it: "},
+      {"model.bin", ": reads Wavefront OBJ and PLY only (got a glTF file)",
+       ": unsupported format: assimp has no reader for it"},
+      {"broken.fbx", ": reads Wavefront OBJ and PLY only (got an FBX file)",
+       ": assimp cannot read it: FBX"},
+      {"missing.glb", ": cannot open", ": cannot open"},
+  };
   for (const auto& c : cases) {
     const Outcome o = mesh({"from-surface", (dir / c.file).string(), (dir / "out.msh").string()});
     EXPECT_EQ(o.code, gf::cli::kExitScene) << c.file;
-    EXPECT_NE(o.err.find(std::string(c.file) + ": reads Wavefront OBJ and PLY only " + c.what),
-              std::string::npos)
-        << o.err;
+    const std::string want = (dir / c.file).string() + (gf::cli::haveAssimp() ? c.with : c.without);
+    EXPECT_NE(o.err.find(want), std::string::npos) << want << "\n" << o.err;
   }
 }
 
@@ -303,6 +332,185 @@ TEST(MeshFromSurface, HugeOrNonFiniteCoordinatesNameTheLine) {
   EXPECT_NE(o.err.find("over.obj:3: vertex coordinate z: '1e400' is out of the range of a double"),
             std::string::npos)
       << o.err;
+}
+
+// ---- through assimp ----------------------------------------------------------------------
+
+struct Shape {
+  size_t triangles = 0;
+  std::array<double, 3> lo{}, hi{};
+  double area = 0;
+};
+
+// Read as `mesh from-surface` reads it; the bounding box and area are measured here.
+Shape shape(const fs::path& path, gf::cli::SurfaceReadOptions options = {}) {
+  gf::Result<gf::cli::SurfaceFile> r = gf::cli::readSurfaceFile(path.string(), options);
+  Shape s;
+  EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.error().message);
+  if (!r.ok()) return s;
+  const gf::cli::SurfaceFile& f = r.value();
+  s.triangles = f.triangles.size() / 3;
+  s.lo = {INFINITY, INFINITY, INFINITY};
+  s.hi = {-INFINITY, -INFINITY, -INFINITY};
+  for (int64_t v : f.triangles) {
+    for (size_t k = 0; k < 3; ++k) {
+      s.lo[k] = std::min(s.lo[k], f.positions[3 * static_cast<size_t>(v) + k]);
+      s.hi[k] = std::max(s.hi[k], f.positions[3 * static_cast<size_t>(v) + k]);
+    }
+  }
+  for (size_t t = 0; t < f.triangles.size(); t += 3) {
+    const double* p[3];
+    for (size_t k = 0; k < 3; ++k) p[k] = &f.positions[3 * static_cast<size_t>(f.triangles[t + k])];
+    const double a[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
+    const double b[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
+    s.area += 0.5 * std::hypot(a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                               a[0] * b[1] - a[1] * b[0]);
+  }
+  return s;
+}
+
+// Same triangles, box and area to a relative tolerance (float formats against double ones).
+void expectSameShape(const Shape& a, const Shape& b, double tol, const std::string& what) {
+  EXPECT_EQ(a.triangles, b.triangles) << what;
+  const double size = std::max({a.hi[0] - a.lo[0], a.hi[1] - a.lo[1], a.hi[2] - a.lo[2]});
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_NEAR(a.lo[k], b.lo[k], tol * size) << what << " axis " << k;
+    EXPECT_NEAR(a.hi[k], b.hi[k], tol * size) << what << " axis " << k;
+  }
+  EXPECT_NEAR(a.area, b.area, tol * a.area) << what;
+}
+
+// The Wuson model as STL (assimp), PLY and OBJ (the CLI's readers) and OBJ through assimp:
+// four readers, one shape.
+TEST(MeshFromSurfaceAssimp, OneModelInStlPlyAndObjReadsTheSame) {
+  REQUIRE_MODELS();
+  const Shape stl = shape(kModels / "STL" / "Wuson.stl");
+  EXPECT_EQ(stl.triangles, 3732u);
+  EXPECT_NEAR(stl.hi[1] - stl.lo[1], 1.515816, 1e-5);  // its height, Y up as written
+  expectSameShape(stl, shape(kModels / "PLY" / "Wuson.ply"), 1e-6, "PLY");
+  expectSameShape(stl, shape(kModels / "OBJ" / "WusonOBJ.obj"), 1e-6, "OBJ");
+  gf::cli::SurfaceReadOptions viaAssimp;
+  viaAssimp.assimp = true;
+  expectSameShape(stl, shape(kModels / "OBJ" / "WusonOBJ.obj", viaAssimp), 1e-6, "OBJ (assimp)");
+}
+
+// The 1 m cube as binary and text glTF and as Collada written in centimetres (<unit
+// meter="0.01">): 12 triangles, [-0.5, 0.5]^3, area 6; tetgen fills it with volume 1.
+TEST(MeshFromSurfaceAssimp, UnitCubeInGlbGltfAndCollada) {
+  REQUIRE_MODELS();
+  const Shape cube = shape(kModels / "glTF2" / "BoxTextured-glTF-Binary" / "BoxTextured.glb");
+  EXPECT_EQ(cube.triangles, 12u);
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_NEAR(cube.lo[k], -0.5, 1e-6);
+    EXPECT_NEAR(cube.hi[k], 0.5, 1e-6);
+  }
+  EXPECT_NEAR(cube.area, 6.0, 1e-5);
+  expectSameShape(cube, shape(kModels / "glTF2" / "BoxTextured-glTF" / "BoxTextured.gltf"), 1e-6,
+                  "glTF");
+  expectSameShape(cube, shape(kModels / "Collada" / "cube_UTF8BOM.dae"), 1e-6, "Collada");
+  if (!haveTetgen()) GTEST_SKIP() << "the tetgen program is not installed (tools/setup tools)";
+  const fs::path out = scratch("glb") / "cube.msh";
+  const Outcome o = mesh(
+      {"from-surface", (kModels / "glTF2" / "BoxTextured-glTF-Binary" / "BoxTextured.glb").string(),
+       out.string()});
+  ASSERT_EQ(o.code, gf::cli::kExitOk) << o.err;
+  EXPECT_NE(o.out.find("unit 1 m (glTF), up +Y (glTF)"), std::string::npos) << o.out;
+  EXPECT_NE(o.out.find("8 vertices, 12 triangles"), std::string::npos) << o.out;
+  EXPECT_NEAR(meshVolume(out), 1.0, 1e-6);
+}
+
+// FBX's UnitScaleFactor (centimetres per unit): a box saved in metres is 1 m, and the spider
+// saved in FBX centimetres matches its OBJ (read as metres).
+TEST(MeshFromSurfaceAssimp, FbxUnitsBecomeMetres) {
+  REQUIRE_MODELS();
+  // A 1 m box saved in metres (UnitScaleFactor 100): [-0.5, 0.5] x [0, 1] x [-0.5, 0.5].
+  const Shape box = shape(kModels / "FBX" / "box_orphant_embedded_texture.fbx");
+  EXPECT_EQ(box.triangles, 12u);
+  for (size_t k = 0; k < 3; ++k) EXPECT_NEAR(box.hi[k] - box.lo[k], 1.0, 1e-5) << k;
+  EXPECT_NEAR(box.area, 6.0, 1e-4);
+  expectSameShape(shape(kModels / "OBJ" / "spider.obj"), shape(kModels / "FBX" / "spider.fbx"),
+                  1e-5, "spider in OBJ and in FBX centimetres");
+
+  // --scale replaces the file's unit (UnitScaleFactor 500: 5 m per unit).
+  const fs::path five = kModels / "FBX" / "global_settings.fbx";
+  gf::cli::SurfaceReadOptions raw;
+  raw.scale = 1;
+  const Shape declared = shape(five), unscaled = shape(five, raw);
+  EXPECT_NEAR(declared.hi[0] - declared.lo[0], 5 * (unscaled.hi[0] - unscaled.lo[0]), 1e-9);
+  gf::Result<gf::cli::SurfaceFile> r = gf::cli::readSurfaceFile(five.string());
+  ASSERT_TRUE(r.ok());
+  EXPECT_NE(r.value().conversion.find("unit 5 m (FBX UnitScaleFactor 500)"), std::string::npos)
+      << r.value().conversion;
+}
+
+// --up z turns a Z-up model to Y up: (x, y, z) -> (x, z, -y).
+TEST(MeshFromSurfaceAssimp, UpAxisTurnsToY) {
+  REQUIRE_MODELS();
+  const Shape y = shape(kModels / "STL" / "Wuson.stl");
+  gf::cli::SurfaceReadOptions zUp;
+  zUp.up = 'z';
+  const Shape z = shape(kModels / "STL" / "Wuson.stl", zUp);
+  EXPECT_NEAR(z.lo[1], y.lo[2], 1e-9);
+  EXPECT_NEAR(z.hi[1], y.hi[2], 1e-9);
+  EXPECT_NEAR(z.lo[2], -y.hi[1], 1e-9);
+  EXPECT_NEAR(z.hi[0], y.hi[0], 1e-9);
+  EXPECT_NEAR(z.area, y.area, 1e-9 * y.area);
+}
+
+// A minimal glTF whose one primitive has the given mode (0 points, 1 lines, 4 triangles).
+void writeGltf(const fs::path& path, int mode) {
+  const float xyz[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  std::ofstream bin(path.string() + ".bin", std::ios::binary);
+  bin.write(reinterpret_cast<const char*>(xyz), sizeof xyz);
+  std::ofstream(path) << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+  "nodes": [{"name": "n", "mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "mode": )"
+                      << mode << R"(}]}],
+  "buffers": [{"uri": ")"
+                      << path.filename().string() << R"(.bin", "byteLength": 36}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                 "min": [0, 0, 0], "max": [1, 1, 0]}]})";
+}
+
+TEST(MeshFromSurfaceAssimp, PointsLinesAndEmptyScenesAreNamed) {
+  REQUIRE_ASSIMP();
+  const fs::path dir = scratch("assimp_err");
+  writeGltf(dir / "points.gltf", 0);
+  Outcome o = mesh({"from-surface", (dir / "points.gltf").string(), (dir / "o.msh").string()});
+  EXPECT_EQ(o.code, gf::cli::kExitScene);
+  EXPECT_NE(o.err.find("points.gltf: no triangles to mesh: the file holds only 3 points and 0 "
+                       "lines"),
+            std::string::npos)
+      << o.err;
+  writeGltf(dir / "lines.gltf", 1);
+  o = mesh({"from-surface", (dir / "lines.gltf").string(), (dir / "o.msh").string()});
+  EXPECT_NE(o.err.find("lines.gltf: no triangles to mesh: the file holds only 0 points and 1 "
+                       "lines"),
+            std::string::npos)
+      << o.err;
+  std::ofstream(dir / "empty.gltf") << R"({"asset": {"version": "2.0"}, "scene": 0,
+    "scenes": [{"nodes": [0]}], "nodes": [{"name": "nothing"}]})";
+  o = mesh({"from-surface", (dir / "empty.gltf").string(), (dir / "o.msh").string()});
+  EXPECT_EQ(o.code, gf::cli::kExitScene);
+  EXPECT_NE(o.err.find("empty.gltf: the scene is empty: no meshes"), std::string::npos) << o.err;
+}
+
+// What the CLI's readers check holds for assimp's surfaces, named by mesh and vertex.
+TEST(MeshFromSurfaceAssimp, OpenAndNonFiniteSurfacesNameTheMesh) {
+  REQUIRE_MODELS();
+  const fs::path dir = scratch("assimp_open");
+  Outcome o = mesh({"from-surface", (kModels / "STL" / "sphereWithHole.stl").string(),
+                    (dir / "o.msh").string()});
+  EXPECT_EQ(o.code, gf::cli::kExitScene);
+  EXPECT_NE(o.err.find("sphereWithHole.stl: surface is not closed: "), std::string::npos) << o.err;
+  EXPECT_NE(o.err.find(", of the triangle "), std::string::npos) << o.err;
+  o = mesh({"from-surface",
+            (kModels / "glTF2" / "BoxWithInfinites-glTF-Binary" / "BoxWithInfinites.glb").string(),
+            (dir / "o.msh").string()});
+  EXPECT_EQ(o.code, gf::cli::kExitScene);
+  EXPECT_NE(o.err.find("BoxWithInfinites.glb: mesh "), std::string::npos) << o.err;
+  EXPECT_NE(o.err.find("is not finite"), std::string::npos) << o.err;
 }
 
 }  // namespace

@@ -1,11 +1,12 @@
-// `graphfrac mesh`: from-surface reads a triangle surface (Wavefront OBJ, or PLY in ASCII or
-// binary), runs the tetgen program as a subprocess (it is AGPL and never linked) on a .smesh
-// written from it, and reads its .node/.ele back through the runtime's validated reader.
-// tetgen answers bad input with an abort and no reason, so what it would fail on is checked here
-// first and reported in the file's own terms (lines, vertex and face numbers): coordinates that
-// overflow, open edges. Finding crossing faces takes a second tetgen run, so only a failed run is
-// followed by `tetgen -d`, whose list of crossing facets is translated back to the file.
-// info and convert are thin wrappers over gf::TetMesh.
+// `graphfrac mesh`: from-surface reads a triangle surface (OBJ and PLY by the CLI's own readers;
+// STL, glTF, FBX, Collada and the rest through assimp, see surface_reader.h), runs the tetgen
+// program as a subprocess (it is AGPL and never linked) on a .smesh written from it, and reads its
+// .node/.ele back through the runtime's validated reader. tetgen answers bad input with an abort
+// and no reason, so what it would fail on is checked here first and reported in the file's own
+// terms (lines, vertex and face numbers): coordinates that overflow, open edges. Finding crossing
+// faces takes a second tetgen run, so only a failed run is followed by `tetgen -d`, whose list of
+// crossing facets is translated back to the file. info and convert are thin wrappers over
+// gf::TetMesh.
 #include <fcntl.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -41,9 +42,20 @@ namespace fs = std::filesystem;
 
 constexpr const char* kUsage =
     "usage: graphfrac mesh from-surface IN OUT.msh [--max-volume V] [--quality Q]\n"
+    "                                  [--scale S] [--up x|y|z] [--assimp]\n"
     "                                  [--tetgen PATH] [--keep-temp]\n"
-    "         IN: a closed triangle surface, Wavefront OBJ (.obj) or PLY (.ply, ASCII or\n"
-    "         binary); polygons are split into triangles\n"
+    "         IN: a closed triangle surface: Wavefront OBJ (.obj) or PLY (.ply, ASCII or\n"
+    "         binary); through assimp: STL, glTF 2.0 (.gltf, .glb), FBX, Collada (.dae),\n"
+    "         3DS, OFF and the other formats assimp reads. All meshes of the scene are\n"
+    "         merged with their node transforms; polygons are split into triangles,\n"
+    "         points and lines skipped. The result is in metres, Y up: glTF is metres and\n"
+    "         Y up, FBX's UnitScaleFactor and axis system and Collada's <unit> and\n"
+    "         <up_axis> are applied, other formats are taken as metres and Y up.\n"
+    "         --scale S   metres per file unit, instead of the file's unit\n"
+    "         --up AXIS   the model's up axis (x, y or z), turned to +Y, instead of the\n"
+    "                     file's\n"
+    "         --assimp    read OBJ and PLY through assimp too (default: the CLI's own\n"
+    "                     readers, whose errors name the line or element)\n"
     "       graphfrac mesh info FILE            (.msh, .node or .ele)\n"
     "       graphfrac mesh convert IN OUT       (IN .msh/.node/.ele; OUT .msh/.obj/.ply)\n";
 
@@ -307,6 +319,7 @@ int fromSurface(const std::vector<std::string>& args) {
   std::string in, out, tetgen = "tetgen";
   double maxVolume = 0, quality = 1.414;
   bool keep = false;
+  SurfaceReadOptions read;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     auto value = [&](double& v) {
@@ -318,6 +331,20 @@ int fromSurface(const std::vector<std::string>& args) {
       if (!value(maxVolume)) return usage("--max-volume needs a positive number");
     } else if (a == "--quality") {
       if (!value(quality)) return usage("--quality needs a positive number (radius-edge ratio)");
+    } else if (a == "--scale") {
+      if (!value(read.scale)) return usage("--scale needs a positive number (metres per unit)");
+    } else if (a == "--up") {
+      const std::string axis = i + 1 < args.size() ? args[i + 1] : "";
+      if (axis != "x" && axis != "y" && axis != "z") return usage("--up needs x, y or z");
+      read.up = axis[0];
+      ++i;
+    } else if (a == "--assimp") {
+      if (!haveAssimp()) {
+        return usage(
+            "--assimp: this graphfrac was built without assimp (install libassimp-dev: "
+            "tools/setup tools)");
+      }
+      read.assimp = true;
     } else if (a == "--tetgen") {
       if (i + 1 >= args.size()) return usage("--tetgen needs a path");
       tetgen = args[++i];
@@ -333,11 +360,18 @@ int fromSurface(const std::vector<std::string>& args) {
       return usage("unexpected argument " + a);
     }
   }
-  if (in.empty() || out.empty()) return usage("from-surface needs IN (.obj or .ply) and OUT.msh");
+  if (in.empty() || out.empty()) return usage("from-surface needs IN (a surface) and OUT.msh");
   const auto t0 = std::chrono::steady_clock::now();
 
-  Result<SurfaceFile> file = readSurfaceFile(in);
+  Result<SurfaceFile> file = readSurfaceFile(in, read);
   if (!file) return failure(file.error().message);
+  // What was read and how it was placed, before any complaint about the surface.
+  const SurfaceFile& f = file.value();
+  std::printf("read %s: %s; %s", in.c_str(), f.format.c_str(), f.conversion.c_str());
+  if (f.skippedPoints || f.skippedLines) {
+    std::printf("; skipped %zu points and %zu lines", f.skippedPoints, f.skippedLines);
+  }
+  std::printf("\n");
   Result<Surface> surface = prepareSurface(file.value());
   if (!surface) return failure(surface.error().message);
   const Surface& s = surface.value();

@@ -1,5 +1,6 @@
 // Triangle surfaces as files hold them: Wavefront OBJ and PLY (ASCII and both binary byte
-// orders), with where each vertex and face came from so that errors point into the file.
+// orders) read here, with where each vertex and face came from so that errors point into the
+// file; other formats are handed to assimp (surface_reader_assimp.cpp).
 #include "cli/surface_reader.h"
 
 #include <algorithm>
@@ -36,6 +37,82 @@ std::string numberProblem(const std::string& s, double& v) {
   return "";
 }
 
+std::string SurfaceFile::vertex(size_t i) const {
+  std::string s = "vertex " + std::to_string(source == SurfaceSource::kObj ? i + 1 : i);
+  if (source == SurfaceSource::kAssimp) {
+    s = "vertex " + std::to_string(vertexLine[i]) + " of " +
+        meshNames[static_cast<size_t>(vertexMesh[i])];
+  }
+  return s + " (" + formatDouble(positions[3 * i]) + ", " + formatDouble(positions[3 * i + 1]) +
+         ", " + formatDouble(positions[3 * i + 2]) + ")";
+}
+
+std::string SurfaceFile::vertexAt(size_t i) const {
+  switch (source) {
+    case SurfaceSource::kObj:
+      return path + ":" + std::to_string(vertexLine[i]) + ": vertex " + std::to_string(i + 1);
+    case SurfaceSource::kPly:
+      return path + ": vertex " + std::to_string(i);
+    case SurfaceSource::kAssimp:
+      break;
+  }
+  return path + ": " + meshNames[static_cast<size_t>(vertexMesh[i])] + ": vertex " +
+         std::to_string(vertexLine[i]);
+}
+
+std::string SurfaceFile::face(size_t t) const {
+  std::string s;
+  int64_t base = 0;  // how the vertices are numbered
+  switch (source) {
+    case SurfaceSource::kObj:
+      s = "face on line " + std::to_string(faceTag[t]);
+      base = 1;
+      break;
+    case SurfaceSource::kPly:
+      s = "face " + std::to_string(faceTag[t]);
+      break;
+    case SurfaceSource::kAssimp:
+      s = "triangle " + std::to_string(faceTag[t]) + " of " +
+          meshNames[static_cast<size_t>(faceMesh[t])];
+      break;
+  }
+  s += " (vertices";
+  for (size_t k = 0; k < 3; ++k) {
+    const size_t v = static_cast<size_t>(triangles[3 * t + k]);
+    s += ' ';
+    s += std::to_string(source == SurfaceSource::kAssimp ? vertexLine[v]
+                                                         : static_cast<int64_t>(v) + base);
+  }
+  return s + ')';
+}
+
+namespace detail {
+
+void transformSurface(SurfaceFile& s, const double m[9]) {
+  for (size_t i = 0; i < s.vertexCount(); ++i) {
+    double* p = &s.positions[3 * i];
+    const double x = p[0], y = p[1], z = p[2];
+    for (int r = 0; r < 3; ++r) p[r] = m[3 * r] * x + m[3 * r + 1] * y + m[3 * r + 2] * z;
+  }
+  const double det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) +
+                     m[2] * (m[3] * m[7] - m[4] * m[6]);
+  if (det < 0) {
+    for (size_t t = 0; t < s.triangles.size(); t += 3)
+      std::swap(s.triangles[t + 1], s.triangles[t + 2]);
+  }
+}
+
+void upToY(char up, double m[9]) {
+  // The turns Collada readers use for X_UP and Z_UP: x' = -y, y' = x; and y' = z, z' = -y.
+  static const double kX[9] = {0, -1, 0, 1, 0, 0, 0, 0, 1};
+  static const double kY[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  static const double kZ[9] = {1, 0, 0, 0, 0, 1, 0, -1, 0};
+  const double* r = up == 'x' ? kX : up == 'z' ? kZ : kY;
+  std::copy(r, r + 9, m);
+}
+
+}  // namespace detail
+
 namespace {
 
 std::string lowerExtension(const std::string& path) {
@@ -47,9 +124,9 @@ std::string lowerExtension(const std::string& path) {
 
 // The formats that are read are named by their content; other formats are named so that the
 // error says what the file is, instead of failing on the first line as a broken OBJ.
-enum class SurfaceFormat { kObj, kPly };
+enum class SurfaceFormat { kObj, kPly, kAssimp };
 
-Result<SurfaceFormat> detectFormat(const std::string& path) {
+Result<SurfaceFormat> detectFormat(const std::string& path, bool assimp) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return fail(path, ": cannot open");
   char buf[512];
@@ -59,6 +136,9 @@ Result<SurfaceFormat> detectFormat(const std::string& path) {
   if (starts("ply\n") || starts("ply\r\n")) return SurfaceFormat::kPly;
   const std::string ext = lowerExtension(path);
   if (ext == ".ply") return fail(path, ": not a PLY file (it does not start with a 'ply' line)");
+  if (ext == ".obj") return SurfaceFormat::kObj;
+  // assimp detects the rest by extension, then content, and names what it cannot read.
+  if (assimp) return SurfaceFormat::kAssimp;
   std::string other;
   if (starts("solid") || ext == ".stl") {
     other = "an STL";
@@ -79,8 +159,11 @@ Result<SurfaceFormat> detectFormat(const std::string& path) {
   } else if (head.find('\0') != std::string::npos) {
     other = "a binary";
   }
-  if (!other.empty())
-    return fail(path, ": reads Wavefront OBJ and PLY only (got ", other, " file)");
+  if (!other.empty()) {
+    return fail(path, ": reads Wavefront OBJ and PLY only (got ", other,
+                " file): this graphfrac was built without assimp (install libassimp-dev: "
+                "tools/setup tools, and configure again)");
+  }
   return SurfaceFormat::kObj;
 }
 
@@ -245,7 +328,7 @@ Result<SurfaceFile> readPly(const std::string& path) {
   if (!in) return fail(path, ": cannot open");
   SurfaceFile s;
   s.path = path;
-  s.ply = true;
+  s.source = SurfaceSource::kPly;
 
   // Header.
   std::vector<PlyElement> elements;
@@ -375,10 +458,36 @@ Result<SurfaceFile> readPly(const std::string& path) {
 
 }  // namespace
 
-Result<SurfaceFile> readSurfaceFile(const std::string& path) {
-  Result<SurfaceFormat> format = detectFormat(path);
+#ifndef GF_CLI_HAS_ASSIMP
+bool haveAssimp() { return false; }
+
+Result<SurfaceFile> detail::readWithAssimp(const std::string& path, const SurfaceReadOptions&) {
+  return fail(path,
+              ": this graphfrac was built without assimp, which reads formats other than "
+              "OBJ and PLY (install libassimp-dev: tools/setup tools, and configure again)");
+}
+#endif
+
+Result<SurfaceFile> readSurfaceFile(const std::string& path, const SurfaceReadOptions& options) {
+  if (options.assimp) return detail::readWithAssimp(path, options);
+  Result<SurfaceFormat> format = detectFormat(path, haveAssimp());
   if (!format) return format.error();
-  return format.value() == SurfaceFormat::kPly ? readPly(path) : readObj(path);
+  if (format.value() == SurfaceFormat::kAssimp) return detail::readWithAssimp(path, options);
+  Result<SurfaceFile> r = format.value() == SurfaceFormat::kPly ? readPly(path) : readObj(path);
+  if (!r) return r;
+  // OBJ and PLY carry no unit or axis: metres and Y up unless told.
+  SurfaceFile& s = r.value();
+  s.format = format.value() == SurfaceFormat::kPly ? "PLY" : "Wavefront OBJ";
+  double m[9];
+  detail::upToY(options.up ? options.up : 'y', m);
+  const double scale = options.scale > 0 ? options.scale : 1;
+  for (double& x : m) x *= scale;
+  if (scale != 1 || (options.up && options.up != 'y')) detail::transformSurface(s, m);
+  s.conversion = "unit " + formatDouble(scale) + " m" +
+                 (options.scale > 0 ? " (--scale)" : " (none given)") + ", up +" +
+                 static_cast<char>(std::toupper(options.up ? options.up : 'y')) +
+                 (options.up ? " (--up)" : " (none given)");
+  return r;
 }
 
 }  // namespace gf::cli

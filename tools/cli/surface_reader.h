@@ -1,6 +1,9 @@
-// Reading the triangle surface `graphfrac mesh from-surface` tetrahedralises: Wavefront OBJ and
-// PLY (ASCII and both binary byte orders), detected by content, then extension; other formats
-// (STL, glTF, FBX, ...) are named in the error instead of failing as a broken OBJ.
+// Reading the triangle surface `graphfrac mesh from-surface` tetrahedralises. Wavefront OBJ (.obj)
+// and PLY (ASCII and both binary byte orders) are read here, in double precision and with the
+// line or element of every vertex and face, so that errors point into the file; every other
+// format (STL, glTF 2.0, FBX, Collada, 3DS, ...) goes through assimp (surface_reader_assimp.cpp),
+// which also reads OBJ and PLY on request. All meshes of the scene graph are merged with their
+// node transforms applied and converted to metres and Y-up.
 #pragma once
 
 #include <graphfrac/status.h>
@@ -18,44 +21,69 @@ std::string formatDouble(double v);
 /// finite", "... is not a number"), or "" when it is a finite double, stored in v.
 std::string numberProblem(const std::string& s, double& v);
 
-/// Vertices and triangles as the file numbers them, and where each came from, so that every
-/// later message can point into the file.
-struct SurfaceFile {
-  std::string path;
-  bool ply = false;                 // PLY: elements numbered from 0; OBJ: lines, vertices from 1
-  std::vector<double> positions;    // 3 per vertex
-  std::vector<int64_t> triangles;   // 3 per triangle, 0-based, in range
-  std::vector<int64_t> vertexLine;  // OBJ: the line of each vertex
-  std::vector<int64_t> faceTag;     // per triangle: OBJ line, PLY face index (fans share it)
-
-  size_t vertexCount() const { return positions.size() / 3; }
-  // "vertex 7 (1, 0, 2)", numbered as the file's faces refer to it.
-  std::string vertex(size_t i) const {
-    return "vertex " + std::to_string(ply ? i : i + 1) + " (" + formatDouble(positions[3 * i]) +
-           ", " + formatDouble(positions[3 * i + 1]) + ", " + formatDouble(positions[3 * i + 2]) +
-           ")";
-  }
-  // Where vertex i is defined: "cube.obj:12: vertex 7" or "cube.ply: vertex 7".
-  std::string vertexAt(size_t i) const {
-    if (ply) return path + ": vertex " + std::to_string(i);
-    return path + ":" + std::to_string(vertexLine[i]) + ": vertex " + std::to_string(i + 1);
-  }
-  // "face on line 12" / "face 5", with its vertices: "(vertices 1 2 3)".
-  std::string face(size_t t) const {
-    std::string s = ply ? "face " : "face on line ";
-    s += std::to_string(faceTag[t]);
-    s += " (vertices";
-    for (size_t k = 0; k < 3; ++k) {
-      s += ' ';
-      s += std::to_string(triangles[3 * t + k] + (ply ? 0 : 1));
-    }
-    s += ')';
-    return s;
-  }
+/// Which reader produced a SurfaceFile; it decides how vertices and faces are named.
+enum class SurfaceSource {
+  kObj,     // vertices and faces by line, vertices numbered from 1
+  kPly,     // elements numbered from 0
+  kAssimp,  // by mesh (one per node that instances it), vertices and triangles from 0
 };
 
-/// Reads an OBJ or PLY surface; polygons become fans. Errors name the file, the line or
-/// element and the reason.
-Result<SurfaceFile> readSurfaceFile(const std::string& path);
+/// Vertices and triangles as the file numbers them, and where each came from, so that every
+/// later message can point into the file. Positions are in metres, Y up (after any unit and
+/// axis conversion).
+struct SurfaceFile {
+  std::string path;
+  SurfaceSource source = SurfaceSource::kObj;
+  std::vector<double> positions;    // 3 per vertex
+  std::vector<int64_t> triangles;   // 3 per triangle, 0-based, in range
+  std::vector<int64_t> vertexLine;  // OBJ: the line of each vertex; assimp: index in its mesh
+  std::vector<int64_t> faceTag;     // per triangle: OBJ line, PLY face index (fans share it),
+                                    // assimp: triangle index in its mesh
+  // assimp only: the mesh of each vertex and triangle, an index into meshNames.
+  std::vector<int32_t> vertexMesh, faceMesh;
+  std::vector<std::string> meshNames;  // "mesh 'Cube'" or "mesh 'Wheel' in node 'Wheel.L'"
+  // What was read and converted, for the summary: "FBX (Autodesk FBX Importer), 2 meshes";
+  // "unit 0.01 m (FBX UnitScaleFactor 1), up +Y (FBX axis system)".
+  std::string format, conversion;
+  size_t skippedPoints = 0, skippedLines = 0;  // assimp: primitives that are not triangles
+
+  size_t vertexCount() const { return positions.size() / 3; }
+  /// "vertex 7 (1, 0, 2)", numbered as the file's faces refer to it; assimp: "vertex 7 of
+  /// mesh 'Cube' (1, 0, 2)".
+  std::string vertex(size_t i) const;
+  /// Where vertex i is defined: "cube.obj:12: vertex 7", "cube.ply: vertex 7",
+  /// "model.glb: mesh 'Cube': vertex 7".
+  std::string vertexAt(size_t i) const;
+  /// "face on line 12" / "face 5" / "triangle 5 of mesh 'Cube'", with its vertices:
+  /// "(vertices 1 2 3)".
+  std::string face(size_t t) const;
+};
+
+/// How a file is read: the unit and up axis that replace what the file declares (or says
+/// nothing of), and whether OBJ and PLY go through assimp too.
+struct SurfaceReadOptions {
+  double scale = 0;     // metres per file unit; 0: the file's unit (FBX, Collada), else 1
+  char up = 0;          // 'x', 'y' or 'z': the model's up axis; 0: the file's, else y
+  bool assimp = false;  // read OBJ and PLY through assimp as well
+};
+
+/// Reads a triangle surface; polygons become triangles, points and lines are skipped (and
+/// counted). Errors name the file, the line, element or mesh, and the reason.
+Result<SurfaceFile> readSurfaceFile(const std::string& path,
+                                    const SurfaceReadOptions& options = {});
+
+/// True when this build reads through assimp (found at configure time).
+bool haveAssimp();
+
+namespace detail {
+/// The assimp reader (surface_reader_assimp.cpp): positions converted to metres and Y up, by
+/// what the file declares or by the options' overrides.
+Result<SurfaceFile> readWithAssimp(const std::string& path, const SurfaceReadOptions& options);
+/// Applies the row-major 3x3 matrix m to every position; a mirror (det < 0) also reverses every
+/// triangle so that outward faces stay outward.
+void transformSurface(SurfaceFile& s, const double m[9]);
+/// The rotation taking the up axis ('x', 'y', 'z') to +Y: row-major 3x3.
+void upToY(char up, double m[9]);
+}  // namespace detail
 
 }  // namespace gf::cli
