@@ -78,6 +78,13 @@ struct MultigridSettings {
   int coarseRefreshInterval = 1;
   /// Re-bind vertices whose handle sits across a crack (SPEC §5) when edges break.
   bool crackRebinding = true;
+  /// A body with fewer free (not gripped) nodes than this is solved by the sparse Cholesky
+  /// (LinearSolverKind::Direct) instead. Its coarse level would not be coarse: a handle carries
+  /// 12 unknowns and a node 3, and the default 64 handles exceed a debris box of 27 or 64 nodes
+  /// several times over, so each step refactorised a coarse matrix larger than the body's own
+  /// (about 1 ms a body). Below this size the exact factorisation also costs less than the
+  /// multigrid's CG iterations. 0 keeps the multigrid at every size.
+  int32_t directBelowNodes = 128;
   /// Empty when valid; otherwise names the field ("levels: ...") and the reason.
   Result<void> check() const;
 };
@@ -112,6 +119,8 @@ struct SolverSettings {
   /// iteration the linearisation adds damping that grows with dt and amplitude; two give the
   /// theta method's figures (docs/design.md).
   double numericalDamping = 1;
+  /// Multigrid (the default) solves small bodies directly; see
+  /// MultigridSettings::directBelowNodes.
   LinearSolverKind linearSolver = LinearSolverKind::Multigrid;
   MultigridSettings multigrid;  ///< Used when linearSolver == Multigrid.
   int maxLinearIterations = 200;

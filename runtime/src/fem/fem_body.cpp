@@ -75,7 +75,16 @@ FemModel buildFemModel(const BodyDef& def) {
     m.externalForce[3 * f.node + 1] += f.force.y;
     m.externalForce[3 * f.node + 2] += f.force.z;
   }
+  int64_t fixed = 0;
+  for (uint8_t f : m.fixedNode) fixed += f;
+  m.solver.linearSolver = effectiveLinearSolver(def.solver, m.nodeCount - fixed);
   return m;
+}
+
+LinearSolverKind effectiveLinearSolver(const SolverSettings& s, int64_t freeNodes) {
+  if (s.linearSolver == LinearSolverKind::Multigrid && freeNodes < s.multigrid.directBelowNodes)
+    return LinearSolverKind::Direct;
+  return s.linearSolver;
 }
 
 double estimateBodyBytes(const BodyDef& def) {
@@ -93,8 +102,12 @@ double estimateBodyBytes(const BodyDef& def) {
   bytes += matrices * blocks * (9 * d + 4);
   // Per node: about 16 work vectors of 3 and the contact Hessian.
   bytes += nodes * d * (16 * 3 + 9 + 4);
-  if (def.solver.linearSolver == LinearSolverKind::Multigrid) bytes += 0.5 * blocks * (9 * d + 4);
-  if (def.solver.linearSolver == LinearSolverKind::Direct) bytes += 4 * blocks * (9 * d + 4);
+  int64_t gripped = 0;
+  for (const Grip& g : def.grips) gripped += int64_t(g.nodes.size());
+  const LinearSolverKind solver =
+      effectiveLinearSolver(def.solver, int64_t(def.mesh.nodeCount()) - gripped);
+  if (solver == LinearSolverKind::Multigrid) bytes += 0.5 * blocks * (9 * d + 4);
+  if (solver == LinearSolverKind::Direct) bytes += 4 * blocks * (9 * d + 4);
   if (def.fracture.enabled) {
     // Stresses (6), rest edge directions (6), chi, mask and the tets' edges; the projection
     // model's 6x6 edge matrix and its inverse; per edge strength, flags and graph entries.

@@ -47,8 +47,13 @@ struct FemState {
   std::vector<double> plasticDelta;
 };
 
-/// Builds the model from a validated definition (mesh already checked by the caller).
+/// Builds the model from a validated definition (mesh already checked by the caller). Its
+/// solver settings are the def's with the size rule applied (effectiveLinearSolver).
 FemModel buildFemModel(const BodyDef& def);
+
+/// The linear solver a body of `freeNodes` free nodes runs with these settings: the multigrid
+/// hands bodies below MultigridSettings::directBelowNodes to the direct solver.
+LinearSolverKind effectiveLinearSolver(const SolverSettings& s, int64_t freeNodes);
 
 /// Bytes a body of this def holds once created (model, state, element buffers, the sparse
 /// matrix, solver, fracture and plasticity data), from its node and tet counts: what

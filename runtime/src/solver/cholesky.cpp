@@ -25,31 +25,75 @@
 
 namespace gf::detail {
 
-// CHOLMOD's BLAS is OpenBLAS on Debian, which starts a thread per core that spin-waits
-// (sched_yield) between calls: on the bread scene that doubled the CPU time and put half of it
-// in the kernel, and threaded BLAS may sum in a different order from run to run. The world has
-// its own JobSystem, so BLAS runs on the calling thread. Looked up at run time: another BLAS
-// may be installed in its place, and then there is nothing to do.
+// CHOLMOD's BLAS is OpenBLAS on Debian, which starts a thread per core when it is loaded; they
+// spin-wait (sched_yield) between calls: on the bread scene that doubled the CPU time and put
+// half of it in the kernel, and threaded BLAS may sum in a different order from run to run.
+// The world has its own JobSystem, so BLAS runs on the calling thread and the idle pool is
+// stopped (the library must run no thread it does not own). Looked up at run time: another
+// BLAS may be installed in its place, and then there is nothing to do.
 void blasOnOneThread() {
 #if GF_HAVE_CHOLMOD
   static const bool once = [] {
     using SetThreads = void (*)(int);
-    if (void* f = dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))
+    using Shutdown = int (*)();
+    if (void* f = dlsym(RTLD_DEFAULT, "openblas_set_num_threads")) {
       reinterpret_cast<SetThreads>(f)(1);
+      if (void* g = dlsym(RTLD_DEFAULT, "blas_thread_shutdown_")) reinterpret_cast<Shutdown>(g)();
+    }
     return true;
   }();
   (void)once;
 #endif
 }
 
+namespace {
+// OpenMP's per-thread max-active-levels, looked up at run time: CHOLMOD brings libgomp in,
+// graphfrac itself is not built with OpenMP.
+using GetLevels = int (*)();
+using SetLevels = void (*)(int);
+struct OpenMpLevels {
+  GetLevels get = nullptr;
+  SetLevels set = nullptr;
+};
+const OpenMpLevels& openMpLevels() {
+  static const OpenMpLevels f = [] {
+    OpenMpLevels l;
+#if GF_HAVE_CHOLMOD
+    void* g = dlsym(RTLD_DEFAULT, "omp_get_max_active_levels");
+    void* s = dlsym(RTLD_DEFAULT, "omp_set_max_active_levels");
+    if (g && s) {
+      l.get = reinterpret_cast<GetLevels>(g);
+      l.set = reinterpret_cast<SetLevels>(s);
+    }
+#endif
+    return l;
+  }();
+  return f;
+}
+}  // namespace
+
+SerialOpenMpScope::SerialOpenMpScope() {
+  const OpenMpLevels& l = openMpLevels();
+  if (!l.set) return;
+  m_saved = l.get();
+  l.set(0);  // no region on this thread is active: each runs on one thread
+}
+
+SerialOpenMpScope::~SerialOpenMpScope() {
+  if (m_saved >= 0) openMpLevels().set(m_saved);
+}
+
 struct CholeskySolver::Impl {
   using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
   SpMat lower;                    // lower triangle of the scalar expansion
   std::vector<int64_t> valueMap;  // lower.valuePtr()[i] = A.values[valueMap[i]]
+  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int> > simplicial;
 #if GF_HAVE_CHOLMOD
   Eigen::CholmodSupernodalLLT<SpMat, Eigen::Lower> llt;
+  bool useSimplicial = false;
 #else
-  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int> > llt;
+  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int> >& llt = simplicial;
+  static constexpr bool useSimplicial = true;
 #endif
   int32_t n = -1;
   int32_t blocks = -1;
@@ -121,10 +165,15 @@ Result<void> CholeskySolver::analyze(const BlockSparseMatrix& A) {
   s.work.assign(static_cast<size_t>(size), 0.0);
   if (A.n == 0) return {};  // nothing to factorise (CHOLMOD rejects an empty matrix)
 #if GF_HAVE_CHOLMOD
+  s.useSimplicial = A.n <= kSimplicialMaxBlocks;
   s.llt.cholmod().print = 0;  // failures are reported through SolveReport, not stdout
 #endif
-  s.llt.analyzePattern(L);
-  if (s.llt.info() != Eigen::Success) {
+  const SerialOpenMpScope serial;
+  if (s.useSimplicial)
+    s.simplicial.analyzePattern(L);
+  else
+    s.llt.analyzePattern(L);
+  if ((s.useSimplicial ? s.simplicial.info() : s.llt.info()) != Eigen::Success) {
     s.n = -1;
     return fail("cholesky: symbolic analysis failed");
   }
@@ -149,12 +198,18 @@ SolveReport CholeskySolver::solve(const BlockSparseMatrix& A, const double* b, d
 
   double* v = s.lower.valuePtr();
   for (size_t i = 0; i < s.valueMap.size(); ++i) v[i] = A.values[s.valueMap[i]];
-  s.llt.factorize(s.lower);
-  if (s.llt.info() != Eigen::Success) return failWithZero();  // not positive definite
-
   Eigen::Map<const Eigen::VectorXd> bm(b, static_cast<Eigen::Index>(n3));
   Eigen::Map<Eigen::VectorXd> xm(x, static_cast<Eigen::Index>(n3));
-  xm = s.llt.solve(bm);
+  if (s.useSimplicial) {
+    s.simplicial.factorize(s.lower);
+    if (s.simplicial.info() != Eigen::Success) return failWithZero();  // not positive definite
+    xm = s.simplicial.solve(bm);
+  } else {
+    const SerialOpenMpScope serial;
+    s.llt.factorize(s.lower);
+    if (s.llt.info() != Eigen::Success) return failWithZero();
+    xm = s.llt.solve(bm);
+  }
   if (!allFinite(x, n3)) return failWithZero();
 
   // |b - A x| / |b| with the block matrix itself (both triangles).

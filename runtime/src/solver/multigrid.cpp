@@ -254,6 +254,7 @@ struct MultigridSolver::Impl {
     coarseLlt.cholmod().print = 0;  // a failed factorisation is retried below, not printed
 #endif
     blasOnOneThread();
+    const SerialOpenMpScope serial;
     if (coarseLower.cols() > 0) coarseLlt.analyzePattern(coarseLower);
   }
 
@@ -263,6 +264,7 @@ struct MultigridSolver::Impl {
     const CoarseMatrix& C = hierarchy.level(coarseCount()).A;
     double* v = coarseLower.valuePtr();
     for (size_t i = 0; i < coarseMap.size(); ++i) v[i] = C.values[coarseMap[i]];
+    const SerialOpenMpScope serial;
     coarseLlt.factorize(coarseLower);
     // Round-off can leave a regularised null direction a hair below zero: retry with a growing
     // diagonal shift (still SPD, so the V-cycle stays symmetric positive definite).
@@ -441,6 +443,7 @@ struct MultigridSolver::Impl {
       if (coarseOk) {
         Eigen::Map<const Eigen::VectorXd> bm(b, static_cast<Eigen::Index>(len));
         Eigen::Map<Eigen::VectorXd> xm(x, static_cast<Eigen::Index>(len));
+        const SerialOpenMpScope serial;
         xm = coarseLlt.solve(bm);
         if (!allFinite(x, len)) fill(0.0, x, len, jobs);
       } else {

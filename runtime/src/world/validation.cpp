@@ -71,6 +71,8 @@ Result<void> MultigridSettings::check() const {
   if (cycles < 1) return fail("cycles: must be >= 1, got ", std::to_string(cycles));
   if (coarseRefreshInterval < 1)
     return fail("coarseRefreshInterval: must be >= 1, got ", std::to_string(coarseRefreshInterval));
+  if (directBelowNodes < 0)
+    return fail("directBelowNodes: must be >= 0, got ", std::to_string(directBelowNodes));
   return {};
 }
 

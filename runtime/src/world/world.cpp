@@ -12,6 +12,8 @@
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
 #include "kernels/plasticity.h"
+#include "solver/cholesky.h"
+#include "solver/vector_ops.h"
 #include "step/timing.h"
 #include "world/validation.h"
 #include "world/world_impl.h"
@@ -44,6 +46,11 @@ ColliderData toData(const Collider& c) {
 }  // namespace detail
 
 namespace {
+// Bodies below this many tets are stepped side by side over the JobSystem, each serial inside:
+// their loops (256 tets, 128 rows a range) would give a thread a range or two at most, and
+// each parallelFor would cost more than the work it splits.
+constexpr int32_t kBatchBelowTets = 2048;
+
 // Builds a body's model, state, solver and fracture from a checked def; throws std::bad_alloc
 // when the machine has not the memory for it.
 Result<std::unique_ptr<BodyRecord>> buildBody(BodyDef&& def, JobSystem& jobs) {
@@ -116,12 +123,12 @@ void World::Impl::collectEvents(BodyId id, const BodyRecord& b) {
 }
 
 // Multiplicative plasticity after the step (eq 2.3-2.5): only yielding elements change.
-void World::Impl::plasticUpdate(BodyRecord& b, double h) {
+void World::Impl::plasticUpdate(BodyRecord& b, double h, JobSystem& js) {
   const detail::FemModel& m = b.model;
   detail::FemState& s = b.state;
   const PlasticParams params{m.plasticity.yieldStress, m.plasticity.flowRate,
                              m.plasticity.hardening};
-  jobs->parallelFor(uint32_t(m.tetCount), 256, [&](uint32_t lo, uint32_t hi) {
+  js.parallelFor(uint32_t(m.tetCount), 256, [&](uint32_t lo, uint32_t hi) {
     for (uint32_t t = lo; t < hi; ++t) {
       Vec3 xe[4];
       for (int a = 0; a < 4; ++a) {
@@ -138,7 +145,24 @@ void World::Impl::plasticUpdate(BodyRecord& b, double h) {
   });
 }
 
+void World::Impl::stepBody(size_t si, const detail::StepContext& ctx, JobSystem& js) {
+  BodyRecord* b = slots[si].body.get();
+  detail::BodyStepReport& r = reports[si];
+  plasticityMs[si] = 0;
+  detail::StepContext own = ctx;
+  own.colliderImpulse = colliders.empty() ? nullptr : &bodyImpulse[6 * colliders.size() * si];
+  if (own.colliderImpulse) std::fill_n(own.colliderImpulse, 6 * colliders.size(), 0.0);
+  r = b->integrator->step(b->model, b->state, own, js);
+  // A rolled-back body is where it was before the substep: nothing flowed.
+  if (b->model.plasticity.enabled && !(r.flags & kStepNanContained)) {
+    const auto tp = detail::Clock::now();
+    plasticUpdate(*b, own.dt, js);
+    plasticityMs[si] = detail::msSince(tp);
+  }
+}
+
 World::World(const WorldDef& def) : m_impl(std::make_unique<Impl>()) {
+  detail::blasOnOneThread();  // the process runs no BLAS threads beside the JobSystem's
   Impl& w = *m_impl;
   w.def = def;
   w.jobs = def.jobs ? def.jobs : &serialJobs();
@@ -234,16 +258,19 @@ StepStatus World::step(double dt) {
   std::vector<Vec3> colliderStart(w.colliders.size());
   for (size_t c = 0; c < w.colliders.size(); ++c) colliderStart[c] = w.colliders[c].point;
   w.colliderImpulse.assign(6 * w.colliders.size(), 0.0);
-  ctx.colliderImpulse = w.colliders.empty() ? nullptr : w.colliderImpulse.data();
+  w.bodyImpulse.resize(6 * w.colliders.size() * w.slots.size());
+  w.reports.resize(w.slots.size());
+  w.plasticityMs.resize(w.slots.size());
   for (int sub = 0; sub < w.def.substeps; ++sub) {
     for (size_t c = 0; c < w.colliders.size(); ++c) {
       const glm::vec3 v = w.def.colliders[c].velocity;
       w.colliders[c].point = colliderStart[c] + ((sub + 1) * h) * Vec3{v.x, v.y, v.z};
     }
+    w.batched.clear();
+    w.single.clear();
     for (size_t si = 0; si < w.slots.size(); ++si) {
       BodyRecord* b = w.slots[si].body.get();
       if (!b) continue;
-      const BodyId id{uint32_t(si + 1), w.slots[si].generation};
       if (b->allRigid) {
         // The integrator's own update of prescribed nodes, x += h v, v = grip velocity.
         for (size_t i = 0; i < b->state.x.size(); ++i) {
@@ -252,7 +279,23 @@ StepStatus World::step(double dt) {
         }
         continue;
       }
-      const detail::BodyStepReport r = b->integrator->step(b->model, b->state, ctx, *w.jobs);
+      (b->model.tetCount < kBatchBelowTets ? w.batched : w.single).push_back(uint32_t(si));
+    }
+    // Bodies do not interact within a substep (each sees only the colliders), so they can run
+    // in any order. A large body spreads its own loops over the JobSystem; small bodies (debris)
+    // have loops too short to split, so they run side by side, one body per item, each serial
+    // inside. Both give the bits of a serial run (jobs.h), so the state is the same for any
+    // thread count.
+    for (uint32_t si : w.single) w.stepBody(si, ctx, *w.jobs);
+    detail::forRanges(*w.jobs, uint32_t(w.batched.size()), 1, [&](uint32_t lo, uint32_t hi) {
+      for (uint32_t k = lo; k < hi; ++k) w.stepBody(w.batched[k], ctx, serialJobs());
+    });
+    // Events, flags and sums in slot order, whichever thread stepped the body.
+    for (size_t si = 0; si < w.slots.size(); ++si) {
+      BodyRecord* b = w.slots[si].body.get();
+      if (!b || b->allRigid) continue;
+      const detail::BodyStepReport& r = w.reports[si];
+      const BodyId id{uint32_t(si + 1), w.slots[si].generation};
       if (b->fracture) w.collectEvents(id, *b);
       b->stepEndValid = true;
       w.timings.fractureMs += r.fractureMs;
@@ -265,12 +308,9 @@ StepStatus World::step(double dt) {
       w.timings.elementsMs += r.elementsMs;
       w.timings.assemblyMs += r.assemblyMs;
       w.timings.solveMs += r.solveMs;
-      // A rolled-back body is where it was before the substep: nothing flowed.
-      if (b->model.plasticity.enabled && !(r.flags & kStepNanContained)) {
-        const auto tp = detail::Clock::now();
-        w.plasticUpdate(*b, h);
-        w.timings.plasticityMs += detail::msSince(tp);
-      }
+      w.timings.plasticityMs += w.plasticityMs[si];
+      const size_t nc = 6 * w.colliders.size();
+      for (size_t k = 0; k < nc; ++k) w.colliderImpulse[k] += w.bodyImpulse[nc * si + k];
     }
   }
   for (size_t c = 0; c < w.colliders.size(); ++c) {

@@ -90,6 +90,12 @@ struct World::Impl {
   std::vector<Slot> slots;
   std::vector<ColliderData> colliders;  // at their current pose (def.colliders: as given)
   std::vector<double> colliderImpulse;  // 6 per collider, see StepContext::colliderImpulse
+  // Per slot: its body's collider impulses of the substep (6 per collider), added to
+  // colliderImpulse in slot order so the sum is the same for any thread count, and its report.
+  std::vector<double> bodyImpulse;
+  std::vector<detail::BodyStepReport> reports;
+  std::vector<double> plasticityMs;
+  std::vector<uint32_t> batched, single;  // slots of the substep's small and large bodies
   std::vector<glm::dvec3> impulses, angularImpulses;  // of the last step
   StepTimings timings;
   std::vector<FractureEvent> fractureEvents;
@@ -115,7 +121,10 @@ struct World::Impl {
   // Converts a body's breaks and splits of the last detect() into public events.
   void collectEvents(BodyId id, const BodyRecord& b);
   // Multiplicative plasticity after the step (eq 2.3-2.5): only yielding elements change.
-  void plasticUpdate(BodyRecord& b, double h);
+  void plasticUpdate(BodyRecord& b, double h, JobSystem& js);
+  // One substep of the body in slot si with `js` for its loops: its report into reports[si],
+  // its collider impulses into its share of bodyImpulse.
+  void stepBody(size_t si, const detail::StepContext& ctx, JobSystem& js);
 
   // Keeps a requested render surface in step with the body: topology only after fractures.
   void updateSurface(BodyRecord& b) {
