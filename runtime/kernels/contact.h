@@ -19,6 +19,8 @@ struct ColliderData {
   Mat3 rotation = Mat3::identity();  ///< box: local-to-world axes (columns)
   double radius = 0;                 ///< sphere
   double stiffness = 0;
+  Vec3 velocity;        ///< translation [m/s]: sliding is measured against it
+  double friction = 0;  ///< the collider's Coulomb coefficient (mixed with the body's)
 };
 
 /// Penetration depth (> 0 inside) and the outward direction that reduces it.
@@ -66,6 +68,30 @@ GF_HD double nodeContact(const ColliderData& c, Vec3 x, double m, Vec3& grad, Ma
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) hess(i, j) += k * n[i] * n[j];
   return 0.5 * k * d * d;
+}
+
+/// Smoothed Coulomb friction of a node sliding by u (tangential, over the step) under the
+/// lagged normal force lambda: the dissipation potential mu lambda f0(|u|) with f0' = f1,
+/// f1(y) = 2 y / eps - y^2 / eps^2 below eps and 1 above (Li et al. 2020, IPC, sec 5), eps =
+/// the slip speed times dt. Adds its gradient and a PSD Hessian (mu lambda f1(y) / y on the
+/// tangent plane; the curvature along u, negative below eps, dropped) and returns the
+/// potential.
+GF_HD double nodeFriction(double muLambda, Vec3 normal, Vec3 u, double eps, Vec3& grad,
+                          Mat3& hess) {
+  const double y = norm(u);
+  double f0, f1OverY;
+  if (y < eps) {
+    f0 = y * y / eps - y * y * y / (3 * eps * eps) + eps / 3;
+    f1OverY = 2 / eps - y / (eps * eps);
+  } else {
+    f0 = y;
+    f1OverY = 1 / y;
+  }
+  grad += (muLambda * f1OverY) * u;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      hess(i, j) += muLambda * f1OverY * ((i == j ? 1.0 : 0.0) - normal[i] * normal[j]);
+  return muLambda * f0;
 }
 
 }  // namespace gf

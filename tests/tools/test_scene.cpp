@@ -342,6 +342,25 @@ TEST(Scene, RadialFibreFieldOnTheAxisStaysPerpendicular) {
   }
 }
 
+TEST(Scene, FrictionKeysLoadAndAreChecked) {
+  const std::string text = R"({"colliders": [{"type": "plane", "friction": 0.4}],
+      "bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1], "cells": [1, 1, 1]},
+      "material": {"E": 1, "nu": 0, "rho": 1}, "friction": 0.9}]})";
+  const Result<Scene> r = parseScene(text, "inline", "");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_DOUBLE_EQ(r.value().world.colliders[0].friction, 0.4);
+  EXPECT_DOUBLE_EQ(r.value().bodies[0].def.friction, 0.9);
+  EXPECT_DOUBLE_EQ(Collider{}.friction, 0);  // frictionless unless a scene says otherwise
+  const std::string bad = R"({"colliders": [{"type": "sphere", "center": [0, 0, 0],
+      "radius": 1, "friction": -1}], "bodies": [{"mesh": {"generator": "box",
+      "size": [1, 1, 1], "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1}}]})";
+  const Result<Scene> rb = parseScene(bad, "inline", "");
+  ASSERT_FALSE(rb.ok());
+  EXPECT_NE(rb.error().message.find("colliders[0].friction: must lie in [0, 1e3], got -1"),
+            std::string::npos)
+      << rb.error().message;
+}
+
 TEST(Scene, SolverKeysLoad) {
   const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
       "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},

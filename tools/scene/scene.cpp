@@ -877,7 +877,7 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
   ObjReader o(v, path);
   o.keys({"name", "mesh", "translate", "material", "solver", "pins", "grips", "forces",
           "initial_velocity", "angular_velocity", "initial_deformation", "fracture", "plasticity",
-          "fibre_field", "handoff", "colour", "crack_colour"});
+          "fibre_field", "handoff", "colour", "crack_colour", "friction"});
   SceneBody body;
   body.name = "body" + std::to_string(index);
   body.colour = kBodyPalette[index % kBodyPalette.size()];
@@ -903,6 +903,7 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
   if (const json* iv = o.find("initial_velocity")) {
     body.def.initialVelocity = glm::vec3(readVec3(*iv, o.at("initial_velocity")));
   }
+  if (const json* f = o.find("friction")) body.def.friction = readNumber(*f, o.at("friction"));
   if (const json* w = o.find("angular_velocity")) {
     body.angularVelocity = readVec3(*w, o.at("angular_velocity"));
   }
@@ -1035,7 +1036,7 @@ Collider readCollider(const json& v, const std::string& path) {
   Collider c;
   const std::string type = readChoice(o.require("type"), o.at("type"), {"plane", "box", "sphere"});
   if (type == "plane") {
-    o.keys({"type", "point", "normal", "stiffness", "velocity"});
+    o.keys({"type", "point", "normal", "stiffness", "velocity", "friction"});
     c.kind = Collider::Kind::Plane;
     if (const json* p = o.find("point")) c.point = glm::vec3(readVec3(*p, o.at("point")));
     if (const json* n = o.find("normal")) {
@@ -1045,25 +1046,26 @@ Collider readCollider(const json& v, const std::string& path) {
       c.normal = glm::vec3(len > 0 ? d / len : d);
     }
   } else if (type == "box") {
-    o.keys({"type", "center", "half_extents", "stiffness", "velocity"});
+    o.keys({"type", "center", "half_extents", "stiffness", "velocity", "friction"});
     c.kind = Collider::Kind::Box;
     c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
     c.halfExtents = glm::vec3(readVec3(o.require("half_extents"), o.at("half_extents")));
   } else {
-    o.keys({"type", "center", "radius", "stiffness", "velocity"});
+    o.keys({"type", "center", "radius", "stiffness", "velocity", "friction"});
     c.kind = Collider::Kind::Sphere;
     c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
     c.radius = static_cast<float>(readNumber(o.require("radius"), o.at("radius")));
   }
   if (const json* k = o.find("stiffness")) c.stiffness = readNumber(*k, o.at("stiffness"));
   if (const json* u = o.find("velocity")) c.velocity = glm::vec3(readVec3(*u, o.at("velocity")));
+  if (const json* f = o.find("friction")) c.friction = readNumber(*f, o.at("friction"));
   o.finish();
   // Box and sphere read their point from "center".
   const std::string_view pointKey = c.kind == Collider::Kind::Plane ? "point" : "center";
   const FieldName names[] = {{"kind", "type"},         {"point", pointKey},
                              {"velocity", "velocity"}, {"stiffness", "stiffness"},
                              {"normal", "normal"},     {"halfExtents", "half_extents"},
-                             {"radius", "radius"}};
+                             {"radius", "radius"},     {"friction", "friction"}};
   requireValid(c.check(), path, names);
   return c;
 }

@@ -202,6 +202,13 @@ struct BodyDef {
   std::vector<Grip> grips;
   std::vector<PointForce> forces;
   glm::vec3 initialVelocity{0, 0, 0};
+  /// Coulomb friction coefficient of the body's surface (>= 0), mixed with a collider's as
+  /// sqrt(friction * Collider::friction). Friction acts on the nodes in contact, opposite their
+  /// sliding against the collider over the step, with the normal force of the step's start
+  /// (lagged), smoothed below 1 mm/s of sliding so the implicit step stays smooth: a body
+  /// resting on a slope steeper than its friction allows slides; on a gentler one it creeps
+  /// at under (1 mm/s) tan(angle) / (2 mu).
+  double friction = 0.6;
   FractureSettings fracture;
   PlasticitySettings plasticity;
   /// Optional per-tet rest-space fibre directions (one per tet) overriding
@@ -230,6 +237,9 @@ struct Collider {
   double stiffness = 0;
   glm::vec3 velocity{0, 0, 0};     ///< Translation velocity [m/s] (no spin).
   glm::quat rotation{1, 0, 0, 0};  ///< Box: box-to-world rotation (unit, or normalised).
+  /// Coulomb friction coefficient of the collider's surface (>= 0). A body meets it with
+  /// sqrt(friction * BodyDef::friction) (Box2D's rule). 0, the default, is frictionless.
+  double friction = 0;
   /// Empty when valid; otherwise names the field ("stiffness: ...") and the reason. Finite
   /// values are also bounded (|point|, |velocity|, sizes <= 1e9 m, stiffness <= 1e18) so that
   /// the penalty energy and impulses stay finite.

@@ -24,6 +24,7 @@ FemModel buildFemModel(const BodyDef& def) {
   m.restPositions = mesh.positions;
   m.material = def.material;
   m.solver = def.solver;
+  m.friction = def.friction;
   m.coeffs = toCoeffs(def.material);
   m.restInverse.resize(m.tetCount);
   m.restVolume.resize(m.tetCount);

@@ -24,6 +24,7 @@ struct FemModel {
   MaterialCoeffs coeffs;
   Material material;
   SolverSettings solver;
+  double friction = 0.6;             ///< BodyDef::friction
   std::vector<uint8_t> fixedNode;    ///< 1 where a grip prescribes the velocity
   std::vector<double> gripVelocity;  ///< 3 per node (zero where not fixed)
   bool movingGrips = false;          ///< some grip has a non-zero velocity

@@ -32,6 +32,10 @@ constexpr double kEnergyRoundOff = 1e-11;
 // mean stretch of about a thousand) diverged: no material holds together there, so it is
 // rolled back like a NaN instead of handing the game an exploded body.
 constexpr double kBlowUpEnergyDensity = 1e6;
+// Sliding speed below which friction is smoothed (IPC's eps_v): static friction becomes a
+// stiff viscous drag, so a body held by friction creeps at most at about this speed times
+// tan(angle) / (2 mu), and the potential stays differentiable for Newton.
+constexpr double kFrictionSlipSpeed = 1e-3;
 
 Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i + 2]}; }
 
@@ -242,6 +246,22 @@ double Integrator::incrementalPotential(const FemModel& model, const double* xn,
       m_contactSeen[n] = frobeniusDot(ch, ch) > 0;
     }
   }
+  // Friction: its dissipation potential on each contact node's sliding over the step, with
+  // the normal force and normal of the step's start (buildFriction).
+  for (const FrictionContact& f : m_friction) {
+    const Vec3 xi = load3(x, f.node);
+    Vec3 g{0, 0, 0};
+    Mat3 h;
+    const double d =
+        nodeFriction(f.muLambda, f.normal, slideOf(ctx, f, xi), kFrictionSlipSpeed * dt, g, h);
+    nodeTerms += dt2 * d;
+    magnitude += dt2 * std::abs(d);
+    if (withGradient) {
+      gradMagnitude += dt2 * norm(g) * (norm(xi) + model.lengthScale);
+      for (int i = 0; i < 3; ++i) m_grad[3 * size_t(f.node) + i] += dt2 * g[i];
+      m_contactHess[size_t(f.node)] = m_contactHess[size_t(f.node)] + h;
+    }
+  }
   const double damping = (r2 > 0 && m_dampKValid)
                              ? dampingTerm(model, m_dampRef.data(), x, dt, withGradient, jobs)
                              : 0.0;
@@ -278,7 +298,7 @@ bool Integrator::enteredUnseenContact(const FemModel& model, const StepContext& 
 }
 
 void Integrator::predictRigidMotion(const FemModel& model, const FemState& state, double dt,
-                                    double fullDt) {
+                                    double fullDt, Vec3 gravity) {
   const size_t n3 = state.x.size();
   for (size_t i = 0; i < n3; ++i) m_y[i] = state.x[i] + dt * state.v[i];
   const bool damped = model.material.stiffnessDamping > 0;
@@ -324,6 +344,7 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
     p.rotation = turnBy(p.spin, dt);
     p.fullRotation = fullDt == dt ? p.rotation : turnBy(p.spin, fullDt);
   }
+  if (!m_friction.empty()) frictionStart(model, dt, gravity);
   // In the frame that turns with the piece, backward Euler on the deformation: y is the rigid
   // motion of x_n (c + dt v_c + R r) plus the deformation's own velocity, turned, and the
   // centrifugal and Coriolis accelerations of the turning frame; Newton starts from x_n turned
@@ -353,11 +374,50 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
     const Vec3 y = start + dt * (p.velocity + vDef) + (dt * dt) * fictitious;
     // Stiffness damping acts on the deformation: measured from the rigid motion, not x_n.
     for (int i = 0; i < 3; ++i) {
-      m_x[3 * size_t(n) + i] = start[i];
+      m_x[3 * size_t(n) + i] = start[i] + p.slide[i];
       m_y[3 * size_t(n) + i] = y[i];
       if (damped) m_dampRef[3 * size_t(n) + i] = start[i];
     }
   }
+}
+
+void Integrator::buildFriction(const FemModel& model, const StepContext& ctx) {
+  m_friction.clear();
+  m_frictionOfNode.clear();
+  if (!(model.friction > 0)) return;
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    if (model.fixedNode[n]) continue;
+    const Vec3 x = load3(m_xStart.data(), n);
+    for (int c = 0; c < ctx.colliderCount; ++c) {
+      const ColliderData& col = ctx.colliders[c];
+      if (!(col.friction > 0)) continue;
+      Vec3 normal;
+      const double depth = penetration(col, x, normal);
+      if (!(depth > 0)) continue;
+      if (m_frictionOfNode.empty()) m_frictionOfNode.assign(size_t(model.nodeCount), -1);
+      if (m_frictionOfNode[size_t(n)] < 0) m_frictionOfNode[size_t(n)] = int32_t(m_friction.size());
+      // The penalty's normal force k m d at the start, lagged over the step (IPC's lambda).
+      const double lambda = col.stiffness * model.nodeMass[n] * depth;
+      m_friction.push_back({n, c, std::sqrt(model.friction * col.friction) * lambda, normal});
+    }
+  }
+}
+
+Vec3 Integrator::slideOf(const StepContext& ctx, const FrictionContact& f, Vec3 x) const {
+  const Vec3 slide =
+      x - load3(m_xStart.data(), f.node) - ctx.dt * ctx.colliders[f.collider].velocity;
+  return slide - dot(slide, f.normal) * f.normal;
+}
+
+Vec3 Integrator::frictionImpulse(const StepContext& ctx, const FrictionContact& f, Vec3 x) const {
+  // As for the penalty: the force the last Newton step balanced is friction linearised at
+  // m_xLin, and the momentum bookkeeping must use that one (the exact force, smaller where the
+  // smoothing is concave, left a block on a slope with a spin it did not have).
+  const Vec3 xl = load3(m_xLin.data(), f.node);
+  Vec3 g{0, 0, 0};
+  Mat3 h;
+  (void)nodeFriction(f.muLambda, f.normal, slideOf(ctx, f, xl), kFrictionSlipSpeed * ctx.dt, g, h);
+  return -ctx.dt * (g + h * (x - xl));
 }
 
 Vec3 Integrator::externalImpulse(const FemModel& model, const StepContext& ctx, int32_t n,
@@ -373,6 +433,10 @@ Vec3 Integrator::externalImpulse(const FemModel& model, const StepContext& ctx, 
       if (nodeContact(ctx.colliders[c], xl, m, g, h) != 0) impulse -= ctx.dt * (g + h * (x - xl));
     }
   }
+  if (!m_frictionOfNode.empty() && m_frictionOfNode[size_t(n)] >= 0)
+    for (size_t k = size_t(m_frictionOfNode[size_t(n)]);
+         k < m_friction.size() && m_friction[k].node == n; ++k)
+      impulse += frictionImpulse(ctx, m_friction[k], x);
   return impulse;
 }
 
@@ -381,6 +445,44 @@ void Integrator::solveEndSpins() {
     if (!p.rigid) continue;
     p.newInertia = inertiaFromSecondMoment(p.newInertia);
     if (!spinOf(p.newInertia, p.momentTarget, p.newSpin)) p.newSpin = p.spin;
+  }
+}
+
+void Integrator::frictionStart(const FemModel& model, double dt, Vec3 gravity) {
+  // Linearised at no slide, smoothed friction is a stiff viscous drag, so one Newton step from
+  // there holds a sliding body still (a block on a 26 degree slope with mu = 0.2 stopped where
+  // it should accelerate at 2.6 m/s^2), and one from its old slide keeps a stopping body
+  // creeping. So each free piece on frictional contacts starts where Coulomb's law takes its
+  // centre: it sticks when the friction available, mu N, holds the tangential external force
+  // and stops the tangential velocity within the step; else it slides at the velocity that
+  // force and mu N leave, along the mean contact plane (no deeper into the collider).
+  for (const FrictionContact& f : m_friction) {  // the pieces are fresh from predictRigidMotion
+    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(f.node)])];
+    if (!p.rigid) continue;
+    p.contactNormal += f.muLambda * f.normal;
+    p.frictionForce += f.muLambda;
+  }
+  // Gravity and point forces per piece (the elastic forces are internal).
+  std::vector<Vec3>& force = m_pieceForce;
+  force.assign(m_pieces.size(), Vec3{0, 0, 0});
+  for (int32_t n = 0; n < model.nodeCount; ++n) {
+    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
+    if (!p.rigid || !(p.frictionForce > 0)) continue;
+    force[size_t(m_pieceOfNode[size_t(n)])] +=
+        load3(model.externalForce.data(), n) + model.nodeMass[n] * gravity;
+  }
+  for (size_t i = 0; i < m_pieces.size(); ++i) {
+    RigidPiece& p = m_pieces[i];
+    const double len = norm(p.contactNormal);
+    if (!p.rigid || !(len > 0)) continue;
+    const Vec3 n = (1.0 / len) * p.contactNormal;
+    const Vec3 vt = p.velocity - dot(p.velocity, n) * n;
+    const Vec3 ft = force[i] - dot(force[i], n) * n;
+    // Tangential velocity at the end if nothing held it, then friction's most against it.
+    const Vec3 free = vt + (dt / p.mass) * ft;
+    const double speed = norm(free), cut = dt * p.frictionForce / p.mass;
+    if (speed <= cut) continue;  // sticks
+    p.slide = dt * ((1 - cut / speed) * free);
   }
 }
 
@@ -553,7 +655,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   for (int32_t n = 0; n < model.nodeCount; ++n)
     if (model.fixedNode[n])
       for (int i = 0; i < 3; ++i) m_x[3 * n + i] += dt * model.gripVelocity[3 * n + i];
-  predictRigidMotion(model, state, dt, fullDt);
+  buildFriction(model, ctx);
+  predictRigidMotion(model, state, dt, fullDt, ctx.gravity);
 
   const double* start = m_xStart.data();  // x_n
   const bool fullNewton = maxNewton > 1;
@@ -824,6 +927,16 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
           out[i] += j[i];
           out[3 + i] += moment[i];
         }
+      }
+    }
+    for (const FrictionContact& f : m_friction) {
+      const Vec3 xi = load3(m_x.data(), f.node);
+      const Vec3 j = (1.0 / theta) * frictionImpulse(inner, f, xi);
+      const Vec3 moment = cross(xi - ctx.colliders[f.collider].point, j);
+      double* out = ctx.colliderImpulse + 6 * f.collider;
+      for (int i = 0; i < 3; ++i) {
+        out[i] += j[i];
+        out[3 + i] += moment[i];
       }
     }
   }

@@ -118,7 +118,8 @@ class Integrator {
   // Free pieces (fragments without a prescribed node) are stepped in the frame that turns
   // with them: fills m_y (the inertia target) and moves their start in m_x; see the .cpp.
   // fullDt is the whole step when the solve covers only theta of it (numericalDamping < 1).
-  void predictRigidMotion(const FemModel& model, const FemState& state, double dt, double fullDt);
+  void predictRigidMotion(const FemModel& model, const FemState& state, double dt, double fullDt,
+                          Vec3 gravity);
   // The end-of-step velocities of free pieces in that frame.
   void rigidEndVelocities(const FemModel& model, FemState& state, const StepContext& ctx);
   // What the outside gives node n over ctx.dt when it ends at x: point forces, mass-damping drag
@@ -127,6 +128,23 @@ class Integrator {
   Vec3 externalImpulse(const FemModel& model, const StepContext& ctx, int32_t n, Vec3 x) const;
   // Each free piece's end spin w' from its end inertia and target angular momentum.
   void solveEndSpins();
+  // A free node touching a collider with friction at the step's start: its lagged normal
+  // force times the mixed coefficient, and the normal.
+  struct FrictionContact {
+    int32_t node = 0;
+    int collider = 0;
+    double muLambda = 0;
+    Vec3 normal;
+  };
+  // Fills m_friction from the contacts at x_n (m_xStart), in node order.
+  void buildFriction(const FemModel& model, const StepContext& ctx);
+  // The contact node's sliding against its collider over ctx.dt when it ends at x.
+  Vec3 slideOf(const StepContext& ctx, const FrictionContact& f, Vec3 x) const;
+  // The impulse friction gives the contact's node over ctx.dt when it ends at x, as the last
+  // Newton step linearised it.
+  Vec3 frictionImpulse(const StepContext& ctx, const FrictionContact& f, Vec3 x) const;
+  // The Newton start of free pieces on frictional contacts (RigidPiece::slide).
+  void frictionStart(const FemModel& model, double dt, Vec3 gravity);
   // theta < 1: the end of the step extrapolated from the solved step of theta * dt (m_x).
   void thetaEndState(const FemModel& model, FemState& state, const StepContext& inner, double dt,
                      double theta);
@@ -155,9 +173,12 @@ class Integrator {
   double m_lastPsi = 0;                // elastic energy of the last incrementalPotential call
   double m_restVolume = 0;             // of the whole body, for the blow-up test
   std::vector<uint8_t> m_contactSeen;  // contact was in the last linearisation
-  BlockSparseMatrix m_dampK;           // K(x_n) for Rayleigh r2, only when r2 > 0
-  bool m_dampKValid = false;           // m_dampK belongs to the current step
-  std::vector<double> m_xLin;          // the last linearisation point, for collider impulses
+  std::vector<FrictionContact> m_friction;  // this step's, in node order
+  std::vector<int32_t> m_frictionOfNode;    // first entry of each node, -1 none; empty: none
+  std::vector<Vec3> m_pieceForce;           // frictionStart's scratch
+  BlockSparseMatrix m_dampK;                // K(x_n) for Rayleigh r2, only when r2 > 0
+  bool m_dampKValid = false;                // m_dampK belongs to the current step
+  std::vector<double> m_xLin;               // the last linearisation point, for collider impulses
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
   double m_theta = 1;  // of the last step; below 1, m_x keeps the solved point the forces act at
   FractureBody* m_fracture = nullptr;
@@ -175,6 +196,10 @@ class Integrator {
         momentTarget{0, 0, 0};
     Mat3 inertia, rotation, newInertia;
     Mat3 fullRotation;  // the turn over the whole step when the solve covers theta of it
+    // Friction (frictionStart): summed mu lambda n, summed mu lambda, and the Newton start's
+    // slide over the step.
+    Vec3 contactNormal{0, 0, 0}, slide{0, 0, 0};
+    double frictionForce = 0;
     bool fixed = false, rigid = false;
   };
   std::vector<RigidPiece> m_pieces;

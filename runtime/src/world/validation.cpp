@@ -16,6 +16,8 @@ using detail::bounded3;
 using detail::finite3;
 // Beyond this a collider's penalty energy k x^2 overflows: a unit mistake, not a scene.
 constexpr double kMaxColliderStiffness = 1e18;
+// Friction coefficients beyond this are a typo (rubber on rough concrete is about 1).
+constexpr double kMaxFriction = 1e3;
 
 bool positiveFinite(double v) { return std::isfinite(v) && v > 0; }
 // Shortest readable form ("1e+06", "0.5", "inf"), not std::to_string's fixed six decimals.
@@ -135,6 +137,8 @@ Result<void> Collider::check() const {
   if (!(std::isfinite(stiffness) && stiffness >= 0 && stiffness <= kMaxColliderStiffness))
     return fail("stiffness: must lie in [0, 1e18] (0 picks one from the time step), got ",
                 num(stiffness));
+  if (!(std::isfinite(friction) && friction >= 0 && friction <= kMaxFriction))
+    return fail("friction: must lie in [0, 1e3], got ", num(friction));
   if (kind == Kind::Plane) {
     const double len2 =
         double(normal.x) * normal.x + double(normal.y) * normal.y + double(normal.z) * normal.z;
@@ -205,6 +209,8 @@ Result<void> checkBodySettings(const BodyDef& def) {
   }
   if (!bounded3(def.initialVelocity))
     return fail("initialVelocity: must be finite, at most 1e9 m/s");
+  if (!(std::isfinite(def.friction) && def.friction >= 0 && def.friction <= kMaxFriction))
+    return fail("friction: must lie in [0, 1e3], got ", num(def.friction));
   if (!def.fibreField.empty()) {
     if (def.fibreField.size() != def.mesh.tetCount())
       return fail("fibreField: expected one direction per tet (",

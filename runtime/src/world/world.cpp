@@ -35,6 +35,8 @@ ColliderData toData(const Collider& c) {
   d.normal = len > 0 ? (1.0 / len) * n : Vec3{0, 1, 0};
   d.halfExtents = {c.halfExtents.x, c.halfExtents.y, c.halfExtents.z};
   d.radius = c.radius;
+  d.velocity = {c.velocity.x, c.velocity.y, c.velocity.z};
+  d.friction = c.friction;
   const glm::dquat q(c.rotation);
   const double ql = glm::length(q);
   const glm::dmat3 R = glm::mat3_cast(ql > 0 ? q / ql : glm::dquat(1, 0, 0, 0));
