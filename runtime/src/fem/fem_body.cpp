@@ -118,18 +118,7 @@ double estimateBodyBytes(const BodyDef& def) {
     if (def.fracture.nonlocalLength > 0 || def.fracture.radius > 0) {
       // Non-local lists: an index and a float weight per tet within R of each tet, about the
       // tets of a ball of radius R (fewer near the surface).
-      double volume = 0;
-      for (size_t t = 0; t < def.mesh.tetCount(); ++t) {
-        const int32_t* tn = &def.mesh.tets[4 * t];
-        const auto p = [&](int k) { return &def.mesh.positions[3 * size_t(tn[k])]; };
-        const double a[3] = {p(1)[0] - p(0)[0], p(1)[1] - p(0)[1], p(1)[2] - p(0)[2]};
-        const double b[3] = {p(2)[0] - p(0)[0], p(2)[1] - p(0)[1], p(2)[2] - p(0)[2]};
-        const double c[3] = {p(3)[0] - p(0)[0], p(3)[1] - p(0)[1], p(3)[2] - p(0)[2]};
-        volume +=
-            std::fabs(a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
-                      a[2] * (b[0] * c[1] - b[1] * c[0])) /
-            6.0;
-      }
+      const double volume = std::abs(def.mesh.volume());  // before validate() fixes flips
       if (tets > 0 && volume > 0) {
         // A Kuhn cell of side h holds 6 tets; its unique edges average about 1.3 h.
         const double R = def.fracture.nonlocalLength > 0
