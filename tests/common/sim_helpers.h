@@ -22,6 +22,18 @@ inline std::vector<int32_t> selectNodes(const TetMesh& mesh,
   return out;
 }
 
+/// Thesis Table 4.1's solid glass (the glass bunny of fig 4.14 and scenes/glass_bunny.json):
+/// StVK, E = 1e10 Pa, nu = 0.45, rho = 1e3, sigma_th = 5e7 Pa, brittle with 8 crack regions,
+/// direct solver.
+inline void makeTableGlass(BodyDef& def) {
+  def.material = Material::stvk(1e10, 0.45, 1000);
+  def.fracture.enabled = true;
+  def.fracture.strength = 5e7;
+  def.fracture.brittle = true;
+  def.fracture.regions = 8;
+  def.solver.linearSolver = LinearSolverKind::Direct;
+}
+
 /// Mean displacement component `axis` of `nodes`.
 inline double meanDisplacement(const World& world, BodyId id, const TetMesh& rest,
                                const std::vector<int32_t>& nodes, int axis) {

@@ -61,12 +61,7 @@ TEST(BulletAcceptance, GlassBunnyShattersAndFragmentsRestOnBulletFloor) {
   for (size_t n = 0; n < def.mesh.nodeCount(); ++n)
     for (int i = 0; i < 3; ++i) def.mesh.positions[3 * n + i] += shift[i];
   const glm::dvec3 size = hi - lo;
-  def.material = Material::stvk(1e10, 0.45, 1000);
-  def.fracture.enabled = true;
-  def.fracture.strength = 5e7;
-  def.fracture.brittle = true;
-  def.fracture.regions = 8;
-  def.solver.linearSolver = LinearSolverKind::Direct;
+  test::makeTableGlass(def);
 
   World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
   const BodyId id = world.createBody(def).value();

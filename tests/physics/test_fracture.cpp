@@ -437,12 +437,7 @@ TEST(Fracture, ShatteredSurfaceStaysOnTheMaterial) {
   BodyDef def;
   def.mesh = std::move(mesh.value());
   for (double& p : def.mesh.positions) p *= 0.03;
-  def.material = Material::stvk(1e10, 0.45, 1000);
-  def.fracture.enabled = true;
-  def.fracture.strength = 5e7;
-  def.fracture.brittle = true;
-  def.fracture.regions = 8;
-  def.solver.linearSolver = LinearSolverKind::Direct;
+  test::makeTableGlass(def);
   def.initialVelocity = glm::vec3(-20, 0, 0);
   Collider ball;
   ball.kind = Collider::Kind::Sphere;
@@ -502,11 +497,7 @@ int glassBrokenInFlight(bool corotatedInertia) {
   def.mesh = gen::box(0.16, 0.08, 0.08, 8, 4, 4);
   for (size_t n = 0; n < def.mesh.nodeCount(); ++n)
     for (int a = 0; a < 3; ++a) def.mesh.positions[3 * n + a] -= a == 0 ? 0.08 : 0.04;
-  def.material = Material::stvk(1e10, 0.45, 1000);
-  def.fracture.enabled = true;
-  def.fracture.strength = 5e7;
-  def.fracture.brittle = true;
-  def.fracture.regions = 8;
+  test::makeTableGlass(def);
   def.solver.corotatedInertia = corotatedInertia;
   const BodyId id = world.createBody(def).value();
   std::vector<double> v(def.mesh.positions.size());

@@ -39,12 +39,7 @@ Impact throwBunny(double dt, double duration) {
   // 2 cm of flight before the ball's leftmost reach: contact comes within a few steps.
   for (size_t n = 0; n < def.mesh.nodeCount(); ++n)
     def.mesh.positions[3 * n] += (ball.x + radius + 0.02) - lowX;
-  def.material = Material::stvk(1e10, 0.45, 1000);
-  def.fracture.enabled = true;
-  def.fracture.strength = 5e7;
-  def.fracture.brittle = true;
-  def.fracture.regions = 8;
-  def.solver.linearSolver = LinearSolverKind::Direct;
+  test::makeTableGlass(def);
 
   WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
   Collider sphere;
