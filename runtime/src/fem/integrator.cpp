@@ -384,7 +384,9 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
 void Integrator::buildFriction(const FemModel& model, const StepContext& ctx) {
   m_friction.clear();
   m_frictionOfNode.clear();
-  if (!(model.friction > 0)) return;
+  bool anyFriction = false;
+  for (int c = 0; c < ctx.colliderCount; ++c) anyFriction |= ctx.colliders[c].friction > 0;
+  if (!(model.friction > 0) || !anyFriction) return;  // the default: frictionless colliders
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     if (model.fixedNode[n]) continue;
     const Vec3 x = load3(m_xStart.data(), n);
