@@ -9,6 +9,7 @@
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
 #include "kernels/tet_inertia.h"
+#include "step/executor.h"
 #include "step/timing.h"
 
 namespace gf::detail {
@@ -143,69 +144,44 @@ Result<void> Integrator::restoreSolver(const FemModel& model, const std::vector<
   return {};
 }
 
-double Integrator::elementEnergy(const FemModel& model, const double* x, uint32_t t, double* grad,
-                                 Mat12* hessian, Mat3* stress) const {
+ElementStage Integrator::elementStage(const FemModel& model, const double* x, double* energy,
+                                      double* grad, double* hess, double* stress) const {
+  ElementStage s;
+  s.tets = model.tets.data();
+  s.x = x;
   // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
-  const Mat3& restInverse = m_plasticInverse ? (*m_plasticInverse)[t] : model.restInverse[t];
-  Vec3 xe[4];
-  for (int a = 0; a < 4; ++a) xe[a] = load3(x, model.tets[4 * t + a]);
-  MaterialCoeffs c = model.coeffs;
-  if (!model.fibreDir.empty()) c.fibreDir = model.fibreDir[t];
-  const uint8_t mask = m_fracture ? m_fracture->tetMask()[t] : 0;
-  if (mask == 0)
-    return elementForces(c, xe, restInverse, model.restVolume[t], grad, hessian,
-                         /*projectPsd=*/true, stress);
-  // A damaged element (one of its edges broke, fig 4.5): eq 4.25-4.27 or 4.32-4.33.
-  const FractureBody& fb = *m_fracture;
-  uint8_t brokenLocal[6];
-  for (int k = 0; k < 6; ++k) brokenLocal[k] = (mask >> k) & 1;
-  return damagedElementForces(fb.damageModel(), c, fb.edgeMatrix(int32_t(t)),
-                              fb.edgeMatrixInverse(int32_t(t)), fb.chi()[t], brokenLocal, xe,
-                              restInverse, model.restVolume[t], grad, hessian,
-                              /*projectPsd=*/true);
+  s.restInverse = m_plasticInverse ? m_plasticInverse->data() : model.restInverse.data();
+  s.restVolume = model.restVolume.data();
+  s.coeffs = model.coeffs;
+  s.fibreDir = model.fibreDir.empty() ? nullptr : model.fibreDir.data();
+  if (m_fracture) {
+    s.tetMask = m_fracture->tetMask();
+    s.damageModel = m_fracture->damageModel();
+    s.edgeMatrix = m_fracture->edgeMatrices();
+    s.edgeMatrixInverse = m_fracture->edgeMatrixInverses();
+    s.chi = m_fracture->chi();
+  }
+  s.rigidTet = model.rigidTet.empty() ? nullptr : model.rigidTet.data();
+  s.energy = energy;
+  s.grad = grad;
+  s.hess = hess;
+  s.stress = stress;
+  return s;
 }
 
 double Integrator::elementPass(const FemModel& model, const double* x, bool withHessian,
                                JobSystem& jobs) {
-  double* stressOut = m_stressOut;
-  jobs.parallelFor(uint32_t(model.tetCount), kElementGrain, [&](uint32_t b, uint32_t e) {
-    for (uint32_t t = b; t < e; ++t) {
-      if (!model.rigidTet.empty() && model.rigidTet[t]) {
-        m_elemEnergy[t] = 0;
-        std::fill_n(&m_elemGrad[12 * t], 12, 0.0);
-        if (withHessian) std::fill_n(&m_elemHess[144 * t], 144, 0.0);
-        if (stressOut) std::fill_n(stressOut + 6 * t, 6, 0.0);
-        continue;
-      }
-      Mat12* H = withHessian ? reinterpret_cast<Mat12*>(&m_elemHess[144 * t]) : nullptr;
-      // Damaged tets get their criterion stress from FractureBody (stressesReady covers
-      // undamaged ones only).
-      const bool undamaged = !m_fracture || m_fracture->tetMask()[t] == 0;
-      Mat3 S;
-      m_elemEnergy[t] =
-          elementEnergy(model, x, t, &m_elemGrad[12 * t], H, stressOut && undamaged ? &S : nullptr);
-      if (stressOut && undamaged) toVoigt(S, stressOut + 6 * t);
-    }
-  });
-  double psi = 0;  // serial sum: same order for any thread count
-  for (double e : m_elemEnergy) psi += e;
-  return psi;
+  const ElementStage stage = elementStage(model, x, m_elemEnergy.data(), m_elemGrad.data(),
+                                          withHessian ? m_elemHess.data() : nullptr, m_stressOut);
+  const CpuExecutor exec(jobs);
+  exec.run(model.tetCount, kElementGrain, stage);
+  return exec.sum(m_elemEnergy.data(), model.tetCount);
 }
 
 void Integrator::gatherGradient(const FemModel& model, JobSystem& jobs) {
-  jobs.parallelFor(uint32_t(model.nodeCount), kNodeGrain, [&](uint32_t b, uint32_t e) {
-    for (uint32_t n = b; n < e; ++n) {
-      double g[3] = {0, 0, 0};
-      for (int32_t k = m_nodeRefStart[n]; k < m_nodeRefStart[n + 1]; ++k) {
-        const int32_t ref = m_nodeRef[k];  // elem * 4 + corner
-        const double* eg = &m_elemGrad[12 * (ref / 4) + 3 * (ref % 4)];
-        g[0] += eg[0];
-        g[1] += eg[1];
-        g[2] += eg[2];
-      }
-      std::memcpy(&m_elasticGrad[3 * n], g, sizeof g);
-    }
-  });
+  const GatherStage stage{m_nodeRefStart.data(), m_nodeRef.data(), m_elemGrad.data(),
+                          m_elasticGrad.data()};
+  CpuExecutor(jobs).run(model.nodeCount, kNodeGrain, stage);
 }
 
 double Integrator::incrementalPotential(const FemModel& model, const double* xn, const double* x,
@@ -611,16 +587,13 @@ void Integrator::thetaEndState(const FemModel& model, FemState& state, const Ste
 
 EnergyBreakdown Integrator::energies(const FemModel& model, const double* x, const StepContext& ctx,
                                      JobSystem& jobs) const {
-  // Its own buffer, so that a diagnostic between steps never races or clobbers the step's.
-  std::vector<double> energy(size_t(model.tetCount), 0.0);
-  jobs.parallelFor(uint32_t(model.tetCount), kElementGrain, [&](uint32_t b, uint32_t e) {
-    double grad[12];
-    for (uint32_t t = b; t < e; ++t)
-      if (model.rigidTet.empty() || !model.rigidTet[t])
-        energy[t] = elementEnergy(model, x, t, grad, nullptr, nullptr);
-  });
+  // Its own buffers, so that a diagnostic between steps never races or clobbers the step's.
+  std::vector<double> energy(size_t(model.tetCount)), grad(12 * size_t(model.tetCount));
+  const CpuExecutor exec(jobs);
+  exec.run(model.tetCount, kElementGrain,
+           elementStage(model, x, energy.data(), grad.data(), nullptr, nullptr));
   EnergyBreakdown out;
-  for (double v : energy) out.elastic += v;  // serial sum: same order for any thread count
+  out.elastic = exec.sum(energy.data(), model.tetCount);
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     Vec3 g;
     Mat3 h;

@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "fem/element_stage.h"
 #include "fem/fem_body.h"
 #include "fracture/fracture_body.h"
 #include "graphfrac/jobs.h"
@@ -103,10 +104,9 @@ class Integrator {
                             JobSystem& jobs, std::vector<double>& out);
 
  private:
-  // Energy of tet t at x; its gradient into grad (12) and, when non-null, its PSD Hessian and
-  // the material stress (undamaged tets only).
-  double elementEnergy(const FemModel& model, const double* x, uint32_t t, double* grad,
-                       Mat12* hessian, Mat3* stress) const;
+  // The element stage at x writing into the given buffers (hess, stress nullable).
+  ElementStage elementStage(const FemModel& model, const double* x, double* energy, double* grad,
+                            double* hess, double* stress) const;
   // Per-element pass: energies, gradients and (optionally) PSD Hessians into the buffers.
   double elementPass(const FemModel& model, const double* x, bool withHessian, JobSystem& jobs);
   // Node gradient of the elastic energy from the element gradients (deterministic gather).

@@ -52,10 +52,10 @@ class FractureBody {
   int damageModel() const { return m_damageModel; }
   const uint8_t* tetMask() const { return m_tetMask.data(); }
   const double* chi() const { return m_chi.data(); }
-  const Mat<6, 6>& edgeMatrix(int32_t t) const { return m_T.empty() ? m_identity : m_T[t]; }
-  const Mat<6, 6>& edgeMatrixInverse(int32_t t) const {
-    return m_Tinv.empty() ? m_identity : m_Tinv[t];
-  }
+  /// Per-tet edge matrices T and T^-1 of the projection model (e_d = T e, eq 4.25); null for the
+  /// degradation model, which does not use them.
+  const Mat<6, 6>* edgeMatrices() const { return m_T.empty() ? nullptr : m_T.data(); }
+  const Mat<6, 6>* edgeMatrixInverses() const { return m_Tinv.empty() ? nullptr : m_Tinv.data(); }
 
   void queueCut(PendingCut cut) { m_pendingCuts.push_back(std::move(cut)); }
 
@@ -105,7 +105,6 @@ class FractureBody {
   int m_damageModel = 1;
   std::vector<Vec3> m_restDir;         // 6 per tet, unit rest edge directions
   std::vector<Mat<6, 6>> m_T, m_Tinv;  // projection model only
-  Mat<6, 6> m_identity = Mat<6, 6>::identity();
   std::vector<uint8_t> m_broken, m_tetMask, m_breakCause;
   std::vector<double> m_chi, m_stress;
   std::vector<double> m_nodeVolume;

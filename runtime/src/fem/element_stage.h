@@ -1,0 +1,98 @@
+// The per-element stages of a step, written once for both executors (runtime/src/step/executor.h
+// on the CPU, gpu/launch.h on CUDA): plain structs of flat-buffer pointers whose GF_HD
+// operator() handles one tet or one node. Layouts are those of FemModel, FemState and
+// FractureBody, so a device mirror is a copy of the same buffers.
+#pragma once
+
+#include <cstdint>
+
+#include "kernels/damage.h"
+#include "kernels/edge_stress.h"
+#include "kernels/element.h"
+
+namespace gf::detail {
+
+/// Energy, gradient, PSD Hessian and criterion stress of every tet at x (SPEC §1; damaged
+/// tets eq 4.25-4.27 or 4.32-4.33). Nullable inputs: fibreDir (no fibre field), tetMask (no
+/// fracture), edgeMatrix/edgeMatrixInverse (no projection model: identity), rigidTet (no
+/// detached fragment). Nullable outputs: hess, stress.
+struct ElementStage {
+  const int32_t* tets = nullptr;      ///< 4 per tet
+  const double* x = nullptr;          ///< 3 per node
+  const Mat3* restInverse = nullptr;  ///< per tet: Dm^-1, or Dm^-1 Fp^-1 when plastic (eq 2.3)
+  const double* restVolume = nullptr;
+  MaterialCoeffs coeffs;
+  const Vec3* fibreDir = nullptr;
+  const uint8_t* tetMask = nullptr;  ///< bit k: local edge k broken
+  int damageModel = 0;
+  const Mat<6, 6>* edgeMatrix = nullptr;
+  const Mat<6, 6>* edgeMatrixInverse = nullptr;
+  const double* chi = nullptr;
+  const uint8_t* rigidTet = nullptr;
+  double* energy = nullptr;  ///< per tet
+  double* grad = nullptr;    ///< 12 per tet
+  double* hess = nullptr;    ///< 144 per tet
+  double* stress = nullptr;  ///< 6 per tet (Voigt), undamaged tets only: FractureBody does the rest
+
+  GF_HD void operator()(int32_t t) const {
+    double* g = grad + 12 * int64_t(t);
+    Mat12* h = hess ? reinterpret_cast<Mat12*>(hess + 144 * int64_t(t)) : nullptr;
+    if (rigidTet && rigidTet[t]) {
+      // A tet of a fragment handed to rigid physics moves rigidly: no strain, no force.
+      energy[t] = 0;
+      for (int k = 0; k < 12; ++k) g[k] = 0;
+      if (h) *h = Mat12{};
+      if (stress)
+        for (int k = 0; k < 6; ++k) stress[6 * int64_t(t) + k] = 0;
+      return;
+    }
+    Vec3 xe[4];
+    for (int a = 0; a < 4; ++a) {
+      const int64_t n = tets[4 * int64_t(t) + a];
+      xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
+    }
+    MaterialCoeffs c = coeffs;
+    if (fibreDir) c.fibreDir = fibreDir[t];
+    const uint8_t mask = tetMask ? tetMask[t] : 0;
+    if (mask == 0) {
+      Mat3 S;
+      energy[t] = elementForces(c, xe, restInverse[t], restVolume[t], g, h, /*projectPsd=*/true,
+                                stress ? &S : nullptr);
+      if (stress) toVoigt(S, stress + 6 * int64_t(t));
+      return;
+    }
+    uint8_t brokenLocal[6];
+    for (int k = 0; k < 6; ++k) brokenLocal[k] = (mask >> k) & 1;
+    const Mat<6, 6> identity = Mat<6, 6>::identity();
+    energy[t] = damagedElementForces(damageModel, c, edgeMatrix ? edgeMatrix[t] : identity,
+                                     edgeMatrixInverse ? edgeMatrixInverse[t] : identity, chi[t],
+                                     brokenLocal, xe, restInverse[t], restVolume[t], g, h,
+                                     /*projectPsd=*/true);
+  }
+};
+
+/// Node gradient of the elastic energy: the element gradients of each node's tets summed in
+/// element order (nodeRef = tet * 4 + corner, CSR by node), so the result does not depend on
+/// how nodes are split between threads.
+struct GatherStage {
+  const int32_t* nodeRefStart = nullptr;  ///< nodeCount + 1
+  const int32_t* nodeRef = nullptr;
+  const double* elemGrad = nullptr;  ///< 12 per tet
+  double* nodeGrad = nullptr;        ///< 3 per node
+
+  GF_HD void operator()(int32_t n) const {
+    double g0 = 0, g1 = 0, g2 = 0;
+    for (int32_t k = nodeRefStart[n]; k < nodeRefStart[n + 1]; ++k) {
+      const int32_t ref = nodeRef[k];
+      const double* eg = elemGrad + 12 * int64_t(ref / 4) + 3 * (ref % 4);
+      g0 += eg[0];
+      g1 += eg[1];
+      g2 += eg[2];
+    }
+    nodeGrad[3 * int64_t(n)] = g0;
+    nodeGrad[3 * int64_t(n) + 1] = g1;
+    nodeGrad[3 * int64_t(n) + 2] = g2;
+  }
+};
+
+}  // namespace gf::detail

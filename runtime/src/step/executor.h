@@ -1,0 +1,38 @@
+// The CPU executor of the step's stages. A stage is a plain struct whose GF_HD
+// `operator()(int32_t i)` handles item i of an index range and writes only item i's outputs
+// (fem/element_stage.h); the CPU runs it through the JobSystem, the CUDA backend through the
+// generic __global__ wrapper of gpu/launch.h, so no per-step algorithm exists twice.
+// Reductions run here in index order, so results do not depend on the thread count.
+#pragma once
+
+#include <cstdint>
+
+#include "graphfrac/jobs.h"
+
+namespace gf::detail {
+
+class CpuExecutor {
+ public:
+  explicit CpuExecutor(JobSystem& jobs) : m_jobs(&jobs) {}
+
+  /// stage(i) for every i in [0, count), in ranges of at least `grain` items.
+  template <class Stage>
+  void run(int32_t count, uint32_t grain, const Stage& stage) const {
+    if (count <= 0) return;
+    m_jobs->parallelFor(uint32_t(count), grain, [&stage](uint32_t b, uint32_t e) {
+      for (uint32_t i = b; i < e; ++i) stage(int32_t(i));
+    });
+  }
+
+  /// values[0] + ... + values[count-1], summed in index order.
+  static double sum(const double* values, int32_t count) {
+    double s = 0;
+    for (int32_t i = 0; i < count; ++i) s += values[i];
+    return s;
+  }
+
+ private:
+  JobSystem* m_jobs;
+};
+
+}  // namespace gf::detail
