@@ -1,39 +1,96 @@
-// CUDA launcher for the per-element pass: one thread per tet runs the same GF_HD kernel as the
-// CPU loop in runtime/src/fem/integrator.cpp (energy, gradient and PSD Hessian, SPEC §1).
-// Built whenever the CUDA toolkit is found, so CI proves the kernels compile for the device, and
-// tests/gpu checks it against the CPU kernel on a GPU machine. The World does not use it yet.
-#include <cuda_runtime.h>
-
+// gpu/element_pass.h: the host code is buffer management; the stages and the reduction are
+// the CPU executor's (fem/element_stage.h, step/reduce.h), launched through gpu/launch.h.
 #include "gpu/element_pass.h"
-#include "kernels/element.h"
+#include "gpu/launch.h"
+#include "step/reduce.h"
 
 namespace gf::gpu {
+inline namespace GF_GPU_ABI {
 
 namespace {
-__global__ void elementPassKernel(int tetCount, const int32_t* tets, const double* x,
-                                  const Mat3* restInverse, const double* restVolume,
-                                  MaterialCoeffs coeffs, double* energy, double* grad,
-                                  double* hess) {
-  const int t = blockIdx.x * blockDim.x + threadIdx.x;
-  if (t >= tetCount) return;
-  Vec3 xe[4];
-  for (int a = 0; a < 4; ++a) {
-    const int32_t n = tets[4 * t + a];
-    xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
+// The serial half of chunkedSum, on one device thread so the energy never leaves the device
+// until it is asked for.
+struct ChunkTotalStage {
+  const double* partials;
+  int32_t chunks;
+  double* out;
+  GF_HD void operator()(int32_t) const {
+    double s = 0;
+    for (int32_t c = 0; c < chunks; ++c) s += partials[c];
+    *out = s;
   }
-  Mat12* h = hess ? reinterpret_cast<Mat12*>(hess + 144 * size_t(t)) : nullptr;
-  energy[t] = elementForces(coeffs, xe, restInverse[t], restVolume[t], grad + 12 * size_t(t), h,
-                            /*projectPsd=*/true);
-}
+};
 }  // namespace
 
-int launchElementPass(const ElementPassArgs& a, void* stream) {
-  constexpr int kBlock = 128;
-  const int blocks = (a.tetCount + kBlock - 1) / kBlock;
-  if (blocks == 0) return 0;
-  elementPassKernel<<<blocks, kBlock, 0, static_cast<cudaStream_t>(stream)>>>(
-      a.tetCount, a.tets, a.x, a.restInverse, a.restVolume, a.coeffs, a.energy, a.grad, a.hess);
-  return static_cast<int>(cudaGetLastError());
+bool DeviceElementPass::fail(const char* what) {
+  m_error = std::string(what) + ": " + lastError();
+  return false;
 }
 
+bool DeviceElementPass::upload(const detail::ElementStage& h, const detail::GatherStage& gather,
+                               int32_t tetCount, int32_t nodeCount) {
+  const size_t nt = size_t(tetCount), nn = size_t(nodeCount);
+  m_tetCount = tetCount;
+  m_nodeCount = nodeCount;
+  m_host = h;
+  const bool damaged = h.tetMask != nullptr;
+  if (!m_tets.upload(h.tets, 4 * nt) || !m_x.upload(h.x, 3 * nn) ||
+      !m_restInverse.upload(h.restInverse, nt) || !m_restVolume.upload(h.restVolume, nt) ||
+      !m_fibreDir.upload(h.fibreDir, nt) || !m_tetMask.upload(h.tetMask, nt) ||
+      !m_chi.upload(damaged ? h.chi : nullptr, nt) || !m_rigidTet.upload(h.rigidTet, nt) ||
+      !m_edgeMatrix.upload(h.edgeMatrix, nt) ||
+      !m_edgeMatrixInverse.upload(h.edgeMatrixInverse, nt) ||
+      !m_nodeRefStart.upload(gather.nodeRefStart, nn + 1) ||
+      !m_nodeRef.upload(gather.nodeRef, 4 * nt) || !m_energy.resize(nt) ||
+      !m_grad.resize(12 * nt) || !m_nodeGrad.resize(3 * nn) ||
+      !m_partials.resize(size_t(detail::sumChunks(tetCount))) || !m_sum.resize(1))
+    return fail("uploading the body");
+  return true;
+}
+
+bool DeviceElementPass::uploadPositions(const double* x) {
+  return m_x.upload(x, 3 * size_t(m_nodeCount)) || fail("uploading positions");
+}
+
+bool DeviceElementPass::run(bool withHessian, bool withStress) {
+  const size_t nt = size_t(m_tetCount);
+  if ((withHessian && !m_hess.resize(144 * nt)) || (withStress && !m_stress.resize(6 * nt)))
+    return fail("allocating the element outputs");
+  detail::ElementStage s = m_host;
+  s.tets = m_tets.data();
+  s.x = m_x.data();
+  s.restInverse = m_restInverse.data();
+  s.restVolume = m_restVolume.data();
+  s.fibreDir = m_fibreDir.data();
+  s.tetMask = m_tetMask.data();
+  s.edgeMatrix = m_edgeMatrix.data();
+  s.edgeMatrixInverse = m_edgeMatrixInverse.data();
+  s.chi = m_chi.data();
+  s.rigidTet = m_rigidTet.data();
+  s.energy = m_energy.data();
+  s.grad = m_grad.data();
+  s.hess = withHessian ? m_hess.data() : nullptr;
+  s.stress = withStress ? m_stress.data() : nullptr;
+  launch(s, m_tetCount, nullptr);
+  launch(detail::ChunkSumStage{m_energy.data(), m_tetCount, m_partials.data()},
+         detail::sumChunks(m_tetCount), nullptr);
+  launch(ChunkTotalStage{m_partials.data(), detail::sumChunks(m_tetCount), m_sum.data()}, 1,
+         nullptr);
+  launch(detail::GatherStage{m_nodeRefStart.data(), m_nodeRef.data(), m_grad.data(),
+                             m_nodeGrad.data()},
+         m_nodeCount, nullptr);
+  if (!synchronize()) return fail("running the element stages");
+  return m_sum.download(&m_psi, 1) || fail("reading the energy");
+}
+
+bool DeviceElementPass::download(double* energy, double* grad, double* hess, double* stress,
+                                 double* nodeGrad) const {
+  const size_t nt = size_t(m_tetCount);
+  return (!energy || m_energy.download(energy, nt)) && (!grad || m_grad.download(grad, 12 * nt)) &&
+         (!hess || m_hess.download(hess, 144 * nt)) &&
+         (!stress || m_stress.download(stress, 6 * nt)) &&
+         (!nodeGrad || m_nodeGrad.download(nodeGrad, 3 * size_t(m_nodeCount)));
+}
+
+}  // namespace GF_GPU_ABI
 }  // namespace gf::gpu

@@ -1,28 +1,51 @@
-// Host interface of the CUDA element pass (device pointers in, device pointers out).
+// The element and gather stages of a body on the device: the CPU integrator's stages
+// (runtime/src/fem/element_stage.h) run by the CUDA executor on device copies of the same
+// buffers. Built twice from one source: element_pass.cu with nvcc, and gpu/host/ with the host
+// compiler for the `backend` tests.
 #pragma once
 
 #include <cstdint>
+#include <string>
 
-#include "kernels/materials.h"
-#include "kernels/math.h"
+#include "fem/element_stage.h"
+#include "gpu/device.h"
 
 namespace gf::gpu {
+inline namespace GF_GPU_ABI {
 
-/// Device buffers of one element pass; layouts match the CPU integrator's.
-struct ElementPassArgs {
-  int tetCount = 0;
-  const int32_t* tets = nullptr;       ///< 4 per tet
-  const double* x = nullptr;           ///< 3 per node
-  const Mat3* restInverse = nullptr;   ///< per tet
-  const double* restVolume = nullptr;  ///< per tet
-  MaterialCoeffs coeffs;
-  double* energy = nullptr;  ///< per tet
-  double* grad = nullptr;    ///< 12 per tet
-  double* hess = nullptr;    ///< 144 per tet, or null for energy and gradient only
+class DeviceElementPass {
+ public:
+  /// Copies what the host stages read (their outputs are ignored). False when device memory
+  /// runs out (error()).
+  bool upload(const detail::ElementStage& elements, const detail::GatherStage& gather,
+              int32_t tetCount, int32_t nodeCount);
+  /// Positions only (3 per node), for another pass on the uploaded body.
+  bool uploadPositions(const double* x);
+  /// Runs the element stage (with Hessians and criterion stresses when asked), the energy sum
+  /// and the gather; waits for them. False on a device error (error()).
+  bool run(bool withHessian, bool withStress);
+  /// The elastic energy of the last run.
+  double energy() const { return m_psi; }
+  /// Copies the last run's outputs to the host (null: skip; sizes as in ElementStage, nodeGrad
+  /// 3 per node).
+  bool download(double* energy, double* grad, double* hess, double* stress, double* nodeGrad) const;
+  const std::string& error() const { return m_error; }
+
+ private:
+  bool fail(const char* what);
+
+  int32_t m_tetCount = 0, m_nodeCount = 0;
+  detail::ElementStage m_host;  // options and coefficients of the uploaded body
+  DeviceBuffer<int32_t> m_tets, m_nodeRefStart, m_nodeRef;
+  DeviceBuffer<double> m_x, m_restVolume, m_chi, m_energy, m_grad, m_hess, m_stress, m_nodeGrad,
+      m_partials, m_sum;
+  DeviceBuffer<Mat3> m_restInverse;
+  DeviceBuffer<Vec3> m_fibreDir;
+  DeviceBuffer<uint8_t> m_tetMask, m_rigidTet;
+  DeviceBuffer<Mat<6, 6>> m_edgeMatrix, m_edgeMatrixInverse;
+  double m_psi = 0;
+  std::string m_error;
 };
 
-/// Launches the pass on `stream` (a cudaStream_t, null = default); returns the cudaError_t
-/// of the launch (0 = success).
-int launchElementPass(const ElementPassArgs& args, void* stream = nullptr);
-
+}  // namespace GF_GPU_ABI
 }  // namespace gf::gpu

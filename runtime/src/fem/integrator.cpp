@@ -179,9 +179,8 @@ double Integrator::elementPass(const FemModel& model, const double* x, bool with
 }
 
 void Integrator::gatherGradient(const FemModel& model, JobSystem& jobs) {
-  const GatherStage stage{m_nodeRefStart.data(), m_nodeRef.data(), m_elemGrad.data(),
-                          m_elasticGrad.data()};
-  CpuExecutor(jobs).run(model.nodeCount, kNodeGrain, stage);
+  CpuExecutor(jobs).run(model.nodeCount, kNodeGrain,
+                        gatherStage(m_elemGrad.data(), m_elasticGrad.data()));
 }
 
 double Integrator::incrementalPotential(const FemModel& model, const double* xn, const double* x,

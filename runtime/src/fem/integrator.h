@@ -93,6 +93,14 @@ class Integrator {
   /// the re-binds replayed on the broken sets of the attached fracture's break-order prefixes
   /// (its state must already be restored). No-op when the history is the current one.
   Result<void> restoreSolver(const FemModel& model, const std::vector<int32_t>& history);
+  /// The element stage of this body at x writing into the given buffers (hess and stress
+  /// nullable), and the gather of its element gradients: what the step runs, for the device
+  /// backend's copies and the backend tests.
+  ElementStage elementStage(const FemModel& model, const double* x, double* energy, double* grad,
+                            double* hess, double* stress) const;
+  GatherStage gatherStage(const double* elemGrad, double* nodeGrad) const {
+    return {m_nodeRefStart.data(), m_nodeRef.data(), elemGrad, nodeGrad};
+  }
   /// Elastic and contact energy at positions x. Touches no scratch buffer of the step.
   EnergyBreakdown energies(const FemModel& model, const double* x, const StepContext& ctx,
                            JobSystem& jobs) const;
@@ -104,9 +112,6 @@ class Integrator {
                             JobSystem& jobs, std::vector<double>& out);
 
  private:
-  // The element stage at x writing into the given buffers (hess, stress nullable).
-  ElementStage elementStage(const FemModel& model, const double* x, double* energy, double* grad,
-                            double* hess, double* stress) const;
   // Per-element pass: energies, gradients and (optionally) PSD Hessians into the buffers.
   double elementPass(const FemModel& model, const double* x, bool withHessian, JobSystem& jobs);
   // Node gradient of the elastic energy from the element gradients (deterministic gather).

@@ -2,12 +2,13 @@
 // `operator()(int32_t i)` handles item i of an index range and writes only item i's outputs
 // (fem/element_stage.h); the CPU runs it through the JobSystem, the CUDA backend through the
 // generic __global__ wrapper of gpu/launch.h, so no per-step algorithm exists twice.
-// Reductions run here in index order, so results do not depend on the thread count.
+// Sums run in the fixed order of step/reduce.h on both.
 #pragma once
 
 #include <cstdint>
 
 #include "graphfrac/jobs.h"
+#include "step/reduce.h"
 
 namespace gf::detail {
 
@@ -24,12 +25,8 @@ class CpuExecutor {
     });
   }
 
-  /// values[0] + ... + values[count-1], summed in index order.
-  static double sum(const double* values, int32_t count) {
-    double s = 0;
-    for (int32_t i = 0; i < count; ++i) s += values[i];
-    return s;
-  }
+  /// values[0] + ... + values[count-1] in the order of chunkedSum.
+  static double sum(const double* values, int32_t count) { return chunkedSum(values, count); }
 
  private:
   JobSystem* m_jobs;

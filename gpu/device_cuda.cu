@@ -1,0 +1,59 @@
+// gpu/device.h on the CUDA runtime.
+#include <cuda_runtime.h>
+
+#include "gpu/device.h"
+
+namespace gf::gpu {
+inline namespace GF_GPU_ABI {
+
+namespace {
+cudaError_t g_lastError = cudaSuccess;
+
+bool check(cudaError_t e) {
+  if (e != cudaSuccess) g_lastError = e;
+  return e == cudaSuccess;
+}
+}  // namespace
+
+bool deviceAvailable(std::string& why) {
+  int count = 0;
+  const cudaError_t e = cudaGetDeviceCount(&count);
+  if (e != cudaSuccess) {
+    why = std::string("no CUDA device: ") + cudaGetErrorString(e);
+    return false;
+  }
+  if (count == 0) why = "no CUDA device";
+  return count > 0;
+}
+
+void* deviceAlloc(size_t bytes) {
+  void* p = nullptr;
+  return check(cudaMalloc(&p, bytes)) ? p : nullptr;
+}
+
+void deviceFree(void* p) {
+  if (p) cudaFree(p);
+}
+
+bool copyToDevice(void* dst, const void* src, size_t bytes) {
+  return check(cudaMemcpy(dst, src, bytes, cudaMemcpyHostToDevice));
+}
+
+bool copyToHost(void* dst, const void* src, size_t bytes) {
+  return check(cudaMemcpy(dst, src, bytes, cudaMemcpyDeviceToHost));
+}
+
+bool synchronize() { return check(cudaGetLastError()) && check(cudaDeviceSynchronize()); }
+
+std::string lastError() { return cudaGetErrorString(g_lastError); }
+
+std::string deviceName() {
+  int device = 0;
+  cudaDeviceProp prop{};
+  if (!check(cudaGetDevice(&device)) || !check(cudaGetDeviceProperties(&prop, device)))
+    return "no CUDA device (" + lastError() + ")";
+  return prop.name;
+}
+
+}  // namespace GF_GPU_ABI
+}  // namespace gf::gpu
