@@ -51,6 +51,7 @@ constexpr const char* kUsage =
     "  --out DIR                  output directory (default: out/<scene name>)\n"
     "  --video                    also encode OUT/demo.mp4 with ffmpeg (H.264), if installed\n"
     "  --renderer auto|vulkan|gl  back end (default auto: Vulkan, else OpenGL through EGL)\n"
+    "  --backend auto|cpu|cuda    simulation backend (default: the scene's \"backend\")\n"
     "  --validation               Vulkan validation layers on; exit 1 if they report anything\n"
     "  --strain MAX               colour the bodies by their largest principal strain, blue\n"
     "                             at 0 to red at MAX (the thesis's strain profiles, figs 4.2,\n"
@@ -77,6 +78,12 @@ std::string parseArgs(int argc, char** argv, DemoOptions& o, bool& help) {
       int n = 0;
       if (!a.intValue(1, 100'000'000, n)) return "--frames needs an integer >= 1";
       o.frames = n;
+    } else if (arg == "--backend") {
+      std::string value;
+      Backend b{};
+      if (!a.value(value) || !cli::parseBackend(value, b))
+        return "--backend needs auto, cpu or cuda";
+      o.backend = b;
     } else if (arg == "--size") {
       std::string value;
       const size_t x = a.value(value) ? value.find('x') : std::string::npos;
@@ -326,6 +333,7 @@ std::string formatSummary(const DemoSummary& s) {
   add("graphfrac-demo: %s: %d frames of %.6g s (%d substep%s), %dx%d\n", s.scene.c_str(), s.frames,
       s.dt, s.substeps, s.substeps == 1 ? "" : "s", s.width, s.height);
   add("  renderer:   %s\n", s.renderer.c_str());
+  add("  backend:    %s\n", s.backend.c_str());
   add("  simulation: %.2f ms/frame mean, %.2f max (Bullet %.2f ms/frame mean)\n", s.simMsMean,
       s.simMsMax, s.bulletMsMean);
   add("  rendering:  %.2f ms/frame mean, %.2f max (upload, draw, readback; PNG writing %.2f "
@@ -356,7 +364,8 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
   const auto wallStart = Clock::now();
   Result<scene::Scene> loaded = scene::loadScene(opt.scene);
   if (!loaded) return loaded.error();
-  const scene::Scene sc = std::move(loaded).value();
+  scene::Scene sc = std::move(loaded).value();
+  if (opt.backend) sc.world.backend = *opt.backend;
   const int frames = opt.frames.value_or(sc.frames);
   if (frames < 1) return fail("graphfrac-demo: frames must be >= 1, got ", std::to_string(frames));
 
@@ -375,6 +384,7 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
   Renderer& renderer = *madeRenderer.value();
 
   DemoSummary s;
+  s.backend = world.backendDescription();
   s.scene = sc.name;
   s.renderer = renderer.description();
   s.frames = frames;

@@ -18,8 +18,9 @@
 namespace gf::demo {
 
 struct DemoOptions {
-  std::string scene;          ///< Scene file (docs/scene_format.md).
-  std::optional<int> frames;  ///< Default: the scene's "frames".
+  std::string scene;               ///< Scene file (docs/scene_format.md).
+  std::optional<int> frames;       ///< Default: the scene's "frames".
+  std::optional<Backend> backend;  ///< Default: the scene's "backend".
   int width = 640, height = 360;
   std::string out;  ///< Default: out/<scene name>.
   bool video = false;
@@ -48,6 +49,7 @@ struct DemoFrame {
 struct DemoSummary {
   std::string scene;     ///< Scene name.
   std::string renderer;  ///< Renderer::description().
+  std::string backend;   ///< World::backendDescription().
   std::string outDir;
   int frames = 0, width = 0, height = 0;
   double dt = 0;

@@ -475,6 +475,7 @@ TEST(DemoApp, CommandLineErrorsAndVideo) {
   EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--renderer", "metal"}), 2);
   EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--frames", "0"}), 2);
   EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--bogus"}), 2);
+  EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--backend", "gpu"}), 2);
   EXPECT_EQ(callMain({"graphfrac-demo", "--help"}), 0);
   const TempDir tmp("cli");
   const fs::path dir = tmp.path;
@@ -502,6 +503,7 @@ TEST(DemoApp, CommandLineErrorsAndVideo) {
   std::stringstream text;
   text << summary.rdbuf();
   EXPECT_NE(text.str().find("ffmpeg is not on PATH"), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("  backend:    cpu: "), std::string::npos) << text.str();
 
   if (std::system("command -v ffmpeg > /dev/null 2>&1") != 0) GTEST_SKIP() << "no ffmpeg here";
   Result<DemoSummary> withVideo = runDemo(opt);

@@ -47,7 +47,6 @@ TEST(WorldMisuse, InvalidWorldDefRefusesToRun) {
   };
   add("WorldDef.substeps", [](WorldDef& d) { d.substeps = 0; });
   add("WorldDef.gravity", [](WorldDef& d) { d.gravity.y = float(kInf); });
-  add("WorldDef.backend", [](WorldDef& d) { d.backend = Backend::Cuda; });
   add("WorldDef.backend", [](WorldDef& d) { d.backend = static_cast<Backend>(7); });
   add("WorldDef.colliders[1].stiffness", [](WorldDef& d) {
     d.colliders.resize(2);
@@ -75,6 +74,33 @@ TEST(WorldMisuse, InvalidWorldDefRefusesToRun) {
     EXPECT_EQ(world.time(), 0.0);
   }
   EXPECT_TRUE(WorldDef{}.check().ok());
+}
+
+// Backend::Cuda is a valid def, but the whole step does not run on a device in this version:
+// the world refuses to run, saying why (no driver, no device, or that), and Auto and Cpu run on
+// the CPU and say so.
+TEST(WorldMisuse, CudaBackendThatCannotRunRefusesToRun) {
+  WorldDef def;
+  def.backend = Backend::Cuda;
+  EXPECT_TRUE(def.check().ok());
+  World cuda(def);
+  const Result<BodyId> body = cuda.createBody(cube());
+  ASSERT_FALSE(body.ok());
+  EXPECT_TRUE(contains(body.error().message, "WorldDef.backend: Cuda cannot run: "))
+      << body.error().message;
+  const StepStatus st = cuda.step(0.01);
+  EXPECT_TRUE(st.has(kStepInvalidInput));
+  EXPECT_TRUE(contains(st.message, "WorldDef.backend")) << st.message;
+  EXPECT_EQ(cuda.time(), 0.0);
+  for (Backend b : {Backend::Auto, Backend::Cpu}) {
+    def.backend = b;
+    World world(def);
+    EXPECT_EQ(world.backend(), Backend::Cpu);
+    EXPECT_EQ(world.backendDescription().rfind("cpu: ", 0), 0u) << world.backendDescription();
+    std::printf("  Backend::%s: %s\n", b == Backend::Auto ? "Auto" : "Cpu",
+                world.backendDescription().c_str());
+    EXPECT_TRUE(world.createBody(cube()).ok());
+  }
 }
 
 // World::setColliders and a WorldDef judge colliders by the same rule.

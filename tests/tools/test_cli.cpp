@@ -602,4 +602,24 @@ TEST(Cli, SceneErrorsExitWithCodeTwoAndWriteNothing) {
   EXPECT_FALSE(fs::exists(dir / "out2" / "stats.csv"));
 }
 
+// --backend overrides the scene's "backend": a backend that cannot run is a scene error that
+// writes nothing (no device step in this version), an unknown one a usage error.
+TEST(Cli, BackendOptionOverridesTheScene) {
+  const fs::path dir = scratch("backend");
+  std::ofstream(dir / "box.json") << R"({"dt": 0.01, "frames": 2, "backend": "cpu",
+    "bodies": [{"mesh": {"generator": "box", "size": [0.1, 0.1, 0.1], "cells": 1},
+                "material": {"E": 1e6, "nu": 0.3, "rho": 1000}}]})";
+  const std::string scene = (dir / "box.json").string();
+  EXPECT_EQ(run({"run", scene, "--backend", "gpu"}), gf::cli::kExitUsage);
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"run", scene, "--out", (dir / "cuda").string(), "--backend", "cuda", "--quiet"}),
+            gf::cli::kExitScene);
+  const std::string error = testing::internal::GetCapturedStderr();
+  EXPECT_NE(error.find("WorldDef.backend: Cuda cannot run: "), std::string::npos) << error;
+  EXPECT_FALSE(fs::exists(dir / "cuda" / "stats.csv"));
+  EXPECT_EQ(run({"run", scene, "--out", (dir / "auto").string(), "--backend=auto", "--quiet"}),
+            gf::cli::kExitOk);
+  EXPECT_TRUE(fs::exists(dir / "auto" / "stats.csv"));
+}
+
 }  // namespace

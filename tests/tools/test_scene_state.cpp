@@ -93,7 +93,7 @@ TEST(SceneState, CollidersFollowTheRulesOfSetColliders) {
 
 TEST(SceneState, SettingsAreRejectedByTheRuntimeChecks) {
   // Each of these passed the loader's own ranges before and failed only in createBody (or
-  // not at all): zero sweeps on both sides, a zero multigrid level, a CUDA backend.
+  // not at all): zero sweeps on both sides, a zero multigrid level.
   EXPECT_NE(errorOf(boxScene(R"(, "solver": {"linear": "multigrid",
                 "multigrid": {"pre_sweeps": 0, "post_sweeps": 0}})"))
                 .find("inline: bodies[0].solver.multigrid: preSweeps, postSweeps: must be >= 0 "
@@ -101,8 +101,6 @@ TEST(SceneState, SettingsAreRejectedByTheRuntimeChecks) {
             std::string::npos);
   EXPECT_NE(errorOf(boxScene(R"(, "solver": {"multigrid": {"levels": "0/all"}})"))
                 .find("inline: bodies[0].solver.multigrid: levels[0]: handle count 0"),
-            std::string::npos);
-  EXPECT_NE(errorOf(boxScene("", R"(, "backend": "cuda")")).find("inline: backend: Cuda is not"),
             std::string::npos);
   EXPECT_NE(errorOf(boxScene(R"(, "solver": {"newton_iterations": 0})"))
                 .find("inline: bodies[0].solver.newton_iterations: must be >= 1, got 0"),

@@ -10,6 +10,8 @@
 #include <string>
 #include <string_view>
 
+#include "graphfrac/defs.h"
+
 namespace gf::cli {
 
 /// Parses all of `s` as a base-10 integer in [lo, hi]; false (out untouched) otherwise.
@@ -38,6 +40,19 @@ inline bool parseDouble(std::string_view s, double& out) {
 /// Walks argv from `first` on. For each argument next() yields its name: an option's name with
 /// any "=value" split off, or the positional argument itself; value() then takes the option's
 /// value from after the '=' or from the following argument.
+/// A --backend value: auto, cpu or cuda.
+inline bool parseBackend(std::string_view s, Backend& out) {
+  if (s == "auto")
+    out = Backend::Auto;
+  else if (s == "cpu")
+    out = Backend::Cpu;
+  else if (s == "cuda")
+    out = Backend::Cuda;
+  else
+    return false;
+  return true;
+}
+
 class ArgParser {
  public:
   /// argv[first] is the first argument looked at (argv[0] is the program or subcommand).

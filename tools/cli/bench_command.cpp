@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/args.h"
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "fem/fem_body.h"
@@ -33,12 +34,16 @@
 #include "graphfrac/jobs.h"
 #include "graphfrac/world.h"
 #include "scene/scene.h"
+#include "world/backend.h"
 #ifdef GF_CLI_HAS_BULLET
 #include "scene/bullet_scene.h"
 #endif
 
 namespace gf::cli {
 namespace {
+
+// The backend every benchmark's worlds ask for (--backend; the CPU unless told).
+Backend g_backend = Backend::Cpu;
 
 struct Config {
   const char* name;
@@ -84,7 +89,7 @@ ConfigResult runConfig(const Config& cfg, int nx, int steps) {
   for (size_t n = 0; n < def.mesh.nodeCount(); ++n)
     if (def.mesh.positions[3 * n] < 1e-9) pin.nodes.push_back(int32_t(n));
   def.grips.push_back(pin);
-  World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
+  World world(WorldDef{glm::vec3(0, -9.81f, 0), g_backend, nullptr, 1, {}});
   auto id = world.createBody(def).value();
   const float h = float(L / nx);
   if (cfg.cutLevel > 0) {
@@ -223,6 +228,7 @@ int benchMultigrid(int argc, char** argv) {
       }
       WorldDef wdef = sc.value().world;
       wdef.jobs = jobs.get();
+      wdef.backend = g_backend;
       World world(wdef);
       const size_t tets = sc.value().bodies[0].def.mesh.tetCount();
       gf::Result<BodyId> id = scene::addBody(world, sc.value().bodies[0]);
@@ -288,7 +294,7 @@ int benchOverhead(int argc, char** argv) {
   ctx.dt = dt;
   ctx.gravity = {0, -9.81f, 0};  // as WorldDef's float gravity, so both runs see the same bits
 
-  World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
+  World world(WorldDef{glm::vec3(0, -9.81f, 0), g_backend, nullptr, 1, {}});
   gf::Result<BodyId> id = world.createBody(def);
   if (!id.ok()) {
     std::fprintf(stderr, "bench overhead: %s\n", id.error().message.c_str());
@@ -342,7 +348,7 @@ std::vector<double> spinVelocities(const BodyDef& def) {
 // The largest edge stress the criterion sees at the start of a step of the spinning cube with
 // these fracture settings: every edge given strength 1e-6 Pa breaks and reports its stress.
 double largestEdgeStress(const BodyDef& def, const std::vector<double>& v) {
-  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  World world(WorldDef{glm::vec3(0), g_backend, nullptr, 1, {}});
   const BodyId id = world.createBody(def).value();
   (void)world.setVelocities(id, v);
   for (int s = 0; s < 3; ++s) (void)world.step(1.0 / 60);  // settle into the spin's stretch
@@ -394,7 +400,7 @@ int benchOptions(int argc, char** argv) {
   std::vector<std::unique_ptr<World>> worlds;
   std::vector<BodyId> ids;
   for (const Option& o : options) {
-    worlds.push_back(std::make_unique<World>(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}}));
+    worlds.push_back(std::make_unique<World>(WorldDef{glm::vec3(0), g_backend, nullptr, 1, {}}));
     Result<BodyId> id = worlds.back()->createBody(o.def);
     if (!id.ok()) {
       std::fprintf(stderr, "bench options: %s: %s\n", o.name.c_str(), id.error().message.c_str());
@@ -468,6 +474,7 @@ int benchStages(int argc, char** argv) {
       std::fprintf(stderr, "%s\n", sc.error().message.c_str());
       return kExitScene;
     }
+    sc.value().world.backend = g_backend;
     size_t tets = 0;
     for (const scene::SceneBody& b : sc.value().bodies) tets += b.def.mesh.tetCount();
     gf::Result<std::unique_ptr<scene::BulletScene>> run =
@@ -537,7 +544,7 @@ std::unique_ptr<World> debrisWorld(int cells, int count, JobSystem* jobs,
                                    const std::string& solver) {
   Collider ground;  // the plane y = 0
   auto world =
-      std::make_unique<World>(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, jobs, 1, {ground}});
+      std::make_unique<World>(WorldDef{glm::vec3(0, -9.81f, 0), g_backend, jobs, 1, {ground}});
   BodyDef def;
   def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
   if (solver == "pcg") def.solver.linearSolver = LinearSolverKind::PCG;
@@ -665,9 +672,30 @@ int runBenchCommand(int argc, char** argv) {
         "       graphfrac bench debris [--frames N] [--rounds R] [--solver S]\n"
         "  200 boxes of 48 and of 162 tets falling onto the ground against one box of the same\n"
         "  tets, ms per frame at 1 and 2 threads, and the OS threads of the process; S is\n"
-        "  default, pcg, direct or multigrid (the multigrid at every size)");
+        "  default, pcg, direct or multigrid (the multigrid at every size)\n"
+        "Every mode takes --backend auto|cpu|cuda (default cpu) for its worlds.");
     return argc < 2 ? kExitUsage : kExitOk;
   }
+  // --backend applies to every mode: taken out here, checked once, and said once.
+  std::vector<char*> args;
+  for (int i = 0; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--backend") != 0) {
+      args.push_back(argv[i]);
+    } else if (i + 1 >= argc || !parseBackend(argv[i + 1], g_backend)) {
+      std::fprintf(stderr, "graphfrac bench: --backend needs auto, cpu or cuda\n");
+      return kExitUsage;
+    } else {
+      ++i;
+    }
+  }
+  const detail::BackendChoice backend = detail::chooseBackend(g_backend);
+  if (!backend.error.empty()) {
+    std::fprintf(stderr, "graphfrac bench: %s\n", backend.error.c_str());
+    return kExitUsage;
+  }
+  std::printf("# backend: %s\n", backend.description.c_str());
+  argc = int(args.size());
+  argv = args.data();
   if (!std::strcmp(argv[1], "fracture")) return benchFracture(argc, argv);
   if (!std::strcmp(argv[1], "multigrid")) return benchMultigrid(argc, argv);
   if (!std::strcmp(argv[1], "overhead")) return benchOverhead(argc, argv);

@@ -55,6 +55,8 @@ constexpr const char* kRunUsage =
     "  --frames N         frames to run (default: the scene's \"frames\")\n"
     "  --out DIR          output directory (default: out/<scene name>)\n"
     "  --threads T        worker threads, 0 = all cores (default: the scene's \"threads\")\n"
+    "  --backend B        auto, cpu or cuda (default: the scene's \"backend\"); the backend\n"
+    "                     that runs, and why, is printed before the first frame\n"
     "  --surface obj|ply  also write each body's surface per frame to\n"
     "                     DIR/surface/<body>_<frame:05>.<ext>: the render surface with its\n"
     "                     crack faces (OBJ group \"crack\", red PLY faces) for fracturing\n"
@@ -77,6 +79,7 @@ struct RunOptions {
   std::string scene;
   std::optional<int> frames;
   std::optional<int> threads;
+  std::optional<Backend> backend;
   std::string out;
   std::optional<SurfaceFormat> surface;
   int surfaceEvery = 1;
@@ -104,6 +107,11 @@ std::string parseArgs(int argc, char** argv, RunOptions& o) {
       int n = 0;
       if (!a.intValue(0, 1024, n)) return "--threads needs an integer >= 0";
       o.threads = n;
+    } else if (arg == "--backend") {
+      std::string value;
+      Backend b{};
+      if (!a.value(value) || !parseBackend(value, b)) return "--backend needs auto, cpu or cuda";
+      o.backend = b;
     } else if (arg == "--out") {
       if (!a.nonEmptyValue(o.out)) return "--out needs a directory";
     } else if (arg == "--surface") {
@@ -321,6 +329,7 @@ int runCommand(int argc, char** argv) {
   if (threads != 1) jobs = std::make_unique<ThreadPoolJobSystem>(threads);
   WorldDef wdef = sc.world;
   wdef.jobs = jobs.get();
+  if (opt.backend) wdef.backend = *opt.backend;
   World world(wdef);
 
   std::vector<BodyRecord> bodies;
@@ -447,7 +456,8 @@ int runCommand(int argc, char** argv) {
         "thread%s\n",
         sc.name.c_str(), bodies.size(), bodies.size() == 1 ? "y" : "ies", nodes, tets, frames,
         sc.dt, workers, workers == 1 ? "" : "s");
-    std::printf("  output: %s\n", outDir.string().c_str());
+    std::printf("  backend: %s\n  output: %s\n", world.backendDescription().c_str(),
+                outDir.string().c_str());
     std::fflush(stdout);
   }
 

@@ -248,9 +248,13 @@ struct Collider {
 
 /// Which backend runs the bodies.
 enum class Backend : uint8_t {
-  Auto,  ///< The best one available: the CPU in this version.
-  Cpu,   ///< The CPU, threaded through WorldDef::jobs.
-  Cuda,  ///< Not available in this version: WorldDef::check reports it.
+  /// The best one available: in this version always the CPU (World::backendDescription says
+  /// whether a CUDA device was found).
+  Auto,
+  Cpu,  ///< The CPU, threaded through WorldDef::jobs.
+  /// A CUDA device. The whole step does not run on the device in this version, so a world
+  /// asking for it refuses to run, with the reason (no driver, no device, or that).
+  Cuda,
 };
 
 /// A world: gravity, backend, threading, substeps and static colliders.

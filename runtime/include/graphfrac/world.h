@@ -7,6 +7,7 @@
 #include <glm/vec3.hpp>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "defs.h"
@@ -91,12 +92,19 @@ class WorldSnapshot {
 class World {
  public:
   /// Creates a world. An invalid def (WorldDef::check fails: e.g. substeps < 1, a collider
-  /// with an infinite stiffness, Backend::Cuda in this version) makes a world that refuses to
-  /// run: createBody returns the def's error and every step returns kStepInvalidInput with it.
+  /// with an infinite stiffness) or a backend that cannot run (Backend::Cuda, see Backend)
+  /// makes a world that refuses to run: createBody returns the error and every step returns
+  /// kStepInvalidInput with it.
   explicit World(const WorldDef& def = {});
   ~World();
   World(const World&) = delete;
   World& operator=(const World&) = delete;
+
+  /// The backend that runs the bodies (Cpu or Cuda, never Auto).
+  Backend backend() const;
+  /// That backend and why, in words, e.g. "cpu: no CUDA device"; empty when the world does
+  /// not run.
+  const std::string& backendDescription() const;
 
   /// Validates the def (BodyDef::check) and adds a body. On error, including a body too large
   /// for the memory the process can get (the message says how much it needs), the world is

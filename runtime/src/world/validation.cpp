@@ -165,11 +165,8 @@ Result<void> WorldDef::check() const {
   switch (backend) {
     case Backend::Auto:
     case Backend::Cpu:
+    case Backend::Cuda:  // whether it can run is World's to find out (World::backend)
       break;
-    case Backend::Cuda:
-      return fail(
-          "WorldDef.backend: Cuda is not available in this version (the bodies run on the CPU); "
-          "use Backend::Auto or Backend::Cpu");
     default:
       return fail("WorldDef.backend: unknown backend ", std::to_string(static_cast<int>(backend)));
   }

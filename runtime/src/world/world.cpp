@@ -172,6 +172,9 @@ World::World(const WorldDef& def) : m_impl(std::make_unique<Impl>()) {
     w.defError = r.error().message + "; the world does not run (check WorldDef before creating it)";
     w.def.colliders.clear();  // nothing of an invalid def is used
     w.def.substeps = 1;
+  } else {
+    w.backend = detail::chooseBackend(def.backend);
+    if (!w.backend.error.empty()) w.defError = w.backend.error + "; the world does not run";
   }
   for (const Collider& c : w.def.colliders) w.colliders.push_back(toData(c));
   w.setColliderStiffness(w.lastSubstep);
@@ -180,6 +183,9 @@ World::World(const WorldDef& def) : m_impl(std::make_unique<Impl>()) {
 }
 
 World::~World() = default;
+
+Backend World::backend() const { return m_impl->backend.backend; }
+const std::string& World::backendDescription() const { return m_impl->backend.description; }
 
 Result<BodyId> World::createBody(BodyDef def) {
   if (std::string e = m_impl->busy("createBody"); !e.empty()) return fail(e);

@@ -16,6 +16,7 @@
 #include "fracture/fracture_body.h"
 #include "graphfrac/world.h"
 #include "surface/crack_surface.h"
+#include "world/backend.h"
 #include "world/validation.h"
 
 namespace gf {
@@ -86,6 +87,7 @@ struct World::Impl {
   const uint64_t id = detail::nextWorldId();
   WorldDef def;
   std::string defError;  // WorldDef::check's message; non-empty: the world refuses to run
+  detail::BackendChoice backend;
   JobSystem* jobs = nullptr;
   std::vector<Slot> slots;
   std::vector<ColliderData> colliders;  // at their current pose (def.colliders: as given)
