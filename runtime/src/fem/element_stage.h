@@ -9,6 +9,7 @@
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
+#include "kernels/plasticity.h"
 
 namespace gf::detail {
 
@@ -92,6 +93,36 @@ struct GatherStage {
     nodeGrad[3 * int64_t(n)] = g0;
     nodeGrad[3 * int64_t(n) + 1] = g1;
     nodeGrad[3 * int64_t(n) + 2] = g2;
+  }
+};
+
+/// Multiplicative plasticity after a step of h (eq 2.3-2.5): each tet's elastic stress at x
+/// through its effective rest inverse; a yielding tet updates Fp, Fp^-1, its hardening
+/// accumulator and the effective rest inverse Dm^-1 Fp^-1 the element pass reads.
+struct PlasticityStage {
+  const int32_t* tets = nullptr;
+  const double* x = nullptr;
+  const Mat3* restInverse = nullptr;  ///< Dm^-1
+  MaterialCoeffs coeffs;
+  const Vec3* fibreDir = nullptr;  ///< per tet, or null
+  PlasticParams params;
+  double h = 0;
+  Mat3* Fp = nullptr;
+  Mat3* FpInv = nullptr;
+  double* delta = nullptr;
+  Mat3* plasticInverse = nullptr;
+
+  GF_HD void operator()(int32_t t) const {
+    Vec3 xe[4];
+    for (int a = 0; a < 4; ++a) {
+      const int64_t n = tets[4 * int64_t(t) + a];
+      xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
+    }
+    MaterialCoeffs c = coeffs;
+    if (fibreDir) c.fibreDir = fibreDir[t];
+    const Mat3 Fe = deformationGradient(xe, plasticInverse[t]);
+    if (plasticUpdate(params, materialStress(c, Fe), Fe, h, Fp[t], FpInv[t], delta[t]))
+      plasticInverse[t] = restInverse[t] * FpInv[t];
   }
 };
 

@@ -97,6 +97,7 @@ Integrator::Integrator(const FemModel& model) {
   for (auto* v : {&m_elasticGrad, &m_grad, &m_x, &m_y, &m_dx, &m_rhs, &m_tmp, &m_diff, &m_kdiff})
     v->assign(3 * nn, 0.0);
   m_contactHess.resize(nn);
+  m_nodeTerms.resize(kNodeTerms * nn);
   for (double v : model.restVolume) m_restVolume += v;
   m_contactSeen.assign(nn, 0);
   if (model.solver.linearSolver == LinearSolverKind::Direct) {
@@ -193,34 +194,34 @@ double Integrator::incrementalPotential(const FemModel& model, const double* xn,
   if (withGradient) gatherGradient(model, jobs);
 
   // Contact, inertia, gravity and constant forces are per node.
-  double nodeTerms = 0, contact = 0, magnitude = 0, gradMagnitude = 0;
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    const double m = model.nodeMass[n];
-    const Vec3 xi = load3(x, n), xni = load3(xn, n);
-    const Vec3 y = load3(m_y.data(), n);
-    const Vec3 fext = load3(model.externalForce.data(), n) + m * ctx.gravity;
-    Vec3 cg;
-    Mat3 ch;
-    for (int c = 0; c < ctx.colliderCount; ++c)
-      contact += nodeContact(ctx.colliders[c], xi, m, cg, ch);
-    const Vec3 dy = xi - y, dn = xi - xni;
-    const double inertia = 0.5 * m * dot(dy, dy) + 0.5 * dt * r1 * m * dot(dn, dn);
-    const double work = dt2 * dot(fext, xi);
-    nodeTerms += inertia - work;
-    magnitude += inertia + std::abs(work);
-    if (withGradient) {
-      const Vec3 g = m * dy + (dt * r1 * m) * dn + dt2 * (cg - fext);
-      // Round-off of E from rounding x: |dE/dx| |x| eps, summed over the parts before they
-      // cancel (inertia against gravity against elasticity).
-      const Vec3 ge{m_elasticGrad[3 * n], m_elasticGrad[3 * n + 1], m_elasticGrad[3 * n + 2]};
-      gradMagnitude +=
-          (norm(m * dy) + dt * r1 * m * norm(dn) + dt2 * (norm(cg) + norm(fext)) + dt2 * norm(ge)) *
-          (norm(xi) + model.lengthScale);
-      for (int i = 0; i < 3; ++i) m_grad[3 * n + i] = g[i] + dt2 * m_elasticGrad[3 * n + i];
-      m_contactHess[n] = ch;
-      m_contactSeen[n] = frobeniusDot(ch, ch) > 0;
-    }
+  NodePotentialStage nodes;
+  nodes.x = x;
+  nodes.xn = xn;
+  nodes.y = m_y.data();
+  nodes.nodeMass = model.nodeMass.data();
+  nodes.externalForce = model.externalForce.data();
+  nodes.gravity = ctx.gravity;
+  nodes.colliders = ctx.colliders;
+  nodes.colliderCount = ctx.colliderCount;
+  nodes.dt = dt;
+  nodes.massDamping = r1;
+  nodes.lengthScale = model.lengthScale;
+  nodes.nodeCount = model.nodeCount;
+  nodes.terms = m_nodeTerms.data();
+  if (withGradient) {
+    nodes.elasticGrad = m_elasticGrad.data();
+    nodes.grad = m_grad.data();
+    nodes.contactHess = m_contactHess.data();
+    nodes.contactSeen = m_contactSeen.data();
   }
+  const CpuExecutor exec(jobs);
+  exec.run(model.nodeCount, kNodeGrain, nodes);
+  auto termSum = [&](NodeTerm k) {
+    return exec.sum(m_nodeTerms.data() + size_t(k) * size_t(model.nodeCount), model.nodeCount);
+  };
+  double nodeTerms = termSum(kNodeEnergy), contact = termSum(kNodeContact);
+  double magnitude = termSum(kNodeMagnitude);
+  double gradMagnitude = withGradient ? termSum(kNodeGradMagnitude) : 0.0;
   // Friction: its dissipation potential on each contact node's sliding over the step, with
   // the normal force and normal of the step's start (buildFriction).
   for (const FrictionContact& f : m_friction) {

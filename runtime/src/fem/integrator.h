@@ -25,6 +25,7 @@
 
 #include "fem/element_stage.h"
 #include "fem/fem_body.h"
+#include "fem/node_stage.h"
 #include "fracture/fracture_body.h"
 #include "graphfrac/jobs.h"
 #include "graphfrac/status.h"
@@ -174,6 +175,7 @@ class Integrator {
   std::vector<double> m_elasticGrad;   // dPsi/dx per node
   std::vector<double> m_grad;          // gradient of the incremental potential
   std::vector<Mat3> m_contactHess;     // per node
+  std::vector<double> m_nodeTerms;     // NodePotentialStage::terms
   double m_energyMagnitude = 0;        // summed |terms| of the last potential (round-off scale)
   double m_lastPsi = 0;                // elastic energy of the last incrementalPotential call
   double m_restVolume = 0;             // of the whole body, for the blow-up test

@@ -10,10 +10,9 @@
 
 #include "graphfrac/jobs.h"
 #include "kernels/edge_stress.h"
-#include "kernels/element.h"
-#include "kernels/plasticity.h"
 #include "solver/cholesky.h"
 #include "solver/vector_ops.h"
+#include "step/executor.h"
 #include "step/timing.h"
 #include "world/validation.h"
 #include "world/world_impl.h"
@@ -128,23 +127,19 @@ void World::Impl::collectEvents(BodyId id, const BodyRecord& b) {
 void World::Impl::plasticUpdate(BodyRecord& b, double h, JobSystem& js) {
   const detail::FemModel& m = b.model;
   detail::FemState& s = b.state;
-  const PlasticParams params{m.plasticity.yieldStress, m.plasticity.flowRate,
-                             m.plasticity.hardening};
-  js.parallelFor(uint32_t(m.tetCount), 256, [&](uint32_t lo, uint32_t hi) {
-    for (uint32_t t = lo; t < hi; ++t) {
-      Vec3 xe[4];
-      for (int a = 0; a < 4; ++a) {
-        const double* p = &s.x[3 * m.tets[4 * t + a]];
-        xe[a] = {p[0], p[1], p[2]};
-      }
-      MaterialCoeffs c = m.coeffs;
-      if (!m.fibreDir.empty()) c.fibreDir = m.fibreDir[t];
-      const Mat3 Fe = deformationGradient(xe, s.plasticInverse[t]);
-      if (gf::plasticUpdate(params, materialStress(c, Fe), Fe, h, s.Fp[t], s.FpInv[t],
-                            s.plasticDelta[t]))
-        s.plasticInverse[t] = m.restInverse[t] * s.FpInv[t];
-    }
-  });
+  detail::PlasticityStage stage;
+  stage.tets = m.tets.data();
+  stage.x = s.x.data();
+  stage.restInverse = m.restInverse.data();
+  stage.coeffs = m.coeffs;
+  stage.fibreDir = m.fibreDir.empty() ? nullptr : m.fibreDir.data();
+  stage.params = {m.plasticity.yieldStress, m.plasticity.flowRate, m.plasticity.hardening};
+  stage.h = h;
+  stage.Fp = s.Fp.data();
+  stage.FpInv = s.FpInv.data();
+  stage.delta = s.plasticDelta.data();
+  stage.plasticInverse = s.plasticInverse.data();
+  detail::CpuExecutor(js).run(m.tetCount, 256, stage);
 }
 
 void World::Impl::stepBody(size_t si, const detail::StepContext& ctx, JobSystem& js) {
