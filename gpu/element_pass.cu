@@ -7,21 +7,6 @@
 namespace gf::gpu {
 inline namespace GF_GPU_ABI {
 
-namespace {
-// The serial half of chunkedSum, on one device thread so the energy never leaves the device
-// until it is asked for.
-struct ChunkTotalStage {
-  const double* partials;
-  int32_t chunks;
-  double* out;
-  GF_HD void operator()(int32_t) const {
-    double s = 0;
-    for (int32_t c = 0; c < chunks; ++c) s += partials[c];
-    *out = s;
-  }
-};
-}  // namespace
-
 bool DeviceElementPass::fail(const char* what) {
   m_error = std::string(what) + ": " + lastError();
   return false;
@@ -72,10 +57,11 @@ bool DeviceElementPass::run(bool withHessian, bool withStress) {
   s.hess = withHessian ? m_hess.data() : nullptr;
   s.stress = withStress ? m_stress.data() : nullptr;
   launch(s, m_tetCount, nullptr);
-  launch(detail::ChunkSumStage{m_energy.data(), m_tetCount, m_partials.data()},
+  launch(detail::ChunkReduceStage<detail::SumOp>{m_energy.data(), m_tetCount, m_partials.data()},
          detail::sumChunks(m_tetCount), nullptr);
-  launch(ChunkTotalStage{m_partials.data(), detail::sumChunks(m_tetCount), m_sum.data()}, 1,
-         nullptr);
+  launch(detail::ChunkTotalStage<detail::SumOp>{m_partials.data(), detail::sumChunks(m_tetCount),
+                                                m_sum.data()},
+         1, nullptr);
   launch(detail::GatherStage{m_nodeRefStart.data(), m_nodeRef.data(), m_grad.data(),
                              m_nodeGrad.data()},
          m_nodeCount, nullptr);

@@ -3,38 +3,24 @@
 #include <algorithm>
 #include <limits>
 
+#include "step/executor.h"
+
 namespace gf::detail {
 
 namespace {
 
-constexpr uint8_t kAveragedBit = 0x80;
-constexpr uint8_t kEdgeBits = 0x3f;
+constexpr uint32_t kTetGrain = 256;
 
-// eq 4.10, normalised: the list holds the tet itself with a positive weight, so the sum is > 0.
-inline void averageOne(const FractureModel& model, const double* tetStress, size_t t, double* out) {
-  double acc[6] = {0, 0, 0, 0, 0, 0};
-  double wsum = 0;
-  for (int32_t s = model.neighbourStart[t]; s < model.neighbourStart[t + 1]; ++s) {
-    const double w = model.neighbourWeight[size_t(s)];
-    const double* sj = tetStress + 6 * size_t(model.neighbourIndex[size_t(s)]);
-    for (int c = 0; c < 6; ++c) acc[c] += w * sj[c];
-    wsum += w;
-  }
-  for (int c = 0; c < 6; ++c) out[c] = acc[c] / wsum;
+CriterionEdges edgesOf(const FractureModel& model, const EdgeGraph& graph, const uint8_t* broken) {
+  return {graph.tetEdges.data(), model.edgeDirections.data(), model.strength.data(), broken};
 }
 
-// Bits of the local edges of tet t whose normal stress under S reaches their strength.
-inline uint8_t edgesAtStrength(const FractureModel& model, const EdgeGraph& graph,
-                               const uint8_t* flags, const double* S, size_t t) {
-  uint8_t mask = 0;
-  for (int k = 0; k < 6; ++k) {
-    const int32_t edge = graph.tetEdges[6 * t + k];
-    if (flags[edge]) continue;
-    // eq 4.11: tensile only, because strengths are positive.
-    if (edgeNormalStress(S, &model.edgeDirections[18 * t + 3 * k]) >= model.strength[edge])
-      mask |= uint8_t(1u << k);
-  }
-  return mask;
+NonlocalAverage averageOf(const FractureModel& model) {
+  return {model.neighbourStart.data(), model.neighbourIndex.data(), model.neighbourWeight.data()};
+}
+
+GridView gridOf(const CentroidGrid& g) {
+  return {{g.dims[0], g.dims[1], g.dims[2]}, g.start.data(), g.items.data(), g.tetCell.data()};
 }
 
 }  // namespace
@@ -45,9 +31,7 @@ void averageStress(const FractureModel& model, const double* tetStress, double* 
     std::copy(tetStress, tetStress + 6 * size_t(model.tetCount), out);
     return;
   }
-  jobs.parallelFor(uint32_t(model.tetCount), 256, [&](uint32_t b, uint32_t e) {
-    for (uint32_t t = b; t < e; ++t) averageOne(model, tetStress, t, out + 6 * size_t(t));
-  });
+  CpuExecutor(jobs).run(model.tetCount, kTetGrain, AverageStage{averageOf(model), tetStress, out});
 }
 
 int32_t evaluateCriterion(const FractureModel& model, const EdgeGraph& graph,
@@ -61,62 +45,28 @@ int32_t evaluateCriterion(const FractureModel& model, const EdgeGraph& graph,
   const uint8_t* flags = broken.data();
   ws.candidates.resize(T);
 
-  double weakest = std::numeric_limits<double>::infinity();
-  for (const double s : model.strength) weakest = std::min(weakest, s);
+  const CpuExecutor exec(jobs);
+  const CriterionEdges edges = edgesOf(model, graph, flags);
+  const double weakest = exec.min(model.strength.data(), model.edgeCount);
   if (!model.nonLocal()) {
-    // Local criterion: every tet judged by its own stress; the Gershgorin bound spares the
-    // edge gathers of tets far below the weakest strength.
-    jobs.parallelFor(uint32_t(T), 512, [&](uint32_t b, uint32_t e) {
-      for (uint32_t t = b; t < e; ++t) {
-        const double* S = tetStress + 6 * size_t(t);
-        ws.candidates[t] =
-            maxPrincipalBound(S) >= weakest ? edgesAtStrength(model, graph, flags, S, t) : 0;
-      }
-    });
+    exec.run(model.tetCount, 512,
+             LocalCandidateStage{edges, tetStress, weakest, ws.candidates.data()});
   } else {
     // Bound first: per tet, per cell, and against the weakest edge of the body.
     const CentroidGrid& grid = model.grid;
-    const size_t cells = grid.start.size() - 1;
+    const int32_t cells = int32_t(grid.start.size() - 1);
     ws.bound.resize(T);
-    ws.cellMax.resize(cells);
+    ws.cellMax.resize(size_t(cells));
     ws.averaged.resize(6 * T);
-    jobs.parallelFor(uint32_t(T), 1024, [&](uint32_t b, uint32_t e) {
-      for (uint32_t t = b; t < e; ++t) ws.bound[t] = maxPrincipalBound(tetStress + 6 * size_t(t));
-    });
-    jobs.parallelFor(uint32_t(cells), 1024, [&](uint32_t b, uint32_t e) {
-      for (uint32_t c = b; c < e; ++c) {
-        double m = -std::numeric_limits<double>::infinity();
-        for (int32_t s = grid.start[c]; s < grid.start[c + 1]; ++s)
-          m = std::max(m, ws.bound[size_t(grid.items[size_t(s)])]);
-        ws.cellMax[c] = m;
-      }
-    });
-    double globalMax = -std::numeric_limits<double>::infinity();
-    for (const double m : ws.cellMax) globalMax = std::max(globalMax, m);
-    if (!(globalMax >= weakest)) {
+    exec.run(model.tetCount, 1024, StressBoundStage{tetStress, ws.bound.data()});
+    exec.run(cells, 1024, CellMaxStage{gridOf(grid), ws.bound.data(), ws.cellMax.data()});
+    if (!(exec.max(ws.cellMax.data(), cells) >= weakest)) {
       std::fill(ws.candidates.begin(), ws.candidates.end(), uint8_t(0));
       return 0;
     }
-
-    jobs.parallelFor(uint32_t(T), 256, [&](uint32_t b, uint32_t e) {
-      for (uint32_t t = b; t < e; ++t) {
-        double weakestHere = std::numeric_limits<double>::infinity();
-        for (int k = 0; k < 6; ++k) {
-          const int32_t edge = graph.tetEdges[6 * size_t(t) + k];
-          if (!flags[edge]) weakestHere = std::min(weakestHere, model.strength[size_t(edge)]);
-        }
-        double reach = -std::numeric_limits<double>::infinity();
-        grid.forEachCellAround(grid.tetCell[t],
-                               [&](int32_t c) { reach = std::max(reach, ws.cellMax[size_t(c)]); });
-        if (!(reach >= weakestHere)) {
-          ws.candidates[t] = 0;
-          continue;
-        }
-        double* avg = &ws.averaged[6 * size_t(t)];
-        averageOne(model, tetStress, t, avg);
-        ws.candidates[t] = uint8_t(kAveragedBit | edgesAtStrength(model, graph, flags, avg, t));
-      }
-    });
+    exec.run(model.tetCount, kTetGrain,
+             NonlocalCandidateStage{edges, gridOf(grid), averageOf(model), tetStress,
+                                    ws.cellMax.data(), ws.averaged.data(), ws.candidates.data()});
   }
 
   ws.candidateEdges.clear();
@@ -171,15 +121,8 @@ int32_t evaluateCriterion(const FractureModel& model, const EdgeGraph& graph,
 
 void brokenEdgeMasks(const EdgeGraph& graph, const uint8_t* broken, uint8_t* masks,
                      JobSystem& jobs) {
-  const uint32_t T = uint32_t(graph.tetEdges.size() / 6);
-  jobs.parallelFor(T, 1024, [&](uint32_t b, uint32_t e) {
-    for (uint32_t t = b; t < e; ++t) {
-      uint8_t mask = 0;
-      for (int k = 0; k < 6; ++k)
-        if (broken[graph.tetEdges[6 * size_t(t) + k]]) mask |= uint8_t(1u << k);
-      masks[t] = mask;
-    }
-  });
+  CpuExecutor(jobs).run(int32_t(graph.tetEdges.size() / 6), 1024,
+                        EdgeMaskStage{graph.tetEdges.data(), broken, masks});
 }
 
 void applyBreaksToMasks(const EdgeGraph& graph, const EdgeBreak* events, size_t count,

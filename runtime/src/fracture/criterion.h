@@ -15,22 +15,15 @@
 // near its strength the whole call is a bound per tet, a max per cell and a byte scan.
 #pragma once
 
-#include <cmath>
 #include <cstdint>
 #include <vector>
 
 #include "fracture/fracture_model.h"
+#include "fracture/fracture_stages.h"
 #include "graphfrac/jobs.h"
 #include "mesh/edge_graph.h"
 
 namespace gf::detail {
-
-/// Normal stress N^T S N of a symmetric tensor in Voigt order [xx yy zz xy xz yz] (tensor
-/// shear) along unit direction n: one row of T (eq 4.9, SPEC §2) applied to S (eq 4.8).
-inline double edgeNormalStress(const double* s, const double* n) {
-  return s[0] * n[0] * n[0] + s[1] * n[1] * n[1] + s[2] * n[2] * n[2] +
-         2.0 * (s[3] * n[0] * n[1] + s[4] * n[0] * n[2] + s[5] * n[1] * n[2]);
-}
 
 /// Scratch of the criterion, sized on first use and reused, so a step allocates nothing
 /// after warm-up.
@@ -50,15 +43,6 @@ struct CriterionWorkspace {
 /// The brittle seed choice wants it for every tet; the criterion computes it only where needed.
 void averageStress(const FractureModel& model, const double* tetStress, double* out,
                    JobSystem& jobs);
-
-/// Upper bound of the largest eigenvalue of a symmetric Voigt tensor (Gershgorin): no normal
-/// stress n^T S n exceeds it, nor any weighted mean of such tensors' normal stresses.
-inline double maxPrincipalBound(const double* s) {
-  const double a = s[0] + std::fabs(s[3]) + std::fabs(s[4]);
-  const double b = s[1] + std::fabs(s[3]) + std::fabs(s[5]);
-  const double c = s[2] + std::fabs(s[4]) + std::fabs(s[5]);
-  return a > b ? (a > c ? a : c) : (b > c ? b : c);
-}
 
 /// Runs the criterion (eq 4.11-4.12) on per-tet material-frame stresses (6 per tet, Voigt).
 /// Sets broken[e] = 1 for every newly broken edge and appends one EdgeBreak per such edge to

@@ -7,6 +7,7 @@
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
+#include "step/executor.h"
 
 namespace gf::detail {
 
@@ -58,40 +59,26 @@ Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem, 
   return fb;
 }
 
-Mat3 FractureBody::undamagedStress(const FemModel& fem, const double* x, int32_t t) const {
-  Vec3 xe[4];
-  for (int a = 0; a < 4; ++a) xe[a] = load3(x, fem.tets[4 * t + a]);
-  MaterialCoeffs c = fem.coeffs;
-  if (!fem.fibreDir.empty()) c.fibreDir = fem.fibreDir[t];
-  const Mat3& restInverse = m_plasticInverse ? (*m_plasticInverse)[t] : fem.restInverse[t];
-  return materialStress(c, deformationGradient(xe, restInverse));
+CriterionStressStage FractureBody::stressStage(const FemModel& fem, const double* x,
+                                               bool undamagedToo) {
+  CriterionStressStage s;
+  s.tets = fem.tets.data();
+  s.x = x;
+  // The criterion judges the elastic stress of Fe = F Fp^-1 as the element pass does (eq 2.3).
+  s.restInverse = m_plasticInverse ? m_plasticInverse->data() : fem.restInverse.data();
+  s.coeffs = fem.coeffs;
+  s.fibreDir = fem.fibreDir.empty() ? nullptr : fem.fibreDir.data();
+  s.tetMask = m_tetMask.data();
+  s.chi = m_chi.data();
+  s.degradation = m_damageModel == 1;
+  s.undamagedToo = undamagedToo;
+  s.stress = m_stress.data();
+  return s;
 }
 
 void FractureBody::computeStresses(const FemModel& fem, const double* x, bool undamagedToo,
                                    JobSystem& jobs) {
-  // Undamaged tets usually hold the element pass's stress already (undamagedToo false).
-  jobs.parallelFor(uint32_t(fem.tetCount), kTetGrain, [&](uint32_t b, uint32_t e) {
-    for (uint32_t t = b; t < e; ++t) {
-      const uint8_t mask = m_tetMask[t];
-      if (mask == 0) {
-        if (undamagedToo) toVoigt(undamagedStress(fem, x, int32_t(t)), &m_stress[6 * t]);
-        continue;
-      }
-      double* s = &m_stress[6 * t];
-      uint8_t brokenLocal[6];
-      for (int k = 0; k < 6; ++k) brokenLocal[k] = (mask >> k) & 1;
-      // A tet already split into pieces carries no stress between them.
-      if (cornersDisconnected(brokenLocal)) {
-        for (int k = 0; k < 6; ++k) s[k] = 0;
-        continue;
-      }
-      const Mat3 S = undamagedStress(fem, x, int32_t(t));
-      // Degradation scales the whole stress by chi (eq 4.32).
-      const double scale = m_damageModel == 1 ? m_chi[t] : 1.0;
-      toVoigt(S, s);
-      for (int k = 0; k < 6; ++k) s[k] *= scale;
-    }
-  });
+  CpuExecutor(jobs).run(fem.tetCount, kTetGrain, stressStage(fem, x, undamagedToo));
 }
 
 void FractureBody::applyBreaks(size_t first, const FemModel& fem, const double* x,
@@ -110,7 +97,7 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const double* 
       uint8_t brokenLocal[6];
       for (int k = 0; k < 6; ++k) brokenLocal[k] = (m_tetMask[t] >> k) & 1;
       double sigmaN[6];
-      edgeNormalStresses(undamagedStress(fem, x, t), &m_restDir[6 * t], sigmaN);
+      edgeNormalStresses(stressStage(fem, x, false).intactStress(t), &m_restDir[6 * t], sigmaN);
       m_chi[t] = degradationFactor(sigmaN, brokenLocal);
     }
   }

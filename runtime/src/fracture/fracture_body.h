@@ -93,10 +93,10 @@ class FractureBody {
   void restoreState(const State& s);
 
  private:
-  // Completes m_stress at x: damaged tets (scaled or zero) and the edge stresses chi needs.
+  // Completes m_stress at x: damaged tets (scaled or zero), and undamaged ones when asked.
   void computeStresses(const FemModel& fem, const double* x, bool undamagedToo, JobSystem& jobs);
-  // Material-frame stress of tet t at x as if it were intact.
-  Mat3 undamagedStress(const FemModel& fem, const double* x, int32_t t) const;
+  // The stage that does it, writing into m_stress.
+  CriterionStressStage stressStage(const FemModel& fem, const double* x, bool undamagedToo);
   // Masks, chi and fragments after edges in m_breaks[first..] broke.
   void applyBreaks(size_t first, const FemModel& fem, const double* x, const double* v);
 

@@ -25,8 +25,17 @@ class CpuExecutor {
     });
   }
 
-  /// values[0] + ... + values[count-1] in the order of chunkedSum.
-  static double sum(const double* values, int32_t count) { return chunkedSum(values, count); }
+  /// values[0] + ... + values[count-1], and their largest and smallest, in the order of
+  /// chunkedReduce (the identity for count 0).
+  static double sum(const double* values, int32_t count) {
+    return chunkedReduce<SumOp>(values, count);
+  }
+  static double max(const double* values, int32_t count) {
+    return chunkedReduce<MaxOp>(values, count);
+  }
+  static double min(const double* values, int32_t count) {
+    return chunkedReduce<MinOp>(values, count);
+  }
 
  private:
   JobSystem* m_jobs;

@@ -1,7 +1,7 @@
-// Reductions of the step (energy sums) in one fixed order for both executors: chunks of
-// kSumChunk items summed in index order, then the chunk sums in chunk order. The CPU runs it
-// serially, the CUDA executor one chunk per thread; both give the same bits for any thread
-// count or launch shape.
+// Reductions of the step (energy sums, stress bounds) in one fixed order for both executors:
+// chunks of kSumChunk items reduced in index order, then the chunk results in chunk order.
+// The CPU runs it serially, the CUDA executor one chunk per thread; both give the same bits
+// for any thread count or launch shape.
 #pragma once
 
 #include <cstdint>
@@ -10,34 +10,66 @@
 
 namespace gf::detail {
 
-/// Items per partial sum of a reduction.
+/// Items per chunk of a reduction.
 constexpr int32_t kSumChunk = 256;
 
-/// Sum of chunk c of values[0..count), in index order.
-GF_HD double chunkSum(const double* values, int32_t count, int32_t c) {
-  const int32_t end = (c + 1) * kSumChunk < count ? (c + 1) * kSumChunk : count;
-  double s = 0;
-  for (int32_t i = c * kSumChunk; i < end; ++i) s += values[i];
-  return s;
-}
+struct SumOp {
+  GF_HD static double identity() { return 0.0; }
+  GF_HD static double apply(double a, double b) { return a + b; }
+};
+struct MaxOp {
+  GF_HD static double identity() { return -HUGE_VAL; }
+  GF_HD static double apply(double a, double b) { return b > a ? b : a; }
+};
+struct MinOp {
+  GF_HD static double identity() { return HUGE_VAL; }
+  GF_HD static double apply(double a, double b) { return b < a ? b : a; }
+};
 
 /// Number of chunks of a reduction over `count` items.
 GF_HD int32_t sumChunks(int32_t count) { return (count + kSumChunk - 1) / kSumChunk; }
 
-/// Partial sums of a reduction, one chunk per item: the parallel half of chunkedSum.
-struct ChunkSumStage {
+/// Op over chunk c of values[0..count), in index order.
+template <class Op>
+GF_HD double chunkReduce(const double* values, int32_t count, int32_t c) {
+  const int32_t end = (c + 1) * kSumChunk < count ? (c + 1) * kSumChunk : count;
+  double r = Op::identity();
+  for (int32_t i = c * kSumChunk; i < end; ++i) r = Op::apply(r, values[i]);
+  return r;
+}
+
+/// Op over values[0..count): the chunk results of ChunkReduceStage combined in chunk order.
+template <class Op>
+GF_HD double chunkedReduce(const double* values, int32_t count) {
+  double r = Op::identity();
+  for (int32_t c = 0; c < sumChunks(count); ++c)
+    r = Op::apply(r, chunkReduce<Op>(values, count, c));
+  return r;
+}
+
+/// One chunk per item: the parallel half of chunkedReduce.
+template <class Op>
+struct ChunkReduceStage {
   const double* values = nullptr;
   int32_t count = 0;
   double* partials = nullptr;  ///< sumChunks(count)
 
-  GF_HD void operator()(int32_t c) const { partials[c] = chunkSum(values, count, c); }
+  GF_HD void operator()(int32_t c) const { partials[c] = chunkReduce<Op>(values, count, c); }
 };
 
-/// Sum of values[0..count): the chunk sums of ChunkSumStage added in chunk order.
-GF_HD double chunkedSum(const double* values, int32_t count) {
-  double total = 0;
-  for (int32_t c = 0; c < sumChunks(count); ++c) total += chunkSum(values, count, c);
-  return total;
-}
+/// The serial half of chunkedReduce on the executor (one item), so a device result stays on
+/// the device until it is asked for.
+template <class Op>
+struct ChunkTotalStage {
+  const double* partials = nullptr;
+  int32_t chunks = 0;
+  double* out = nullptr;
+
+  GF_HD void operator()(int32_t) const {
+    double r = Op::identity();
+    for (int32_t c = 0; c < chunks; ++c) r = Op::apply(r, partials[c]);
+    *out = r;
+  }
+};
 
 }  // namespace gf::detail

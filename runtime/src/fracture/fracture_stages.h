@@ -1,0 +1,237 @@
+// The per-tet and per-cell stages of fracture detection (thesis eq 4.10-4.12, SPEC §2),
+// written once for both executors like fem/element_stage.h: criterion stresses, the stress
+// bounds that let the non-local average be skipped, the average itself, the candidate edges
+// of each tet and the damage masks. The serial decision over the (few) candidate edges stays
+// in criterion.cpp.
+#pragma once
+
+#include <cstdint>
+
+#include "kernels/damage.h"
+#include "kernels/edge_stress.h"
+#include "kernels/element.h"
+
+namespace gf::detail {
+
+/// Normal stress N^T S N of a symmetric tensor in Voigt order [xx yy zz xy xz yz] (tensor
+/// shear) along unit direction n: one row of T (eq 4.9, SPEC §2) applied to S (eq 4.8).
+GF_HD double edgeNormalStress(const double* s, const double* n) {
+  return s[0] * n[0] * n[0] + s[1] * n[1] * n[1] + s[2] * n[2] * n[2] +
+         2.0 * (s[3] * n[0] * n[1] + s[4] * n[0] * n[2] + s[5] * n[1] * n[2]);
+}
+
+/// Upper bound of the largest eigenvalue of a symmetric Voigt tensor (Gershgorin): no normal
+/// stress n^T S n exceeds it, nor any weighted mean of such tensors' normal stresses.
+GF_HD double maxPrincipalBound(const double* s) {
+  const double a = s[0] + fabs(s[3]) + fabs(s[4]);
+  const double b = s[1] + fabs(s[3]) + fabs(s[5]);
+  const double c = s[2] + fabs(s[4]) + fabs(s[5]);
+  return a > b ? (a > c ? a : c) : (b > c ? b : c);
+}
+
+/// Material-frame stress of every tet the element pass did not give one (6 per tet, Voigt):
+/// damaged tets at their damage model's level (eq 4.32: chi times the stress; zero across a
+/// tet already split), and undamaged ones too when `undamagedToo`.
+struct CriterionStressStage {
+  const int32_t* tets = nullptr;
+  const double* x = nullptr;
+  const Mat3* restInverse = nullptr;  ///< Dm^-1, or Dm^-1 Fp^-1 when plastic (eq 2.3)
+  MaterialCoeffs coeffs;
+  const Vec3* fibreDir = nullptr;  ///< per tet, or null
+  const uint8_t* tetMask = nullptr;
+  const double* chi = nullptr;
+  bool degradation = false;  ///< damage model of eq 4.32-4.33 (else projection)
+  bool undamagedToo = false;
+  double* stress = nullptr;
+
+  GF_HD Mat3 intactStress(int32_t t) const {
+    Vec3 xe[4];
+    for (int a = 0; a < 4; ++a) {
+      const int64_t n = tets[4 * int64_t(t) + a];
+      xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
+    }
+    MaterialCoeffs c = coeffs;
+    if (fibreDir) c.fibreDir = fibreDir[t];
+    return materialStress(c, deformationGradient(xe, restInverse[t]));
+  }
+
+  GF_HD void operator()(int32_t t) const {
+    double* s = stress + 6 * int64_t(t);
+    const uint8_t mask = tetMask[t];
+    if (mask == 0) {
+      if (undamagedToo) toVoigt(intactStress(t), s);
+      return;
+    }
+    uint8_t brokenLocal[6];
+    for (int k = 0; k < 6; ++k) brokenLocal[k] = (mask >> k) & 1;
+    // A tet already split into pieces carries no stress between them.
+    if (cornersDisconnected(brokenLocal)) {
+      for (int k = 0; k < 6; ++k) s[k] = 0;
+      return;
+    }
+    toVoigt(intactStress(t), s);
+    const double scale = degradation ? chi[t] : 1.0;
+    for (int k = 0; k < 6; ++k) s[k] *= scale;
+  }
+};
+
+/// The edge data of the criterion: the graph's edges of each tet, their rest directions as
+/// seen from the tet, strengths and broken flags.
+struct CriterionEdges {
+  const int32_t* tetEdges = nullptr;       ///< 6 per tet
+  const double* edgeDirections = nullptr;  ///< 18 per tet: unit rest direction of each local edge
+  const double* strength = nullptr;        ///< per edge
+  const uint8_t* broken = nullptr;         ///< per edge
+
+  /// Bits of the local edges of tet t whose normal stress under S reaches their strength
+  /// (eq 4.11: tensile only, because strengths are positive).
+  GF_HD uint8_t edgesAtStrength(const double* S, int32_t t) const {
+    uint8_t mask = 0;
+    for (int k = 0; k < 6; ++k) {
+      const int32_t edge = tetEdges[6 * int64_t(t) + k];
+      if (broken[edge]) continue;
+      if (edgeNormalStress(S, edgeDirections + 18 * int64_t(t) + 3 * k) >= strength[edge])
+        mask |= uint8_t(1u << k);
+    }
+    return mask;
+  }
+  /// The weakest unbroken edge of tet t (infinity when all are broken).
+  GF_HD double weakestEdge(int32_t t) const {
+    double w = HUGE_VAL;
+    for (int k = 0; k < 6; ++k) {
+      const int32_t edge = tetEdges[6 * int64_t(t) + k];
+      if (!broken[edge] && strength[edge] < w) w = strength[edge];
+    }
+    return w;
+  }
+};
+
+/// Bit of CriterionWorkspace::candidates: the tet's averaged stress was computed.
+constexpr uint8_t kAveragedBit = 0x80;
+constexpr uint8_t kEdgeBits = 0x3f;
+
+/// Local criterion: each tet judged by its own stress; the Gershgorin bound spares the edge
+/// gathers of tets far below the body's weakest strength.
+struct LocalCandidateStage {
+  CriterionEdges edges;
+  const double* tetStress = nullptr;
+  double weakest = 0;
+  uint8_t* candidates = nullptr;
+
+  GF_HD void operator()(int32_t t) const {
+    const double* S = tetStress + 6 * int64_t(t);
+    candidates[t] = maxPrincipalBound(S) >= weakest ? edges.edgesAtStrength(S, t) : 0;
+  }
+};
+
+/// Per tet, the Gershgorin bound of its stress.
+struct StressBoundStage {
+  const double* tetStress = nullptr;
+  double* bound = nullptr;
+
+  GF_HD void operator()(int32_t t) const {
+    bound[t] = maxPrincipalBound(tetStress + 6 * int64_t(t));
+  }
+};
+
+/// The centroid grid of the non-local average as flat arrays (FractureModel::grid).
+struct GridView {
+  int32_t dims[3] = {0, 0, 0};
+  const int32_t* start = nullptr;  ///< CSR: tets per cell
+  const int32_t* items = nullptr;
+  const int32_t* tetCell = nullptr;  ///< cell of each tet
+};
+
+/// Per cell, the largest bound of its tets.
+struct CellMaxStage {
+  GridView grid;
+  const double* bound = nullptr;
+  double* cellMax = nullptr;
+
+  GF_HD void operator()(int32_t c) const {
+    double m = -HUGE_VAL;
+    for (int32_t s = grid.start[c]; s < grid.start[c + 1]; ++s)
+      m = bound[grid.items[s]] > m ? bound[grid.items[s]] : m;
+    cellMax[c] = m;
+  }
+};
+
+/// eq 4.10, normalised: the neighbour list holds the tet itself with a positive weight, so the
+/// weights' sum is > 0.
+struct NonlocalAverage {
+  const int32_t* neighbourStart = nullptr;
+  const int32_t* neighbourIndex = nullptr;
+  const float* neighbourWeight = nullptr;
+
+  GF_HD void average(const double* tetStress, int32_t t, double* out) const {
+    double acc[6] = {0, 0, 0, 0, 0, 0};
+    double wsum = 0;
+    for (int32_t s = neighbourStart[t]; s < neighbourStart[t + 1]; ++s) {
+      const double w = neighbourWeight[s];
+      const double* sj = tetStress + 6 * int64_t(neighbourIndex[s]);
+      for (int c = 0; c < 6; ++c) acc[c] += w * sj[c];
+      wsum += w;
+    }
+    for (int c = 0; c < 6; ++c) out[c] = acc[c] / wsum;
+  }
+};
+
+/// The non-local average of every tet (6 per tet into out).
+struct AverageStage {
+  NonlocalAverage avg;
+  const double* tetStress = nullptr;
+  double* out = nullptr;
+
+  GF_HD void operator()(int32_t t) const { avg.average(tetStress, t, out + 6 * int64_t(t)); }
+};
+
+/// Non-local criterion: a tet whose 27 surrounding cells' largest bound stays below its
+/// weakest unbroken edge cannot reach it (a weighted mean of normal stresses never exceeds
+/// the largest principal stress among the neighbours) and is skipped exactly; the others
+/// average their stress and judge their edges by it.
+struct NonlocalCandidateStage {
+  CriterionEdges edges;
+  GridView grid;
+  NonlocalAverage avg;
+  const double* tetStress = nullptr;
+  const double* cellMax = nullptr;
+  double* averaged = nullptr;  ///< 6 per tet, written for the tets not skipped
+  uint8_t* candidates = nullptr;
+
+  GF_HD void operator()(int32_t t) const {
+    const double weakestHere = edges.weakestEdge(t);
+    const int32_t id = grid.tetCell[t];
+    const int32_t nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];
+    const int32_t ix = id % nx, iy = (id / nx) % ny, iz = id / (nx * ny);
+    double reach = -HUGE_VAL;
+    for (int32_t z = iz > 0 ? iz - 1 : 0; z <= iz + 1 && z < nz; ++z)
+      for (int32_t y = iy > 0 ? iy - 1 : 0; y <= iy + 1 && y < ny; ++y)
+        for (int32_t x = ix > 0 ? ix - 1 : 0; x <= ix + 1 && x < nx; ++x) {
+          const double m = cellMax[(z * ny + y) * nx + x];
+          reach = m > reach ? m : reach;
+        }
+    if (!(reach >= weakestHere)) {
+      candidates[t] = 0;
+      return;
+    }
+    double* a = averaged + 6 * int64_t(t);
+    avg.average(tetStress, t, a);
+    candidates[t] = uint8_t(kAveragedBit | edges.edgesAtStrength(a, t));
+  }
+};
+
+/// Bit k of masks[t] set when local edge k of tet t is broken.
+struct EdgeMaskStage {
+  const int32_t* tetEdges = nullptr;
+  const uint8_t* broken = nullptr;
+  uint8_t* masks = nullptr;
+
+  GF_HD void operator()(int32_t t) const {
+    uint8_t mask = 0;
+    for (int k = 0; k < 6; ++k)
+      if (broken[tetEdges[6 * int64_t(t) + k]]) mask |= uint8_t(1u << k);
+    masks[t] = mask;
+  }
+};
+
+}  // namespace gf::detail
