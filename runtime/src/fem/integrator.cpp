@@ -97,6 +97,8 @@ Integrator::Integrator(const FemModel& model) {
   for (auto* v : {&m_elasticGrad, &m_grad, &m_x, &m_y, &m_dx, &m_rhs, &m_tmp, &m_diff, &m_kdiff})
     v->assign(3 * nn, 0.0);
   m_contactHess.resize(nn);
+  m_diagonalBlock.resize(nn);
+  for (size_t n = 0; n < nn; ++n) m_diagonalBlock[n] = m_A.diagonal(int32_t(n));
   m_nodeTerms.resize(kNodeTerms * nn);
   for (double v : model.restVolume) m_restVolume += v;
   m_contactSeen.assign(nn, 0);
@@ -252,31 +254,26 @@ double Integrator::incrementalPotential(const FemModel& model, const double* xn,
 double Integrator::dampingTerm(const FemModel& model, const double* xn, const double* x, double dt,
                                bool withGradient, JobSystem& jobs) {
   const double r2 = model.material.stiffnessDamping;
-  for (size_t i = 0; i < m_diff.size(); ++i) m_diff[i] = x[i] - xn[i];
+  const int32_t n3 = int32_t(m_diff.size());
+  const CpuExecutor exec(jobs);
+  exec.run(n3, kNodeGrain, AxpyStage{x, xn, -1.0, m_diff.data()});
   m_dampK.multiply(m_diff.data(), m_kdiff.data(), jobs);
-  double e = 0;
-  for (size_t i = 0; i < m_diff.size(); ++i) {
-    e += 0.5 * dt * r2 * m_diff[i] * m_kdiff[i];
-    if (withGradient) m_grad[i] += dt * r2 * m_kdiff[i];
-  }
-  return e;
+  if (withGradient)
+    exec.run(n3, kNodeGrain, AxpyStage{m_grad.data(), m_kdiff.data(), dt * r2, m_grad.data()});
+  return 0.5 * dt * r2 * exec.dot(m_diff.data(), m_kdiff.data(), n3);
 }
 
 bool Integrator::enteredUnseenContact(const FemModel& model, const StepContext& ctx) const {
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    if (m_contactSeen[n] || model.fixedNode[n]) continue;
-    for (int c = 0; c < ctx.colliderCount; ++c) {
-      Vec3 normal;
-      if (penetration(ctx.colliders[c], load3(m_x.data(), n), normal) > 0) return true;
-    }
-  }
-  return false;
+  const UnseenContactTerm unseen{m_x.data(), m_contactSeen.data(), model.fixedNode.data(),
+                                 ctx.colliders, ctx.colliderCount};
+  return CpuExecutor::reduce<MaxOp>(model.nodeCount, unseen) > 0;
 }
 
 void Integrator::predictRigidMotion(const FemModel& model, const FemState& state, double dt,
-                                    double fullDt, Vec3 gravity) {
+                                    double fullDt, Vec3 gravity, JobSystem& jobs) {
   const size_t n3 = state.x.size();
-  for (size_t i = 0; i < n3; ++i) m_y[i] = state.x[i] + dt * state.v[i];
+  CpuExecutor(jobs).run(int32_t(n3), kNodeGrain,
+                        AxpyStage{state.x.data(), state.v.data(), dt, m_y.data()});
   const bool damped = model.material.stiffnessDamping > 0;
   if (damped) m_dampRef = state.x;
   m_pieceOfNode.clear();
@@ -626,12 +623,12 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   const size_t n3 = state.x.size();
   // Start at x_n with the prescribed nodes already moved; they stay put from here on. Free
   // pieces start at their rigid motion over the step, and their inertia target y follows it.
-  m_x = state.x;
-  for (int32_t n = 0; n < model.nodeCount; ++n)
-    if (model.fixedNode[n])
-      for (int i = 0; i < 3; ++i) m_x[3 * n + i] += dt * model.gripVelocity[3 * n + i];
+  const CpuExecutor exec(jobs);
+  const int32_t n3i = int32_t(n3);
+  // gripVelocity is zero on free nodes, so one pass moves exactly the prescribed ones.
+  exec.run(n3i, kNodeGrain, AxpyStage{state.x.data(), model.gripVelocity.data(), dt, m_x.data()});
   buildFriction(model, ctx);
-  predictRigidMotion(model, state, dt, fullDt, ctx.gravity);
+  predictRigidMotion(model, state, dt, fullDt, ctx.gravity, jobs);
 
   const double* start = m_xStart.data();  // x_n
   const bool fullNewton = maxNewton > 1;
@@ -675,16 +672,14 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     m_A.setZero();
     gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs);
     if (r2 > 0)
-      for (size_t k = 0; k < m_A.values.size(); ++k) m_A.values[k] += dt * r2 * m_dampK.values[k];
-    for (int32_t n = 0; n < model.nodeCount; ++n) {
-      double* blk = m_A.block(m_A.find(n, n));
-      const double md = model.nodeMass[n] * (1 + dt * r1);
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-          blk[3 * i + j] += (i == j ? md : 0.0) + dt2 * m_contactHess[n](i, j);
-    }
+      exec.run(int32_t(m_A.values.size()), 4096,
+               AxpyStage{m_A.values.data(), m_dampK.values.data(), dt * r2, m_A.values.data()});
+    exec.run(model.nodeCount, kNodeGrain,
+             NodeBlockStage{m_A.values.data(), m_diagonalBlock.data(), model.nodeMass.data(),
+                            m_contactHess.data(), 1 + dt * r1, dt2});
     applyDirichlet(m_A, model.fixedNode.data());
-    for (size_t i = 0; i < n3; ++i) m_rhs[i] = model.fixedNode[i / 3] ? 0.0 : -m_grad[i];
+    exec.run(n3i, kNodeGrain,
+             FreeDifferenceStage{nullptr, m_grad.data(), model.fixedNode.data(), m_rhs.data()});
     rep.assemblyMs += msSince(t0);
 
     t0 = Clock::now();
@@ -692,10 +687,11 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     // (the prescribed nodes have already moved): a fixed number of V-cycles then solves for the
     // change of motion rather than the whole motion, which keeps the stresses, and so the
     // cracks, of the direct solver (tests/physics/test_multigrid_fracture.cpp).
-    std::fill(m_dx.begin(), m_dx.end(), 0.0);
     if (it == 0 && !m_cholesky)
-      for (size_t i = 0; i < n3; ++i)
-        if (!model.fixedNode[i / 3]) m_dx[i] = m_y[i] - m_x[i];
+      exec.run(n3i, kNodeGrain,
+               FreeDifferenceStage{m_y.data(), m_x.data(), model.fixedNode.data(), m_dx.data()});
+    else
+      std::fill(m_dx.begin(), m_dx.end(), 0.0);
     // The iterative solvers stop at a residual relative to the right-hand side. Started on the
     // turned body, that is only the deformation's share, far below what the same motion gives
     // the plain step (its rhs holds the spin's momentum), and the same relative tolerance would
@@ -743,12 +739,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     if (!sr.converged) rep.flags |= kStepNotConverged;
     ++rep.newtonIterations;
 
-    double stepNorm2 = 0, slope = 0;
-    for (size_t i = 0; i < n3; ++i) {
-      stepNorm2 += m_dx[i] * m_dx[i];
-      slope += m_grad[i] * m_dx[i];
-    }
-    const double stepNorm = std::sqrt(stepNorm2);
+    const double stepNorm = std::sqrt(exec.dot(m_dx.data(), m_dx.data(), n3i));
+    const double slope = exec.dot(m_grad.data(), m_dx.data(), n3i);
     if (it == 0) firstStepNorm = stepNorm;
 
     double alpha = 1.0;
@@ -762,7 +754,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       // Backtracking (Armijo) on the incremental potential: the step never raises it.
       t0 = Clock::now();
       for (;;) {
-        for (size_t i = 0; i < n3; ++i) m_tmp[i] = m_x[i] + alpha * m_dx[i];
+        exec.run(n3i, kNodeGrain, AxpyStage{m_x.data(), m_dx.data(), alpha, m_tmp.data()});
         const double Et = incrementalPotential(model, start, m_tmp.data(), ctx, false, false, jobs);
         // Near convergence E changes below its round-off; accept a step that does not
         // raise E beyond that.
@@ -778,7 +770,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       rep.elementsMs += msSince(t0);
     }
     if (ctx.colliderCount > 0) m_xLin = m_x;
-    for (size_t i = 0; i < n3; ++i) m_x[i] += alpha * m_dx[i];
+    exec.run(n3i, kNodeGrain, AxpyStage{m_x.data(), m_dx.data(), alpha, m_x.data()});
     const double relStep = firstStepNorm > 0 ? alpha * stepNorm / firstStepNorm : 0.0;
     if (fullNewton) {
       if (relStep <= model.solver.newtonTolerance ||

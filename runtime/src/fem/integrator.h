@@ -125,7 +125,7 @@ class Integrator {
   // with them: fills m_y (the inertia target) and moves their start in m_x; see the .cpp.
   // fullDt is the whole step when the solve covers only theta of it (numericalDamping < 1).
   void predictRigidMotion(const FemModel& model, const FemState& state, double dt, double fullDt,
-                          Vec3 gravity);
+                          Vec3 gravity, JobSystem& jobs);
   // The end-of-step velocities of free pieces in that frame.
   void rigidEndVelocities(const FemModel& model, FemState& state, const StepContext& ctx);
   // What the outside gives node n over ctx.dt when it ends at x: point forces, mass-damping drag
@@ -172,14 +172,15 @@ class Integrator {
   ElementGather m_gather;
   std::vector<int32_t> m_nodeRefStart, m_nodeRef;  // node -> elem*4 + corner
   std::vector<double> m_elemEnergy, m_elemGrad, m_elemHess;
-  std::vector<double> m_elasticGrad;   // dPsi/dx per node
-  std::vector<double> m_grad;          // gradient of the incremental potential
-  std::vector<Mat3> m_contactHess;     // per node
-  std::vector<double> m_nodeTerms;     // NodePotentialStage::terms
-  double m_energyMagnitude = 0;        // summed |terms| of the last potential (round-off scale)
-  double m_lastPsi = 0;                // elastic energy of the last incrementalPotential call
-  double m_restVolume = 0;             // of the whole body, for the blow-up test
-  std::vector<uint8_t> m_contactSeen;  // contact was in the last linearisation
+  std::vector<double> m_elasticGrad;     // dPsi/dx per node
+  std::vector<double> m_grad;            // gradient of the incremental potential
+  std::vector<Mat3> m_contactHess;       // per node
+  std::vector<double> m_nodeTerms;       // NodePotentialStage::terms
+  std::vector<int32_t> m_diagonalBlock;  // block of each node's diagonal in m_A
+  double m_energyMagnitude = 0;          // summed |terms| of the last potential (round-off scale)
+  double m_lastPsi = 0;                  // elastic energy of the last incrementalPotential call
+  double m_restVolume = 0;               // of the whole body, for the blow-up test
+  std::vector<uint8_t> m_contactSeen;    // contact was in the last linearisation
   std::vector<FrictionContact> m_friction;  // this step's, in node order
   std::vector<int32_t> m_frictionOfNode;    // first entry of each node, -1 none; empty: none
   std::vector<Vec3> m_pieceForce;           // frictionStart's scratch

@@ -71,4 +71,68 @@ struct NodePotentialStage {
   }
 };
 
+/// out[i] = a[i] + alpha b[i] (out may be a): the step's vector updates (grips moved, Newton
+/// and line-search trials, the constant-velocity prediction).
+struct AxpyStage {
+  const double* a = nullptr;
+  const double* b = nullptr;
+  double alpha = 1;
+  double* out = nullptr;
+
+  GF_HD void operator()(int32_t i) const { out[i] = a[i] + alpha * b[i]; }
+};
+
+/// out[i] = a[i] - b[i] (a null: 0) on the free nodes' entries and 0 on the prescribed ones,
+/// whose rows the system holds as identity: the Newton right-hand side -dE/dx and the
+/// constant-velocity start of the iterative solvers.
+struct FreeDifferenceStage {
+  const double* a = nullptr;
+  const double* b = nullptr;
+  const uint8_t* fixedNode = nullptr;
+  double* out = nullptr;
+
+  GF_HD void operator()(int32_t i) const {
+    out[i] = fixedNode[i / 3] ? 0.0 : (a ? a[i] : 0.0) - b[i];
+  }
+};
+
+/// The per-node blocks of the step's matrix, A_nn += m (1 + dt r1) I + dt^2 H_contact
+/// (eq 2.7, 3.13 with Rayleigh r1): `values` are the block-sparse values (9 per block) and
+/// diagonalBlock the block of each node's diagonal.
+struct NodeBlockStage {
+  double* values = nullptr;
+  const int32_t* diagonalBlock = nullptr;
+  const double* nodeMass = nullptr;
+  const Mat3* contactHess = nullptr;
+  double massScale = 1, dt2 = 0;
+
+  GF_HD void operator()(int32_t n) const {
+    double* blk = values + 9 * int64_t(diagonalBlock[n]);
+    const double md = nodeMass[n] * massScale;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        blk[3 * i + j] += (i == j ? md : 0.0) + dt2 * contactHess[n](i, j);
+  }
+};
+
+/// 1 when free node n at x penetrates a collider that the last linearisation did not see
+/// (contactSeen 0), else 0: a max-reduction term, so "any" is one fixed-order pass.
+struct UnseenContactTerm {
+  const double* x = nullptr;
+  const uint8_t* contactSeen = nullptr;
+  const uint8_t* fixedNode = nullptr;
+  const ColliderData* colliders = nullptr;
+  int colliderCount = 0;
+
+  GF_HD double operator()(int32_t n) const {
+    if (contactSeen[n] || fixedNode[n]) return 0.0;
+    const Vec3 xi{x[3 * int64_t(n)], x[3 * int64_t(n) + 1], x[3 * int64_t(n) + 2]};
+    for (int c = 0; c < colliderCount; ++c) {
+      Vec3 normal;
+      if (penetration(colliders[c], xi, normal) > 0) return 1.0;
+    }
+    return 0.0;
+  }
+};
+
 }  // namespace gf::detail

@@ -25,16 +25,22 @@ class CpuExecutor {
     });
   }
 
-  /// values[0] + ... + values[count-1], and their largest and smallest, in the order of
-  /// chunkedReduce (the identity for count 0).
+  /// Op over term(0..count) in the order of chunkedReduce (Op's identity for count 0).
+  template <class Op, class Term>
+  static double reduce(int32_t count, const Term& term) {
+    return chunkedReduce<Op>(term, count);
+  }
   static double sum(const double* values, int32_t count) {
-    return chunkedReduce<SumOp>(values, count);
+    return reduce<SumOp>(count, ArrayTerm{values});
   }
   static double max(const double* values, int32_t count) {
-    return chunkedReduce<MaxOp>(values, count);
+    return reduce<MaxOp>(count, ArrayTerm{values});
   }
   static double min(const double* values, int32_t count) {
-    return chunkedReduce<MinOp>(values, count);
+    return reduce<MinOp>(count, ArrayTerm{values});
+  }
+  static double dot(const double* a, const double* b, int32_t count) {
+    return reduce<SumOp>(count, DotTerm{a, b});
   }
 
  private:

@@ -29,32 +29,44 @@ struct MinOp {
 /// Number of chunks of a reduction over `count` items.
 GF_HD int32_t sumChunks(int32_t count) { return (count + kSumChunk - 1) / kSumChunk; }
 
-/// Op over chunk c of values[0..count), in index order.
-template <class Op>
-GF_HD double chunkReduce(const double* values, int32_t count, int32_t c) {
+/// The items of a reduction over an array.
+struct ArrayTerm {
+  const double* values = nullptr;
+  GF_HD double operator()(int32_t i) const { return values[i]; }
+};
+
+/// The items of a dot product a . b.
+struct DotTerm {
+  const double* a = nullptr;
+  const double* b = nullptr;
+  GF_HD double operator()(int32_t i) const { return a[i] * b[i]; }
+};
+
+/// Op over chunk c of term(0..count), in index order.
+template <class Op, class Term>
+GF_HD double chunkReduce(const Term& term, int32_t count, int32_t c) {
   const int32_t end = (c + 1) * kSumChunk < count ? (c + 1) * kSumChunk : count;
   double r = Op::identity();
-  for (int32_t i = c * kSumChunk; i < end; ++i) r = Op::apply(r, values[i]);
+  for (int32_t i = c * kSumChunk; i < end; ++i) r = Op::apply(r, term(i));
   return r;
 }
 
-/// Op over values[0..count): the chunk results of ChunkReduceStage combined in chunk order.
-template <class Op>
-GF_HD double chunkedReduce(const double* values, int32_t count) {
+/// Op over term(0..count): the chunk results of ChunkReduceStage combined in chunk order.
+template <class Op, class Term>
+GF_HD double chunkedReduce(const Term& term, int32_t count) {
   double r = Op::identity();
-  for (int32_t c = 0; c < sumChunks(count); ++c)
-    r = Op::apply(r, chunkReduce<Op>(values, count, c));
+  for (int32_t c = 0; c < sumChunks(count); ++c) r = Op::apply(r, chunkReduce<Op>(term, count, c));
   return r;
 }
 
 /// One chunk per item: the parallel half of chunkedReduce.
-template <class Op>
+template <class Op, class Term = ArrayTerm>
 struct ChunkReduceStage {
-  const double* values = nullptr;
+  Term term;
   int32_t count = 0;
   double* partials = nullptr;  ///< sumChunks(count)
 
-  GF_HD void operator()(int32_t c) const { partials[c] = chunkReduce<Op>(values, count, c); }
+  GF_HD void operator()(int32_t c) const { partials[c] = chunkReduce<Op>(term, count, c); }
 };
 
 /// The serial half of chunkedReduce on the executor (one item), so a device result stays on
