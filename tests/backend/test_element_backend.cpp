@@ -66,19 +66,18 @@ void tear(const Case& c, TornBody& b) {
   def.fracture.enabled = true;
   def.fracture.strength = 1.5e5;
   def.fracture.model = c.damage;
-  b.model = detail::buildFemModel(def);
-  FemModel& m = b.model;
-  for (int32_t n = 0; n < m.nodeCount; ++n) {
-    const double x = m.restPositions[3 * size_t(n)];
-    if (std::fabs(x) < 1e-9 || std::fabs(x - 0.3) < 1e-9) {
-      m.fixedNode[size_t(n)] = 1;
-      m.gripVelocity[3 * size_t(n)] = x < 0.1 ? -0.5 : 0.5;
-    }
+  def.grips.resize(2);
+  def.grips[0].velocity = {-0.5f, 0, 0};
+  def.grips[1].velocity = {0.5f, 0, 0};
+  for (size_t n = 0; n < def.mesh.nodeCount(); ++n) {
+    const double x = def.mesh.positions[3 * n];
+    if (std::fabs(x) < 1e-9) def.grips[0].nodes.push_back(int32_t(n));
+    if (std::fabs(x - 0.3) < 1e-9) def.grips[1].nodes.push_back(int32_t(n));
   }
-  m.movingGrips = true;
-  b.state.x = m.restPositions;
-  b.state.v.assign(b.state.x.size(), 0.0);
-  auto fb = detail::FractureBody::create(m, serialJobs());
+  b.model = detail::buildFemModel(def);
+  const FemModel& m = b.model;
+  b.state = detail::buildFemState(def, m);
+  auto fb = detail::FractureBody::create(m, b.state, serialJobs());
   ASSERT_TRUE(fb.ok()) << fb.error().message;
   b.fracture = std::move(fb.value());
   if (c.plastic) {
@@ -90,7 +89,7 @@ void tear(const Case& c, TornBody& b) {
     b.fracture->attachPlasticity(&b.plasticInverse);
   }
   b.integrator = std::make_unique<detail::Integrator>(m);
-  ASSERT_TRUE(b.integrator->setupSolver(m).ok());
+  ASSERT_TRUE(b.integrator->setupSolver(m, b.state).ok());
   b.integrator->attach(b.fracture.get(), c.plastic ? &b.plasticInverse : nullptr);
   detail::StepContext ctx;
   ctx.dt = 2e-3;
@@ -98,8 +97,8 @@ void tear(const Case& c, TornBody& b) {
     (void)b.integrator->step(m, b.state, ctx, serialJobs());
   for (int s = 0; s < 2; ++s) (void)b.integrator->step(m, b.state, ctx, serialJobs());
   // Tets of a fragment handed to rigid physics skip the element physics.
-  m.rigidTet.assign(size_t(m.tetCount), 0);
-  for (int32_t t = 0; t < m.tetCount; t += 13) m.rigidTet[size_t(t)] = 1;
+  b.state.rigidTet.assign(size_t(m.tetCount), 0);
+  for (int32_t t = 0; t < m.tetCount; t += 13) b.state.rigidTet[size_t(t)] = 1;
 }
 
 // Largest |a - b| over the largest |a|, so round-off in a big entry does not hide in a ratio.
@@ -123,8 +122,8 @@ TEST_P(ElementBackend, MatchesTheCpuExecutor) {
   const size_t nt = size_t(m.tetCount), nn = size_t(m.nodeCount);
   int32_t damaged = 0, rigid = 0;
   for (size_t t = 0; t < nt; ++t) {
-    damaged += b.fracture->tetMask()[t] != 0 && !m.rigidTet[t];
-    rigid += m.rigidTet[t];
+    damaged += b.fracture->tetMask()[t] != 0 && !b.state.rigidTet[t];
+    rigid += b.state.rigidTet[t];
   }
   ASSERT_GT(damaged, 0) << "the pull broke no edge: the comparison would miss damaged tets";
 
@@ -142,8 +141,9 @@ TEST_P(ElementBackend, MatchesTheCpuExecutor) {
     return o;
   };
   Out cpu = sized(), dev = sized();
-  const detail::ElementStage stage = b.integrator->elementStage(
-      m, b.state.x.data(), cpu.energy.data(), cpu.grad.data(), cpu.hess.data(), cpu.stress.data());
+  const detail::ElementStage stage =
+      b.integrator->elementStage(m, b.state, b.state.x.data(), cpu.energy.data(), cpu.grad.data(),
+                                 cpu.hess.data(), cpu.stress.data());
   const detail::GatherStage gather =
       b.integrator->gatherStage(cpu.grad.data(), cpu.nodeGrad.data());
   ThreadPoolJobSystem jobs(2);
@@ -163,7 +163,7 @@ TEST_P(ElementBackend, MatchesTheCpuExecutor) {
   // Damaged tets' stresses are FractureBody's to write (ElementStage::stress), so neither
   // executor defines them: compare the others.
   for (size_t t = 0; t < nt; ++t)
-    if (b.fracture->tetMask()[t] != 0 && !m.rigidTet[t])
+    if (b.fracture->tetMask()[t] != 0 && !b.state.rigidTet[t])
       std::fill_n(dev.stress.begin() + 6 * std::ptrdiff_t(t), 6, cpu.stress[6 * t]);
   const double dEnergy = relativeDifference(cpu.energy, dev.energy);
   const double dGrad = relativeDifference(cpu.grad, dev.grad);

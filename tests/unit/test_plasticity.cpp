@@ -246,17 +246,18 @@ TEST(Plasticity, FractureCriterionSeesTheElasticStressOnly) {
   std::vector<Mat3> plasticInverse(model.restInverse.size());
   for (size_t t = 0; t < plasticInverse.size(); ++t)
     plasticInverse[t] = model.restInverse[t] * FpInv;
-  std::vector<double> x(model.restPositions.size()), v(x.size(), 0.0);
+  gf::detail::FemState data = gf::detail::buildFemState(def, model);
+  std::vector<double>& x = data.x;
   for (size_t n = 0; n < x.size() / 3; ++n)
     for (int i = 0; i < 3; ++i) x[3 * n + i] = Fp(i, i) * model.restPositions[3 * n + i];
 
   int broken[2];
   double maxStress[2];
   for (const bool plastic : {false, true}) {
-    auto fb = gf::detail::FractureBody::create(model, gf::serialJobs());
+    auto fb = gf::detail::FractureBody::create(model, data, gf::serialJobs());
     ASSERT_TRUE(fb.ok());
     if (plastic) fb.value()->attachPlasticity(&plasticInverse);
-    broken[plastic] = fb.value()->detect(model, x.data(), v.data(), gf::serialJobs(),
+    broken[plastic] = fb.value()->detect(model, data, x.data(), gf::serialJobs(),
                                          /*stressesReady=*/false);
     maxStress[plastic] = 0;
     const double* s = fb.value()->stressBuffer();

@@ -281,12 +281,10 @@ int benchOverhead(int argc, char** argv) {
   }
   const double dt = 1.0 / 60;
   const BodyDef def = overheadBody(nx);
-  detail::FemModel model = detail::buildFemModel(def);
-  detail::FemState state;
-  state.x = model.restPositions;
-  state.v.assign(state.x.size(), 0.0);
+  const detail::FemModel model = detail::buildFemModel(def);
+  detail::FemState state = detail::buildFemState(def, model);
   detail::Integrator integrator(model);
-  if (Result<void> r = integrator.setupSolver(model); !r.ok()) {
+  if (Result<void> r = integrator.setupSolver(model, state); !r.ok()) {
     std::fprintf(stderr, "bench overhead: %s\n", r.error().message.c_str());
     return kExitScene;
   }

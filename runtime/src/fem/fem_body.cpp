@@ -22,13 +22,10 @@ FemModel buildFemModel(const BodyDef& def) {
   m.tetCount = static_cast<int32_t>(mesh.tetCount());
   m.tets = mesh.tets;
   m.restPositions = mesh.positions;
-  m.material = def.material;
   m.solver = def.solver;
   m.friction = def.friction;
-  m.coeffs = toCoeffs(def.material);
   m.restInverse.resize(m.tetCount);
   m.restVolume.resize(m.tetCount);
-  m.nodeMass.assign(m.nodeCount, 0.0);
   for (int32_t e = 0; e < m.tetCount; ++e) {
     Vec3 X[4];
     for (int a = 0; a < 4; ++a) {
@@ -38,9 +35,6 @@ FemModel buildFemModel(const BodyDef& def) {
     double vol = 0;
     m.restInverse[e] = restShapeInverse(X, vol);
     m.restVolume[e] = vol;
-    // Lumped mass: a quarter of the tet's mass to each corner (eq 2.10, row-summed).
-    for (int a = 0; a < 4; ++a)
-      m.nodeMass[mesh.tets[4 * e + a]] += 0.25 * def.material.density * vol;
   }
   double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
   for (int32_t n = 0; n < m.nodeCount; ++n)
@@ -50,16 +44,6 @@ FemModel buildFemModel(const BodyDef& def) {
     }
   m.lengthScale = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
                             (hi[2] - lo[2]) * (hi[2] - lo[2]));
-  m.fixedNode.assign(m.nodeCount, 0);
-  m.gripVelocity.assign(3 * m.nodeCount, 0.0);
-  for (const Grip& g : def.grips)
-    for (int32_t n : g.nodes) {
-      m.fixedNode[n] = 1;
-      m.gripVelocity[3 * n + 0] = g.velocity.x;
-      m.gripVelocity[3 * n + 1] = g.velocity.y;
-      m.gripVelocity[3 * n + 2] = g.velocity.z;
-      m.movingGrips |= g.velocity != glm::vec3(0);
-    }
   m.fracture = def.fracture;
   m.plasticity = def.plasticity;
   if (def.material.fibreStiffness > 0 && !def.fibreField.empty()) {
@@ -70,16 +54,42 @@ FemModel buildFemModel(const BodyDef& def) {
       m.fibreDir[t] = (1.0 / norm(a)) * a;  // validated non-zero by World::createBody
     }
   }
-  m.externalForce.assign(3 * m.nodeCount, 0.0);
-  for (const PointForce& f : def.forces) {
-    m.externalForce[3 * f.node + 0] += f.force.x;
-    m.externalForce[3 * f.node + 1] += f.force.y;
-    m.externalForce[3 * f.node + 2] += f.force.z;
-  }
-  int64_t fixed = 0;
-  for (uint8_t f : m.fixedNode) fixed += f;
+  std::vector<uint8_t> gripped(size_t(m.nodeCount), 0);
+  for (const Grip& g : def.grips)
+    for (int32_t n : g.nodes) gripped[size_t(n)] = 1;
+  const int64_t fixed = std::count(gripped.begin(), gripped.end(), uint8_t(1));
   m.solver.linearSolver = effectiveLinearSolver(def.solver, m.nodeCount - fixed);
   return m;
+}
+
+void lumpMasses(const FemModel& model, double density, std::vector<double>& nodeMass) {
+  nodeMass.assign(size_t(model.nodeCount), 0.0);
+  // A quarter of each tet's mass to each corner (eq 2.10, row-summed), in tet order.
+  for (int32_t e = 0; e < model.tetCount; ++e)
+    for (int a = 0; a < 4; ++a)
+      nodeMass[size_t(model.tets[4 * size_t(e) + a])] += 0.25 * density * model.restVolume[e];
+}
+
+FemState buildFemState(const BodyDef& def, const FemModel& model) {
+  FemState s;
+  const size_t nn = size_t(model.nodeCount);
+  s.x = model.restPositions;
+  s.v.assign(3 * nn, 0.0);
+  s.material = def.material;
+  s.coeffs = toCoeffs(def.material);
+  lumpMasses(model, def.material.density, s.nodeMass);
+  s.fixedNode.assign(nn, 0);
+  s.gripVelocity.assign(3 * nn, 0.0);
+  for (const Grip& g : def.grips)
+    for (int32_t n : g.nodes) {
+      s.fixedNode[size_t(n)] = 1;
+      for (int i = 0; i < 3; ++i) s.gripVelocity[3 * size_t(n) + i] = g.velocity[i];
+      s.movingGrips |= g.velocity != glm::vec3(0);
+    }
+  s.externalForce.assign(3 * nn, 0.0);
+  for (const PointForce& f : def.forces)
+    for (int i = 0; i < 3; ++i) s.externalForce[3 * size_t(f.node) + i] += f.force[i];
+  return s;
 }
 
 LinearSolverKind effectiveLinearSolver(const SolverSettings& s, int64_t freeNodes) {

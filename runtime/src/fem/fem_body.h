@@ -1,5 +1,6 @@
-// FEM body data, MuJoCo style: a read-only model (rest data) and a mutable state, both flat
-// arrays that a CUDA backend copies to the device unchanged.
+// FEM body data, MuJoCo style: a read-only model (rest data, topology, settings fixed at
+// creation) and mutable data (the state and what commands set), both flat arrays that a
+// device copies unchanged; a snapshot is a copy of the data.
 #pragma once
 
 #include <cstdint>
@@ -11,7 +12,8 @@
 
 namespace gf::detail {
 
-/// Rest data of a body; fixed for its lifetime (the mesh is never remeshed).
+/// Rest data of a body; fixed for its lifetime (the mesh is never remeshed, and commands
+/// change FemState only).
 struct FemModel {
   int32_t nodeCount = 0;
   int32_t tetCount = 0;
@@ -19,13 +21,25 @@ struct FemModel {
   std::vector<double> restPositions;  ///< 3 per node
   std::vector<Mat3> restInverse;      ///< Dm^-1 per tet
   std::vector<double> restVolume;     ///< per tet
-  std::vector<double> nodeMass;       ///< lumped, rho V / 4 from each incident tet
   double lengthScale = 1;             ///< rest bounding-box diagonal (round-off thresholds)
-  MaterialCoeffs coeffs;
-  Material material;
   SolverSettings solver;
-  double friction = 0.6;             ///< BodyDef::friction
-  std::vector<uint8_t> fixedNode;    ///< 1 where a grip prescribes the velocity
+  double friction = 0.6;  ///< BodyDef::friction
+  FractureSettings fracture;
+  PlasticitySettings plasticity;
+  std::vector<Vec3> fibreDir;  ///< per tet, only with a fibre field (else empty)
+};
+
+/// Mutable data of a body: its state, and the values commands set between steps.
+struct FemState {
+  std::vector<double> x;  ///< positions, 3 per node
+  std::vector<double> v;  ///< velocities, 3 per node
+  // Set by World::setMaterial (and at creation): the material, its kernel coefficients and
+  // the lumped masses rho V / 4 from each incident tet (eq 2.10, row-summed).
+  Material material;
+  MaterialCoeffs coeffs;
+  std::vector<double> nodeMass;
+  // Grips (World::setGripVelocity) and nodes of fragments handed to rigid physics.
+  std::vector<uint8_t> fixedNode;    ///< 1 where the velocity is prescribed
   std::vector<double> gripVelocity;  ///< 3 per node (zero where not fixed)
   bool movingGrips = false;          ///< some grip has a non-zero velocity
   /// Per tet, 1 when its nodes all lie in fragments handed to rigid physics: it moves rigidly
@@ -33,15 +47,6 @@ struct FemModel {
   /// and the element pass skips it. Empty until a fragment is detached.
   std::vector<uint8_t> rigidTet;
   std::vector<double> externalForce;  ///< 3 per node, constant point forces
-  FractureSettings fracture;
-  PlasticitySettings plasticity;
-  std::vector<Vec3> fibreDir;  ///< per tet, only with a fibre field (else empty)
-};
-
-/// Mutable state of a body.
-struct FemState {
-  std::vector<double> x;  ///< positions, 3 per node
-  std::vector<double> v;  ///< velocities, 3 per node
   // Plasticity (eq 2.3-2.5), only when enabled: per tet Fp, its inverse, the hardening
   // accumulator delta and the effective rest inverse Dm^-1 Fp^-1 the elements use.
   std::vector<Mat3> Fp, FpInv, plasticInverse;
@@ -51,6 +56,11 @@ struct FemState {
 /// Builds the model from a validated definition (mesh already checked by the caller). Its
 /// solver settings are the def's with the size rule applied (effectiveLinearSolver).
 FemModel buildFemModel(const BodyDef& def);
+/// The body's data at creation: at rest, at its mesh's positions, with the def's material,
+/// grips and point forces.
+FemState buildFemState(const BodyDef& def, const FemModel& model);
+/// Lumped masses of `model` at `density` into nodeMass (one per node).
+void lumpMasses(const FemModel& model, double density, std::vector<double>& nodeMass);
 
 /// The linear solver a body of `freeNodes` free nodes runs with these settings: the multigrid
 /// hands bodies below MultigridSettings::directBelowNodes to the direct solver.

@@ -109,11 +109,11 @@ Integrator::Integrator(const FemModel& model) {
   }
 }
 
-Result<void> Integrator::setupSolver(const FemModel& model) {
+Result<void> Integrator::setupSolver(const FemModel& model, const FemState& state) {
   if (model.solver.linearSolver != LinearSolverKind::Multigrid) return {};
   m_multigrid = std::make_unique<MultigridSolver>();
   Result<void> r = m_multigrid->setup(model.solver.multigrid, model.restPositions.data(),
-                                      model.fixedNode.data(), m_A);
+                                      state.fixedNode.data(), m_A);
   if (!r.ok()) {
     m_multigrid.reset();
     return fail("BodyDef.solver.multigrid: ", r.error().message);
@@ -121,19 +121,20 @@ Result<void> Integrator::setupSolver(const FemModel& model) {
   return {};
 }
 
-void Integrator::refreshFixedNodes(const FemModel& model) {
+void Integrator::refreshFixedNodes(const FemModel& model, const FemState& state) {
   if (!m_multigrid) return;
-  (void)setupSolver(model);  // on failure m_multigrid is null and PCG takes over
+  (void)setupSolver(model, state);  // on failure m_multigrid is null and PCG takes over
   m_boundBrokenCount = 0;
   m_rebindHistory.clear();
 }
 
-Result<void> Integrator::restoreSolver(const FemModel& model, const std::vector<int32_t>& history) {
+Result<void> Integrator::restoreSolver(const FemModel& model, const FemState& state,
+                                       const std::vector<int32_t>& history) {
   if (history == m_rebindHistory) return {};
   m_rebindHistory = history;
   m_boundBrokenCount = history.empty() ? 0 : history.back();
   if (!m_multigrid) return {};
-  if (Result<void> r = setupSolver(model); !r.ok()) return r;
+  if (Result<void> r = setupSolver(model, state); !r.ok()) return r;
   if (history.empty() || !m_fracture) return {};
   const EdgeGraph& g = m_fracture->graph();
   const std::vector<int32_t>& order = m_fracture->breakOrder();
@@ -147,15 +148,16 @@ Result<void> Integrator::restoreSolver(const FemModel& model, const std::vector<
   return {};
 }
 
-ElementStage Integrator::elementStage(const FemModel& model, const double* x, double* energy,
-                                      double* grad, double* hess, double* stress) const {
+ElementStage Integrator::elementStage(const FemModel& model, const FemState& state, const double* x,
+                                      double* energy, double* grad, double* hess,
+                                      double* stress) const {
   ElementStage s;
   s.tets = model.tets.data();
   s.x = x;
   // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
   s.restInverse = m_plasticInverse ? m_plasticInverse->data() : model.restInverse.data();
   s.restVolume = model.restVolume.data();
-  s.coeffs = model.coeffs;
+  s.coeffs = state.coeffs;
   s.fibreDir = model.fibreDir.empty() ? nullptr : model.fibreDir.data();
   if (m_fracture) {
     s.tetMask = m_fracture->tetMask();
@@ -164,7 +166,7 @@ ElementStage Integrator::elementStage(const FemModel& model, const double* x, do
     s.edgeMatrixInverse = m_fracture->edgeMatrixInverses();
     s.chi = m_fracture->chi();
   }
-  s.rigidTet = model.rigidTet.empty() ? nullptr : model.rigidTet.data();
+  s.rigidTet = state.rigidTet.empty() ? nullptr : state.rigidTet.data();
   s.energy = energy;
   s.grad = grad;
   s.hess = hess;
@@ -172,9 +174,9 @@ ElementStage Integrator::elementStage(const FemModel& model, const double* x, do
   return s;
 }
 
-double Integrator::elementPass(const FemModel& model, const double* x, bool withHessian,
-                               JobSystem& jobs) {
-  const ElementStage stage = elementStage(model, x, m_elemEnergy.data(), m_elemGrad.data(),
+double Integrator::elementPass(const FemModel& model, const FemState& state, const double* x,
+                               bool withHessian, JobSystem& jobs) {
+  const ElementStage stage = elementStage(model, state, x, m_elemEnergy.data(), m_elemGrad.data(),
                                           withHessian ? m_elemHess.data() : nullptr, m_stressOut);
   const CpuExecutor exec(jobs);
   exec.run(model.tetCount, kElementGrain, stage);
@@ -186,12 +188,12 @@ void Integrator::gatherGradient(const FemModel& model, JobSystem& jobs) {
                         gatherStage(m_elemGrad.data(), m_elasticGrad.data()));
 }
 
-double Integrator::incrementalPotential(const FemModel& model, const double* xn, const double* x,
-                                        const StepContext& ctx, bool withGradient, bool withHessian,
-                                        JobSystem& jobs) {
+double Integrator::incrementalPotential(const FemModel& model, const FemState& state,
+                                        const double* xn, const double* x, const StepContext& ctx,
+                                        bool withGradient, bool withHessian, JobSystem& jobs) {
   const double dt = ctx.dt, dt2 = dt * dt;
-  const double r1 = model.material.massDamping, r2 = model.material.stiffnessDamping;
-  const double psi = elementPass(model, x, withHessian, jobs);
+  const double r1 = state.material.massDamping, r2 = state.material.stiffnessDamping;
+  const double psi = elementPass(model, state, x, withHessian, jobs);
   m_lastPsi = psi;
   if (withGradient) gatherGradient(model, jobs);
 
@@ -200,8 +202,8 @@ double Integrator::incrementalPotential(const FemModel& model, const double* xn,
   nodes.x = x;
   nodes.xn = xn;
   nodes.y = m_y.data();
-  nodes.nodeMass = model.nodeMass.data();
-  nodes.externalForce = model.externalForce.data();
+  nodes.nodeMass = state.nodeMass.data();
+  nodes.externalForce = state.externalForce.data();
   nodes.gravity = ctx.gravity;
   nodes.colliders = ctx.colliders;
   nodes.colliderCount = ctx.colliderCount;
@@ -241,7 +243,7 @@ double Integrator::incrementalPotential(const FemModel& model, const double* xn,
     }
   }
   const double damping = (r2 > 0 && m_dampKValid)
-                             ? dampingTerm(model, m_dampRef.data(), x, dt, withGradient, jobs)
+                             ? dampingTerm(state, m_dampRef.data(), x, dt, withGradient, jobs)
                              : 0.0;
   // The terms cancel (gravity work against elastic energy), so E's round-off follows the
   // size of its parts, not of E itself.
@@ -251,9 +253,9 @@ double Integrator::incrementalPotential(const FemModel& model, const double* xn,
   return nodeTerms + damping + dt2 * (psi + contact);
 }
 
-double Integrator::dampingTerm(const FemModel& model, const double* xn, const double* x, double dt,
+double Integrator::dampingTerm(const FemState& state, const double* xn, const double* x, double dt,
                                bool withGradient, JobSystem& jobs) {
-  const double r2 = model.material.stiffnessDamping;
+  const double r2 = state.material.stiffnessDamping;
   const int32_t n3 = int32_t(m_diff.size());
   const CpuExecutor exec(jobs);
   exec.run(n3, kNodeGrain, AxpyStage{x, xn, -1.0, m_diff.data()});
@@ -263,8 +265,9 @@ double Integrator::dampingTerm(const FemModel& model, const double* xn, const do
   return 0.5 * dt * r2 * exec.dot(m_diff.data(), m_kdiff.data(), n3);
 }
 
-bool Integrator::enteredUnseenContact(const FemModel& model, const StepContext& ctx) const {
-  const UnseenContactTerm unseen{m_x.data(), m_contactSeen.data(), model.fixedNode.data(),
+bool Integrator::enteredUnseenContact(const FemModel& model, const FemState& state,
+                                      const StepContext& ctx) const {
+  const UnseenContactTerm unseen{m_x.data(), m_contactSeen.data(), state.fixedNode.data(),
                                  ctx.colliders, ctx.colliderCount};
   return CpuExecutor::reduce<MaxOp>(model.nodeCount, unseen) > 0;
 }
@@ -274,7 +277,7 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
   const size_t n3 = state.x.size();
   CpuExecutor(jobs).run(int32_t(n3), kNodeGrain,
                         AxpyStage{state.x.data(), state.v.data(), dt, m_y.data()});
-  const bool damped = model.material.stiffnessDamping > 0;
+  const bool damped = state.material.stiffnessDamping > 0;
   if (damped) m_dampRef = state.x;
   m_pieceOfNode.clear();
   if (!model.solver.corotatedInertia) return;
@@ -289,8 +292,8 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
     const int32_t f = fragmentOf.empty() ? 0 : fragmentOf[n];
     m_pieceOfNode[size_t(n)] = f;
     RigidPiece& p = m_pieces[size_t(f)];
-    const double m = model.nodeMass[n];
-    p.fixed |= model.fixedNode[n] != 0;
+    const double m = state.nodeMass[n];
+    p.fixed |= state.fixedNode[n] != 0;
     p.mass += m;
     p.centre += m * load3(state.x.data(), n);
     p.velocity += m * load3(state.v.data(), n);
@@ -303,7 +306,7 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
     if (p.fixed) continue;
-    const double m = model.nodeMass[n];
+    const double m = state.nodeMass[n];
     const Vec3 r = load3(state.x.data(), n) - p.centre;
     p.spin += m * cross(r, load3(state.v.data(), n) - p.velocity);  // angular momentum for now
     addSecondMoment(p.inertia, m, r);                               // the second moment for now
@@ -317,7 +320,7 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
     p.rotation = turnBy(p.spin, dt);
     p.fullRotation = fullDt == dt ? p.rotation : turnBy(p.spin, fullDt);
   }
-  if (!m_friction.empty()) frictionStart(model, dt, gravity);
+  if (!m_friction.empty()) frictionStart(model, state, dt, gravity);
   // In the frame that turns with the piece, backward Euler on the deformation: y is the rigid
   // motion of x_n (c + dt v_c + R r) plus the deformation's own velocity, turned, and the
   // centrifugal and Coriolis accelerations of the turning frame; Newton starts from x_n turned
@@ -354,14 +357,15 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
   }
 }
 
-void Integrator::buildFriction(const FemModel& model, const StepContext& ctx) {
+void Integrator::buildFriction(const FemModel& model, const FemState& state,
+                               const StepContext& ctx) {
   m_friction.clear();
   m_frictionOfNode.clear();
   bool anyFriction = false;
   for (int c = 0; c < ctx.colliderCount; ++c) anyFriction |= ctx.colliders[c].friction > 0;
   if (!(model.friction > 0) || !anyFriction) return;  // the default: frictionless colliders
   for (int32_t n = 0; n < model.nodeCount; ++n) {
-    if (model.fixedNode[n]) continue;
+    if (state.fixedNode[n]) continue;
     const Vec3 x = load3(m_xStart.data(), n);
     for (int c = 0; c < ctx.colliderCount; ++c) {
       const ColliderData& col = ctx.colliders[c];
@@ -372,7 +376,7 @@ void Integrator::buildFriction(const FemModel& model, const StepContext& ctx) {
       if (m_frictionOfNode.empty()) m_frictionOfNode.assign(size_t(model.nodeCount), -1);
       if (m_frictionOfNode[size_t(n)] < 0) m_frictionOfNode[size_t(n)] = int32_t(m_friction.size());
       // The penalty's normal force k m d at the start, lagged over the step (IPC's lambda).
-      const double lambda = col.stiffness * model.nodeMass[n] * depth;
+      const double lambda = col.stiffness * state.nodeMass[n] * depth;
       m_friction.push_back({n, c, std::sqrt(model.friction * col.friction) * lambda, normal});
     }
   }
@@ -395,11 +399,11 @@ Vec3 Integrator::frictionImpulse(const StepContext& ctx, const FrictionContact& 
   return -ctx.dt * (g + h * (x - xl));
 }
 
-Vec3 Integrator::externalImpulse(const FemModel& model, const StepContext& ctx, int32_t n,
+Vec3 Integrator::externalImpulse(const FemState& state, const StepContext& ctx, int32_t n,
                                  Vec3 x) const {
-  const double m = model.nodeMass[n];
-  Vec3 impulse = ctx.dt * load3(model.externalForce.data(), n) -
-                 (model.material.massDamping * m) * (x - load3(m_xStart.data(), n));
+  const double m = state.nodeMass[n];
+  Vec3 impulse = ctx.dt * load3(state.externalForce.data(), n) -
+                 (state.material.massDamping * m) * (x - load3(m_xStart.data(), n));
   if (ctx.colliderCount > 0) {
     const Vec3 xl = load3(m_xLin.data(), n);
     for (int c = 0; c < ctx.colliderCount; ++c) {
@@ -423,7 +427,8 @@ void Integrator::solveEndSpins() {
   }
 }
 
-void Integrator::frictionStart(const FemModel& model, double dt, Vec3 gravity) {
+void Integrator::frictionStart(const FemModel& model, const FemState& state, double dt,
+                               Vec3 gravity) {
   // Linearised at no slide, smoothed friction is a stiff viscous drag, so one Newton step from
   // there holds a sliding body still (a block on a 26 degree slope with mu = 0.2 stopped where
   // it should accelerate at 2.6 m/s^2), and one from its old slide keeps a stopping body
@@ -444,7 +449,7 @@ void Integrator::frictionStart(const FemModel& model, double dt, Vec3 gravity) {
     RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
     if (!p.rigid || !(p.frictionForce > 0)) continue;
     force[size_t(m_pieceOfNode[size_t(n)])] +=
-        load3(model.externalForce.data(), n) + model.nodeMass[n] * gravity;
+        load3(state.externalForce.data(), n) + state.nodeMass[n] * gravity;
   }
   for (size_t i = 0; i < m_pieces.size(); ++i) {
     RigidPiece& p = m_pieces[i];
@@ -471,7 +476,7 @@ void Integrator::rigidEndVelocities(const FemModel& model, FemState& state,
   for (RigidPiece& p : m_pieces) p.newCentre = Vec3{0, 0, 0};
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (p.rigid) p.newCentre += model.nodeMass[n] * load3(state.x.data(), n);
+    if (p.rigid) p.newCentre += state.nodeMass[n] * load3(state.x.data(), n);
   }
   for (RigidPiece& p : m_pieces) {
     if (!p.rigid) continue;
@@ -490,11 +495,11 @@ void Integrator::rigidEndVelocities(const FemModel& model, FemState& state,
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
     if (!p.rigid) continue;
-    const double m = model.nodeMass[n];
+    const double m = state.nodeMass[n];
     const Vec3 x = load3(state.x.data(), n);
     const Vec3 r = x - p.newCentre;
     const Vec3 turned = p.rotation * (load3(m_xStart.data(), n) - p.centre);
-    p.momentTarget += cross(r, externalImpulse(model, ctx, n, x));
+    p.momentTarget += cross(r, externalImpulse(state, ctx, n, x));
     p.momentTarget -= (m / dt) * cross(r, r - turned);  // what the deformation carries
     addSecondMoment(p.newInertia, m, r);                // the second moment for now
   }
@@ -519,9 +524,9 @@ void Integrator::thetaEndState(const FemModel& model, FemState& state, const Ste
   // v' = v + (v_z - v) / theta with v_z = (z - x) / (theta dt). Prescribed nodes move exactly.
   for (size_t i = 0; i < n3; ++i) {
     const double x = m_xStart[i], v = m_vStart[i];
-    if (model.fixedNode[i / 3]) {
-      state.x[i] = x + dt * model.gripVelocity[i];
-      state.v[i] = model.gripVelocity[i];
+    if (state.fixedNode[i / 3]) {
+      state.x[i] = x + dt * state.gripVelocity[i];
+      state.v[i] = state.gripVelocity[i];
     } else {
       state.x[i] = x + (m_x[i] - x) / theta;
       state.v[i] = v + ((m_x[i] - x) / h - v) / theta;
@@ -534,7 +539,7 @@ void Integrator::thetaEndState(const FemModel& model, FemState& state, const Ste
   for (RigidPiece& p : m_pieces) p.newCentre = Vec3{0, 0, 0};
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (p.rigid) p.newCentre += model.nodeMass[n] * load3(m_x.data(), n);
+    if (p.rigid) p.newCentre += state.nodeMass[n] * load3(m_x.data(), n);
   }
   for (RigidPiece& p : m_pieces) {
     if (!p.rigid) continue;
@@ -545,11 +550,11 @@ void Integrator::thetaEndState(const FemModel& model, FemState& state, const Ste
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
     if (!p.rigid) continue;
-    const double m = model.nodeMass[n];
+    const double m = state.nodeMass[n];
     const Vec3 z = load3(m_x.data(), n), x0 = load3(m_xStart.data(), n);
     // The external impulses of the solved step, as in rigidEndVelocities, act at z over the
     // whole step: 1 / theta of them.
-    p.momentTarget += (1.0 / theta) * cross(z - p.newCentre, externalImpulse(model, inner, n, z));
+    p.momentTarget += (1.0 / theta) * cross(z - p.newCentre, externalImpulse(state, inner, n, z));
     // The deformation over the solved step in the frame at the step's start, extrapolated and
     // turned over the whole step; its velocity likewise, between the two Coriolis half-turns
     // (predictRigidMotion), whose second one undoes the frame's turn.
@@ -582,20 +587,20 @@ void Integrator::thetaEndState(const FemModel& model, FemState& state, const Ste
   }
 }
 
-EnergyBreakdown Integrator::energies(const FemModel& model, const double* x, const StepContext& ctx,
-                                     JobSystem& jobs) const {
+EnergyBreakdown Integrator::energies(const FemModel& model, const FemState& state, const double* x,
+                                     const StepContext& ctx, JobSystem& jobs) const {
   // Its own buffers, so that a diagnostic between steps never races or clobbers the step's.
   std::vector<double> energy(size_t(model.tetCount)), grad(12 * size_t(model.tetCount));
   const CpuExecutor exec(jobs);
   exec.run(model.tetCount, kElementGrain,
-           elementStage(model, x, energy.data(), grad.data(), nullptr, nullptr));
+           elementStage(model, state, x, energy.data(), grad.data(), nullptr, nullptr));
   EnergyBreakdown out;
   out.elastic = exec.sum(energy.data(), model.tetCount);
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     Vec3 g;
     Mat3 h;
     for (int c = 0; c < ctx.colliderCount; ++c)
-      out.contact += nodeContact(ctx.colliders[c], load3(x, n), model.nodeMass[n], g, h);
+      out.contact += nodeContact(ctx.colliders[c], load3(x, n), state.nodeMass[n], g, h);
   }
   return out;
 }
@@ -608,17 +613,17 @@ void Integrator::prescribedNodeForces(const FemModel& model, const FemState& sta
   StepContext inner = ctx;
   inner.dt = m_theta * ctx.dt;
   const double* x = m_theta == 1 ? state.x.data() : m_x.data();
-  (void)incrementalPotential(model, m_xStart.data(), x, inner, true, false, jobs);
+  (void)incrementalPotential(model, state, m_xStart.data(), x, inner, true, false, jobs);
   const double dt2 = inner.dt * inner.dt;
   out.assign(state.x.size(), 0.0);
   for (size_t i = 0; i < out.size(); ++i)
-    if (model.fixedNode[i / 3]) out[i] = m_grad[i] / dt2;
+    if (state.fixedNode[i / 3]) out[i] = m_grad[i] / dt2;
 }
 
 double Integrator::solve(const FemModel& model, FemState& state, const StepContext& ctx,
                          double fullDt, bool judgeFracture, JobSystem& jobs, BodyStepReport& rep) {
   const double dt = ctx.dt, dt2 = dt * dt;
-  const double r1 = model.material.massDamping, r2 = model.material.stiffnessDamping;
+  const double r1 = state.material.massDamping, r2 = state.material.stiffnessDamping;
   const int maxNewton = model.solver.newtonIterations < 1 ? 1 : model.solver.newtonIterations;
   const size_t n3 = state.x.size();
   // Start at x_n with the prescribed nodes already moved; they stay put from here on. Free
@@ -626,8 +631,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   const CpuExecutor exec(jobs);
   const int32_t n3i = int32_t(n3);
   // gripVelocity is zero on free nodes, so one pass moves exactly the prescribed ones.
-  exec.run(n3i, kNodeGrain, AxpyStage{state.x.data(), model.gripVelocity.data(), dt, m_x.data()});
-  buildFriction(model, ctx);
+  exec.run(n3i, kNodeGrain, AxpyStage{state.x.data(), state.gripVelocity.data(), dt, m_x.data()});
+  buildFriction(model, state, ctx);
   predictRigidMotion(model, state, dt, fullDt, ctx.gravity, jobs);
 
   const double* start = m_xStart.data();  // x_n
@@ -644,18 +649,18 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     // Fracture is judged on the first pass's stresses when that pass sees x_n (no grip has
     // moved the start point); if edges broke, the damaged elements change and the pass is
     // repeated once.
-    const bool fusedFracture = it == 0 && judgeFracture && m_fracture && !model.movingGrips;
+    const bool fusedFracture = it == 0 && judgeFracture && m_fracture && !state.movingGrips;
     if (fusedFracture) m_stressOut = m_fracture->stressBuffer();
-    double E = incrementalPotential(model, start, m_x.data(), ctx, true, true, jobs);
+    double E = incrementalPotential(model, state, start, m_x.data(), ctx, true, true, jobs);
     m_stressOut = nullptr;
     rep.elementsMs += msSince(t0);
     if (fusedFracture) {
       t0 = Clock::now();
-      const int32_t broke = m_fracture->detect(model, m_x.data(), state.v.data(), jobs);
+      const int32_t broke = m_fracture->detect(model, state, m_x.data(), jobs);
       rep.fractureMs += msSince(t0);
       if (broke > 0) {
         t0 = Clock::now();
-        E = incrementalPotential(model, start, m_x.data(), ctx, true, true, jobs);
+        E = incrementalPotential(model, state, start, m_x.data(), ctx, true, true, jobs);
         rep.elementsMs += msSince(t0);
       }
     }
@@ -667,7 +672,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       m_dampK.setZero();
       gatherElementBlocks(m_gather, m_elemHess.data(), 1.0, m_dampK, jobs);
       m_dampKValid = true;
-      E += dampingTerm(model, m_dampRef.data(), m_x.data(), dt, true, jobs);
+      E += dampingTerm(state, m_dampRef.data(), m_x.data(), dt, true, jobs);
     }
     m_A.setZero();
     gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs);
@@ -675,11 +680,11 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       exec.run(int32_t(m_A.values.size()), 4096,
                AxpyStage{m_A.values.data(), m_dampK.values.data(), dt * r2, m_A.values.data()});
     exec.run(model.nodeCount, kNodeGrain,
-             NodeBlockStage{m_A.values.data(), m_diagonalBlock.data(), model.nodeMass.data(),
+             NodeBlockStage{m_A.values.data(), m_diagonalBlock.data(), state.nodeMass.data(),
                             m_contactHess.data(), 1 + dt * r1, dt2});
-    applyDirichlet(m_A, model.fixedNode.data());
+    applyDirichlet(m_A, state.fixedNode.data());
     exec.run(n3i, kNodeGrain,
-             FreeDifferenceStage{nullptr, m_grad.data(), model.fixedNode.data(), m_rhs.data()});
+             FreeDifferenceStage{nullptr, m_grad.data(), state.fixedNode.data(), m_rhs.data()});
     rep.assemblyMs += msSince(t0);
 
     t0 = Clock::now();
@@ -689,7 +694,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     // cracks, of the direct solver (tests/physics/test_multigrid_fracture.cpp).
     if (it == 0 && !m_cholesky)
       exec.run(n3i, kNodeGrain,
-               FreeDifferenceStage{m_y.data(), m_x.data(), model.fixedNode.data(), m_dx.data()});
+               FreeDifferenceStage{m_y.data(), m_x.data(), state.fixedNode.data(), m_dx.data()});
     else
       std::fill(m_dx.begin(), m_dx.end(), 0.0);
     // The iterative solvers stop at a residual relative to the right-hand side. Started on the
@@ -704,7 +709,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
         const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
         if (!p.rigid) continue;
         const Vec3 u =
-            (model.nodeMass[n] * dt) * cross(p.spin, load3(m_xStart.data(), n) - p.centre);
+            (state.nodeMass[n] * dt) * cross(p.spin, load3(m_xStart.data(), n) - p.centre);
         spin2 += dot(u, u);
       }
       for (size_t i = 0; i < n3; ++i) rhs2 += m_rhs[i] * m_rhs[i];
@@ -755,7 +760,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       t0 = Clock::now();
       for (;;) {
         exec.run(n3i, kNodeGrain, AxpyStage{m_x.data(), m_dx.data(), alpha, m_tmp.data()});
-        const double Et = incrementalPotential(model, start, m_tmp.data(), ctx, false, false, jobs);
+        const double Et =
+            incrementalPotential(model, state, start, m_tmp.data(), ctx, false, false, jobs);
         // Near convergence E changes below its round-off; accept a step that does not
         // raise E beyond that.
         if (std::isfinite(Et) &&
@@ -778,21 +784,21 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
         converged = true;
         break;
       }
-    } else if (!enteredUnseenContact(model, ctx)) {
+    } else if (!enteredUnseenContact(model, state, ctx)) {
       break;
     }
   }
   if (!converged) rep.flags |= kStepNotConverged;
   double psi = 0;
   if (!finalStepNegligible)
-    psi = finalPsiKnown ? m_lastPsi : elementPass(model, m_x.data(), false, jobs);
+    psi = finalPsiKnown ? m_lastPsi : elementPass(model, state, m_x.data(), false, jobs);
   return psi;
 }
 
-bool Integrator::nearCollider(const FemModel& model, const double* x, const double* v, double dt,
-                              const StepContext& ctx) const {
+bool Integrator::nearCollider(const FemModel& model, const FemState& state, const double* x,
+                              const double* v, double dt, const StepContext& ctx) const {
   for (int32_t n = 0; n < model.nodeCount; ++n) {
-    if (model.fixedNode[n]) continue;
+    if (state.fixedNode[n]) continue;
     const Vec3 xi = load3(x, n);
     for (int c = 0; c < ctx.colliderCount; ++c) {
       Vec3 normal;
@@ -817,13 +823,13 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   // touches a collider, or would within the step, is stepped with backward Euler.
   double theta = 0.5 + 0.5 * model.solver.numericalDamping;
   if (theta < 1 && ctx.colliderCount > 0 &&
-      nearCollider(model, state.x.data(), state.v.data(), ctx.dt, ctx))
+      nearCollider(model, state, state.x.data(), state.v.data(), ctx.dt, ctx))
     theta = 1;
 
   // Moving grips shift the start point away from x_n, so fracture is judged on x_n first.
-  if (m_fracture && model.movingGrips) {
+  if (m_fracture && state.movingGrips) {
     const auto tf = Clock::now();
-    m_fracture->detect(model, state.x.data(), state.v.data(), jobs, /*stressesReady=*/false);
+    m_fracture->detect(model, state, state.x.data(), jobs, /*stressesReady=*/false);
     rep.fractureMs += msSince(tf);
   }
   StepContext inner = ctx;
@@ -836,14 +842,15 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
       // v_{n+1} = (x_{n+1} - x_n) / dt; prescribed nodes move at exactly their grip velocity.
       for (size_t i = 0; i < n3; ++i) {
         state.v[i] =
-            model.fixedNode[i / 3] ? model.gripVelocity[i] : (m_x[i] - m_xStart[i]) / inner.dt;
+            state.fixedNode[i / 3] ? state.gripVelocity[i] : (m_x[i] - m_xStart[i]) / inner.dt;
         state.x[i] = m_x[i];
       }
       rigidEndVelocities(model, state, inner);
       break;
     }
     thetaEndState(model, state, inner, ctx.dt, theta);
-    if (ctx.colliderCount == 0 || !nearCollider(model, state.x.data(), nullptr, 0, ctx)) break;
+    if (ctx.colliderCount == 0 || !nearCollider(model, state, state.x.data(), nullptr, 0, ctx))
+      break;
     // The extrapolation reached into a collider: the step again, as backward Euler from the
     // same start (fracture was judged there already).
     state.x = m_xStart;
@@ -854,7 +861,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   m_theta = theta;
   const double dt = inner.dt;
   const double blowUp = kBlowUpEnergyDensity *
-                        std::max(model.material.youngsModulus, model.material.fibreStiffness) *
+                        std::max(state.material.youngsModulus, state.material.fibreStiffness) *
                         m_restVolume;
   // The divergence check reads the solved point's energy; the extrapolated state is checked for
   // finite values. A rolled-back step leaves z at the start too (prescribedNodeForces).
@@ -881,12 +888,12 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     // force at x when the contact set and normals did not change). Serial, in node order: the
     // same sums for any thread count. Below theta = 1 that force acts over the whole step.
     for (int32_t n = 0; n < model.nodeCount; ++n) {
-      if (model.fixedNode[n]) continue;  // prescribed nodes take no part in the balance
+      if (state.fixedNode[n]) continue;  // prescribed nodes take no part in the balance
       const Vec3 xi = load3(m_x.data(), n), xl = load3(m_xLin.data(), n);
       for (int c = 0; c < ctx.colliderCount; ++c) {
         Vec3 g;
         Mat3 h;
-        if (nodeContact(ctx.colliders[c], xl, model.nodeMass[n], g, h) == 0) continue;
+        if (nodeContact(ctx.colliders[c], xl, state.nodeMass[n], g, h) == 0) continue;
         const Vec3 j = (-dt / theta) * (g + h * (xi - xl));
         const Vec3 moment = cross(xi - ctx.colliders[c].point, j);
         double* out = ctx.colliderImpulse + 6 * c;

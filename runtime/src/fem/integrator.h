@@ -69,11 +69,11 @@ class Integrator {
   explicit Integrator(const FemModel& model);
   /// Builds what the chosen linear solver needs beyond the pattern (the multigrid hierarchy);
   /// an error names the setting that cannot be built. Call once, before the first step.
-  Result<void> setupSolver(const FemModel& model);
-  /// After model.fixedNode changed (World::detachFragment): the multigrid binds no handle to
+  Result<void> setupSolver(const FemModel& model, const FemState& state);
+  /// After state.fixedNode changed (World::detachFragment): the multigrid binds no handle to
   /// fixed nodes, so its hierarchy is built again and re-bound to the current cracks at the
   /// next solve. If it cannot be built (e.g. no free node is left) PCG solves the body.
-  void refreshFixedNodes(const FemModel& model);
+  void refreshFixedNodes(const FemModel& model, const FemState& state);
   /// The multigrid solver, or null when the body uses another linear solver.
   const MultigridSolver* multigrid() const { return m_multigrid.get(); }
   /// Damage state the element pass reads (null: no fracture) and the effective rest inverses
@@ -93,18 +93,19 @@ class Integrator {
   /// Puts the solver into the state `history` describes (World::restore): a fresh set-up, then
   /// the re-binds replayed on the broken sets of the attached fracture's break-order prefixes
   /// (its state must already be restored). No-op when the history is the current one.
-  Result<void> restoreSolver(const FemModel& model, const std::vector<int32_t>& history);
+  Result<void> restoreSolver(const FemModel& model, const FemState& state,
+                             const std::vector<int32_t>& history);
   /// The element stage of this body at x writing into the given buffers (hess and stress
   /// nullable), and the gather of its element gradients: what the step runs, for the device
   /// backend's copies and the backend tests.
-  ElementStage elementStage(const FemModel& model, const double* x, double* energy, double* grad,
-                            double* hess, double* stress) const;
+  ElementStage elementStage(const FemModel& model, const FemState& state, const double* x,
+                            double* energy, double* grad, double* hess, double* stress) const;
   GatherStage gatherStage(const double* elemGrad, double* nodeGrad) const {
     return {m_nodeRefStart.data(), m_nodeRef.data(), elemGrad, nodeGrad};
   }
   /// Elastic and contact energy at positions x. Touches no scratch buffer of the step.
-  EnergyBreakdown energies(const FemModel& model, const double* x, const StepContext& ctx,
-                           JobSystem& jobs) const;
+  EnergyBreakdown energies(const FemModel& model, const FemState& state, const double* x,
+                           const StepContext& ctx, JobSystem& jobs) const;
   /// The force [N] each prescribed node (grip or detached fragment) needs to stay on its path
   /// at the end of the last step: the gradient of that step's incremental potential at
   /// state.x over dt^2 (zero for free nodes, whose gradient the step drove to zero), 3 per node
@@ -114,13 +115,14 @@ class Integrator {
 
  private:
   // Per-element pass: energies, gradients and (optionally) PSD Hessians into the buffers.
-  double elementPass(const FemModel& model, const double* x, bool withHessian, JobSystem& jobs);
+  double elementPass(const FemModel& model, const FemState& state, const double* x,
+                     bool withHessian, JobSystem& jobs);
   // Node gradient of the elastic energy from the element gradients (deterministic gather).
   void gatherGradient(const FemModel& model, JobSystem& jobs);
   // Incremental potential at x (scaled by 1, see header comment); fills m_grad when asked.
-  double incrementalPotential(const FemModel& model, const double* xn, const double* x,
-                              const StepContext& ctx, bool withGradient, bool withHessian,
-                              JobSystem& jobs);
+  double incrementalPotential(const FemModel& model, const FemState& state, const double* xn,
+                              const double* x, const StepContext& ctx, bool withGradient,
+                              bool withHessian, JobSystem& jobs);
   // Free pieces (fragments without a prescribed node) are stepped in the frame that turns
   // with them: fills m_y (the inertia target) and moves their start in m_x; see the .cpp.
   // fullDt is the whole step when the solve covers only theta of it (numericalDamping < 1).
@@ -131,7 +133,7 @@ class Integrator {
   // What the outside gives node n over ctx.dt when it ends at x: point forces, mass-damping drag
   // and contact as the last Newton step linearised it (no gravity: it has no moment about the
   // centre).
-  Vec3 externalImpulse(const FemModel& model, const StepContext& ctx, int32_t n, Vec3 x) const;
+  Vec3 externalImpulse(const FemState& state, const StepContext& ctx, int32_t n, Vec3 x) const;
   // Each free piece's end spin w' from its end inertia and target angular momentum.
   void solveEndSpins();
   // A free node touching a collider with friction at the step's start: its lagged normal
@@ -143,14 +145,14 @@ class Integrator {
     Vec3 normal;
   };
   // Fills m_friction from the contacts at x_n (m_xStart), in node order.
-  void buildFriction(const FemModel& model, const StepContext& ctx);
+  void buildFriction(const FemModel& model, const FemState& state, const StepContext& ctx);
   // The contact node's sliding against its collider over ctx.dt when it ends at x.
   Vec3 slideOf(const StepContext& ctx, const FrictionContact& f, Vec3 x) const;
   // The impulse friction gives the contact's node over ctx.dt when it ends at x, as the last
   // Newton step linearised it.
   Vec3 frictionImpulse(const StepContext& ctx, const FrictionContact& f, Vec3 x) const;
   // The Newton start of free pieces on frictional contacts (RigidPiece::slide).
-  void frictionStart(const FemModel& model, double dt, Vec3 gravity);
+  void frictionStart(const FemModel& model, const FemState& state, double dt, Vec3 gravity);
   // theta < 1: the end of the step extrapolated from the solved step of theta * dt (m_x).
   void thetaEndState(const FemModel& model, FemState& state, const StepContext& inner, double dt,
                      double theta);
@@ -159,13 +161,14 @@ class Integrator {
   double solve(const FemModel& model, FemState& state, const StepContext& ctx, double fullDt,
                bool judgeFracture, JobSystem& jobs, BodyStepReport& rep);
   // True when a free node at x, or at x + dt v (v non-null), penetrates a collider.
-  bool nearCollider(const FemModel& model, const double* x, const double* v, double dt,
-                    const StepContext& ctx) const;
+  bool nearCollider(const FemModel& model, const FemState& state, const double* x, const double* v,
+                    double dt, const StepContext& ctx) const;
   // True when a free node now penetrates a collider that the last linearisation missed.
-  bool enteredUnseenContact(const FemModel& model, const StepContext& ctx) const;
+  bool enteredUnseenContact(const FemModel& model, const FemState& state,
+                            const StepContext& ctx) const;
   // Rayleigh stiffness-damping term dt/2 (x-x_r)^T r2 K(x_n) (x-x_r) (+ gradient into m_grad),
   // x_r = x_n, or the rigid motion of x_n for a free piece.
-  double dampingTerm(const FemModel& model, const double* xn, const double* x, double dt,
+  double dampingTerm(const FemState& state, const double* xn, const double* x, double dt,
                      bool withGradient, JobSystem& jobs);
 
   BlockSparseMatrix m_A;

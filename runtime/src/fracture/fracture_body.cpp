@@ -19,14 +19,15 @@ Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i
 uint8_t cause(FractureEvent::Cause c) { return static_cast<uint8_t>(c); }
 }  // namespace
 
-Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem, JobSystem& jobs) {
+Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem,
+                                                           const FemState& data, JobSystem& jobs) {
   auto fb = std::make_unique<FractureBody>();
   const size_t nt = fem.tetCount, nn = fem.nodeCount;
   fb->m_graph = EdgeGraph::build(fem.tets.data(), nt, nn);
   const RestMeshView rest{fem.restPositions.data(), fem.tets.data(), fem.nodeCount, fem.tetCount};
   FibreView fibres;
-  fibres.present = fem.coeffs.fibreMu > 0;
-  fibres.constant = fem.coeffs.fibreDir;
+  fibres.present = data.coeffs.fibreMu > 0;
+  fibres.constant = data.coeffs.fibreDir;
   if (!fem.fibreDir.empty()) fibres.perTet = fem.fibreDir.data();
   auto model = FractureModel::build(rest, fb->m_graph, fem.fracture, &jobs, fibres);
   if (!model) return fail("BodyDef.fracture: ", model.error().message);
@@ -59,14 +60,14 @@ Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem, 
   return fb;
 }
 
-CriterionStressStage FractureBody::stressStage(const FemModel& fem, const double* x,
-                                               bool undamagedToo) {
+CriterionStressStage FractureBody::stressStage(const FemModel& fem, const FemState& data,
+                                               const double* x, bool undamagedToo) {
   CriterionStressStage s;
   s.tets = fem.tets.data();
   s.x = x;
   // The criterion judges the elastic stress of Fe = F Fp^-1 as the element pass does (eq 2.3).
   s.restInverse = m_plasticInverse ? m_plasticInverse->data() : fem.restInverse.data();
-  s.coeffs = fem.coeffs;
+  s.coeffs = data.coeffs;
   s.fibreDir = fem.fibreDir.empty() ? nullptr : fem.fibreDir.data();
   s.tetMask = m_tetMask.data();
   s.chi = m_chi.data();
@@ -76,13 +77,13 @@ CriterionStressStage FractureBody::stressStage(const FemModel& fem, const double
   return s;
 }
 
-void FractureBody::computeStresses(const FemModel& fem, const double* x, bool undamagedToo,
-                                   JobSystem& jobs) {
-  CpuExecutor(jobs).run(fem.tetCount, kTetGrain, stressStage(fem, x, undamagedToo));
+void FractureBody::computeStresses(const FemModel& fem, const FemState& data, const double* x,
+                                   bool undamagedToo, JobSystem& jobs) {
+  CpuExecutor(jobs).run(fem.tetCount, kTetGrain, stressStage(fem, data, x, undamagedToo));
 }
 
-void FractureBody::applyBreaks(size_t first, const FemModel& fem, const double* x,
-                               const double* v) {
+void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState& data,
+                               const double* x) {
   if (first == m_breaks.size()) return;
   std::sort(m_breaks.begin() + long(first), m_breaks.end(),
             [](const EdgeBreak& a, const EdgeBreak& b) { return a.edge < b.edge; });
@@ -97,7 +98,8 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const double* 
       uint8_t brokenLocal[6];
       for (int k = 0; k < 6; ++k) brokenLocal[k] = (m_tetMask[t] >> k) & 1;
       double sigmaN[6];
-      edgeNormalStresses(stressStage(fem, x, false).intactStress(t), &m_restDir[6 * t], sigmaN);
+      edgeNormalStresses(stressStage(fem, data, x, false).intactStress(t), &m_restDir[6 * t],
+                         sigmaN);
       m_chi[t] = degradationFactor(sigmaN, brokenLocal);
     }
   }
@@ -106,7 +108,7 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const double* 
   if (m_fragments.update(m_graph, m_broken.data(), m_newEdges)) {
     const auto s = m_fragments.splits();
     m_splits.insert(m_splits.end(), s.begin(), s.end());
-    m_fragments.compute(m_nodeVolume, fem.nodeMass, x, v, m_props);
+    m_fragments.compute(m_nodeVolume, data.nodeMass, x, data.v.data(), m_props);
   }
 }
 
@@ -144,8 +146,8 @@ void FractureBody::restoreState(const State& s) {
   m_brittleFired = s.brittleFired;
 }
 
-int32_t FractureBody::detect(const FemModel& fem, const double* x, const double* v, JobSystem& jobs,
-                             bool stressesReady) {
+int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const double* x,
+                             JobSystem& jobs, bool stressesReady) {
   m_breaks.clear();
   m_breakCause.clear();
   m_splits.clear();
@@ -154,11 +156,11 @@ int32_t FractureBody::detect(const FemModel& fem, const double* x, const double*
     // Validated by World::cut, so the result cannot fail here.
     (void)cutEdges(m_graph, x, cut.blade, cut.from, cut.to, m_broken, m_breaks, m_cutWs, jobs);
     m_breakCause.resize(m_breaks.size(), cause(FractureEvent::Cause::Cut));
-    applyBreaks(first, fem, x, v);
+    applyBreaks(first, fem, data, x);
   }
   m_pendingCuts.clear();
 
-  computeStresses(fem, x, !stressesReady, jobs);
+  computeStresses(fem, data, x, !stressesReady, jobs);
   size_t first = m_breaks.size();
   const int32_t n =
       evaluateCriterion(m_model, m_graph, m_stress.data(), m_broken, m_breaks, m_ws, jobs, x);
@@ -185,7 +187,7 @@ int32_t FractureBody::detect(const FemModel& fem, const double* x, const double*
     for (size_t i = first; i < m_breaks.size(); ++i)
       causes.push_back({m_breaks[i].edge, m_breakCause[i]});
     std::sort(causes.begin(), causes.end());
-    applyBreaks(first, fem, x, v);
+    applyBreaks(first, fem, data, x);
     for (size_t i = first; i < m_breaks.size(); ++i) m_breakCause[i] = causes[i - first].second;
   }
   return int32_t(m_breaks.size());

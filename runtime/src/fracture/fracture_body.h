@@ -30,14 +30,15 @@ class FractureBody {
  public:
   /// Builds the graph, the fracture model and the per-tet edge matrices. Errors name the
   /// field (e.g. a strength that is not positive).
-  static Result<std::unique_ptr<FractureBody>> create(const FemModel& fem, JobSystem& jobs);
+  static Result<std::unique_ptr<FractureBody>> create(const FemModel& fem, const FemState& data,
+                                                      JobSystem& jobs);
 
   /// Start of a step: pending cuts, then the stress criterion (and brittle planes) on the
-  /// state x. stressBuffer() must hold the material-frame stress of every undamaged tet at x
-  /// (the integrator's first element pass writes it); damaged tets are evaluated here. Fills
-  /// breaks() and splits(); returns the number of edges broken.
-  /// With stressesReady false, the stresses of undamaged tets are computed here too.
-  int32_t detect(const FemModel& fem, const double* x, const double* v, JobSystem& jobs,
+  /// positions x (fragments created get their velocities from data.v). stressBuffer() must hold the
+  /// material-frame stress of every undamaged tet at x (the integrator's first element pass writes
+  /// it); damaged tets are evaluated here. Fills breaks() and splits(); returns the number of edges
+  /// broken. With stressesReady false, the stresses of undamaged tets are computed here too.
+  int32_t detect(const FemModel& fem, const FemState& data, const double* x, JobSystem& jobs,
                  bool stressesReady = true);
   /// 6 per tet (Voigt), written by the element pass.
   double* stressBuffer() { return m_stress.data(); }
@@ -94,11 +95,13 @@ class FractureBody {
 
  private:
   // Completes m_stress at x: damaged tets (scaled or zero), and undamaged ones when asked.
-  void computeStresses(const FemModel& fem, const double* x, bool undamagedToo, JobSystem& jobs);
+  void computeStresses(const FemModel& fem, const FemState& data, const double* x,
+                       bool undamagedToo, JobSystem& jobs);
   // The stage that does it, writing into m_stress.
-  CriterionStressStage stressStage(const FemModel& fem, const double* x, bool undamagedToo);
+  CriterionStressStage stressStage(const FemModel& fem, const FemState& data, const double* x,
+                                   bool undamagedToo);
   // Masks, chi and fragments after edges in m_breaks[first..] broke.
-  void applyBreaks(size_t first, const FemModel& fem, const double* x, const double* v);
+  void applyBreaks(size_t first, const FemModel& fem, const FemState& data, const double* x);
 
   EdgeGraph m_graph;
   FractureModel m_model;

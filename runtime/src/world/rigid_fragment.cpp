@@ -10,7 +10,7 @@ Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i
 
 // Corner cells of the fragment's nodes, one sub-tet at a time: fn(rest, current, mass).
 template <class Fn>
-void forEachCellTet(const FemModel& m, const double* x, const int32_t* nodeFragment,
+void forEachCellTet(const FemModel& m, double density, const double* x, const int32_t* nodeFragment,
                     int32_t fragment, Fn&& fn) {
   for (int32_t t = 0; t < m.tetCount; ++t) {
     const int32_t* tn = &m.tets[4 * size_t(t)];
@@ -23,7 +23,7 @@ void forEachCellTet(const FemModel& m, const double* x, const int32_t* nodeFragm
       cur[a] = load3(x, tn[a]);
     }
     // The lumped mass of a corner (eq 2.10, row-summed), shared by its 6 sub-tets.
-    const double subMass = 0.25 * m.material.density * m.restVolume[t] / 6.0;
+    const double subMass = 0.25 * density * m.restVolume[t] / 6.0;
     for (int a = 0; a < 4; ++a) {
       if (nodeFragment[tn[a]] != fragment) continue;
       Vec3 restCell[6][4], curCell[6][4];
@@ -37,12 +37,14 @@ void forEachCellTet(const FemModel& m, const double* x, const int32_t* nodeFragm
 Vec3 centroid(const Vec3 x[4]) { return 0.25 * (x[0] + x[1] + x[2] + x[3]); }
 }  // namespace
 
-RigidProperties rigidProperties(const FemModel& m, const double* x, const double* v,
-                                const int32_t* nodeFragment, int32_t fragment) {
+RigidProperties rigidProperties(const FemModel& m, const FemState& s, const int32_t* nodeFragment,
+                                int32_t fragment) {
+  const double* x = s.x.data();
+  const double* v = s.v.data();
   RigidProperties p;
   // Pass 1: mass, volume and both centres of mass (a uniform tet's is its vertex mean).
   Vec3 restMoment, curMoment;
-  forEachCellTet(m, x, nodeFragment, fragment,
+  forEachCellTet(m, s.material.density, x, nodeFragment, fragment,
                  [&](const Vec3* rest, const Vec3* cur, double mass, double volume) {
                    p.mass += mass;
                    p.volume += volume;
@@ -54,7 +56,7 @@ RigidProperties rigidProperties(const FemModel& m, const double* x, const double
   p.centre = (1.0 / p.mass) * curMoment;
   // Pass 2: second moment about the rest centre (relative coordinates: no cancellation).
   Mat3 second;
-  forEachCellTet(m, x, nodeFragment, fragment,
+  forEachCellTet(m, s.material.density, x, nodeFragment, fragment,
                  [&](const Vec3* rest, const Vec3*, double mass, double) {
                    Vec3 r[4];
                    for (int a = 0; a < 4; ++a) r[a] = rest[a] - p.restCentre;
@@ -67,8 +69,8 @@ RigidProperties rigidProperties(const FemModel& m, const double* x, const double
   for (int32_t n = 0; n < m.nodeCount; ++n) {
     if (nodeFragment[n] != fragment) continue;
     ++p.nodeCount;
-    p.hasFixedNode |= m.fixedNode[n] != 0;
-    const double mi = m.nodeMass[n];
+    p.hasFixedNode |= s.fixedNode[n] != 0;
+    const double mi = s.nodeMass[n];
     const Vec3 r = load3(x, n) - p.centre, R = load3(m.restPositions.data(), n) - p.restCentre;
     const Vec3 vi = load3(v, n);
     p.momentum += mi * vi;
@@ -76,8 +78,8 @@ RigidProperties rigidProperties(const FemModel& m, const double* x, const double
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) cov(i, j) += mi * r[i] * R[j];
   }
-  const Svd3 s = svd3(cov);
-  p.rotation = s.U * transpose(s.V);
+  const Svd3 polar = svd3(cov);
+  p.rotation = polar.U * transpose(polar.V);
   return p;
 }
 

@@ -24,8 +24,9 @@ struct RigidProperties {
   bool hasFixedNode = false;  // a node of the fragment is pinned or gripped
 };
 
-/// Properties of the nodes n with nodeFragment[n] == fragment, at positions x, velocities v.
-RigidProperties rigidProperties(const FemModel& m, const double* x, const double* v,
-                                const int32_t* nodeFragment, int32_t fragment);
+/// Properties of the nodes n with nodeFragment[n] == fragment, at the body's positions and
+/// velocities.
+RigidProperties rigidProperties(const FemModel& m, const FemState& s, const int32_t* nodeFragment,
+                                int32_t fragment);
 
 }  // namespace gf::detail

@@ -57,14 +57,14 @@ constexpr int32_t kBatchBelowTets = 2048;
 Result<std::unique_ptr<BodyRecord>> buildBody(BodyDef&& def, JobSystem& jobs) {
   auto body = std::make_unique<BodyRecord>();
   body->model = detail::buildFemModel(def);
-  body->state.x = body->model.restPositions;
-  body->state.v.resize(body->state.x.size());
+  body->state = detail::buildFemState(def, body->model);
   for (size_t i = 0; i < body->state.v.size(); ++i)
     body->state.v[i] = def.initialVelocity[int(i % 3)];
   body->integrator = std::make_unique<detail::Integrator>(body->model);
-  if (Result<void> r = body->integrator->setupSolver(body->model); !r.ok()) return r.error();
+  if (Result<void> r = body->integrator->setupSolver(body->model, body->state); !r.ok())
+    return r.error();
   if (def.fracture.enabled) {
-    auto fb = detail::FractureBody::create(body->model, jobs);
+    auto fb = detail::FractureBody::create(body->model, body->state, jobs);
     if (!fb) return fb.error();
     body->fracture = std::move(fb.value());
   }
@@ -131,7 +131,7 @@ void World::Impl::plasticUpdate(BodyRecord& b, double h, JobSystem& js) {
   stage.tets = m.tets.data();
   stage.x = s.x.data();
   stage.restInverse = m.restInverse.data();
-  stage.coeffs = m.coeffs;
+  stage.coeffs = s.coeffs;
   stage.fibreDir = m.fibreDir.empty() ? nullptr : m.fibreDir.data();
   stage.params = {m.plasticity.yieldStress, m.plasticity.flowRate, m.plasticity.hardening};
   stage.h = h;
@@ -243,7 +243,7 @@ StepStatus World::step(double dt) {
   std::vector<std::vector<double>> constantForces;
   for (Slot& s : w.slots) {
     if (!s.body || s.body->pendingForce.empty()) continue;
-    std::vector<double>& f = s.body->model.externalForce;
+    std::vector<double>& f = s.body->state.externalForce;
     constantForces.push_back(f);
     for (size_t i = 0; i < f.size(); ++i) f[i] += s.body->pendingForce[i];
   }
@@ -277,8 +277,8 @@ StepStatus World::step(double dt) {
       if (b->allRigid) {
         // The integrator's own update of prescribed nodes, x += h v, v = grip velocity.
         for (size_t i = 0; i < b->state.x.size(); ++i) {
-          b->state.x[i] += h * b->model.gripVelocity[i];
-          b->state.v[i] = b->model.gripVelocity[i];
+          b->state.x[i] += h * b->state.gripVelocity[i];
+          b->state.v[i] = b->state.gripVelocity[i];
         }
         continue;
       }
@@ -337,7 +337,7 @@ StepStatus World::step(double dt) {
   size_t swapped = 0;
   for (Slot& s : w.slots) {
     if (!s.body || s.body->pendingForce.empty()) continue;
-    s.body->model.externalForce = std::move(constantForces[swapped++]);
+    s.body->state.externalForce = std::move(constantForces[swapped++]);
     s.body->pendingForce.clear();
   }
   for (Slot& s : w.slots)
@@ -377,7 +377,7 @@ BodyStats World::stats(BodyId id) const {
   for (int32_t n = 0; n < m.nodeCount; ++n) {
     const glm::dvec3 xi(x[3 * n], x[3 * n + 1], x[3 * n + 2]);
     const glm::dvec3 vi(v[3 * n], v[3 * n + 1], v[3 * n + 2]);
-    const double mi = m.nodeMass[n];
+    const double mi = b->state.nodeMass[n];
     s.mass += mi;
     s.kineticEnergy += 0.5 * mi * glm::dot(vi, vi);
     s.gravityEnergy -= mi * glm::dot(g, xi);
@@ -385,7 +385,8 @@ BodyStats World::stats(BodyId id) const {
     s.angularMomentum += glm::cross(xi, mi * vi);
   }
   const detail::StepContext ctx = m_impl->context(m_impl->lastSubstep);
-  const detail::EnergyBreakdown e = b->integrator->energies(m, x.data(), ctx, *m_impl->jobs);
+  const detail::EnergyBreakdown e =
+      b->integrator->energies(m, b->state, x.data(), ctx, *m_impl->jobs);
   s.elasticEnergy = e.elastic;
   s.contactEnergy = e.contact;
   return s;

@@ -176,7 +176,7 @@ Result<void> World::applyImpulse(BodyId id, glm::vec3 point, glm::vec3 impulse) 
   if (!pointWeights(b->model, b->state.x, glm::dvec3(point), corner, w))
     return fail("applyImpulse: the body has no tet of non-zero volume to apply the impulse to");
   for (int k = 0; k < 4; ++k) {
-    const double m = b->model.nodeMass[corner[k]];
+    const double m = b->state.nodeMass[corner[k]];
     if (!(m > 0)) continue;  // a node of zero mass carries no momentum
     for (int i = 0; i < 3; ++i) b->state.v[3 * corner[k] + i] += w[k] * double(impulse[i]) / m;
   }
@@ -191,11 +191,11 @@ Result<void> World::setGripVelocity(BodyId id, int grip, glm::vec3 velocity) {
     return fail("setGripVelocity: grip ", std::to_string(grip), " out of range [0, ",
                 std::to_string(b->grips.size()), ")");
   if (!finite3(velocity)) return fail("setGripVelocity: velocity is not finite");
-  detail::FemModel& m = b->model;
+  detail::FemState& s = b->state;
   for (int32_t n : b->grips[size_t(grip)].nodes)
-    for (int i = 0; i < 3; ++i) m.gripVelocity[3 * n + i] = velocity[i];
-  m.movingGrips =
-      std::any_of(m.gripVelocity.begin(), m.gripVelocity.end(), [](double v) { return v != 0; });
+    for (int i = 0; i < 3; ++i) s.gripVelocity[3 * n + i] = velocity[i];
+  s.movingGrips =
+      std::any_of(s.gripVelocity.begin(), s.gripVelocity.end(), [](double v) { return v != 0; });
   return {};
 }
 
@@ -222,25 +222,19 @@ Result<void> World::setMaterial(BodyId id, const Material& material) {
   BodyRecord* b = m_impl->get(id);
   if (!b) return fail("setMaterial: stale or null BodyId");
   if (auto r = material.check(); !r) return fail("setMaterial: ", r.error().message);
-  detail::FemModel& m = b->model;
-  if (material.model != m.material.model)
+  detail::FemState& s = b->state;
+  if (material.model != s.material.model)
     return fail("setMaterial: material.model must stay the body's model (",
-                std::to_string(int(m.material.model)), "), got ",
+                std::to_string(int(s.material.model)), "), got ",
                 std::to_string(int(material.model)));
-  if ((material.fibreStiffness > 0) != (m.material.fibreStiffness > 0))
+  if ((material.fibreStiffness > 0) != (s.material.fibreStiffness > 0))
     return fail(
         "setMaterial: material.fibreStiffness must stay zero or non-zero as at creation (the "
         "fibre field and fibre strengths are built once)");
-  const bool newDensity = material.density != m.material.density;
-  m.material = material;
-  m.coeffs = detail::toCoeffs(material);
-  if (newDensity) {
-    // Lumped masses as buildFemModel forms them, in the same order (eq 2.10, row-summed).
-    std::fill(m.nodeMass.begin(), m.nodeMass.end(), 0.0);
-    for (int32_t e = 0; e < m.tetCount; ++e)
-      for (int a = 0; a < 4; ++a)
-        m.nodeMass[m.tets[4 * size_t(e) + a]] += 0.25 * material.density * m.restVolume[e];
-  }
+  const bool newDensity = material.density != s.material.density;
+  s.material = material;
+  s.coeffs = detail::toCoeffs(material);
+  if (newDensity) detail::lumpMasses(b->model, material.density, s.nodeMass);
   return {};
 }
 

@@ -58,17 +58,18 @@ RigidFragmentInfo toInfo(const detail::RigidProperties& p) {
   return info;
 }
 
-// Marks the tets whose nodes all lie in detached fragments (FemModel::rigidTet) and whether
+// Marks the tets whose nodes all lie in detached fragments (FemState::rigidTet) and whether
 // the whole body is rigid now.
 void markRigidTets(BodyRecord& b) {
   const std::span<const int32_t> fragmentOf = b.fracture->fragments().nodeFragment();
   std::vector<uint8_t> rigidNode(fragmentOf.size(), 0);
   for (size_t n = 0; n < fragmentOf.size(); ++n)
     rigidNode[n] = detachedCentre(b, fragmentOf[n]) != nullptr;
-  detail::FemModel& m = b.model;
-  m.rigidTet.assign(size_t(m.tetCount), 0);
+  const detail::FemModel& m = b.model;
+  std::vector<uint8_t>& rigidTet = b.state.rigidTet;
+  rigidTet.assign(size_t(m.tetCount), 0);
   for (int32_t t = 0; t < m.tetCount; ++t)
-    m.rigidTet[size_t(t)] =
+    rigidTet[size_t(t)] =
         rigidNode[size_t(m.tets[4 * t])] && rigidNode[size_t(m.tets[4 * t + 1])] &&
         rigidNode[size_t(m.tets[4 * t + 2])] && rigidNode[size_t(m.tets[4 * t + 3])];
   b.allRigid = std::all_of(rigidNode.begin(), rigidNode.end(), [](uint8_t r) { return r != 0; });
@@ -77,12 +78,12 @@ void markRigidTets(BodyRecord& b) {
 // Prescribes the rigid velocity field v + w x (x - c) on a detached fragment's nodes (the
 // integrator moves them by it and reports it as their velocity).
 void setRigidVelocities(BodyRecord& b, int32_t fragment, glm::dvec3 v, glm::dvec3 w, glm::dvec3 c) {
-  detail::FemModel& m = b.model;
+  detail::FemState& s = b.state;
   for (int32_t n : b.fracture->fragments().nodes(fragment)) {
-    const glm::dvec3 x(b.state.x[3 * n], b.state.x[3 * n + 1], b.state.x[3 * n + 2]);
+    const glm::dvec3 x(s.x[3 * n], s.x[3 * n + 1], s.x[3 * n + 2]);
     const glm::dvec3 vn = v + glm::cross(w, x - c);
-    for (int i = 0; i < 3; ++i) m.gripVelocity[3 * n + i] = b.state.v[3 * n + i] = vn[i];
-    m.movingGrips |= vn != glm::dvec3(0);
+    for (int i = 0; i < 3; ++i) s.gripVelocity[3 * n + i] = s.v[3 * n + i] = vn[i];
+    s.movingGrips |= vn != glm::dvec3(0);
   }
 }
 }  // namespace
@@ -90,9 +91,8 @@ void setRigidVelocities(BodyRecord& b, int32_t fragment, glm::dvec3 v, glm::dvec
 Result<RigidFragmentInfo> World::fragmentInfo(BodyId id, int32_t fragment) const {
   const BodyRecord* b = m_impl->get(id);
   if (std::string e = checkFragment(b, "fragmentInfo", fragment); !e.empty()) return fail(e);
-  const detail::RigidProperties p =
-      detail::rigidProperties(b->model, b->state.x.data(), b->state.v.data(),
-                              b->fracture->fragments().nodeFragment().data(), fragment);
+  const detail::RigidProperties p = detail::rigidProperties(
+      b->model, b->state, b->fracture->fragments().nodeFragment().data(), fragment);
   return toInfo(p);
 }
 
@@ -102,18 +102,17 @@ Result<RigidFragmentInfo> World::detachFragment(BodyId id, int32_t fragment) {
   if (std::string e = checkFragment(b, "detachFragment", fragment); !e.empty()) return fail(e);
   if (detachedCentre(*b, fragment))
     return fail("detachFragment: fragment ", std::to_string(fragment), " is already detached");
-  const detail::RigidProperties p =
-      detail::rigidProperties(b->model, b->state.x.data(), b->state.v.data(),
-                              b->fracture->fragments().nodeFragment().data(), fragment);
+  const detail::RigidProperties p = detail::rigidProperties(
+      b->model, b->state, b->fracture->fragments().nodeFragment().data(), fragment);
   if (p.hasFixedNode)
     return fail("detachFragment: fragment ", std::to_string(fragment),
                 " holds gripped nodes (BodyDef.grips); a pinned piece cannot move rigidly");
   if (!(p.mass > 0))
     return fail("detachFragment: fragment ", std::to_string(fragment), " has no mass");
   const RigidFragmentInfo info = toInfo(p);
-  for (int32_t n : b->fracture->fragments().nodes(fragment)) b->model.fixedNode[size_t(n)] = 1;
+  for (int32_t n : b->fracture->fragments().nodes(fragment)) b->state.fixedNode[size_t(n)] = 1;
   setRigidVelocities(*b, fragment, info.linearVelocity, info.angularVelocity, info.centreOfMass);
-  b->integrator->refreshFixedNodes(b->model);
+  b->integrator->refreshFixedNodes(b->model, b->state);
   b->rigid.emplace_back(fragment, p.restCentre);
   markRigidTets(*b);
 

@@ -8,15 +8,12 @@
 
 namespace gf {
 
-// Everything of one body that a step reads and a run changes; the rest of the model is fixed.
+// Everything of one body that a step reads and a run changes; the model is fixed.
 struct BodySnapshot {
   uint32_t slot = 0, generation = 0;
   int32_t nodeCount = 0, tetCount = 0;
   detail::FemState state;
-  Material material;
-  MaterialCoeffs coeffs;
-  std::vector<double> nodeMass, gripVelocity, pendingForce;
-  bool movingGrips = false;
+  std::vector<double> pendingForce;
   bool hasFracture = false;
   detail::FractureBody::State fracture;
   std::vector<int32_t> rebindHistory;
@@ -56,12 +53,7 @@ WorldSnapshot World::snapshot() const {
     s.nodeCount = b->model.nodeCount;
     s.tetCount = b->model.tetCount;
     s.state = b->state;
-    s.material = b->model.material;
-    s.coeffs = b->model.coeffs;
-    s.nodeMass = b->model.nodeMass;
-    s.gripVelocity = b->model.gripVelocity;
     s.pendingForce = b->pendingForce;
-    s.movingGrips = b->model.movingGrips;
     s.hasFracture = b->fracture != nullptr;
     if (b->fracture) s.fracture = b->fracture->saveState();
     s.rebindHistory = b->integrator->rebindHistory();
@@ -104,16 +96,11 @@ Result<void> World::restore(const WorldSnapshot& snapshot) {
   for (const BodySnapshot& s : d.bodies) {
     BodyRecord& b = *w.slots[s.slot].body;
     b.state = s.state;
-    b.model.material = s.material;
-    b.model.coeffs = s.coeffs;
-    b.model.nodeMass = s.nodeMass;
-    b.model.gripVelocity = s.gripVelocity;
-    b.model.movingGrips = s.movingGrips;
     b.pendingForce = s.pendingForce;
     if (b.fracture) b.fracture->restoreState(s.fracture);
     b.stepEndValid = false;
     // Cannot fail: the same set-up succeeded when the body was created.
-    if (Result<void> r = b.integrator->restoreSolver(b.model, s.rebindHistory); !r)
+    if (Result<void> r = b.integrator->restoreSolver(b.model, b.state, s.rebindHistory); !r)
       return fail("restore: body ", std::to_string(s.slot + 1), ": ", r.error().message);
     if (b.surface) {
       b.surface->brokenCount = ~uint64_t(0);  // force a full rebuild
