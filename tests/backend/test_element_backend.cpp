@@ -45,7 +45,6 @@ struct TornBody {
   FemState state;
   std::unique_ptr<detail::FractureBody> fracture;
   std::unique_ptr<detail::Integrator> integrator;
-  std::vector<Mat3> plasticInverse;
 };
 
 void tear(const Case& c, TornBody& b) {
@@ -85,12 +84,12 @@ void tear(const Case& c, TornBody& b) {
     Mat3 FpInv;
     FpInv(0, 0) = 1 / 1.1;
     FpInv(1, 1) = FpInv(2, 2) = std::sqrt(1.1);
-    for (const Mat3& r : m.restInverse) b.plasticInverse.push_back(r * FpInv);
-    b.fracture->attachPlasticity(&b.plasticInverse);
+    b.state.plasticInverse.clear();
+    for (const Mat3& r : m.restInverse) b.state.plasticInverse.push_back(r * FpInv);
   }
   b.integrator = std::make_unique<detail::Integrator>(m);
   ASSERT_TRUE(b.integrator->setupSolver(m, b.state).ok());
-  b.integrator->attach(b.fracture.get(), c.plastic ? &b.plasticInverse : nullptr);
+  b.integrator->attach(b.fracture.get());
   detail::StepContext ctx;
   ctx.dt = 2e-3;
   for (int s = 0; s < 100 && b.fracture->brokenCount() == 0; ++s)

@@ -89,6 +89,13 @@ FemState buildFemState(const BodyDef& def, const FemModel& model) {
   s.externalForce.assign(3 * nn, 0.0);
   for (const PointForce& f : def.forces)
     for (int i = 0; i < 3; ++i) s.externalForce[3 * size_t(f.node) + i] += f.force[i];
+  if (def.plasticity.enabled) {
+    const size_t nt = size_t(model.tetCount);
+    s.Fp.assign(nt, Mat3::identity());
+    s.FpInv.assign(nt, Mat3::identity());
+    s.plasticDelta.assign(nt, 0.0);
+    s.plasticInverse = model.restInverse;
+  }
   return s;
 }
 

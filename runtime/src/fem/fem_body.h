@@ -47,8 +47,9 @@ struct FemState {
   /// and the element pass skips it. Empty until a fragment is detached.
   std::vector<uint8_t> rigidTet;
   std::vector<double> externalForce;  ///< 3 per node, constant point forces
-  // Plasticity (eq 2.3-2.5), only when enabled: per tet Fp, its inverse, the hardening
-  // accumulator delta and the effective rest inverse Dm^-1 Fp^-1 the elements use.
+  // Plasticity (eq 2.3-2.5), only when enabled (else empty): per tet Fp, its inverse, the
+  // hardening accumulator delta and the effective rest inverse Dm^-1 Fp^-1 that the element
+  // pass and the fracture criterion use instead of Dm^-1.
   std::vector<Mat3> Fp, FpInv, plasticInverse;
   std::vector<double> plasticDelta;
 };
@@ -57,7 +58,7 @@ struct FemState {
 /// solver settings are the def's with the size rule applied (effectiveLinearSolver).
 FemModel buildFemModel(const BodyDef& def);
 /// The body's data at creation: at rest, at its mesh's positions, with the def's material,
-/// grips and point forces.
+/// grips and point forces, and no plastic flow yet when plasticity is enabled.
 FemState buildFemState(const BodyDef& def, const FemModel& model);
 /// Lumped masses of `model` at `density` into nodeMass (one per node).
 void lumpMasses(const FemModel& model, double density, std::vector<double>& nodeMass);

@@ -155,7 +155,8 @@ ElementStage Integrator::elementStage(const FemModel& model, const FemState& sta
   s.tets = model.tets.data();
   s.x = x;
   // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
-  s.restInverse = m_plasticInverse ? m_plasticInverse->data() : model.restInverse.data();
+  s.restInverse =
+      state.plasticInverse.empty() ? model.restInverse.data() : state.plasticInverse.data();
   s.restVolume = model.restVolume.data();
   s.coeffs = state.coeffs;
   s.fibreDir = model.fibreDir.empty() ? nullptr : model.fibreDir.data();

@@ -76,12 +76,8 @@ class Integrator {
   void refreshFixedNodes(const FemModel& model, const FemState& state);
   /// The multigrid solver, or null when the body uses another linear solver.
   const MultigridSolver* multigrid() const { return m_multigrid.get(); }
-  /// Damage state the element pass reads (null: no fracture) and the effective rest inverses
-  /// of plastic elements (null: no plasticity). Both outlive the integrator's use.
-  void attach(FractureBody* fracture, const std::vector<Mat3>* plasticInverse) {
-    m_fracture = fracture;
-    m_plasticInverse = plasticInverse;
-  }
+  /// Damage state the element pass reads (null: no fracture); it outlives the integrator's use.
+  void attach(FractureBody* fracture) { m_fracture = fracture; }
   /// Advances `state` by ctx.dt. With fracture attached, the first element pass also yields
   /// the stresses of the fracture criterion, which runs before the solve (FractureBody::detect).
   /// On a NaN/Inf the state is restored and flagged.
@@ -194,7 +190,6 @@ class Integrator {
   double m_theta = 1;  // of the last step; below 1, m_x keeps the solved point the forces act at
   FractureBody* m_fracture = nullptr;
   double* m_stressOut = nullptr;  // 6 per tet: the element pass also writes Biot stresses
-  const std::vector<Mat3>* m_plasticInverse = nullptr;
   PcgSolver m_pcg;
   std::unique_ptr<CholeskySolver> m_cholesky;
   std::unique_ptr<MultigridSolver> m_multigrid;

@@ -66,7 +66,7 @@ CriterionStressStage FractureBody::stressStage(const FemModel& fem, const FemSta
   s.tets = fem.tets.data();
   s.x = x;
   // The criterion judges the elastic stress of Fe = F Fp^-1 as the element pass does (eq 2.3).
-  s.restInverse = m_plasticInverse ? m_plasticInverse->data() : fem.restInverse.data();
+  s.restInverse = data.plasticInverse.empty() ? fem.restInverse.data() : data.plasticInverse.data();
   s.coeffs = data.coeffs;
   s.fibreDir = fem.fibreDir.empty() ? nullptr : fem.fibreDir.data();
   s.tetMask = m_tetMask.data();

@@ -42,12 +42,6 @@ class FractureBody {
                  bool stressesReady = true);
   /// 6 per tet (Voigt), written by the element pass.
   double* stressBuffer() { return m_stress.data(); }
-  /// The effective rest inverses Dm^-1 Fp^-1 of a plastic body (null: none), so that the
-  /// criterion judges the elastic stress of Fe = F Fp^-1 as the element pass does (eq 2.3);
-  /// must outlive this object's use.
-  void attachPlasticity(const std::vector<Mat3>* plasticInverse) {
-    m_plasticInverse = plasticInverse;
-  }
 
   /// Kernel inputs of the element pass.
   int damageModel() const { return m_damageModel; }
@@ -118,7 +112,6 @@ class FractureBody {
   CriterionWorkspace m_ws;
   CutWorkspace m_cutWs;
   Fragments m_fragments;
-  const std::vector<Mat3>* m_plasticInverse = nullptr;
   std::vector<PendingCut> m_pendingCuts;
   int32_t m_brokenCount = 0;
   std::vector<int32_t> m_breakOrder;

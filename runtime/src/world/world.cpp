@@ -68,17 +68,7 @@ Result<std::unique_ptr<BodyRecord>> buildBody(BodyDef&& def, JobSystem& jobs) {
     if (!fb) return fb.error();
     body->fracture = std::move(fb.value());
   }
-  if (def.plasticity.enabled) {
-    const size_t nt = body->model.tetCount;
-    body->state.Fp.assign(nt, Mat3::identity());
-    body->state.FpInv.assign(nt, Mat3::identity());
-    body->state.plasticDelta.assign(nt, 0.0);
-    body->state.plasticInverse = body->model.restInverse;
-  }
-  const std::vector<Mat3>* plasticInverse =
-      def.plasticity.enabled ? &body->state.plasticInverse : nullptr;
-  body->integrator->attach(body->fracture.get(), plasticInverse);
-  if (body->fracture) body->fracture->attachPlasticity(plasticInverse);
+  body->integrator->attach(body->fracture.get());
 
   body->gripForces.assign(def.grips.size(), glm::dvec3(0));
   body->grips = std::move(def.grips);
