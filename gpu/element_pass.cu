@@ -57,7 +57,7 @@ bool DeviceElementPass::run(bool withHessian, bool withStress) {
   s.hess = withHessian ? m_hess.data() : nullptr;
   s.stress = withStress ? m_stress.data() : nullptr;
   launch(s, m_tetCount, nullptr);
-  launch(detail::ChunkReduceStage<detail::SumOp>{m_energy.data(), m_tetCount, m_partials.data()},
+  launch(detail::ChunkReduceStage<detail::SumOp>{{m_energy.data()}, m_tetCount, m_partials.data()},
          detail::sumChunks(m_tetCount), nullptr);
   launch(detail::ChunkTotalStage<detail::SumOp>{m_partials.data(), detail::sumChunks(m_tetCount),
                                                 m_sum.data()},

@@ -57,18 +57,131 @@ GF_HD double penetration(const ColliderData& c, Vec3 x, Vec3& n) {
   return best;
 }
 
-/// Adds the contact energy of node x (mass m) and its gradient and Hessian block; returns
-/// the energy (0 when not in contact).
-GF_HD double nodeContact(const ColliderData& c, Vec3 x, double m, Vec3& grad, Mat3& hess) {
-  Vec3 n;
-  const double d = penetration(c, x, n);
+/// Adds the penalty energy k d^2 / 2 of a node at depth d > 0 along the outward direction n
+/// (k = stiffness times the node's mass), its gradient and its Hessian block; returns the
+/// energy (0 when not in contact).
+GF_HD double penaltyContact(double k, double d, Vec3 n, Vec3& grad, Mat3& hess) {
   if (!(d > 0)) return 0;
-  const double k = c.stiffness * m;
   grad -= (k * d) * n;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) hess(i, j) += k * n[i] * n[j];
   return 0.5 * k * d * d;
 }
+
+/// Adds the contact energy of node x (mass m) and its gradient and Hessian block; returns
+/// the energy (0 when not in contact).
+GF_HD double nodeContact(const ColliderData& c, Vec3 x, double m, Vec3& grad, Mat3& hess) {
+  Vec3 n;
+  const double d = penetration(c, x, n);
+  return penaltyContact(c.stiffness * m, d, n, grad, hess);
+}
+
+/// Where the straight path a -> b first enters collider c when a lies outside it: the entry
+/// point, the outward normal of the face (or sphere point) it enters through, and the
+/// collider's thickness along that normal. False when a is inside, or the path misses. A plane is a
+/// half-space and cannot be passed through, so it never has an entry. This is the continuous check
+/// that keeps a fast node from crossing a thin box or a small sphere within one step, where the
+/// nearest-face depth of penetration() would point out of the far side.
+GF_HD bool sweptEntry(const ColliderData& c, Vec3 a, Vec3 b, Vec3& point, Vec3& normal,
+                      double& thickness) {
+  if (c.kind == kColliderSphere) {
+    // |a + t (b - a) - centre| = r, smallest root in [0, 1], with a outside.
+    const Vec3 d = b - a, f = a - c.point;
+    const double A = dot(d, d), B = dot(f, d), C = dot(f, f) - c.radius * c.radius;
+    if (!(C > 0) || !(A > 0)) return false;
+    const double disc = B * B - A * C;
+    if (!(disc >= 0)) return false;
+    const double t = (-B - sqrt(disc)) / A;
+    if (!(t >= 0 && t <= 1)) return false;
+    point = a + t * d;
+    const Vec3 r = point - c.point;
+    const double len = norm(r);
+    normal = len > 0 ? (1.0 / len) * r : Vec3{0, 1, 0};
+    thickness = 2 * c.radius;
+    return true;
+  }
+  if (c.kind != kColliderBox) return false;
+  // Slabs in the box's axes: the path is inside every slab for t in [enter, leave].
+  const Vec3 la = transpose(c.rotation) * (a - c.point), lb = transpose(c.rotation) * (b - c.point);
+  double enter = 0, leave = 1;
+  int axis = -1;
+  double side = 0;
+  for (int i = 0; i < 3; ++i) {
+    const double h = c.halfExtents[i], d = lb[i] - la[i];
+    if (d == 0) {
+      if (la[i] < -h || la[i] > h) return false;
+      continue;
+    }
+    double t0 = (-h - la[i]) / d, t1 = (h - la[i]) / d;
+    double faceSide = -1;
+    if (t0 > t1) {
+      const double tmp = t0;
+      t0 = t1;
+      t1 = tmp;
+      faceSide = 1;
+    }
+    if (t0 > enter) {
+      enter = t0;
+      axis = i;
+      side = faceSide;
+    }
+    if (t1 < leave) leave = t1;
+    if (enter > leave) return false;
+  }
+  if (axis < 0) return false;  // a is inside the box (or on its boundary)
+  Vec3 ln{0, 0, 0};
+  ln[axis] = side;
+  normal = c.rotation * ln;
+  point = a + enter * (b - a);
+  thickness = 2 * c.halfExtents[axis];
+  return true;
+}
+
+/// Extent of a box or sphere collider along direction n (unit).
+GF_HD double colliderThickness(const ColliderData& c, Vec3 n) {
+  if (c.kind == kColliderSphere) return 2 * c.radius;
+  const Vec3 l = transpose(c.rotation) * n;
+  return 2 *
+         (fabs(l.x) * c.halfExtents.x + fabs(l.y) * c.halfExtents.y + fabs(l.z) * c.halfExtents.z);
+}
+
+/// Penalty stiffness per unit mass for a node whose path over dt reaches `reach` past the face
+/// it entered, on a collider `thickness` thick: a node meeting a penalty k stops about
+/// reach / (1 + k dt^2) in (the implicit step's balance of inertia and penalty), so the
+/// collider's own k, raised where needed to stop it within a hundredth of the thickness (the
+/// body behind the node pushes harder than its own mass, so it ends deeper, but well inside).
+GF_HD double sweptStiffness(double colliderStiffness, double reach, double thickness, double dt) {
+  const double k = reach / (0.01 * thickness * dt * dt);
+  return k > colliderStiffness ? k : colliderStiffness;
+}
+
+/// Swept contacts of one step: per node, the collider whose face its path entered (-1 none)
+/// with the entry point, normal and penalty stiffness. For that collider the node's depth is
+/// measured from the entry face's plane for the whole step, so the penalty pushes it back the
+/// way it came even when it ends past the middle of a thin plate or beyond it.
+struct SweptContacts {
+  const int32_t* collider = nullptr;  ///< per node; null: no swept contact this step
+  const Vec3* point = nullptr;
+  const Vec3* normal = nullptr;
+  const double* stiffness = nullptr;  ///< per node, per unit mass (sweptStiffness)
+
+  /// Depth (> 0 inside) of node n at x against collider ci, and the outward direction.
+  GF_HD double depth(const ColliderData& c, int ci, int32_t n, Vec3 x, Vec3& out) const {
+    if (collider && collider[n] == ci) {
+      out = normal[n];
+      return dot(point[n] - x, normal[n]);
+    }
+    return penetration(c, x, out);
+  }
+  /// nodeContact against collider ci, with its swept face.
+  GF_HD double contact(const ColliderData& c, int ci, int32_t n, Vec3 x, double m, Vec3& grad,
+                       Mat3& hess) const {
+    Vec3 dir;
+    const double d = depth(c, ci, n, x, dir);
+    const double k = collider && collider[n] == ci ? stiffness[n] : c.stiffness;
+    return penaltyContact(k * m, d, dir, grad, hess);
+  }
+};
 
 /// Smoothed Coulomb friction of a node sliding by u (tangential, over the step) under the
 /// lagged normal force lambda: the dissipation potential mu lambda f0(|u|) with f0' = f1,

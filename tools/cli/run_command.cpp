@@ -223,10 +223,9 @@ struct FlagName {
   const char* name;
 };
 constexpr FlagName kFlagNames[] = {
-    {kStepNotConverged, "not converged"},
-    {kStepNanContained, "NaN contained"},
-    {kStepInvalidInput, "invalid input"},
-    {kStepLineSearchFailed, "line search failed"},
+    {kStepNotConverged, "not converged"}, {kStepNanContained, "NaN contained"},
+    {kStepInvalidInput, "invalid input"}, {kStepLineSearchFailed, "line search failed"},
+    {kStepContactSwept, "swept contact"},
 };
 
 /// The step's message, or the names of its flags when it gave none.

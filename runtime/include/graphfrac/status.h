@@ -76,6 +76,10 @@ enum StepFlag : uint32_t {
   kStepNanContained = 1u << 1,
   kStepInvalidInput = 1u << 2,      ///< The call was rejected (e.g. dt <= 0); nothing changed.
   kStepLineSearchFailed = 1u << 3,  ///< Newton's line search hit its minimum step.
+  /// A node's path over the step would have passed through a thin box or a small sphere
+  /// collider (or the collider through it): contact was taken at the face the path entered,
+  /// which stopped it there. Information, not an error.
+  kStepContactSwept = 1u << 4,
 };
 
 /// What World::step reports. Ignoring it is a compile warning.

@@ -24,6 +24,12 @@ constexpr double kMinLineSearchStep = 1.0 / 1024;
 // In the one-step mode, extra Newton iterations are spent only when a node entered a collider
 // that the linearisation did not see (an impact), at most this many.
 constexpr int kMaxContactIterations = 2;
+// A step whose swept contacts stopped a node that would have passed a thin collider iterates
+// until the Newton step falls below kSweptTolerance of the first one, at most this many times:
+// the node met the face with the whole step's motion still to absorb, and the penalty takes
+// a fraction of its depth per iteration.
+constexpr int kMaxSweptIterations = 12;
+constexpr double kSweptTolerance = 1e-3;
 // Newton step, relative to the body's size, below which round-off dominates: converged
 // whatever the tolerance (a step that starts at equilibrium has nothing left to solve).
 constexpr double kNewtonRoundOff = 1e-12;
@@ -208,6 +214,7 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
   nodes.gravity = ctx.gravity;
   nodes.colliders = ctx.colliders;
   nodes.colliderCount = ctx.colliderCount;
+  nodes.swept = m_swept;
   nodes.dt = dt;
   nodes.massDamping = r1;
   nodes.lengthScale = model.lengthScale;
@@ -268,8 +275,8 @@ double Integrator::dampingTerm(const FemState& state, const double* xn, const do
 
 bool Integrator::enteredUnseenContact(const FemModel& model, const FemState& state,
                                       const StepContext& ctx) const {
-  const UnseenContactTerm unseen{m_x.data(), m_contactSeen.data(), state.fixedNode.data(),
-                                 ctx.colliders, ctx.colliderCount};
+  const UnseenContactTerm unseen{m_x.data(),    m_contactSeen.data(), state.fixedNode.data(),
+                                 ctx.colliders, ctx.colliderCount,    m_swept};
   return CpuExecutor::reduce<MaxOp>(model.nodeCount, unseen) > 0;
 }
 
@@ -410,7 +417,8 @@ Vec3 Integrator::externalImpulse(const FemState& state, const StepContext& ctx, 
     for (int c = 0; c < ctx.colliderCount; ++c) {
       Vec3 g;
       Mat3 h;
-      if (nodeContact(ctx.colliders[c], xl, m, g, h) != 0) impulse -= ctx.dt * (g + h * (x - xl));
+      if (m_swept.contact(ctx.colliders[c], c, n, xl, m, g, h) != 0)
+        impulse -= ctx.dt * (g + h * (x - xl));
     }
   }
   if (!m_frictionOfNode.empty() && m_frictionOfNode[size_t(n)] >= 0)
@@ -638,7 +646,9 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
 
   const double* start = m_xStart.data();  // x_n
   const bool fullNewton = maxNewton > 1;
-  const int iterationCap = fullNewton ? maxNewton : 1 + kMaxContactIterations;
+  const bool swept = !fullNewton && (rep.flags & kStepContactSwept);
+  const int iterationCap =
+      fullNewton ? maxNewton : 1 + (swept ? kMaxSweptIterations : kMaxContactIterations);
   double firstStepNorm = 0;
   bool converged = !fullNewton;
   // Whether the elastic energy at the final positions is known (the accepted line-search
@@ -779,8 +789,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     if (ctx.colliderCount > 0) m_xLin = m_x;
     exec.run(n3i, kNodeGrain, AxpyStage{m_x.data(), m_dx.data(), alpha, m_x.data()});
     const double relStep = firstStepNorm > 0 ? alpha * stepNorm / firstStepNorm : 0.0;
-    if (fullNewton) {
-      if (relStep <= model.solver.newtonTolerance ||
+    if (fullNewton || swept) {
+      if (relStep <= (fullNewton ? model.solver.newtonTolerance : kSweptTolerance) ||
           alpha * stepNorm <= kNewtonRoundOff * model.lengthScale * std::sqrt(double(n3))) {
         converged = true;
         break;
@@ -796,8 +806,42 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   return psi;
 }
 
+void Integrator::sweepColliders(const FemModel& model, const FemState& state,
+                                const StepContext& ctx, JobSystem& jobs, BodyStepReport& rep) {
+  m_swept = {};
+  bool thin = false;  // planes are half-spaces: nothing to pass through
+  for (int c = 0; c < ctx.colliderCount; ++c) thin |= ctx.colliders[c].kind != kColliderPlane;
+  if (!thin) return;
+  const size_t nn = size_t(model.nodeCount);
+  m_sweptCollider.resize(nn);
+  m_sweptPoint.resize(nn);
+  m_sweptNormal.resize(nn);
+  m_sweptCrossed.resize(nn);
+  m_sweptStiffness.resize(nn);
+  SweepStage sweep;
+  sweep.x = state.x.data();
+  sweep.v = state.v.data();
+  sweep.fixedNode = state.fixedNode.data();
+  sweep.dt = ctx.dt;
+  sweep.colliders = ctx.colliders;
+  sweep.colliderCount = ctx.colliderCount;
+  sweep.collider = m_sweptCollider.data();
+  sweep.point = m_sweptPoint.data();
+  sweep.normal = m_sweptNormal.data();
+  sweep.stiffness = m_sweptStiffness.data();
+  sweep.crossed = m_sweptCrossed.data();
+  const CpuExecutor exec(jobs);
+  exec.run(model.nodeCount, kNodeGrain, sweep);
+  m_swept = {m_sweptCollider.data(), m_sweptPoint.data(), m_sweptNormal.data(),
+             m_sweptStiffness.data()};
+  if (exec.max(m_sweptCrossed.data(), model.nodeCount) > 0) rep.flags |= kStepContactSwept;
+}
+
 bool Integrator::nearCollider(const FemModel& model, const FemState& state, const double* x,
                               const double* v, double dt, const StepContext& ctx) const {
+  if (v && m_swept.collider &&
+      std::any_of(m_sweptCollider.begin(), m_sweptCollider.end(), [](int32_t c) { return c >= 0; }))
+    return true;
   for (int32_t n = 0; n < model.nodeCount; ++n) {
     if (state.fixedNode[n]) continue;
     const Vec3 xi = load3(x, n);
@@ -822,6 +866,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   // in which a node met a collider can put it deep inside, and the penalty energy stored there
   // comes back as an explosion (the 100 m/s impact of test_stiff.cpp blew up), so a body that
   // touches a collider, or would within the step, is stepped with backward Euler.
+  sweepColliders(model, state, ctx, jobs, rep);
   double theta = 0.5 + 0.5 * model.solver.numericalDamping;
   if (theta < 1 && ctx.colliderCount > 0 &&
       nearCollider(model, state, state.x.data(), state.v.data(), ctx.dt, ctx))
@@ -894,7 +939,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
       for (int c = 0; c < ctx.colliderCount; ++c) {
         Vec3 g;
         Mat3 h;
-        if (nodeContact(ctx.colliders[c], xl, state.nodeMass[n], g, h) == 0) continue;
+        if (m_swept.contact(ctx.colliders[c], c, n, xl, state.nodeMass[n], g, h) == 0) continue;
         const Vec3 j = (-dt / theta) * (g + h * (xi - xl));
         const Vec3 moment = cross(xi - ctx.colliders[c].point, j);
         double* out = ctx.colliderImpulse + 6 * c;

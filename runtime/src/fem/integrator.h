@@ -156,7 +156,12 @@ class Integrator {
   // m_x; fracture is judged in its first pass when asked. Returns the elastic energy at m_x.
   double solve(const FemModel& model, FemState& state, const StepContext& ctx, double fullDt,
                bool judgeFracture, JobSystem& jobs, BodyStepReport& rep);
-  // True when a free node at x, or at x + dt v (v non-null), penetrates a collider.
+  // The swept contacts of the step (SweepStage) into m_swept, from x_n over the full step;
+  // flags kStepContactSwept when a node's path would have passed through a collider.
+  void sweepColliders(const FemModel& model, const FemState& state, const StepContext& ctx,
+                      JobSystem& jobs, BodyStepReport& rep);
+  // True when a free node at x, or at x + dt v (v non-null: also when its path enters a thin
+  // collider), penetrates a collider.
   bool nearCollider(const FemModel& model, const FemState& state, const double* x, const double* v,
                     double dt, const StepContext& ctx) const;
   // True when a free node now penetrates a collider that the last linearisation missed.
@@ -180,6 +185,10 @@ class Integrator {
   double m_lastPsi = 0;                  // elastic energy of the last incrementalPotential call
   double m_restVolume = 0;               // of the whole body, for the blow-up test
   std::vector<uint8_t> m_contactSeen;    // contact was in the last linearisation
+  SweptContacts m_swept;                 // this step's; null pointers when no collider is thin
+  std::vector<int32_t> m_sweptCollider;
+  std::vector<Vec3> m_sweptPoint, m_sweptNormal;
+  std::vector<double> m_sweptCrossed, m_sweptStiffness;
   std::vector<FrictionContact> m_friction;  // this step's, in node order
   std::vector<int32_t> m_frictionOfNode;    // first entry of each node, -1 none; empty: none
   std::vector<Vec3> m_pieceForce;           // frictionStart's scratch

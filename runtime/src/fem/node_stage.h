@@ -28,6 +28,7 @@ struct NodePotentialStage {
   Vec3 gravity;
   const ColliderData* colliders = nullptr;
   int colliderCount = 0;
+  SweptContacts swept;
   double dt = 0, massDamping = 0, lengthScale = 1;
   int32_t nodeCount = 0;
   double* terms = nullptr;  ///< kNodeTerms * nodeCount
@@ -47,7 +48,8 @@ struct NodePotentialStage {
     Vec3 cg;
     Mat3 ch;
     double contact = 0;
-    for (int c = 0; c < colliderCount; ++c) contact += nodeContact(colliders[c], xi, m, cg, ch);
+    for (int c = 0; c < colliderCount; ++c)
+      contact += swept.contact(colliders[c], c, n, xi, m, cg, ch);
     const Vec3 dy = xi - yi, dn = xi - xni;
     const double inertia = 0.5 * m * dot(dy, dy) + 0.5 * dt * r1 * m * dot(dn, dn);
     const double work = dt2 * dot(fext, xi);
@@ -123,15 +125,81 @@ struct UnseenContactTerm {
   const uint8_t* fixedNode = nullptr;
   const ColliderData* colliders = nullptr;
   int colliderCount = 0;
+  SweptContacts swept;
 
   GF_HD double operator()(int32_t n) const {
     if (contactSeen[n] || fixedNode[n]) return 0.0;
     const Vec3 xi{x[3 * int64_t(n)], x[3 * int64_t(n) + 1], x[3 * int64_t(n) + 2]};
     for (int c = 0; c < colliderCount; ++c) {
       Vec3 normal;
-      if (penetration(colliders[c], xi, normal) > 0) return 1.0;
+      if (swept.depth(colliders[c], c, n, xi, normal) > 0) return 1.0;
     }
     return 0.0;
+  }
+};
+
+/// Per free node, the box or sphere collider that it is in at the step's start (its nearest
+/// face), or else the first one that its path over the step (x_n to x_n + dt v_n, in the
+/// colliders' end-of-step frame) enters, with the face's point and normal (SweptContacts).
+/// Where the path would pass the collider (`crossed` 1: it ends more than half the collider's
+/// thickness below the face, where the nearest-face depth would push it out of the far side)
+/// the penalty is stiffened to stop the node inside (sweptStiffness); elsewhere it is the
+/// collider's own.
+struct SweepStage {
+  const double* x = nullptr;
+  const double* v = nullptr;
+  const uint8_t* fixedNode = nullptr;
+  double dt = 0;
+  const ColliderData* colliders = nullptr;
+  int colliderCount = 0;
+  int32_t* collider = nullptr;
+  Vec3* point = nullptr;
+  Vec3* normal = nullptr;
+  double* stiffness = nullptr;
+  double* crossed = nullptr;
+
+  GF_HD void operator()(int32_t n) const {
+    collider[n] = -1;
+    crossed[n] = 0;
+    if (fixedNode[n]) return;
+    const int64_t i3 = 3 * int64_t(n);
+    const Vec3 a{x[i3], x[i3 + 1], x[i3 + 2]}, b = a + dt * Vec3{v[i3], v[i3 + 1], v[i3 + 2]};
+    double nearest = HUGE_VAL, thickness = 0;
+    for (int c = 0; c < colliderCount; ++c) {
+      const ColliderData& col = colliders[c];
+      if (col.kind == kColliderPlane) continue;  // a half-space cannot be passed through
+      // The collider moved by dt * velocity over the step: relative to it, the node starts
+      // that much further back.
+      const Vec3 start = a + dt * col.velocity;
+      Vec3 p, nrm;
+      double t = 0;
+      // A node that starts inside keeps the face it is nearest to for the whole step (it came
+      // in through it), so that it cannot be pushed on through the far side either.
+      const double inside = penetration(col, start, nrm);
+      if (inside > 0) {
+        p = start + inside * nrm;
+        t = colliderThickness(col, nrm);
+      } else if (!sweptEntry(col, start, b, p, nrm, t)) {
+        continue;
+      }
+      const double along = dot(p - start, p - start);
+      if (along < nearest) {
+        nearest = along;
+        thickness = t;
+        collider[n] = c;
+        point[n] = p;
+        normal[n] = nrm;
+      }
+    }
+    if (collider[n] < 0) return;
+    // The path would pass the collider when it ends deeper below the face than half the
+    // collider's thickness: from there the nearest face is the far one, which would push the
+    // node on through. Only then is the penalty stiffened to stop the node inside.
+    const double reach = dot(point[n] - b, normal[n]);
+    const bool passes = reach > 0.5 * thickness;
+    crossed[n] = passes ? 1.0 : 0.0;
+    stiffness[n] = passes ? sweptStiffness(colliders[collider[n]].stiffness, reach, thickness, dt)
+                          : colliders[collider[n]].stiffness;
   }
 };
 

@@ -341,6 +341,10 @@ StepStatus World::step(double dt) {
       st.message =
           "Newton's line search reached its smallest step without lowering the incremental "
           "potential: the time step is too large for the load (try substeps or a smaller dt)";
+    else if (st.has(kStepContactSwept))
+      st.message =
+          "a node's path crossed a thin collider within the step; contact was taken at the face "
+          "it entered";
   }
   w.stepping.store(false);
   return st;
