@@ -405,7 +405,8 @@ TEST(Scene, MultigridKeysLoadEveryValue) {
       "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},
       "solver": {"linear": "multigrid", "multigrid": {"levels": "50/1000/all",
         "smoother": "chebyshev", "pre_sweeps": 3, "post_sweeps": 1, "mode": "cycles",
-        "cycles": 4, "refresh_interval": 5, "crack_rebinding": false}}}]})";
+        "cycles": 4, "refresh_interval": 5, "crack_rebinding": false,
+        "smoothed_prolongation": true}}}]})";
   const Result<Scene> r = parseScene(text, "inline", "");
   ASSERT_TRUE(r.ok()) << r.error().message;
   const SolverSettings& s = r.value().bodies[0].def.solver;
@@ -418,6 +419,13 @@ TEST(Scene, MultigridKeysLoadEveryValue) {
   EXPECT_EQ(s.multigrid.cycles, 4);
   EXPECT_EQ(s.multigrid.coarseRefreshInterval, 5);
   EXPECT_FALSE(s.multigrid.crackRebinding);
+  EXPECT_TRUE(s.multigrid.smoothedProlongation);
+  // "auto": the levels are chosen from the body's size (no counts).
+  std::string autoText = text;
+  autoText.replace(autoText.find("50/1000/all"), 11, "auto");
+  const Result<Scene> a = parseScene(autoText, "inline", "");
+  ASSERT_TRUE(a.ok()) << a.error().message;
+  EXPECT_TRUE(a.value().bodies[0].def.solver.multigrid.levels.empty());
 }
 
 // Every bad file and the pieces its message must contain: the file, the JSON path (or line and
@@ -488,7 +496,8 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
      {": bodies[0].solver.multigrid: levels[1]: handle counts must increase from coarse to fine "
       "(1000 then 50)"}},
     {"bad_multigrid_levels_no_all.json",
-     {": bodies[0].solver.multigrid.levels: expected coarse handle counts", "got \"50/1000\""}},
+     {": bodies[0].solver.multigrid.levels: expected \"auto\" or coarse handle counts",
+      "got \"50/1000\""}},
     {"bad_multigrid_smoother.json",
      {": bodies[0].solver.multigrid.smoother: expected one of \"jacobi\", \"gauss_seidel\", "
       "\"chebyshev\", got \"sor\""}},

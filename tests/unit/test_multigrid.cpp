@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <random>
 #include <set>
@@ -173,6 +174,29 @@ Eigen::MatrixXd denseU(const MultigridHierarchy& h, int l, const std::vector<dou
   return U;
 }
 
+// Dense tentative prolongation from coarse level l to level l - 1 (l >= 2), written from
+// eq 6.6: a finer handle h with coarser handle H moves with T_H [(X - X_H) / s_l; 1], which seen
+// from h, in h's scaled coordinates (X - X_h) / s_{l-1}, is the affine map with linear part
+// L_H s_{l-1} / s_l and translation T_H [(X_h - X_H) / s_l; 1].
+Eigen::MatrixXd denseT(const MultigridHierarchy& h, int l, const std::vector<double>& rest) {
+  const auto& lv = h.level(l);
+  const auto& finer = h.level(l - 1);
+  const int32_t kf = h.handleCount(l - 1);
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(12 * kf, 12 * h.handleCount(l));
+  for (int32_t f = 0; f < kf; ++f) {
+    const int32_t H = lv.finerParent[f];
+    if (H < 0) continue;
+    const int32_t fn = finer.handleNode[f], Hn = lv.handleNode[H];
+    for (int j = 0; j < 9; ++j) T(12 * f + j, 12 * H + j) = finer.scale / lv.scale;
+    for (int k = 0; k < 3; ++k) {
+      for (int a = 0; a < 3; ++a)
+        T(12 * f + 9 + k, 12 * H + 3 * a + k) = (rest[3 * fn + a] - rest[3 * Hn + a]) / lv.scale;
+      T(12 * f + 9 + k, 12 * H + 9 + k) = 1;
+    }
+  }
+  return T;
+}
+
 Eigen::MatrixXd denseCoarse(const gf::detail::CoarseMatrix& C) {
   Eigen::MatrixXd d = Eigen::MatrixXd::Zero(12 * C.n, 12 * C.n);
   for (int32_t r = 0; r < C.n; ++r)
@@ -231,21 +255,33 @@ TEST(Multigrid, ProlongationIsAffineAndCoarseOperatorsAreGalerkin) {
   const ElasticSystem s = beam(kRubber, 8, 2, 0.25, jobs);
   const std::vector<double>& rest = s.mesh.positions;
   MultigridHierarchy h;
-  ASSERT_TRUE(h.build({24, 5}, rest.data(), s.fixed.data(), s.A).ok());
+  // The thesis's piecewise-affine prolongation (smoothedProlongation = false).
+  ASSERT_TRUE(h.build({24, 5}, rest.data(), s.fixed.data(), s.A, false).ok());
   ASSERT_EQ(h.coarseLevelCount(), 2);
   h.assemble(s.A, jobs);
   const Eigen::MatrixXd A = toDense(s.A);
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::MatrixXd finerRef;  // the regularised level-1 operator
   for (int l = 1; l <= 2; ++l) {
     const Eigen::MatrixXd U = denseU(h, l, rest);
-    Eigen::MatrixXd ref = U.transpose() * A * U;
-    // Degenerate aggregates carry their null directions times the block's mean diagonal.
-    for (int32_t p = 0; p < h.handleCount(l); ++p) {
-      const double delta = ref.block<12, 12>(12 * p, 12 * p).trace() / 12;
-      const Eigen::Map<const Eigen::Matrix4d> proj(&h.level(l).nullProjector[16 * p]);
-      ref.block<12, 12>(12 * p, 12 * p) +=
-          delta * Eigen::kroneckerProduct(proj, Eigen::Matrix3d::Identity());
+    Eigen::MatrixXd ref;
+    if (l == 1) {
+      ref = U.transpose() * A * U;
+      // Degenerate aggregates carry their null directions times the block's mean diagonal.
+      for (int32_t p = 0; p < h.handleCount(l); ++p) {
+        const double delta = ref.block<12, 12>(12 * p, 12 * p).trace() / 12;
+        const Eigen::Map<const Eigen::Matrix4d> proj(&h.level(l).nullProjector[16 * p]);
+        ref.block<12, 12>(12 * p, 12 * p) +=
+            delta * Eigen::kroneckerProduct(proj, Eigen::Matrix3d::Identity());
+      }
+      finerRef = ref;
+    } else {
+      // Level by level: the composed U is U_1 T_2 (nested levels, eq 6.8), and level 2 is the
+      // Galerkin operator of the regularised level 1.
+      const Eigen::MatrixXd T = denseT(h, 2, rest);
+      EXPECT_LE((denseU(h, 1, rest) * T - U).norm(), 1e-12 * U.norm());
+      ref = T.transpose() * finerRef * T;
     }
     const Eigen::MatrixXd got = denseCoarse(h.level(l).A);
     EXPECT_LE((got - ref).norm(), 1e-12 * ref.norm()) << "level " << l;
@@ -299,6 +335,208 @@ TEST(Multigrid, ProlongationIsAffineAndCoarseOperatorsAreGalerkin) {
   }
 }
 
+// Hierarchy's P_l as a dense matrix (B = 3 rows per finer row on level 1, 12 deeper).
+Eigen::MatrixXd denseP(const MultigridHierarchy& h, int l) {
+  const auto& lv = h.level(l);
+  const int B = l == 1 ? 3 : 12;
+  const int32_t rows = static_cast<int32_t>(lv.pStart.size()) - 1;
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(B * rows, 12 * h.handleCount(l));
+  for (int32_t r = 0; r < rows; ++r)
+    for (int32_t p = lv.pStart[r]; p < lv.pStart[r + 1]; ++p)
+      for (int i = 0; i < B; ++i)
+        for (int j = 0; j < 12; ++j)
+          P(B * r + i, 12 * lv.pCol[p] + j) = lv.pValues[12 * B * p + 12 * i + j];
+  return P;
+}
+
+// (I - omega D^-1 A_F) U with A_F = A's blocks kept by `keep` (and the diagonal), D = A's block
+// diagonal: one damped block-Jacobi step of U (smoothed aggregation, Vanek et al. 1996).
+Eigen::MatrixXd smoothDense(const Eigen::MatrixXd& A, int B,
+                            const std::function<bool(int32_t, int32_t)>& keep, double omega,
+                            const Eigen::MatrixXd& U, double* lambdaTrue) {
+  const int32_t n = static_cast<int32_t>(A.rows()) / B;
+  Eigen::MatrixXd AF = Eigen::MatrixXd::Zero(A.rows(), A.cols());
+  Eigen::MatrixXd D = Eigen::MatrixXd::Zero(A.rows(), A.cols());
+  Eigen::MatrixXd Dinv = Eigen::MatrixXd::Zero(A.rows(), A.cols());
+  for (int32_t r = 0; r < n; ++r) {
+    D.block(B * r, B * r, B, B) = A.block(B * r, B * r, B, B);
+    Dinv.block(B * r, B * r, B, B) = A.block(B * r, B * r, B, B).inverse();
+    for (int32_t c = 0; c < n; ++c)
+      if (r == c || keep(r, c)) AF.block(B * r, B * c, B, B) = A.block(B * r, B * c, B, B);
+  }
+  if (lambdaTrue) {
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(AF, D, Eigen::EigenvaluesOnly);
+    *lambdaTrue = eig.eigenvalues().maxCoeff();
+  }
+  return U - omega * Dinv * AF * U;
+}
+
+// Smoothed aggregation on a slab with a partial crack (every edge across x = 0.525 below
+// z = 0.3 broken, the pieces still joined above): P_1 and P_2 are one damped block-Jacobi step
+// of the tentative prolongations with the matrix filtered to unbroken edges, the coarse
+// operators are P^T A P, no entry of P couples nodes across a broken edge, and P_1 reproduces
+// an affine field exactly where the field is a null vector of the filtered stiffness (interior
+// nodes of the stencil away from cracks, surface and clamp, with no mass term: the patch test).
+TEST(Multigrid, SmoothedProlongationIsOneJacobiStepOverUnbrokenEdges) {
+  gf::ThreadPoolJobSystem jobs(2);
+  const double cut = 0.525, depth = 0.3;
+  const ElasticSystem s = gf::test::assembleElasticSystem(
+      gf::gen::box(1.0, 0.25, 0.5, 12, 3, 6), kSteel.E, kSteel.nu, 0.0, kDt,
+      [](double x, double, double) { return x < 1e-9; }, jobs);
+  const std::vector<double>& rest = s.mesh.positions;
+  const gf::detail::EdgeGraph eg =
+      gf::detail::EdgeGraph::build(s.mesh.tets.data(), s.mesh.tetCount(), s.mesh.nodeCount());
+  std::vector<uint8_t> broken(eg.edgeCount, 0);
+  int brokenCount = 0;
+  for (int32_t e = 0; e < eg.edgeCount; ++e) {
+    const int32_t a = eg.edgeNodes[2 * e], b = eg.edgeNodes[2 * e + 1];
+    broken[e] = (rest[3 * a] - cut) * (rest[3 * b] - cut) < 0 && rest[3 * a + 2] < depth &&
+                rest[3 * b + 2] < depth;
+    brokenCount += broken[e];
+  }
+  ASSERT_GT(brokenCount, 10);
+  MultigridHierarchy h;
+  ASSERT_TRUE(h.build({24, 5}, rest.data(), s.fixed.data(), s.A, true).ok());
+  h.rebind(eg.edgeNodes.data(), broken.data(), eg.edgeCount);
+  ASSERT_EQ(h.coarseLevelCount(), 2);
+  h.assemble(s.A, jobs);
+  const NodeGraph& g = h.graph();
+  auto alive = [&](int32_t i, int32_t j) {
+    for (int32_t k = g.start[i]; k < g.start[i + 1]; ++k)
+      if (g.adj[k] == j) return g.alive[k] != 0;
+    return false;
+  };
+  const int32_t n = g.n;
+
+  // Level 1 against the dense definition.
+  const Eigen::MatrixXd A = toDense(s.A);
+  const auto& l1 = h.level(1);
+  double lambda1 = 0;
+  const Eigen::MatrixXd P1 = smoothDense(A, 3, alive, l1.omega, denseU(h, 1, rest), &lambda1);
+  std::printf("[ info ] rho(D^-1 A_F): level 1 estimate %.4f, dense %.4f\n", l1.lambdaMax, lambda1);
+  EXPECT_NEAR(l1.omega, 4 / (3 * l1.lambdaMax), 1e-15);
+  EXPECT_LE(l1.lambdaMax, lambda1 * (1 + 1e-9));
+  EXPECT_GE(l1.lambdaMax, 0.8 * lambda1);
+  const Eigen::MatrixXd P1got = denseP(h, 1);
+  EXPECT_LE((P1got - P1).norm(), 1e-12 * P1.norm());
+
+  // No entry of P_1 couples a node with a handle it reaches only across a broken edge: a
+  // nonzero block (i, K) has K as i's own handle or as the handle of an unbroken neighbour.
+  for (int32_t i = 0; i < n; ++i)
+    for (int32_t K = 0; K < h.handleCount(1); ++K) {
+      if (P1got.block(3 * i, 12 * K, 3, 12).norm() == 0) continue;
+      bool reached = l1.nodeHandle[i] == K;
+      for (int32_t k = g.start[i]; k < g.start[i + 1]; ++k)
+        reached = reached || (g.alive[k] && l1.nodeHandle[g.adj[k]] == K);
+      ASSERT_TRUE(reached) << "node " << i << " handle " << K;
+    }
+  // ... and across the crack the two faces do see different handles (the test is not void).
+  int differ = 0;
+  for (int32_t e = 0; e < eg.edgeCount; ++e)
+    if (broken[e])
+      differ += l1.nodeHandle[eg.edgeNodes[2 * e]] != l1.nodeHandle[eg.edgeNodes[2 * e + 1]];
+  EXPECT_GT(differ, 0);
+
+  Eigen::MatrixXd A1 = P1.transpose() * A * P1;
+  for (int32_t p = 0; p < h.handleCount(1); ++p) {
+    const double delta = A1.block<12, 12>(12 * p, 12 * p).trace() / 12;
+    const Eigen::Map<const Eigen::Matrix4d> proj(&l1.nullProjector[16 * p]);
+    A1.block<12, 12>(12 * p, 12 * p) +=
+        delta * Eigen::kroneckerProduct(proj, Eigen::Matrix3d::Identity());
+  }
+  EXPECT_LE((denseCoarse(l1.A) - A1).norm(), 1e-12 * A1.norm());
+
+  // Level 2 smooths with the blocks of A_1 that P_1^T A_F P_1 has (a chain of unbroken edges
+  // joins the two basis functions): the block pattern of that product.
+  const int32_t k1 = h.handleCount(1);
+  Eigen::MatrixXd Pb = Eigen::MatrixXd::Zero(n, k1), AFb = Eigen::MatrixXd::Zero(n, n);
+  for (int32_t i = 0; i < n; ++i) {
+    for (int32_t K = 0; K < k1; ++K) Pb(i, K) = P1.block(3 * i, 12 * K, 3, 12).norm() > 0;
+    AFb(i, i) = 1;
+    for (int32_t k = g.start[i]; k < g.start[i + 1]; ++k) AFb(i, g.adj[k]) = g.alive[k];
+  }
+  const Eigen::MatrixXd reach = Pb.transpose() * AFb * Pb;
+  std::set<std::pair<int32_t, int32_t>> joined;
+  for (int32_t a = 0; a < k1; ++a)
+    for (int32_t b = 0; b < k1; ++b)
+      if (reach(a, b) > 0) joined.insert({a, b});
+  const auto& l2 = h.level(2);
+  double lambda2 = 0;
+  const Eigen::MatrixXd P2 = smoothDense(
+      A1, 12,
+      [&](int32_t a, int32_t b) {
+        return joined.count({a, b}) > 0;
+      },
+      l2.omega, denseT(h, 2, rest), &lambda2);
+  std::printf("[ info ] rho(D^-1 A_F): level 2 estimate %.4f, dense %.4f\n", l2.lambdaMax, lambda2);
+  EXPECT_LE(l2.lambdaMax, lambda2 * (1 + 1e-9));
+  EXPECT_GE(l2.lambdaMax, 0.8 * lambda2);
+  EXPECT_LE((denseP(h, 2) - P2).norm(), 1e-11 * P2.norm());
+  const Eigen::MatrixXd A2 = P2.transpose() * A1 * P2;
+  EXPECT_LE((denseCoarse(l2.A) - A2).norm(), 1e-11 * A2.norm());
+
+  // Transfers equal P and P^T, composed through the levels.
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const Eigen::MatrixXd P12 = P1 * P2;
+  Eigen::VectorXd q(P12.cols()), v(P12.rows());
+  for (auto& c : q) c = u(rng);
+  for (auto& c : v) c = u(rng);
+  std::vector<double> fine(v.size(), 0.0), mid(12 * h.handleCount(1), 0.0), rq(q.size());
+  h.prolongAdd(1, q.data(), mid.data(), jobs);
+  h.prolongAdd(0, mid.data(), fine.data(), jobs);
+  h.restrictTo(0, v.data(), mid.data(), jobs);
+  h.restrictTo(1, mid.data(), rq.data(), jobs);
+  EXPECT_LE((Eigen::VectorXd::Map(fine.data(), fine.size()) - P12 * q).norm(),
+            1e-12 * (P12 * q).norm());
+  EXPECT_LE((Eigen::VectorXd::Map(rq.data(), rq.size()) - P12.transpose() * v).norm(),
+            1e-12 * (P12.transpose() * v).norm());
+
+  // Affine field u = M X + t given to every level-1 handle: P_1 q = u - omega D^-1 A_F u, and
+  // A_F u = 0 (the patch test of linear tets, no mass) at a free node whose neighbours are
+  // all free, joined by unbroken edges, and not on the surface; there P_1 reproduces u.
+  Eigen::Matrix3d M;
+  Eigen::Vector3d t;
+  for (auto& c : M.reshaped()) c = u(rng);
+  for (auto& c : t) c = u(rng);
+  Eigen::VectorXd q1(12 * h.handleCount(1)), uf(3 * n);
+  for (int32_t p = 0; p < h.handleCount(1); ++p) {
+    const Eigen::Vector3d Xh = Eigen::Vector3d::Map(&rest[3 * l1.handleNode[p]]);
+    for (int a = 0; a < 3; ++a) q1.segment<3>(12 * p + 3 * a) = M.col(a) * l1.scale;
+    q1.segment<3>(12 * p + 9) = M * Xh + t;
+  }
+  for (int32_t i = 0; i < n; ++i) uf.segment<3>(3 * i) = M * Eigen::Vector3d::Map(&rest[3 * i]) + t;
+  std::fill(fine.begin(), fine.end(), 0.0);
+  h.prolongAdd(0, q1.data(), fine.data(), jobs);
+  auto surface = [&](int32_t i) {
+    const double* x = &rest[3 * i];
+    return x[0] < 1e-9 || x[0] > 1 - 1e-9 || x[1] < 1e-9 || x[1] > 0.25 - 1e-9 || x[2] < 1e-9 ||
+           x[2] > 0.5 - 1e-9;
+  };
+  int interior = 0;
+  double worst = 0, nearCrack = 0;
+  for (int32_t i = 0; i < n; ++i) {
+    if (s.fixed[i] || surface(i)) continue;
+    bool clean = true;
+    for (int32_t k = g.start[i]; k < g.start[i + 1]; ++k)
+      clean = clean && g.alive[k] && !s.fixed[g.adj[k]];
+    const double err = (Eigen::Vector3d::Map(&fine[3 * i]) - uf.segment<3>(3 * i)).norm();
+    if (clean) {
+      ++interior;
+      worst = std::max(worst, err / uf.segment<3>(3 * i).norm());
+    } else {
+      nearCrack = std::max(nearCrack, err / uf.segment<3>(3 * i).norm());
+    }
+  }
+  std::printf(
+      "[ info ] affine field: %d interior nodes, worst relative error %.1e; next to a "
+      "crack or the clamp %.1e\n",
+      interior, worst, nearCrack);
+  EXPECT_GT(interior, 20);
+  EXPECT_LE(worst, 1e-10);
+  EXPECT_GT(nearCrack, 1e-6);  // the filtered rows do move: the check above is not vacuous
+}
+
 // The system of the brief at 3750 tets: MG-CG against PCG and Cholesky, the V-cycle factor
 // of the setting that reaches the 5x, zero displacement at the clamp.
 class MultigridBeam : public ::testing::TestWithParam<MaterialCase> {};
@@ -334,6 +572,22 @@ TEST_P(MultigridBeam, ConvergesFasterThanPcgAndMatchesCholesky) {
   const Measured m = measure(s, fine, jobs);
   print(mat.name, fine, m);
   EXPECT_LE(m.factor, 0.2);
+
+  // Smoothed aggregation on the same 64 handles: a better V-cycle and fewer MG-CG iterations
+  // (measured steel 5.0x / 8 its against 2.4x / 11, rubber 2.3x / 9 against 1.8x / 13).
+  {
+    const MultigridSettings tent = settingsFor({64}, Smoother::GaussSeidel, 2, true);
+    MultigridSettings sa = tent;
+    sa.smoothedProlongation = true;
+    const Measured mt = measure(s, tent, jobs), ms = measure(s, sa, jobs);
+    print((std::string(mat.name) + " smoothed").c_str(), sa, ms);
+    EXPECT_LT(ms.factor, 0.85 * mt.factor);
+    EXPECT_LT(ms.cgIterations, mt.cgIterations);
+    if (mat.E > 1e10) {
+      EXPECT_LE(ms.factor, 0.25);
+    }
+    EXPECT_LE(relDiff(ms.x, xc), 1e-5);
+  }
 
   // Tight solve against the direct solver; the clamp stays exactly at rest.
   MultigridSolver mg;
@@ -440,8 +694,10 @@ TEST(Multigrid, InvalidSettingsAreRejectedWithTheField) {
   MultigridSettings st;
   st.levels = {100, 10};
   EXPECT_NE(tryLevels(st).find("multigrid.levels"), std::string::npos);
-  st.levels = {};
+  st.levels = {0};
   EXPECT_NE(tryLevels(st).find("multigrid.levels"), std::string::npos);
+  st.levels = {};  // chosen from the body's size
+  EXPECT_EQ(tryLevels(st), "");
   st.levels = {8};
   st.preSweeps = st.postSweeps = 0;
   EXPECT_NE(tryLevels(st).find("preSweeps"), std::string::npos);
@@ -526,13 +782,62 @@ TEST(Multigrid, RebindingKeepsAggregatesInsideFragments) {
   EXPECT_TRUE(after.converged);
   EXPECT_LE(after.iterations, before.iterations);
   EXPECT_LE(relDiff(x, xc), 1e-6);
+
+  // Smoothed aggregation on the cut slab: after re-binding no entry of any level's P reaches
+  // across the cut (the smoothing runs over unbroken edges, and deeper over the blocks such
+  // edges join), so the pieces are solved apart, and the prolongation is re-smoothed.
+  MultigridSettings sa = st;
+  sa.smoothedProlongation = true;
+  MultigridSolver mgs;
+  ASSERT_TRUE(mgs.setup(sa, s.mesh.positions.data(), s.fixed.data(), s.A).ok());
+  // Nonzero P blocks whose row and handle lie on opposite sides of the cut, over all levels.
+  auto crossing = [&](const gf::detail::MultigridHierarchy& hs, int& entries) {
+    int n = 0;
+    entries = 0;
+    for (int l = 1; l <= hs.coarseLevelCount(); ++l) {
+      const auto& lv = hs.level(l);
+      const int B = l == 1 ? 3 : 12;
+      for (size_t r = 0; r + 1 < lv.pStart.size(); ++r) {
+        const int32_t rowNode = l == 1 ? int32_t(r) : hs.level(l - 1).handleNode[r];
+        for (int32_t p = lv.pStart[r]; p < lv.pStart[r + 1]; ++p) {
+          double norm = 0;
+          for (int i = 0; i < 12 * B; ++i) norm += std::abs(lv.pValues[12 * B * p + i]);
+          if (norm == 0) continue;
+          ++entries;
+          n += side(rowNode) != side(lv.handleNode[lv.pCol[p]]);
+        }
+      }
+    }
+    return n;
+  };
+  std::fill(x.begin(), x.end(), 0.0);
+  const SolveReport saBefore = mgs.solve(s.A, s.b.data(), x.data(), 200, 1e-8, jobs);
+  int entries = 0;
+  EXPECT_GT(crossing(mgs.hierarchy(), entries), 0);  // the single coarsest handle spans both
+  mgs.rebind(eg.edgeNodes.data(), broken.data(), eg.edgeCount);
+  std::fill(x.begin(), x.end(), 0.0);
+  const SolveReport saAfter = mgs.solve(s.A, s.b.data(), x.data(), 200, 1e-8, jobs);
+  std::printf(
+      "[ info ] cut slab, smoothed prolongation: MG-CG %d its before re-binding, %d after\n",
+      saBefore.iterations, saAfter.iterations);
+  EXPECT_TRUE(saAfter.converged);
+  EXPECT_LE(saAfter.iterations, saBefore.iterations);
+  EXPECT_LE(relDiff(x, xc), 1e-6);
+  EXPECT_EQ(crossing(mgs.hierarchy(), entries), 0);
+  EXPECT_GT(entries, 0);
 }
 
 TEST(Multigrid, IdenticalBitsForOneAndTwoThreads) {
   gf::ThreadPoolJobSystem one(1), two(2);
   const ElasticSystem s = beam(kRubber, 25, 5, 0.2, one);
-  for (Smoother sm : {Smoother::GaussSeidel, Smoother::Jacobi, Smoother::Chebyshev}) {
-    const MultigridSettings st = settingsFor({16, 128}, sm, 2, true);
+  // The three smoothers, then Gauss-Seidel with the smoothed prolongation (its power
+  // iteration, smoothing and P^T A P products).
+  for (int variant = 0; variant < 4; ++variant) {
+    const Smoother sm = variant == 1   ? Smoother::Jacobi
+                        : variant == 2 ? Smoother::Chebyshev
+                                       : Smoother::GaussSeidel;
+    MultigridSettings st = settingsFor({16, 128}, sm, 2, true);
+    st.smoothedProlongation = variant == 3;
     MultigridSolver m1, m2;
     ASSERT_TRUE(m1.setup(st, s.mesh.positions.data(), s.fixed.data(), s.A).ok());
     ASSERT_TRUE(m2.setup(st, s.mesh.positions.data(), s.fixed.data(), s.A).ok());

@@ -74,6 +74,7 @@ struct Outcome {
 };
 
 std::string levelsText(const std::vector<int32_t>& levels) {
+  if (levels.empty()) return "auto";
   std::string s;
   for (int32_t n : levels) s += std::to_string(n) + "/";
   return s + "all";
@@ -106,7 +107,7 @@ bool parseLevels(const char* text, std::vector<std::vector<int32_t>>& out) {
     std::string setup = s.substr(pos, comma == std::string::npos ? comma : comma - pos);
     std::vector<int32_t> levels;
     size_t p = 0;
-    while (true) {
+    while (setup != "auto") {  // "auto": chosen from each body's size (no counts)
       const size_t slash = setup.find('/', p);
       const std::string part = setup.substr(p, slash == std::string::npos ? slash : slash - p);
       if (slash == std::string::npos) {
@@ -147,7 +148,7 @@ std::optional<std::string> parseOptions(int argc, char** argv, Options& opt) {
     } else if (a == "--levels") {
       const char* v = value();
       if (!v || !parseLevels(v, opt.levels))
-        return std::string("--levels: expected setups like 50/all,50/1000/all");
+        return std::string("--levels: expected setups like 50/all,50/1000/all,auto");
     } else if (a == "--cycles") {
       const char* v = value();
       if (!v || !parseIntList(v, opt.cycles))

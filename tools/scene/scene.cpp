@@ -384,13 +384,14 @@ Material readMaterial(const json& v, const std::string& path) {
 }
 
 /// A multigrid setup "50/1000/all": handle counts of the coarse levels, coarsest first, ending
-/// with the mesh itself ("all"). Only the syntax is read here; MultigridSettings::check owns the
-/// rules (positive, increasing).
+/// with the mesh itself ("all"); "auto" (empty): chosen from the body's size. Only the syntax
+/// is read here; MultigridSettings::check owns the rules (positive, increasing).
 std::vector<int32_t> readLevels(const json& v, const std::string& path) {
   const std::string text = readString(v, path);
+  if (text == "auto") return {};
   const std::string want =
-      "expected coarse handle counts separated by '/', coarsest first, ending with \"all\" "
-      "(e.g. \"50/1000/all\"), got " +
+      "expected \"auto\" or coarse handle counts separated by '/', coarsest first, ending with "
+      "\"all\" (e.g. \"50/1000/all\"), got " +
       describe(v);
   std::vector<int32_t> levels;
   size_t pos = 0;
@@ -413,7 +414,7 @@ std::vector<int32_t> readLevels(const json& v, const std::string& path) {
 MultigridSettings readMultigrid(const json& v, const std::string& path) {
   ObjReader o(v, path);
   o.keys({"levels", "smoother", "pre_sweeps", "post_sweeps", "mode", "cycles", "refresh_interval",
-          "crack_rebinding"});
+          "crack_rebinding", "smoothed_prolongation"});
   MultigridSettings m;
   if (const json* x = o.find("levels")) m.levels = readLevels(*x, o.at("levels"));
   if (const json* x = o.find("smoother")) {
@@ -433,6 +434,9 @@ MultigridSettings readMultigrid(const json& v, const std::string& path) {
   }
   if (const json* x = o.find("crack_rebinding")) {
     m.crackRebinding = readBool(*x, o.at("crack_rebinding"));
+  }
+  if (const json* x = o.find("smoothed_prolongation")) {
+    m.smoothedProlongation = readBool(*x, o.at("smoothed_prolongation"));
   }
   o.finish();
   requireValid(m.check(), path, kMultigridNames);

@@ -63,10 +63,12 @@ struct MultigridSettings {
   /// scene format writes a setup "50/1000/all" as {50, 1000}. Counts must grow from coarse to
   /// fine; counts above the free node count are clamped. Fragments cut off by cracks gain
   /// handles (crackRebinding), so a level can end up with more handles than asked.
-  /// Piecewise-constant aggregation converges per V-cycle in proportion to aggregate size:
-  /// about 4 nodes per handle on the finest coarse level reaches 5x per cycle, 100 nodes
-  /// about 1.5x; every further coarse level weakens it (measured, see the multigrid tests).
-  std::vector<int32_t> levels{64};
+  /// Empty (the default, "auto" in scenes): chosen from the body's free node count. With the
+  /// piecewise-affine prolongation about 64 nodes per handle on the finest coarse level, then
+  /// 8 times fewer handles per level until at most 128 remain (a 30k-tet beam of 6k nodes gets
+  /// 95/all, a 175k-tet one of 32k nodes 64/508/all); with smoothedProlongation 27 nodes per
+  /// handle down to at most 96 (28/224/all and 19/150/1203/all).
+  std::vector<int32_t> levels{};
   Smoother smoother = Smoother::GaussSeidel;
   int preSweeps = 2;   ///< Smoothing sweeps per level before restriction.
   int postSweeps = 2;  ///< Smoothing sweeps per level after prolongation.
@@ -74,7 +76,19 @@ struct MultigridSettings {
   /// linearTolerance apply); false: `cycles` V-cycles alone (a fixed cost per step).
   bool preconditionCG = true;
   int cycles = 2;
-  /// Recompute the coarse operators A_{l+1} = U^T A_l U (eq 6.4) every this many solves.
+  /// Smoothed aggregation (Vanek, Mandel and Brezina 1996): each level's piecewise-affine
+  /// prolongation U takes one damped block-Jacobi step, P = (I - 4/(3 rho) D^-1 A_F) U, over
+  /// unbroken edges only (A_F), and the coarse operators are P^T A P. P is smoothed with the
+  /// matrix of the first solve after setup and after each crack re-binding, and kept until the
+  /// next. It converges several times faster (30k-tet steel beam: 3.4x per V-cycle and 9
+  /// MG-CG iterations with GS 2+2, 5.4x and 7 with 4+4, against the default's 1.7x and 16;
+  /// still 7-8 iterations at 175k tets, where the default's grow to 27-30), but P^T A P costs
+  /// 20-70x the piecewise-affine product (12x12 blocks of basis functions that overlap their
+  /// neighbours), so on the bodies of `graphfrac bench multigrid` (30k-160k tets, one thread)
+  /// a step takes 1.5-3x longer than with the default (docs/validation.md, issue 14). false:
+  /// P = U, the thesis's prolongation (eq 6.6-6.8).
+  bool smoothedProlongation = false;
+  /// Recompute the coarse operators A_{l+1} = P^T A_l P (eq 6.4) every this many solves.
   int coarseRefreshInterval = 1;
   /// Re-bind vertices whose handle sits across a crack (SPEC §5) when edges break.
   bool crackRebinding = true;

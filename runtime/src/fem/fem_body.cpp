@@ -124,7 +124,15 @@ double estimateBodyBytes(const BodyDef& def) {
   for (const Grip& g : def.grips) gripped += int64_t(g.nodes.size());
   const LinearSolverKind solver =
       effectiveLinearSolver(def.solver, int64_t(def.mesh.nodeCount()) - gripped);
-  if (solver == LinearSolverKind::Multigrid) bytes += 0.5 * blocks * (9 * d + 4);
+  if (solver == LinearSolverKind::Multigrid) {
+    // Coarse levels and their patterns; Gauss-Seidel's colour-ordered copy of the matrix
+    // (values, column, source block); per node the prolongation block (3x12), about two blocks
+    // of A P and their term lists. The smoothed prolongation holds about three blocks per node
+    // and ten of A P.
+    bytes += 0.5 * blocks * (9 * d + 4) + blocks * (9 * d + 8);
+    bytes += def.solver.multigrid.smoothedProlongation ? nodes * (13 * 36 * d + 400)
+                                                       : nodes * (3 * 36 * d + 64);
+  }
   if (solver == LinearSolverKind::Direct) bytes += 4 * blocks * (9 * d + 4);
   if (def.fracture.enabled) {
     // Stresses (6), rest edge directions (6), chi, mask and the tets' edges; the projection

@@ -18,6 +18,8 @@ namespace gf::detail {
 /// last solve; setup and rebind times those of the last call.
 struct MultigridStats {
   double refreshMs = 0;          ///< coarse operators, smoother set-up, coarsest factorisation
+  double galerkinMs = 0;         ///< of refreshMs: the coarse operators P^T A P (and smoothing P)
+  double factorMs = 0;           ///< of refreshMs: the coarsest factorisation
   double smoothMs = 0;           ///< smoothing sweeps on every level
   double coarseSolveMs = 0;      ///< coarsest-level solves
   double transferMs = 0;         ///< residuals, restriction and prolongation between levels

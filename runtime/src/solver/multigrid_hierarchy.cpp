@@ -1,8 +1,10 @@
-// Multigrid hierarchy: furthest-point handles, geodesic binding, coarse patterns and transfers.
+// Multigrid hierarchy: furthest-point handles, geodesic binding and the patterns of the
+// prolongations and coarse operators (their numbers: multigrid_galerkin.cpp).
 #include "solver/multigrid_hierarchy.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -22,9 +24,16 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int32_t kMinFragmentNodes = 4;
 // Gram eigenvalues below this fraction of the largest are null directions of an aggregate.
 constexpr double kNullTolerance = 1e-9;
-// Handles per parallel range of the coarse assembly and the transfers.
-constexpr uint32_t kHandleGrain = 8;
-constexpr uint32_t kNodeGrain = 256;
+// Default hierarchy (MultigridSettings::levels empty): free nodes per level-1 handle, the
+// handle ratio between consecutive coarse levels, and the most handles of the coarsest level
+// (factorised by Cholesky on every refresh), for the piecewise-affine and for the smoothed
+// prolongation. Measured on the beams of the multigrid tests and `graphfrac bench multigrid`
+// (docs in defs.h): piecewise-affine aggregates stay large (the coarse operators and the
+// coarsest factorisation are cheap, the smoother does the rest); smoothed ones are smaller,
+// since smoothing makes each coarse level as good as an exact one of that size.
+constexpr double kNodesPerHandle = 64, kNodesPerHandleSmoothed = 27;
+constexpr double kCoarsening = 8;
+constexpr int32_t kCoarsestHandles = 128, kCoarsestHandlesSmoothed = 96;
 
 struct QueueItem {
   double d;
@@ -177,9 +186,23 @@ int32_t CoarseMatrix::find(int32_t r, int32_t c) const {
   return (it != last && *it == c) ? static_cast<int32_t>(it - col.data()) : -1;
 }
 
+std::vector<int32_t> MultigridHierarchy::defaultCounts(int32_t freeNodes, bool smooth) {
+  const double perHandle = smooth ? kNodesPerHandleSmoothed : kNodesPerHandle;
+  const int32_t coarsest = smooth ? kCoarsestHandlesSmoothed : kCoarsestHandles;
+  std::vector<int32_t> counts;
+  int32_t k =
+      std::max<int32_t>(1, static_cast<int32_t>(std::lround(double(freeNodes) / perHandle)));
+  counts.push_back(k);
+  while (k > coarsest) {
+    k = std::max<int32_t>(1, static_cast<int32_t>(std::lround(double(k) / kCoarsening)));
+    counts.push_back(k);
+  }
+  return counts;
+}
+
 Result<void> MultigridHierarchy::build(const std::vector<int32_t>& counts,
                                        const double* restPositions, const uint8_t* fixedNode,
-                                       const BlockSparseMatrix& A) {
+                                       const BlockSparseMatrix& A, bool smooth) {
   for (size_t l = 0; l < counts.size(); ++l) {
     if (counts[l] <= 0)
       return fail("multigrid.levels: handle count ", std::to_string(counts[l]), " is not positive");
@@ -188,6 +211,7 @@ Result<void> MultigridHierarchy::build(const std::vector<int32_t>& counts,
                   std::to_string(counts[l]), " then ", std::to_string(counts[l - 1]), ")");
   }
   const size_t n = static_cast<size_t>(A.n);
+  m_smooth = smooth;
   m_rest.assign(restPositions, restPositions + 3 * n);
   m_fixed.assign(fixedNode, fixedNode + n);
   m_fineRowStart = A.rowStart;
@@ -196,6 +220,12 @@ Result<void> MultigridHierarchy::build(const std::vector<int32_t>& counts,
   for (int32_t r = 0; r < A.n; ++r)
     for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k) m_fineRow[k] = r;
   m_graph = NodeGraph::fromPattern(A, restPositions);
+  // The fine block of each graph entry (fromPattern lists the off-diagonal blocks in order).
+  m_graphBlock.clear();
+  m_graphBlock.reserve(m_graph.adj.size());
+  for (int32_t r = 0; r < A.n; ++r)
+    for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k)
+      if (A.col[k] != r) m_graphBlock.push_back(k);
 
   m_levels.clear();
   const std::vector<int32_t> order =
@@ -218,6 +248,10 @@ void MultigridHierarchy::rebind(const int32_t* edgeNodes, const uint8_t* broken,
   m_graph.setBroken(edgeNodes, broken, edgeCount);
   bindAll();
   buildPatterns();
+}
+
+void MultigridHierarchy::invalidateProlongation() {
+  for (CoarseLevel& lv : m_levels) lv.prolongationFresh = false;
 }
 
 void MultigridHierarchy::bindAll() {
@@ -254,10 +288,8 @@ void MultigridHierarchy::bindAll() {
     nearestSources(m_graph, lv.handleNode.data(), k, owner, dist);
 
     // Composed binding: a fine node follows its finer handle, which follows the handle its own
-    // node is nearest to (eq 6.8 keeps U piecewise constant).
+    // node is nearest to (the tentative prolongators nest, eq 6.8).
     lv.nodeHandle.assign(static_cast<size_t>(n), -1);
-    lv.childStart.assign(static_cast<size_t>(k) + 1, 0);
-    lv.child.clear();
     if (l == 0) {
       for (int32_t i = 0; i < n; ++i)
         if (!m_fixed[i]) lv.nodeHandle[i] = owner[i];
@@ -268,17 +300,6 @@ void MultigridHierarchy::bindAll() {
       for (int32_t i = 0; i < n; ++i)
         if (finer.nodeHandle[i] >= 0) lv.nodeHandle[i] = parent[finer.nodeHandle[i]];
       lv.finerParent = parent;
-    }
-    // Children lists by counting sort (increasing child index within each handle).
-    const std::vector<int32_t>& parentOf = l == 0 ? lv.nodeHandle : lv.finerParent;
-    for (int32_t p : parentOf)
-      if (p >= 0) ++lv.childStart[p + 1];
-    for (int32_t h = 0; h < k; ++h) lv.childStart[h + 1] += lv.childStart[h];
-    lv.child.resize(static_cast<size_t>(lv.childStart[k]));
-    {
-      std::vector<int32_t> fill(lv.childStart.begin(), lv.childStart.end() - 1);
-      for (size_t c = 0; c < parentOf.size(); ++c)
-        if (parentOf[c] >= 0) lv.child[fill[parentOf[c]]++] = static_cast<int32_t>(c);
     }
 
     // Level length s_l: RMS distance of the bound nodes to their handle.
@@ -313,7 +334,9 @@ void MultigridHierarchy::bindAll() {
                                       lv.scale;
     }
 
-    // Null directions of each aggregate: the Gram matrix of [x; 1] over its bound nodes.
+    // Null directions of each level-1 aggregate: the Gram matrix of [x; 1] over its nodes.
+    lv.nullProjector.assign(16 * static_cast<size_t>(k), 0.0);
+    if (l > 0) continue;
     std::vector<Eigen::Matrix4d> gram(static_cast<size_t>(k), Eigen::Matrix4d::Zero());
     for (int32_t i = 0; i < n; ++i) {
       const int32_t h = lv.nodeHandle[i];
@@ -321,7 +344,6 @@ void MultigridHierarchy::bindAll() {
       const Eigen::Vector4d x(lv.coord[3 * i], lv.coord[3 * i + 1], lv.coord[3 * i + 2], 1.0);
       gram[h] += x * x.transpose();
     }
-    lv.nullProjector.assign(16 * static_cast<size_t>(k), 0.0);
     for (int32_t h = 0; h < k; ++h) {
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eig(gram[h]);
       const double top = eig.eigenvalues()(3);
@@ -334,159 +356,252 @@ void MultigridHierarchy::bindAll() {
   }
 }
 
+void MultigridHierarchy::tentativeBlock(int l, int32_t row, double* out) const {
+  const CoarseLevel& lv = level(l);
+  tentativeBlockFor(l, row, l == 1 ? lv.nodeHandle[row] : lv.finerParent[row], out);
+}
+
+void MultigridHierarchy::tentativeBlockFor(int l, int32_t row, int32_t handle, double* out) const {
+  const CoarseLevel& lv = level(l);
+  const double* Xh =
+      handle >= 0 ? m_rest.data() + 3 * static_cast<size_t>(lv.handleNode[handle]) : nullptr;
+  if (l == 1) {
+    std::fill(out, out + 36, 0.0);
+    if (handle < 0 || m_fixed[row]) return;
+    // eq 6.6-6.7: x_i = T_h [x; 1], so the block is [x; 1]^T (x) I3.
+    double x[3];
+    if (handle == lv.nodeHandle[row]) {
+      for (int a = 0; a < 3; ++a) x[a] = lv.coord[3 * static_cast<size_t>(row) + a];
+    } else {
+      for (int a = 0; a < 3; ++a)
+        x[a] = (m_rest[3 * static_cast<size_t>(row) + a] - Xh[a]) / lv.scale;
+    }
+    for (int k = 0; k < 3; ++k) {
+      for (int a = 0; a < 3; ++a) out[12 * k + 3 * a + k] = x[a];
+      out[12 * k + 9 + k] = 1.0;
+    }
+    return;
+  }
+  std::fill(out, out + 144, 0.0);
+  if (handle < 0) return;
+  // eq 6.8: the finer handle's affine map is the coarser one seen from its own origin.
+  double d[3];
+  if (handle == lv.finerParent[row]) {
+    for (int a = 0; a < 3; ++a) d[a] = lv.childOffset[3 * static_cast<size_t>(row) + a];
+  } else {
+    const double* Xf = m_rest.data() + 3 * static_cast<size_t>(level(l - 1).handleNode[row]);
+    for (int a = 0; a < 3; ++a) d[a] = (Xf[a] - Xh[a]) / lv.scale;
+  }
+  for (int j = 0; j < 9; ++j) out[13 * j] = lv.childRatio;
+  for (int k = 0; k < 3; ++k) {
+    for (int a = 0; a < 3; ++a) out[12 * (9 + k) + 3 * a + k] = d[a];
+    out[12 * (9 + k) + 9 + k] = 1.0;
+  }
+}
+
 void MultigridHierarchy::buildPatterns() {
-  const size_t fineBlocks = m_fineCol.size();
-  for (CoarseLevel& lv : m_levels) {
+  const int32_t n = m_graph.n;
+  size_t scratch = 0;
+  // Fine blocks of the filtered matrix A_F: the diagonal and the unbroken edges.
+  std::vector<uint8_t> fineAlive(m_fineCol.size(), 0);
+  for (int32_t r = 0; r < n; ++r)
+    for (int32_t b = m_fineRowStart[r]; b < m_fineRowStart[r + 1]; ++b)
+      fineAlive[b] = m_fineCol[b] == r ? 1 : 0;
+  for (size_t e = 0; e < m_graph.adj.size(); ++e)
+    if (m_graph.alive[e]) fineAlive[m_graphBlock[e]] = 1;
+  for (size_t li = 0; li < m_levels.size(); ++li) {
+    CoarseLevel& lv = m_levels[li];
+    const int l = static_cast<int>(li) + 1;
+    const int B = l == 1 ? 3 : 12;
     const int32_t k = static_cast<int32_t>(lv.handleNode.size());
-    // Candidate columns per coarse row: every fine block between two bound nodes, plus the
-    // diagonal; then sort and deduplicate each row.
-    std::vector<int32_t> offset(static_cast<size_t>(k) + 1, 0);
-    for (int32_t h = 0; h < k; ++h) offset[h + 1] = 1;
-    for (size_t b = 0; b < fineBlocks; ++b) {
-      const int32_t p = lv.nodeHandle[m_fineRow[b]], q = lv.nodeHandle[m_fineCol[b]];
-      if (p >= 0 && q >= 0) ++offset[p + 1];
+    // The finer level: its rows, the parent (this level's handle) of each, and its matrix
+    // pattern (the mesh's on level 1, level l-1's operator deeper).
+    const int32_t rows = l == 1 ? n : static_cast<int32_t>(m_levels[li - 1].handleNode.size());
+    const int32_t* rowStart = l == 1 ? m_fineRowStart.data() : m_levels[li - 1].A.rowStart.data();
+    const int32_t* colIdx = l == 1 ? m_fineCol.data() : m_levels[li - 1].A.col.data();
+    const std::vector<int32_t>& parent = l == 1 ? lv.nodeHandle : lv.finerParent;
+    scratch = std::max(scratch, static_cast<size_t>(B) * rows);
+    const bool smoothHere = smoothesLevel(l);
+
+    // Filtered neighbours of each finer row for the smoothing: itself and the rows joined to
+    // it by an unbroken edge (level 1), or whose aggregates an unbroken fine edge joins
+    // (deeper), with the matrix block between them. Broken edges never enter P.
+    std::vector<int32_t>& fStart = lv.fStart;
+    std::vector<int32_t>& fBlock = lv.fBlock;
+    std::vector<int32_t>& fCol = lv.fCol;
+    fStart.assign(static_cast<size_t>(rows) + 1, 0);
+    fBlock.clear();
+    fCol.clear();
+    if (smoothHere) {
+      if (l == 1) {
+        for (int32_t r = 0; r < rows; ++r) {
+          fCol.push_back(r);
+          fBlock.push_back(
+              m_fineRowStart[r] +
+              static_cast<int32_t>(std::lower_bound(m_fineCol.data() + m_fineRowStart[r],
+                                                    m_fineCol.data() + m_fineRowStart[r + 1], r) -
+                                   (m_fineCol.data() + m_fineRowStart[r])));
+          for (int32_t e = m_graph.start[r]; e < m_graph.start[r + 1]; ++e) {
+            if (!m_graph.alive[e]) continue;
+            fCol.push_back(m_graph.adj[e]);
+            fBlock.push_back(m_graphBlock[e]);
+          }
+          fStart[r + 1] = static_cast<int32_t>(fCol.size());
+        }
+      } else {
+        // Deeper: the blocks of A_{l-1} that P^T A_F P fills (alive, see CoarseLevel::alive),
+        // the diagonal first (the smoothing reads D there).
+        const CoarseLevel& finer = m_levels[li - 1];
+        for (int32_t r = 0; r < rows; ++r) {
+          fCol.push_back(r);
+          fBlock.push_back(finer.A.find(r, r));
+          for (int32_t b = finer.A.rowStart[r]; b < finer.A.rowStart[r + 1]; ++b) {
+            if (finer.A.col[b] == r || !finer.alive[b]) continue;
+            fCol.push_back(finer.A.col[b]);
+            fBlock.push_back(b);
+          }
+          fStart[r + 1] = static_cast<int32_t>(fCol.size());
+        }
+      }
     }
-    for (int32_t h = 0; h < k; ++h) offset[h + 1] += offset[h];
-    std::vector<int32_t> cand(static_cast<size_t>(offset[k]));
-    std::vector<int32_t> fill(offset.begin(), offset.end() - 1);
-    for (int32_t h = 0; h < k; ++h) cand[fill[h]++] = h;
-    for (size_t b = 0; b < fineBlocks; ++b) {
-      const int32_t p = lv.nodeHandle[m_fineRow[b]], q = lv.nodeHandle[m_fineCol[b]];
-      if (p >= 0 && q >= 0) cand[fill[p]++] = q;
+
+    // P's pattern: per finer row, the parents of its filtered neighbours (just its own parent
+    // without smoothing); per block, the smoothing terms (A_rj, j) in increasing j.
+    lv.pStart.assign(static_cast<size_t>(rows) + 1, 0);
+    lv.pCol.clear();
+    lv.pRow.clear();
+    lv.sStart.assign(1, 0);
+    lv.sBlock.clear();
+    lv.sRow.clear();
+    std::vector<std::array<int32_t, 3>> cand;  // (handle, j, block)
+    for (int32_t r = 0; r < rows; ++r) {
+      const bool skip = l == 1 && m_fixed[r];
+      if (!skip) {
+        cand.clear();
+        if (smoothHere && parent[r] >= 0) {
+          for (int32_t f = fStart[r]; f < fStart[r + 1]; ++f)
+            if (parent[fCol[f]] >= 0) cand.push_back({parent[fCol[f]], fCol[f], fBlock[f]});
+        } else if (parent[r] >= 0) {
+          cand.push_back({parent[r], r, -1});
+        }
+        std::sort(cand.begin(), cand.end());
+        for (size_t c = 0; c < cand.size(); ++c) {
+          if (c == 0 || cand[c][0] != cand[c - 1][0]) {
+            if (c > 0) lv.sStart.push_back(static_cast<int32_t>(lv.sBlock.size()));
+            lv.pCol.push_back(cand[c][0]);
+            lv.pRow.push_back(r);
+          }
+          if (cand[c][2] >= 0) {
+            lv.sBlock.push_back(cand[c][2]);
+            lv.sRow.push_back(cand[c][1]);
+          }
+        }
+        if (!cand.empty()) lv.sStart.push_back(static_cast<int32_t>(lv.sBlock.size()));
+      }
+      lv.pStart[r + 1] = static_cast<int32_t>(lv.pCol.size());
     }
+    const size_t pBlocks = lv.pCol.size();
+    lv.pValues.assign(pBlocks * static_cast<size_t>(B) * 12, 0.0);
+    lv.prolongationFresh = false;
+    lv.omega = 0;
+    // Transpose: per handle, its blocks by increasing row (counting sort keeps row order).
+    lv.ptStart.assign(static_cast<size_t>(k) + 1, 0);
+    for (int32_t c : lv.pCol) ++lv.ptStart[c + 1];
+    for (int32_t h = 0; h < k; ++h) lv.ptStart[h + 1] += lv.ptStart[h];
+    lv.ptBlock.resize(pBlocks);
+    {
+      std::vector<int32_t> put(lv.ptStart.begin(), lv.ptStart.end() - 1);
+      for (size_t b = 0; b < pBlocks; ++b) lv.ptBlock[put[lv.pCol[b]]++] = static_cast<int32_t>(b);
+    }
+
+    // Q = A P: only rows that P uses (P^T Q reads no other); terms (A_rj, P_jK) by increasing j.
+    lv.qStart.assign(static_cast<size_t>(rows) + 1, 0);
+    lv.qCol.clear();
+    lv.qcStart.assign(1, 0);
+    lv.qcA.clear();
+    lv.qcP.clear();
+    std::vector<std::array<int32_t, 4>> qc;  // (handle, j, A block, P block)
+    for (int32_t r = 0; r < rows; ++r) {
+      if (lv.pStart[r + 1] > lv.pStart[r]) {
+        qc.clear();
+        for (int32_t a = rowStart[r]; a < rowStart[r + 1]; ++a) {
+          const int32_t j = colIdx[a];
+          for (int32_t p = lv.pStart[j]; p < lv.pStart[j + 1]; ++p)
+            qc.push_back({lv.pCol[p], j, a, p});
+        }
+        std::sort(qc.begin(), qc.end());
+        for (size_t c = 0; c < qc.size(); ++c) {
+          if (c > 0 && qc[c][0] != qc[c - 1][0])
+            lv.qcStart.push_back(static_cast<int32_t>(lv.qcA.size()));
+          if (c == 0 || qc[c][0] != qc[c - 1][0]) lv.qCol.push_back(qc[c][0]);
+          lv.qcA.push_back(qc[c][2]);
+          lv.qcP.push_back(qc[c][3]);
+        }
+        if (!qc.empty()) lv.qcStart.push_back(static_cast<int32_t>(lv.qcA.size()));
+      }
+      lv.qStart[r + 1] = static_cast<int32_t>(lv.qCol.size());
+    }
+    lv.qValues.assign(lv.qCol.size() * static_cast<size_t>(B) * 12, 0.0);
+    // Which Q blocks the filtered product A_F P fills: a term through an alive finer block.
+    std::vector<uint8_t> qAlive(lv.qCol.size(), 0);
+    for (size_t q = 0; q < lv.qCol.size(); ++q)
+      for (int32_t c = lv.qcStart[q]; c < lv.qcStart[q + 1] && !qAlive[q]; ++c)
+        qAlive[q] = l == 1 ? fineAlive[lv.qcA[c]] : m_levels[li - 1].alive[lv.qcA[c]];
+
+    // A_l = P^T Q: per coarse row H, the pairs (P_rH, Q_rK) by increasing r; plus the diagonal.
     CoarseMatrix& C = lv.A;
     C.n = k;
     C.rowStart.assign(static_cast<size_t>(k) + 1, 0);
     C.col.clear();
+    lv.gatherStart.assign(1, 0);
+    lv.gatherP.clear();
+    lv.gatherQ.clear();
+    std::vector<std::array<int32_t, 4>> gc;  // (K, r, P block, Q block)
     for (int32_t h = 0; h < k; ++h) {
-      auto first = cand.begin() + offset[h];
-      auto last = cand.begin() + offset[h + 1];
-      std::sort(first, last);
-      last = std::unique(first, last);
-      C.col.insert(C.col.end(), first, last);
+      gc.clear();
+      gc.push_back({h, -1, -1, -1});  // the diagonal block, even for an empty aggregate
+      for (int32_t t = lv.ptStart[h]; t < lv.ptStart[h + 1]; ++t) {
+        const int32_t p = lv.ptBlock[t];
+        const int32_t r = lv.pRow[p];
+        for (int32_t q = lv.qStart[r]; q < lv.qStart[r + 1]; ++q)
+          gc.push_back({lv.qCol[q], r, p, q});
+      }
+      std::sort(gc.begin(), gc.end());
+      for (size_t c = 0; c < gc.size(); ++c) {
+        const bool first = c == 0 || gc[c][0] != gc[c - 1][0];
+        if (first) {
+          if (c > 0) lv.gatherStart.push_back(static_cast<int32_t>(lv.gatherP.size()));
+          C.col.push_back(gc[c][0]);
+        }
+        if (gc[c][2] >= 0 && gc[c][0] >= h) {  // the upper triangle; the lower mirrors it
+          lv.gatherP.push_back(gc[c][2]);
+          lv.gatherQ.push_back(gc[c][3]);
+        }
+      }
+      lv.gatherStart.push_back(static_cast<int32_t>(lv.gatherP.size()));
       C.rowStart[h + 1] = static_cast<int32_t>(C.col.size());
     }
     C.values.assign(144 * C.col.size(), 0.0);
-
-    // Contribution lists, fine blocks in increasing order inside each coarse block.
-    std::vector<int32_t> target(fineBlocks, -1);
-    lv.gatherStart.assign(C.col.size() + 1, 0);
-    for (size_t b = 0; b < fineBlocks; ++b) {
-      const int32_t p = lv.nodeHandle[m_fineRow[b]], q = lv.nodeHandle[m_fineCol[b]];
-      if (p < 0 || q < 0) continue;
-      target[b] = C.find(p, q);
-      ++lv.gatherStart[target[b] + 1];
-    }
-    for (size_t c = 0; c < C.col.size(); ++c) lv.gatherStart[c + 1] += lv.gatherStart[c];
-    lv.gatherBlock.resize(static_cast<size_t>(lv.gatherStart.back()));
-    std::vector<int32_t> put(lv.gatherStart.begin(), lv.gatherStart.end() - 1);
-    for (size_t b = 0; b < fineBlocks; ++b)
-      if (target[b] >= 0) lv.gatherBlock[put[target[b]]++] = static_cast<int32_t>(b);
-  }
-}
-
-void MultigridHierarchy::assemble(const BlockSparseMatrix& A, JobSystem& jobs) {
-  for (CoarseLevel& lv : m_levels) {
-    CoarseMatrix& C = lv.A;
-    forRanges(jobs, static_cast<uint32_t>(C.n), kHandleGrain, [&](uint32_t begin, uint32_t end) {
-      for (uint32_t p = begin; p < end; ++p) {
-        for (int32_t kc = C.rowStart[p]; kc < C.rowStart[p + 1]; ++kc) {
-          double out[144] = {};
-          // eq 6.4: block (P, Q) = sum over fine blocks (i, j) of ([x_i;1] [x_j;1]^T) (x) A_ij.
-          for (int32_t g = lv.gatherStart[kc]; g < lv.gatherStart[kc + 1]; ++g) {
-            const int32_t b = lv.gatherBlock[g];
-            const double* xr = lv.coord.data() + 3 * static_cast<size_t>(m_fineRow[b]);
-            const double* xc = lv.coord.data() + 3 * static_cast<size_t>(m_fineCol[b]);
-            const double hr[4] = {xr[0], xr[1], xr[2], 1.0};
-            const double hc[4] = {xc[0], xc[1], xc[2], 1.0};
-            const double* m = A.block(b);
-            for (int a = 0; a < 4; ++a)
-              for (int c = 0; c < 4; ++c) {
-                const double w = hr[a] * hc[c];
-                double* o = out + 36 * a + 3 * c;
-                for (int i = 0; i < 3; ++i)
-                  for (int j = 0; j < 3; ++j) o[12 * i + j] += w * m[3 * i + j];
-              }
-          }
-          if (C.col[kc] == static_cast<int32_t>(p)) {
-            // Null directions of the aggregate get the block's mean diagonal (see nullProjector).
-            double trace = 0;
-            for (int i = 0; i < 12; ++i) trace += out[13 * i];
-            const double delta = trace > 0 && std::isfinite(trace) ? trace / 12 : 1.0;
-            const double* proj = lv.nullProjector.data() + 16 * static_cast<size_t>(p);
-            for (int a = 0; a < 4; ++a)
-              for (int c = 0; c < 4; ++c)
-                for (int i = 0; i < 3; ++i)
-                  out[(3 * a + i) * 12 + 3 * c + i] += delta * proj[4 * a + c];
-          }
-          std::copy(out, out + 144, C.block(kc));
-        }
+    lv.mirror.assign(C.col.size(), -1);
+    for (int32_t h = 0; h < k; ++h)
+      for (int32_t c = C.rowStart[h]; c < C.rowStart[h + 1]; ++c)
+        if (C.col[c] < h) lv.mirror[c] = C.find(C.col[c], h);
+    lv.alive.assign(C.col.size(), 0);
+    for (int32_t h = 0; h < k; ++h)
+      for (int32_t c = C.rowStart[h]; c < C.rowStart[h + 1]; ++c) {
+        lv.alive[c] = C.col[c] == h ? 1 : 0;
+        for (int32_t g = lv.gatherStart[c]; g < lv.gatherStart[c + 1] && !lv.alive[c]; ++g)
+          lv.alive[c] = qAlive[lv.gatherQ[g]];
       }
-    });
+    for (size_t c = 0; c < C.col.size(); ++c)
+      if (lv.mirror[c] >= 0) lv.alive[c] = lv.alive[lv.mirror[c]];
   }
-}
-
-void MultigridHierarchy::restrictTo(int level, const double* fine, double* coarse,
-                                    JobSystem& jobs) const {
-  const CoarseLevel& lv = m_levels[static_cast<size_t>(level)];
-  const uint32_t k = static_cast<uint32_t>(lv.handleNode.size());
-  forRanges(jobs, k, kHandleGrain, [&](uint32_t begin, uint32_t end) {
-    for (uint32_t h = begin; h < end; ++h) {
-      double s[12] = {};
-      for (int32_t c = lv.childStart[h]; c < lv.childStart[h + 1]; ++c) {
-        const size_t ch = static_cast<size_t>(lv.child[c]);
-        if (level == 0) {
-          // U^T of a fine node: [x; 1] (x) r_i (eq 6.7).
-          const double* x = lv.coord.data() + 3 * ch;
-          const double* r = fine + 3 * ch;
-          for (int a = 0; a < 3; ++a)
-            for (int i = 0; i < 3; ++i) s[3 * a + i] += x[a] * r[i];
-          for (int i = 0; i < 3; ++i) s[9 + i] += r[i];
-        } else {
-          // Transpose of eq 6.8's change of reference point.
-          const double* d = lv.childOffset.data() + 3 * ch;
-          const double* r = fine + 12 * ch;
-          for (int a = 0; a < 3; ++a)
-            for (int i = 0; i < 3; ++i)
-              s[3 * a + i] += lv.childRatio * r[3 * a + i] + d[a] * r[9 + i];
-          for (int i = 0; i < 3; ++i) s[9 + i] += r[9 + i];
-        }
-      }
-      std::copy(s, s + 12, coarse + 12 * static_cast<size_t>(h));
-    }
-  });
-}
-
-void MultigridHierarchy::prolongAdd(int level, const double* coarse, double* fine,
-                                    JobSystem& jobs) const {
-  const CoarseLevel& lv = m_levels[static_cast<size_t>(level)];
-  if (level == 0) {
-    forRanges(jobs, static_cast<uint32_t>(m_graph.n), kNodeGrain,
-              [&](uint32_t begin, uint32_t end) {
-                for (uint32_t i = begin; i < end; ++i) {
-                  const int32_t h = lv.nodeHandle[i];
-                  if (h < 0) continue;
-                  // eq 6.6: x_i = T_h [x; 1].
-                  const double* x = lv.coord.data() + 3 * static_cast<size_t>(i);
-                  const double* q = coarse + 12 * static_cast<size_t>(h);
-                  for (int k = 0; k < 3; ++k)
-                    fine[3 * i + k] += x[0] * q[k] + x[1] * q[3 + k] + x[2] * q[6 + k] + q[9 + k];
-                }
-              });
-    return;
+  if (m_smooth) {
+    m_invDiag.assign(scratch * 12, 0.0);  // B x B per row, B <= 12
+    m_v.assign(scratch, 0.0);
+    m_w.assign(scratch, 0.0);
+    m_t.assign(scratch, 0.0);
   }
-  const uint32_t finerCount = static_cast<uint32_t>(lv.finerParent.size());
-  forRanges(jobs, finerCount, kHandleGrain * 8, [&](uint32_t begin, uint32_t end) {
-    for (uint32_t h = begin; h < end; ++h) {
-      // eq 6.8: the finer handle's affine map is the coarser one seen from its own origin.
-      const double* q = coarse + 12 * static_cast<size_t>(lv.finerParent[h]);
-      const double* d = lv.childOffset.data() + 3 * static_cast<size_t>(h);
-      double* out = fine + 12 * static_cast<size_t>(h);
-      for (int j = 0; j < 9; ++j) out[j] += lv.childRatio * q[j];
-      for (int k = 0; k < 3; ++k)
-        out[9 + k] += d[0] * q[k] + d[1] * q[3 + k] + d[2] * q[6 + k] + q[9 + k];
-    }
-  });
 }
 
 }  // namespace gf::detail

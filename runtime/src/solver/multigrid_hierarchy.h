@@ -1,19 +1,31 @@
 // Galerkin multigrid hierarchy (thesis sec 6.2, Xian et al. 2019): furthest-point handles,
-// nearest-handle binding, the piecewise-constant affine prolongation U and the coarse operators
-// A_{l+1} = U^T A_l U.
+// nearest-handle binding, smoothed-aggregation prolongations P and the coarse operators
+// A_{l+1} = P^T A_l P.
 //
-// Design: every coarse level binds each fine node to exactly one handle (w in {0, 1}), and the
-// levels are nested (a level's handles are a subset of the next finer level's, and a finer
-// handle belongs to the coarser handle its own node is bound to), so the composed prolongation
-// from the fine mesh to level l is again piecewise constant: fine node i moves with the affine
-// map of its level-l handle h, x_i = T_h [(X_i - X_h) / s_l; 1] (eq 6.6-6.7). Rest coordinates
-// are taken relative to the handle and divided by a level length s_l (the RMS distance of the
-// fine nodes to their handle) so the linear and the translation columns of U have the same
-// magnitude and the 12x12 coarse blocks stay well conditioned; this is a change of basis of the
-// same coarse space. Each level's operator is therefore gathered straight from the fine matrix
-// through a precomputed contribution list (the same numbers as the chain U_1^T ... U_0^T A U_0
-// ... U_1), while the V-cycle moves vectors level by level with eq 6.8, a 4x4 (x) I3 change of
-// reference point per handle. Dirichlet nodes are bound to no handle (zero rows of U), so the
+// Design: every coarse level binds each fine node to exactly one handle, and the levels are
+// nested (a level's handles are a subset of the next finer level's, and a finer handle belongs
+// to the coarser handle its own node is bound to). The tentative prolongation U of level l
+// moves a finer row with the affine map of its handle: on level 1, fine node i gets
+// x_i = T_h [(X_i - X_h) / s_l; 1] (eq 6.6-6.7); deeper, a finer handle's affine map is the
+// coarser one seen from its own origin (eq 6.8, a 12x12 change of reference point). Rest
+// coordinates are taken relative to the handle and divided by a level length s_l (the RMS
+// distance of the fine nodes to their handle) so the linear and the translation columns have
+// the same magnitude and the 12x12 coarse blocks stay well conditioned; this is a change of
+// basis of the same coarse space. U alone is piecewise constant per aggregate, so its basis
+// functions jump at aggregate borders and carry a large energy; one V-cycle then reduces the
+// residual only about 1.5x at 100 nodes per handle. Smoothed aggregation (Vanek, Mandel and
+// Brezina 1996) applies one damped block-Jacobi step to each level's U, P = (I - omega D^-1
+// A_F) U with omega = 4 / (3 rho(D^-1 A_F)): the borders are smoothed over one ring of
+// neighbours while the near-null space that U carries exactly (the affine fields, which hold
+// the rigid modes) stays nearly untouched. A_F is the finer matrix without the blocks across
+// broken edges, so no basis function reaches across a crack. P is smoothed with the matrix of
+// the first assemble after build or rebind and then kept: the Galerkin product with the
+// current matrix keeps every coarse operator exact for the system being solved (any fixed P
+// gives an SPD V-cycle), and re-smoothing every solve would add a power iteration and the
+// smoothing products (about a third more refresh time) for a basis that changes little while
+// the body deforms. Every level's operator is the product P^T (A P) over precomputed block
+// pairs in a fixed order (deterministic for any thread count); the transfers are the block
+// products with P and P^T. Dirichlet nodes are bound to no handle (zero rows of P), so the
 // coarse correction never moves them.
 #pragma once
 
@@ -65,46 +77,85 @@ struct CoarseMatrix {
   const double* block(int32_t k) const { return values.data() + 144 * static_cast<size_t>(k); }
 };
 
-/// One coarse level (level 1 is the finest coarse level).
+/// One coarse level (level 1 is the finest coarse level). Its prolongation P_l maps this level's
+/// handles to the next finer level (the mesh's nodes for l = 1, 3x12 blocks; level l-1's
+/// handles deeper, 12x12 blocks).
 struct CoarseLevel {
   std::vector<int32_t> handleNode;  ///< fine node of each handle
   /// Per fine node: its handle at this level (composed through the finer levels), or -1 for a
   /// Dirichlet node or a node of a fragment too small to get a handle.
   std::vector<int32_t> nodeHandle;
-  std::vector<double> coord;  ///< 3 per fine node: (X_i - X_h) / scale, 0 when unbound
-  double scale = 1;           ///< s_l [m]
-  /// Restriction from the next finer level: level 1 lists bound fine nodes, deeper levels the
-  /// finer level's handles, each in increasing order (a fixed summation order).
-  std::vector<int32_t> childStart, child;
+  std::vector<double> coord;         ///< 3 per fine node: (X_i - X_h) / scale, 0 when unbound
+  double scale = 1;                  ///< s_l [m]
   std::vector<int32_t> finerParent;  ///< deeper levels: this level's handle of each finer handle
   std::vector<double> childOffset;   ///< deeper levels, 3 per finer handle: (X_H - X_h) / scale
   double childRatio = 1;             ///< deeper levels: s_{l-1} / s_l
-  CoarseMatrix A;                    ///< A_l = U^T A_{l-1} U (eq 6.4)
-  /// Per coarse block, the fine blocks that add into it (increasing): the eq-6.4 gather.
-  std::vector<int32_t> gatherStart, gatherBlock;
-  /// 16 per handle: N N^T with N the near-null directions of the aggregate's [X; 1] Gram matrix
-  /// (an aggregate of 1-3 nodes or of coplanar nodes). U maps them to zero, so the coarse
-  /// operator is singular there; adding them to the diagonal block changes no correction.
+
+  /// P_l, block-CSR over the finer level's rows (columns = handles, increasing); each block is
+  /// B x 12 row-major with B = 3 on level 1 and 12 deeper. Without smoothing it is the tentative
+  /// prolongator T (eq 6.6-6.8: one block per bound row); smoothed, P = (I - omega D^-1 A_F) T.
+  std::vector<int32_t> pStart, pCol, pRow;
+  std::vector<double> pValues;
+  std::vector<int32_t> ptStart, ptBlock;  ///< per handle, its P blocks by increasing finer row
+  /// The filtered finer-level matrix A_F of the smoothing, block-CSR over the finer rows, the
+  /// diagonal block first: on level 1 the blocks of unbroken edges, deeper the alive blocks of
+  /// level l-1; fBlock indexes the finer matrix's blocks.
+  std::vector<int32_t> fStart, fBlock, fCol;
+  /// Smoothing terms of each P block: pairs (finer-level matrix block A_rj, row j), j over the
+  /// row's unbroken neighbours and itself whose parent is the block's handle.
+  std::vector<int32_t> sStart, sBlock, sRow;
+  double omega = 0;      ///< the damping of the last smoothing (0: tentative)
+  double lambdaMax = 0;  ///< its estimate of rho(D^-1 A_F) on the finer level
+  bool prolongationFresh = false;
+  /// Q = A_{l-1} P, block-CSR like P; each block the sum of the listed (A block, P block) pairs.
+  std::vector<int32_t> qStart, qCol, qcStart, qcA, qcP;
+  std::vector<double> qValues;
+  CoarseMatrix A;  ///< A_l = P^T A_{l-1} P (eq 6.4)
+  /// Per block of A: 1 where P^T A_F P has the block too (a chain of unbroken edges joins the
+  /// two handles' basis functions), 0 where only blocks across broken edges couple them. The
+  /// next level's smoothing keeps the alive blocks only: no crack to filter means none dropped,
+  /// so its smoothing keeps the affine fields as the fine one does.
+  std::vector<uint8_t> alive;
+  std::vector<int32_t> mirror;  ///< per block below the diagonal, its transpose's index; else -1
+  /// Per coarse block on or above the diagonal, the (P block, Q block) pairs of one finer row
+  /// each, rows increasing (the blocks below mirror them).
+  std::vector<int32_t> gatherStart, gatherP, gatherQ;
+  /// Level 1 only, 16 per handle: N N^T with N the near-null directions of the aggregate's
+  /// [X; 1] Gram matrix (an aggregate of 1-3 nodes or of coplanar nodes). The tentative U, and
+  /// so P, maps them to zero, so the coarse operator is singular there; adding them to the
+  /// diagonal block changes no correction. Deeper levels inherit the regularised operator
+  /// through P^T A P and keep zeros here.
   std::vector<double> nullProjector;
 };
 
 /// The coarse levels of one body and the operations between them.
 class MultigridHierarchy {
  public:
-  /// Builds the levels for `counts` handles per coarse level, finest coarse level first
-  /// (strictly decreasing). Counts above the number of free nodes are clamped.
-  Result<void> build(const std::vector<int32_t>& counts, const double* restPositions,
-                     const uint8_t* fixedNode, const BlockSparseMatrix& A);
-  /// Crack re-binding (SPEC §5): re-binds every level by Dijkstra over unbroken edges from the
-  /// existing handles, gives a handle to each fragment that has none (so counts can grow) and
-  /// rebuilds the coarse patterns.
-  void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount);
-  /// Recomputes every level's operator from the fine matrix (same pattern as at build).
-  void assemble(const BlockSparseMatrix& A, JobSystem& jobs);
+  /// Handle counts per coarse level, finest coarse level first, chosen from the body's free
+  /// node count (MultigridSettings::levels empty): a fixed number of nodes per handle on
+  /// level 1 (fewer with `smooth`), then 8 times fewer handles per level down to a coarsest
+  /// level small enough to factorise on every refresh.
+  static std::vector<int32_t> defaultCounts(int32_t freeNodes, bool smooth);
 
-  /// coarse = U^T fine between MG level `level` and level + 1 (level 0 is the fine mesh).
+  /// Builds the levels for `counts` handles per coarse level, finest coarse level first
+  /// (strictly decreasing). Counts above the number of free nodes are clamped. smooth: smoothed
+  /// aggregation (one damped-Jacobi step on each tentative prolongator), else tentative only.
+  Result<void> build(const std::vector<int32_t>& counts, const double* restPositions,
+                     const uint8_t* fixedNode, const BlockSparseMatrix& A, bool smooth = false);
+  /// Crack re-binding (SPEC §5): re-binds every level by Dijkstra over unbroken edges from the
+  /// existing handles, gives a handle to each fragment that has none (so counts can grow),
+  /// rebuilds the patterns, and marks the prolongators for re-smoothing at the next assemble.
+  void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount);
+  /// Recomputes every level's operator from the fine matrix (same pattern as at build); the
+  /// prolongators are smoothed first when they are not fresh (after build and rebind, or
+  /// after invalidateProlongation).
+  void assemble(const BlockSparseMatrix& A, JobSystem& jobs);
+  /// Re-smooth the prolongators with the matrix of the next assemble.
+  void invalidateProlongation();
+
+  /// coarse = P^T fine between MG level `level` and level + 1 (level 0 is the fine mesh).
   void restrictTo(int level, const double* fine, double* coarse, JobSystem& jobs) const;
-  /// fine += U coarse between MG level `level` and level + 1 (eq 6.3, 6.8).
+  /// fine += P coarse between MG level `level` and level + 1 (eq 6.3, 6.8).
   void prolongAdd(int level, const double* coarse, double* fine, JobSystem& jobs) const;
 
   int coarseLevelCount() const { return static_cast<int>(m_levels.size()); }
@@ -112,17 +163,35 @@ class MultigridHierarchy {
   const CoarseLevel& level(int l) const { return m_levels[static_cast<size_t>(l - 1)]; }
   const NodeGraph& graph() const { return m_graph; }
   int32_t handleCount(int l) const { return static_cast<int32_t>(level(l).handleNode.size()); }
+  bool smoothed() const { return m_smooth; }
+  /// Whether level l's prolongation is smoothed (else tentative).
+  bool smoothesLevel(int l) const { return m_smooth && l >= 1; }
+  /// The tentative block (B x 12, row-major) of finer row `row` of level l's prolongator, zero
+  /// when the row is unbound. Level 1: [x_i; 1]^T (x) I3 (eq 6.6-6.7); deeper: eq 6.8.
+  void tentativeBlock(int l, int32_t row, double* out) const;
+  /// The same block for the affine map of level-l handle `handle` (not necessarily the row's
+  /// own): [(X_row - X_handle) / s_l; 1]^T (x) I3 on level 1, eq 6.8 from that handle deeper.
+  void tentativeBlockFor(int l, int32_t row, int32_t handle, double* out) const;
 
  private:
   void bindAll();
   void buildPatterns();
+  template <int B>
+  void smoothProlongation(int l, const BlockSparseMatrix& A, JobSystem& jobs);
+  template <int B>
+  void galerkin(int l, const BlockSparseMatrix& A, JobSystem& jobs);
 
   NodeGraph m_graph;
+  bool m_smooth = true;
   std::vector<double> m_rest;
   std::vector<uint8_t> m_fixed;
   std::vector<int32_t> m_fineRow;  ///< block row of each fine block
   std::vector<int32_t> m_fineRowStart, m_fineCol;
   std::vector<CoarseLevel> m_levels;
+  // Prolongator smoothing scratch: inverse diagonal blocks and power-iteration vectors of the
+  // finer level, sized at build and rebind.
+  std::vector<double> m_invDiag, m_v, m_w, m_t, m_partials;
+  std::vector<int32_t> m_graphBlock;  ///< fine block of each m_graph adjacency entry
 };
 
 }  // namespace gf::detail

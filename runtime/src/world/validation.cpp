@@ -55,7 +55,6 @@ Result<void> Material::check() const {
 }
 
 Result<void> MultigridSettings::check() const {
-  if (levels.empty()) return fail("levels: needs at least one coarse level");
   for (size_t i = 0; i < levels.size(); ++i) {
     if (levels[i] < 1)
       return fail("levels[", std::to_string(i), "]: handle count ", std::to_string(levels[i]),
