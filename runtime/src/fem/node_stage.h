@@ -140,11 +140,10 @@ struct UnseenContactTerm {
 
 /// Per free node, the box or sphere collider that it is in at the step's start (its nearest
 /// face), or else the first one that its path over the step (x_n to x_n + dt v_n, in the
-/// colliders' end-of-step frame) enters, with the face's point and normal (SweptContacts).
-/// Where the path would pass the collider (`crossed` 1: it ends more than half the collider's
-/// thickness below the face, where the nearest-face depth would push it out of the far side)
-/// the penalty is stiffened to stop the node inside (sweptStiffness); elsewhere it is the
-/// collider's own.
+/// colliders' end-of-step frame) enters, with the face's point and normal (SweptContacts),
+/// kept only where the path would pass the collider (`crossed` 1: it ends more than half the
+/// collider's thickness below the face, where the nearest-face depth would push it out of the
+/// far side), with a penalty stiffened to stop the node inside (sweptStiffness).
 struct SweepStage {
   const double* x = nullptr;
   const double* v = nullptr;
@@ -194,12 +193,15 @@ struct SweepStage {
     if (collider[n] < 0) return;
     // The path would pass the collider when it ends deeper below the face than half the
     // collider's thickness: from there the nearest face is the far one, which would push the
-    // node on through. Only then is the penalty stiffened to stop the node inside.
+    // node on through. Only such nodes keep the face, with a penalty stiff enough to stop them
+    // inside; every other contact stays the nearest-face one.
     const double reach = dot(point[n] - b, normal[n]);
-    const bool passes = reach > 0.5 * thickness;
-    crossed[n] = passes ? 1.0 : 0.0;
-    stiffness[n] = passes ? sweptStiffness(colliders[collider[n]].stiffness, reach, thickness, dt)
-                          : colliders[collider[n]].stiffness;
+    if (!(reach > 0.5 * thickness)) {
+      collider[n] = -1;
+      return;
+    }
+    crossed[n] = 1.0;
+    stiffness[n] = sweptStiffness(colliders[collider[n]].stiffness, reach, thickness, dt);
   }
 };
 
