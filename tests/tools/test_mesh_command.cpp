@@ -248,8 +248,9 @@ TEST(MeshFromSurface, KeepTempSaysWhereTheFilesAre) {
   const fs::path dir = scratch("keep");
   writeObj(dir / "cube.obj", cube());
   // A tetgen that cannot start: the run fails after the temporary files are written.
-  const Outcome o = mesh({"from-surface", (dir / "cube.obj").string(), (dir / "o.msh").string(),
-                          "--keep-temp", "--tetgen", (dir / "no-such-tetgen").string()});
+  const Outcome o =
+      mesh({"from-surface", (dir / "cube.obj").string(), (dir / "o.msh").string(), "--keep-temp",
+            "--method", "tetgen", "--tetgen", (dir / "no-such-tetgen").string()});
   EXPECT_EQ(o.code, gf::cli::kExitScene);
   const std::string key = "temporary files kept in ";
   const size_t at = o.err.find(key);
@@ -271,7 +272,8 @@ TEST(MeshFromSurface, OpenSurfaceListsEveryOpenEdgeAndThePartCount) {
   t.v.push_back({5, 1, 0});
   t.f.push_back({8, 9, 10});
   writeObj(dir / "open.obj", t);
-  const Outcome o = mesh({"from-surface", (dir / "open.obj").string(), (dir / "o.msh").string()});
+  const Outcome o = mesh({"from-surface", (dir / "open.obj").string(), (dir / "o.msh").string(),
+                          "--method", "tetgen"});
   EXPECT_EQ(o.code, gf::cli::kExitScene);
   EXPECT_NE(o.err.find("open.obj: surface is not closed: 7 open edges (on one face only), in 2 "
                        "connected parts:"),
@@ -290,7 +292,8 @@ TEST(MeshFromSurface, SelfIntersectionNamesTheCrossingFaces) {
   const fs::path dir = scratch("cross");
   // Two cubes overlapping by half in each direction, written as one surface.
   writeObj(dir / "cross.obj", join(cube(), cube({0.5, 0.5, 0.5})));
-  const Outcome o = mesh({"from-surface", (dir / "cross.obj").string(), (dir / "o.msh").string()});
+  const Outcome o = mesh({"from-surface", (dir / "cross.obj").string(), (dir / "o.msh").string(),
+                          "--method", "tetgen"});
   EXPECT_EQ(o.code, gf::cli::kExitScene);
   EXPECT_EQ(o.err.find("crashed"), std::string::npos) << o.err;
   EXPECT_NE(o.err.find("cross.obj: surface intersects itself: 18 pairs of faces cross"),
@@ -501,7 +504,7 @@ TEST(MeshFromSurfaceAssimp, OpenAndNonFiniteSurfacesNameTheMesh) {
   REQUIRE_MODELS();
   const fs::path dir = scratch("assimp_open");
   Outcome o = mesh({"from-surface", (kModels / "STL" / "sphereWithHole.stl").string(),
-                    (dir / "o.msh").string()});
+                    (dir / "o.msh").string(), "--method", "tetgen"});
   EXPECT_EQ(o.code, gf::cli::kExitScene);
   EXPECT_NE(o.err.find("sphereWithHole.stl: surface is not closed: "), std::string::npos) << o.err;
   EXPECT_NE(o.err.find(", of the triangle "), std::string::npos) << o.err;

@@ -23,8 +23,10 @@ int runBenchCommand(int argc, char** argv);
 int runReportCommand(int argc, char** argv);
 
 /// `graphfrac mesh SUBCOMMAND ...`; argv[0] is "mesh", argv[1] the subcommand:
-///   from-surface IN OUT.msh [--max-volume V] [--quality Q] [--tetgen PATH] [--keep-temp]
-///     (tetrahedralises a closed OBJ or PLY surface with the tetgen program, run as a tool)
+///   from-surface IN OUT.msh [--method auto|tetgen|lattice] [--cells N | --target-tets T]
+///                [--max-volume V] [--quality Q] [--tetgen PATH] [--keep-temp] ...
+///     (tetrahedralises a surface: a closed one with the tetgen program, run as a tool; any
+///     triangle soup with the winding-number lattice mesher)
 ///   info FILE
 ///   convert IN OUT          (IN: .msh/.node/.ele; OUT: .msh/.obj/.ply)
 /// Returns kExitOk, kExitUsage, or kExitScene when an input cannot be read or meshed.

@@ -12,7 +12,7 @@ constexpr const char* kUsage =
     "\n"
     "commands:\n"
     "  run SCENE [options]   simulate a JSON scene, write per-frame statistics and surfaces\n"
-    "  mesh ...              tet-mesh tools (generate, convert, tetrahedralise an OBJ)\n"
+    "  mesh ...              tet-mesh tools (info, convert, tetrahedralise any surface)\n"
     "  bench fracture|multigrid|overhead|stages\n"
     "                        benchmarks that print CSV figures (see bench --help)\n"
     "  report error-vs-time SCENE\n"

@@ -1,12 +1,14 @@
 // `graphfrac mesh`: from-surface reads a triangle surface (OBJ and PLY by the CLI's own readers;
-// STL, glTF, FBX, Collada and the rest through assimp, see surface_reader.h), runs the tetgen
-// program as a subprocess (it is AGPL and never linked) on a .smesh written from it, and reads its
-// .node/.ele back through the runtime's validated reader. tetgen answers bad input with an abort
-// and no reason, so what it would fail on is checked here first and reported in the file's own
-// terms (lines, vertex and face numbers): coordinates that overflow, open edges. Finding crossing
-// faces takes a second tetgen run, so only a failed run is followed by `tetgen -d`, whose list of
-// crossing facets is translated back to the file. info and convert are thin wrappers over
-// gf::TetMesh.
+// STL, glTF, FBX, Collada and the rest through assimp, see surface_reader.h) and tetrahedralises
+// it one of two ways. By default a closed surface goes to the tetgen program, and one that is open
+// or that tetgen fails on (faces that cross) to the lattice mesher (lattice_mesher.h:
+// winding-number inside test, cut grid, snapped boundary). tetgen runs as a subprocess (it is AGPL
+// and never linked) on a .smesh written from it, whose .node/.ele are read back through the
+// runtime's validated reader. tetgen answers bad input with an abort and no reason, so what it
+// would fail on is checked here first and reported in the file's own terms (lines, vertex and face
+// numbers): coordinates that overflow, open edges. Finding crossing faces takes a second tetgen
+// run, so only a failed run is followed by `tetgen -d`, whose list of crossing facets is translated
+// back to the file. info and convert are thin wrappers over gf::TetMesh.
 #include <fcntl.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -30,7 +32,9 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/lattice_mesher.h"
 #include "cli/surface_reader.h"
+#include "cli/triangle_soup.h"
 #include "graphfrac/mesh.h"
 
 extern char** environ;
@@ -41,21 +45,36 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr const char* kUsage =
-    "usage: graphfrac mesh from-surface IN OUT.msh [--max-volume V] [--quality Q]\n"
+    "usage: graphfrac mesh from-surface IN OUT.msh [--method auto|tetgen|lattice]\n"
+    "                                  [--cells N | --target-tets T]\n"
+    "                                  [--max-volume V] [--quality Q]\n"
     "                                  [--scale S] [--up x|y|z] [--assimp]\n"
     "                                  [--tetgen PATH] [--keep-temp]\n"
-    "         IN: a closed triangle surface: Wavefront OBJ (.obj) or PLY (.ply, ASCII or\n"
+    "         IN: a triangle surface: Wavefront OBJ (.obj) or PLY (.ply, ASCII or\n"
     "         binary); through assimp: STL, glTF 2.0 (.gltf, .glb), FBX, Collada (.dae),\n"
     "         3DS, OFF and the other formats assimp reads. All meshes of the scene are\n"
     "         merged with their node transforms; polygons are split into triangles,\n"
     "         points and lines skipped. The result is in metres, Y up: glTF is metres and\n"
     "         Y up, FBX's UnitScaleFactor and axis system and Collada's <unit> and\n"
     "         <up_axis> are applied, other formats are taken as metres and Y up.\n"
+    "         --method M  tetgen: the tetgen program on a closed surface that does not\n"
+    "                     intersect itself (keeps the surface's triangles; --max-volume\n"
+    "                     and --quality are its -a and -q). lattice: any triangle soup,\n"
+    "                     open, in many parts or self-intersecting: the inside is where\n"
+    "                     the generalised winding number is >= 1/2; a grid of 6 tets per\n"
+    "                     cube is cut to it and its boundary snapped towards the surface\n"
+    "                     (features thinner than a cell may be lost). auto (default):\n"
+    "                     tetgen for a closed surface, the lattice when the surface is\n"
+    "                     open, when tetgen fails or when --cells/--target-tets is given.\n"
+    "         --cells N   lattice cells along the longest axis (default 32, at most 256)\n"
+    "         --target-tets T  lattice resolution for about T tets\n"
     "         --scale S   metres per file unit, instead of the file's unit\n"
     "         --up AXIS   the model's up axis (x, y or z), turned to +Y, instead of the\n"
     "                     file's\n"
     "         --assimp    read OBJ and PLY through assimp too (default: the CLI's own\n"
     "                     readers, whose errors name the line or element)\n"
+    "         Prints tets, time, dihedral angles, radius ratios and, for the lattice, the\n"
+    "         mesh's volume against the winding-number volume of the surface.\n"
     "       graphfrac mesh info FILE            (.msh, .node or .ele)\n"
     "       graphfrac mesh convert IN OUT       (IN .msh/.node/.ele; OUT .msh/.obj/.ply)\n";
 
@@ -94,6 +113,8 @@ struct Surface {
   std::vector<size_t> triangleSource;  // the file's triangle each one comes from
   int mergedVertices = 0, droppedFaces = 0, unusedVertices = 0;
   size_t parts = 0;  // connected through shared vertices
+  size_t openEdges = 0;
+  std::string notClosed;  // why tetgen cannot take it (every open edge), "" when closed
 };
 
 size_t findRoot(std::vector<size_t>& parent, size_t i) {
@@ -103,7 +124,8 @@ size_t findRoot(std::vector<size_t>& parent, size_t i) {
 
 // Merges vertices with identical coordinates (OBJ exporters split them at UV seams), drops
 // faces that become degenerate and vertices no face uses, then checks what tetgen needs but
-// does not explain when missing: finite volumes and a closed surface.
+// does not explain when missing: finite volumes (an error for every method) and a closed
+// surface (noted in notClosed: the lattice method does not need it).
 Result<Surface> prepareSurface(const SurfaceFile& f) {
   const size_t nv = f.vertexCount();
   if (nv > static_cast<size_t>(INT32_MAX)) return fail(f.path, ": too many vertices");
@@ -179,6 +201,7 @@ Result<Surface> prepareSurface(const SurfaceFile& f) {
   for (const auto& [edge, use] : edges) {
     if (use.first == 1) open.push_back({use.second, edge});
   }
+  s.openEdges = open.size();
   if (open.empty()) return s;
   std::sort(open.begin(), open.end());  // in file order
   std::string why = f.path + ": surface is not closed: " + plural(open.size(), "open edge") +
@@ -191,7 +214,8 @@ Result<Surface> prepareSurface(const SurfaceFile& f) {
   }
   if (open.size() > kListed)
     why += "\n  ... and " + std::to_string(open.size() - kListed) + " more";
-  return fail(why);
+  s.notClosed = why;
+  return s;
 }
 
 // ---- tetgen subprocess -------------------------------------------------------------------
@@ -315,10 +339,101 @@ double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-int fromSurface(const std::vector<std::string>& args) {
-  std::string in, out, tetgen = "tetgen";
+// What `--method` chooses.
+enum class Method { kAuto, kTetgen, kLattice };
+
+// The tetgen run: writes the .smesh, runs tetgen, reads its mesh back. Errors say what tetgen
+// (or the surface, for crossing faces) got wrong; with --keep-temp they say where the files are.
+struct TetgenRun {
+  std::string tetgen = "tetgen";
   double maxVolume = 0, quality = 1.414;
   bool keep = false;
+};
+
+Result<TetMesh> tetgenMesh(const TetgenRun& run, const SurfaceFile& f, const Surface& s) {
+  TempDir tmp;
+  tmp.keep = run.keep;
+  std::string pattern = (fs::temp_directory_path() / "graphfrac-mesh-XXXXXX").string();
+  if (!mkdtemp(pattern.data()))
+    return fail("cannot create a temporary directory: ", std::strerror(errno));
+  tmp.path = pattern;
+  // Said now and again with an error, so the files can be found however the run ends.
+  if (run.keep) std::printf("temporary files in %s (kept: --keep-temp)\n", tmp.path.c_str());
+  auto failed = [&](std::string why) {
+    if (run.keep) why += "\n(temporary files kept in " + tmp.path + ")";
+    return fail(why);
+  };
+  const std::string smesh = tmp.path + "/surface.smesh";
+  if (Result<void> r = writeSmesh(s, smesh); !r) return failed(r.error().message);
+
+  // p: tetrahedralise a piecewise linear complex; q: radius-edge bound; a: max volume.
+  char sw[96];
+  if (run.maxVolume > 0) {
+    std::snprintf(sw, sizeof sw, "-pq%ga%g", run.quality, run.maxVolume);
+  } else {
+    std::snprintf(sw, sizeof sw, "-pq%g", run.quality);
+  }
+  const auto t1 = std::chrono::steady_clock::now();
+  const std::string log = tmp.path + "/tetgen.log";
+  Result<int> status = runTetgen(run.tetgen, sw, smesh, log);
+  if (!status) return failed(status.error().message);
+  const double tetgenSeconds = seconds(t1);
+
+  const std::string node = tmp.path + "/surface.1.node", ele = tmp.path + "/surface.1.ele";
+  const int st = status.value();
+  if (!WIFEXITED(st) || WEXITSTATUS(st) != 0 || !fs::exists(ele)) {
+    const std::string crossing =
+        crossingFaces(run.tetgen, smesh, tmp.path + "/intersections.log", f, s);
+    return failed(crossing.empty() ? tetgenFailure(sw, st, log) : crossing);
+  }
+  MeshLoadInfo info;
+  Result<TetMesh> mesh = TetMesh::fromTetGen(node, ele, &info);
+  if (!mesh) return failed("tetgen output is not a valid mesh: " + mesh.error().message);
+  const TetMesh& m = mesh.value();
+  std::printf("tetgen %s: %zu nodes, %zu tets, volume %.6g (%d tets reoriented), %.2f s tetgen\n",
+              sw, m.nodeCount(), m.tetCount(), m.volume(), info.flippedFixed, tetgenSeconds);
+  if (run.keep) std::printf("temporary files kept in %s\n", tmp.path.c_str());
+  return mesh;
+}
+
+std::string firstLine(const std::string& s) { return s.substr(0, s.find('\n')); }
+
+void printQuality(const TetMesh& m) {
+  const TetQuality q = measureQuality(m);
+  std::printf(
+      "quality: dihedral angles %.1f .. %.1f deg, radius ratio min %.3f mean %.3f (1 = "
+      "regular)\n",
+      q.minDihedralDeg, q.maxDihedralDeg, q.minRadiusRatio, q.meanRadiusRatio);
+}
+
+Result<TetMesh> latticePath(const LatticeOptions& options, const Surface& s) {
+  const TriangleSoup soup(s.positions, s.triangles);
+  Result<LatticeResult> lr = latticeMesh(soup, options);
+  if (!lr) return lr.error();
+  LatticeResult& r = lr.value();
+  const TetMesh& m = r.mesh;
+  const int cells = std::max({r.dims[0], r.dims[1], r.dims[2]}) - 4;  // less the padding
+  std::printf(
+      "lattice: %d cells along the longest axis (cell %.4g), %zu nodes, %zu tets in %zu "
+      "part%s; %zu tets added for a manifold boundary, %zu of %zu boundary nodes snapped; "
+      "%.2f s\n",
+      cells, r.cell, m.nodeCount(), m.tetCount(), r.parts, r.parts == 1 ? "" : "s", r.repairTets,
+      r.snappedNodes, r.boundaryNodes, r.meshSeconds);
+  printQuality(m);
+  std::printf("volume: mesh %.6g, winding-number volume %.6g (ratio %.4f; sampled in %.2f s)",
+              m.volume(), r.windingVolume, m.volume() / r.windingVolume, r.volumeSeconds);
+  if (s.openEdges == 0) {
+    std::printf(", closed surface's divergence-theorem volume %.6g", soup.signedVolume());
+  }
+  std::printf("\n");
+  return std::move(r.mesh);
+}
+
+int fromSurface(const std::vector<std::string>& args) {
+  std::string in, out;
+  TetgenRun run;
+  LatticeOptions lattice;
+  Method method = Method::kAuto;
   SurfaceReadOptions read;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
@@ -328,9 +443,29 @@ int fromSurface(const std::vector<std::string>& args) {
       return true;
     };
     if (a == "--max-volume") {
-      if (!value(maxVolume)) return usage("--max-volume needs a positive number");
+      if (!value(run.maxVolume)) return usage("--max-volume needs a positive number");
     } else if (a == "--quality") {
-      if (!value(quality)) return usage("--quality needs a positive number (radius-edge ratio)");
+      if (!value(run.quality))
+        return usage("--quality needs a positive number (radius-edge ratio)");
+    } else if (a == "--method") {
+      const std::string m = i + 1 < args.size() ? args[++i] : "";
+      if (m == "auto") {
+        method = Method::kAuto;
+      } else if (m == "tetgen") {
+        method = Method::kTetgen;
+      } else if (m == "lattice") {
+        method = Method::kLattice;
+      } else {
+        return usage("--method needs auto, tetgen or lattice");
+      }
+    } else if (a == "--cells") {
+      double c = 0;
+      if (!value(c) || c != std::floor(c) || c > kMaxCells) {
+        return usage("--cells needs a whole number from 1 to " + std::to_string(kMaxCells));
+      }
+      lattice.cells = static_cast<int>(c);
+    } else if (a == "--target-tets") {
+      if (!value(lattice.targetTets)) return usage("--target-tets needs a positive number");
     } else if (a == "--scale") {
       if (!value(read.scale)) return usage("--scale needs a positive number (metres per unit)");
     } else if (a == "--up") {
@@ -347,9 +482,9 @@ int fromSurface(const std::vector<std::string>& args) {
       read.assimp = true;
     } else if (a == "--tetgen") {
       if (i + 1 >= args.size()) return usage("--tetgen needs a path");
-      tetgen = args[++i];
+      run.tetgen = args[++i];
     } else if (a == "--keep-temp") {
-      keep = true;
+      run.keep = true;
     } else if (a.rfind("--", 0) == 0) {
       return usage("unknown option " + a);
     } else if (in.empty()) {
@@ -361,6 +496,10 @@ int fromSurface(const std::vector<std::string>& args) {
     }
   }
   if (in.empty() || out.empty()) return usage("from-surface needs IN (a surface) and OUT.msh");
+  const bool latticeAsked = lattice.cells > 0 || lattice.targetTets > 0;
+  if (method == Method::kTetgen && latticeAsked) {
+    return usage("--cells and --target-tets are options of --method lattice (or auto)");
+  }
   const auto t0 = std::chrono::steady_clock::now();
 
   Result<SurfaceFile> file = readSurfaceFile(in, read);
@@ -378,58 +517,40 @@ int fromSurface(const std::vector<std::string>& args) {
   std::printf("surface %s: %zu vertices, %zu triangles", in.c_str(), s.positions.size() / 3,
               s.triangles.size() / 3);
   if (s.parts > 1) std::printf(", %zu separate parts", s.parts);
+  if (s.openEdges) std::printf(", %s", plural(s.openEdges, "open edge").c_str());
   if (s.mergedVertices || s.droppedFaces || s.unusedVertices) {
     std::printf(" (merged %d duplicate vertices, dropped %d degenerate faces, %d unused vertices)",
                 s.mergedVertices, s.droppedFaces, s.unusedVertices);
   }
   std::printf("\n");
 
-  TempDir tmp;
-  tmp.keep = keep;
-  std::string pattern = (fs::temp_directory_path() / "graphfrac-mesh-XXXXXX").string();
-  if (!mkdtemp(pattern.data()))
-    return failure(std::string("cannot create a temporary directory: ") + std::strerror(errno));
-  tmp.path = pattern;
-  // Said now and again with an error, so the files can be found however the run ends.
-  if (keep) std::printf("temporary files in %s (kept: --keep-temp)\n", tmp.path.c_str());
-  auto failed = [&](std::string why) {
-    if (keep) why += "\n(temporary files kept in " + tmp.path + ")";
-    return failure(why);
-  };
-  const std::string smesh = tmp.path + "/surface.smesh";
-  if (Result<void> r = writeSmesh(s, smesh); !r) return failed(r.error().message);
-
-  // p: tetrahedralise a piecewise linear complex; q: radius-edge bound; a: max volume.
-  char sw[96];
-  if (maxVolume > 0) {
-    std::snprintf(sw, sizeof sw, "-pq%ga%g", quality, maxVolume);
-  } else {
-    std::snprintf(sw, sizeof sw, "-pq%g", quality);
+  // auto: tetgen for a closed surface (it keeps the surface's own triangles) unless a lattice
+  // resolution was asked for; the lattice for an open one, or when tetgen fails.
+  bool useLattice = method == Method::kLattice || (method == Method::kAuto && latticeAsked);
+  if (!useLattice && !s.notClosed.empty()) {
+    if (method == Method::kTetgen) return failure(s.notClosed);
+    std::printf("surface is not closed (%s): using --method lattice\n",
+                plural(s.openEdges, "open edge").c_str());
+    useLattice = true;
   }
-  const auto t1 = std::chrono::steady_clock::now();
-  const std::string log = tmp.path + "/tetgen.log";
-  Result<int> status = runTetgen(tetgen, sw, smesh, log);
-  if (!status) return failed(status.error().message);
-  const double tetgenSeconds = seconds(t1);
-
-  const std::string node = tmp.path + "/surface.1.node", ele = tmp.path + "/surface.1.ele";
-  const int st = status.value();
-  if (!WIFEXITED(st) || WEXITSTATUS(st) != 0 || !fs::exists(ele)) {
-    const std::string crossing =
-        crossingFaces(tetgen, smesh, tmp.path + "/intersections.log", file.value(), s);
-    return failed(crossing.empty() ? tetgenFailure(sw, st, log) : crossing);
+  Result<TetMesh> mesh = Error{};
+  if (!useLattice) {
+    mesh = tetgenMesh(run, f, s);
+    if (!mesh) {
+      if (method == Method::kTetgen) return failure(mesh.error().message);
+      std::printf("tetgen cannot mesh it (%s): using --method lattice\n",
+                  firstLine(mesh.error().message).c_str());
+      useLattice = true;
+    } else {
+      printQuality(mesh.value());
+    }
   }
-  MeshLoadInfo info;
-  Result<TetMesh> mesh = TetMesh::fromTetGen(node, ele, &info);
-  if (!mesh) return failed("tetgen output is not a valid mesh: " + mesh.error().message);
-  if (Result<void> w = mesh.value().writeMsh(out); !w) return failed(w.error().message);
-  const TetMesh& m = mesh.value();
-  std::printf(
-      "tetgen %s: %zu nodes, %zu tets, volume %.6g (%d tets reoriented), %.2f s tetgen, %.2f s "
-      "total\n",
-      sw, m.nodeCount(), m.tetCount(), m.volume(), info.flippedFixed, tetgenSeconds, seconds(t0));
-  std::printf("wrote %s\n", out.c_str());
-  if (keep) std::printf("temporary files kept in %s\n", tmp.path.c_str());
+  if (useLattice) {
+    mesh = latticePath(lattice, s);
+    if (!mesh) return failure(in + ": " + mesh.error().message);
+  }
+  if (Result<void> w = mesh.value().writeMsh(out); !w) return failure(w.error().message);
+  std::printf("wrote %s (%.2f s in all)\n", out.c_str(), seconds(t0));
   return kExitOk;
 }
 
