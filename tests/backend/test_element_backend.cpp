@@ -199,7 +199,12 @@ std::vector<Case> allCases() {
   return cases;
 }
 
-INSTANTIATE_TEST_SUITE_P(Bodies, ElementBackend, testing::ValuesIn(allCases()), caseName);
+// The host build (gf_backend_tests) and the CUDA build (gf_gpu_tests) name their cases apart.
+#if defined(GF_GPU_CUDA)
+INSTANTIATE_TEST_SUITE_P(Device, ElementBackend, testing::ValuesIn(allCases()), caseName);
+#else
+INSTANTIATE_TEST_SUITE_P(HostBuild, ElementBackend, testing::ValuesIn(allCases()), caseName);
+#endif
 
 }  // namespace
 }  // namespace gf
