@@ -13,6 +13,22 @@
 
 namespace gf::detail {
 
+/// The corners of tet t (tets: 4 node indices per tet; x: 3 coordinates per node).
+GF_HD void tetCorners(const int32_t* tets, const double* x, int32_t t, Vec3 xe[4]) {
+  for (int a = 0; a < 4; ++a) {
+    const int64_t n = tets[4 * int64_t(t) + a];
+    xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
+  }
+}
+
+/// The material coefficients of tet t: the body's, with the tet's own fibre direction when
+/// the body has a fibre field (fibreDir non-null).
+GF_HD MaterialCoeffs tetCoeffs(const MaterialCoeffs& body, const Vec3* fibreDir, int32_t t) {
+  MaterialCoeffs c = body;
+  if (fibreDir) c.fibreDir = fibreDir[t];
+  return c;
+}
+
 /// Energy, gradient, PSD Hessian and criterion stress of every tet at x (SPEC §1; damaged
 /// tets eq 4.25-4.27 or 4.32-4.33). Nullable inputs: fibreDir (no fibre field), tetMask (no
 /// fracture), edgeMatrix/edgeMatrixInverse (no projection model: identity), rigidTet (no
@@ -48,12 +64,8 @@ struct ElementStage {
       return;
     }
     Vec3 xe[4];
-    for (int a = 0; a < 4; ++a) {
-      const int64_t n = tets[4 * int64_t(t) + a];
-      xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
-    }
-    MaterialCoeffs c = coeffs;
-    if (fibreDir) c.fibreDir = fibreDir[t];
+    tetCorners(tets, x, t, xe);
+    const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t);
     const uint8_t mask = tetMask ? tetMask[t] : 0;
     if (mask == 0) {
       Mat3 S;
@@ -114,12 +126,8 @@ struct PlasticityStage {
 
   GF_HD void operator()(int32_t t) const {
     Vec3 xe[4];
-    for (int a = 0; a < 4; ++a) {
-      const int64_t n = tets[4 * int64_t(t) + a];
-      xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
-    }
-    MaterialCoeffs c = coeffs;
-    if (fibreDir) c.fibreDir = fibreDir[t];
+    tetCorners(tets, x, t, xe);
+    const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t);
     const Mat3 Fe = deformationGradient(xe, plasticInverse[t]);
     if (plasticUpdate(params, materialStress(c, Fe), Fe, h, Fp[t], FpInv[t], delta[t]))
       plasticInverse[t] = restInverse[t] * FpInv[t];

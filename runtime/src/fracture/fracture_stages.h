@@ -7,6 +7,7 @@
 
 #include <cstdint>
 
+#include "fem/element_stage.h"
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
@@ -46,12 +47,8 @@ struct CriterionStressStage {
 
   GF_HD Mat3 intactStress(int32_t t) const {
     Vec3 xe[4];
-    for (int a = 0; a < 4; ++a) {
-      const int64_t n = tets[4 * int64_t(t) + a];
-      xe[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
-    }
-    MaterialCoeffs c = coeffs;
-    if (fibreDir) c.fibreDir = fibreDir[t];
+    tetCorners(tets, x, t, xe);
+    const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t);
     return materialStress(c, deformationGradient(xe, restInverse[t]));
   }
 
