@@ -94,27 +94,6 @@ inline void blockApply(const double* m, const double* v, double* out) {
   }
 }
 
-// Inverse of an SPD diagonal block by Cholesky; a block that is not numerically SPD falls back
-// to the inverse of its positive diagonal entries (1 where not positive), so D^-1 stays SPD.
-template <int B>
-void invertDiagonal(const double* m, double* inv) {
-  using Mat = Eigen::Matrix<double, B, B, Eigen::RowMajor>;
-  const Eigen::Map<const Mat> a(m);
-  Eigen::LLT<Mat> llt(a);
-  if (llt.info() == Eigen::Success) {
-    Eigen::Map<Mat> out(inv);
-    out = llt.solve(Mat::Identity());
-    bool finite = true;
-    for (int i = 0; i < B * B; ++i) finite = finite && std::isfinite(inv[i]);
-    if (finite) return;
-  }
-  for (int i = 0; i < B * B; ++i) inv[i] = 0;
-  for (int i = 0; i < B; ++i) {
-    const double d = m[(B + 1) * i];
-    inv[(B + 1) * i] = (d > 0 && std::isfinite(1 / d)) ? 1 / d : 1.0;
-  }
-}
-
 // Smoother data of one level: inverse diagonal blocks, colouring, spectral bound, work vectors.
 struct Level {
   int blockSize = 3;
@@ -309,7 +288,7 @@ struct MultigridSolver::Impl {
     const bool gs = !lv.gsValues.empty();
     forRanges(jobs, static_cast<uint32_t>(lv.n), rowGrain<B>(), [&](uint32_t begin, uint32_t end) {
       for (uint32_t row = begin; row < end; ++row)
-        invertDiagonal<B>(m.values + static_cast<size_t>(B * B) * lv.diagIndex[row],
+        invertSpdBlock<B>(m.values + static_cast<size_t>(B * B) * lv.diagIndex[row],
                           lv.invDiag.data() + static_cast<size_t>(B * B) * row);
       // The colour-ordered copy, position by position (q indexes the copy's rows).
       for (uint32_t q = begin; gs && q < end; ++q)

@@ -44,25 +44,6 @@ inline void mulAdd(const double* a, const double* b, double* out) {
   }
 }
 
-// Inverse of an SPD block by Cholesky; not numerically SPD: the inverse of its positive
-// diagonal (1 where not positive), as the multigrid's smoothers do.
-template <int B>
-void invertBlock(const double* m, double* inv) {
-  using Mat = Eigen::Matrix<double, B, B, Eigen::RowMajor>;
-  Eigen::LLT<Mat> llt(Eigen::Map<const Mat>{m});
-  if (llt.info() == Eigen::Success) {
-    Eigen::Map<Mat>{inv} = llt.solve(Mat::Identity());
-    bool finite = true;
-    for (int i = 0; i < B * B; ++i) finite = finite && std::isfinite(inv[i]);
-    if (finite) return;
-  }
-  for (int i = 0; i < B * B; ++i) inv[i] = 0;
-  for (int i = 0; i < B; ++i) {
-    const double d = m[(B + 1) * i];
-    inv[(B + 1) * i] = (d > 0 && std::isfinite(1 / d)) ? 1 / d : 1.0;
-  }
-}
-
 // out (B x 12) += a (B x B) T_j, T_j the tentative block of finer row j (eq 6.6-6.8).
 template <int B>
 inline void tentativeRight(const CoarseLevel& lv, const double* a, int32_t j, double* out) {
@@ -152,7 +133,7 @@ void MultigridHierarchy::smoothProlongation(int l, const BlockSparseMatrix& A, J
   double* inv = m_invDiag.data();
   forRanges(jobs, static_cast<uint32_t>(rows), kHandleGrain, [&](uint32_t begin, uint32_t end) {
     for (uint32_t r = begin; r < end; ++r)
-      invertBlock<B>(F.block(lv.fBlock[lv.fStart[r]]), inv + BB * static_cast<size_t>(r));
+      invertSpdBlock<B>(F.block(lv.fBlock[lv.fStart[r]]), inv + BB * static_cast<size_t>(r));
   });
   // rho(D^-1 A_F) by power iteration with the Rayleigh quotient v.A_F v / v.D v from a fixed,
   // non-smooth start (deterministic; fixed-chunk reductions).
@@ -389,5 +370,24 @@ void MultigridHierarchy::prolongAdd(int level, const double* coarse, double* fin
               }
             });
 }
+
+template <int B>
+void invertSpdBlock(const double* m, double* inv) {
+  using Mat = Eigen::Matrix<double, B, B, Eigen::RowMajor>;
+  Eigen::LLT<Mat> llt(Eigen::Map<const Mat>{m});
+  if (llt.info() == Eigen::Success) {
+    Eigen::Map<Mat>{inv} = llt.solve(Mat::Identity());
+    bool finite = true;
+    for (int i = 0; i < B * B; ++i) finite = finite && std::isfinite(inv[i]);
+    if (finite) return;
+  }
+  for (int i = 0; i < B * B; ++i) inv[i] = 0;
+  for (int i = 0; i < B; ++i) {
+    const double d = m[(B + 1) * i];
+    inv[(B + 1) * i] = (d > 0 && std::isfinite(1 / d)) ? 1 / d : 1.0;
+  }
+}
+template void invertSpdBlock<3>(const double*, double*);
+template void invertSpdBlock<12>(const double*, double*);
 
 }  // namespace gf::detail

@@ -194,4 +194,10 @@ class MultigridHierarchy {
   std::vector<int32_t> m_graphBlock;  ///< fine block of each m_graph adjacency entry
 };
 
+/// Inverse of an SPD B x B block (row-major) by Cholesky; a block that is not numerically SPD
+/// gets the inverse of its positive diagonal entries (1 where not positive), so the smoothers'
+/// and the prolongation's D^-1 stay SPD. B is 3 (nodes) or 12 (handles).
+template <int B>
+void invertSpdBlock(const double* m, double* inv);
+
 }  // namespace gf::detail
