@@ -10,3 +10,11 @@
 #endif
 
 #include <cmath>
+
+namespace gf {
+
+/// True for a finite value (false for infinities and NaN): std::isfinite is not a device
+/// function, and nvcc's isfinite is not a host one in every standard library.
+GF_HD bool isFinite(double v) { return v - v == 0; }
+
+}  // namespace gf

@@ -277,7 +277,7 @@ bool Integrator::enteredUnseenContact(const FemModel& model, const FemState& sta
                                       const StepContext& ctx) const {
   const UnseenContactTerm unseen{m_x.data(),    m_contactSeen.data(), state.fixedNode.data(),
                                  ctx.colliders, ctx.colliderCount,    m_swept};
-  return CpuExecutor::reduce<MaxOp>(model.nodeCount, unseen) > 0;
+  return chunkedReduce<MaxOp>(unseen, model.nodeCount) > 0;
 }
 
 void Integrator::predictRigidMotion(const FemModel& model, const FemState& state, double dt,

@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "kernels/contact.h"
+#include "solver/vector_stages.h"
 
 namespace gf::detail {
 
@@ -71,17 +72,6 @@ struct NodePotentialStage {
     }
     terms[kNodeGradMagnitude * int64_t(nodeCount) + n] = gradMagnitude;
   }
-};
-
-/// out[i] = a[i] + alpha b[i] (out may be a): the step's vector updates (grips moved, Newton
-/// and line-search trials, the constant-velocity prediction).
-struct AxpyStage {
-  const double* a = nullptr;
-  const double* b = nullptr;
-  double alpha = 1;
-  double* out = nullptr;
-
-  GF_HD void operator()(int32_t i) const { out[i] = a[i] + alpha * b[i]; }
 };
 
 /// out[i] = a[i] - b[i] (a null: 0) on the free nodes' entries and 0 on the prescribed ones,

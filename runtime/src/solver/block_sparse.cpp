@@ -2,9 +2,8 @@
 #include "solver/block_sparse.h"
 
 #include <algorithm>
-#include <cstring>
 
-#include "solver/vector_ops.h"
+#include "step/executor.h"
 
 namespace gf::detail {
 
@@ -67,21 +66,7 @@ int32_t BlockSparseMatrix::find(int32_t r, int32_t c) const {
 void BlockSparseMatrix::setZero() { std::fill(values.begin(), values.end(), 0.0); }
 
 void BlockSparseMatrix::multiply(const double* x, double* y, JobSystem& jobs) const {
-  forRanges(jobs, static_cast<uint32_t>(n), kRowGrain, [&](uint32_t begin, uint32_t end) {
-    for (uint32_t r = begin; r < end; ++r) {
-      double s0 = 0, s1 = 0, s2 = 0;
-      for (int32_t k = rowStart[r]; k < rowStart[r + 1]; ++k) {
-        const double* m = values.data() + 9 * static_cast<size_t>(k);
-        const double* xc = x + 3 * static_cast<size_t>(col[k]);
-        s0 += m[0] * xc[0] + m[1] * xc[1] + m[2] * xc[2];
-        s1 += m[3] * xc[0] + m[4] * xc[1] + m[5] * xc[2];
-        s2 += m[6] * xc[0] + m[7] * xc[1] + m[8] * xc[2];
-      }
-      y[3 * r + 0] = s0;
-      y[3 * r + 1] = s1;
-      y[3 * r + 2] = s2;
-    }
-  });
+  CpuExecutor(jobs).run(n, kRowGrain, SpmvStage{view(), x, y});
 }
 
 ElementGather ElementGather::build(const int32_t* tets, size_t tetCount,
@@ -111,35 +96,15 @@ ElementGather ElementGather::build(const int32_t* tets, size_t tetCount,
 
 void gatherElementBlocks(const ElementGather& gather, const double* elementMatrices, double scale,
                          BlockSparseMatrix& A, JobSystem& jobs) {
-  const uint32_t blocks = static_cast<uint32_t>(A.blockCount());
-  forRanges(jobs, blocks, 4 * kRowGrain, [&](uint32_t begin, uint32_t end) {
-    for (uint32_t k = begin; k < end; ++k) {
-      double sum[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-      for (int32_t q = gather.start[k]; q < gather.start[k + 1]; ++q) {
-        const int32_t c = gather.entry[q];
-        const int32_t a = (c >> 2) & 3;
-        const int32_t b = c & 3;
-        // Row-major 12x12: entry (3a + i, 3b + j).
-        const double* m = elementMatrices + 144 * static_cast<size_t>(c >> 4) + 36 * a + 3 * b;
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j) sum[3 * i + j] += m[12 * i + j];
-      }
-      double* out = A.values.data() + 9 * static_cast<size_t>(k);
-      for (int i = 0; i < 9; ++i) out[i] += scale * sum[i];
-    }
-  });
+  CpuExecutor(jobs).run(A.blockCount(), 4 * kRowGrain,
+                        AssembleStage{gather.start.data(), gather.entry.data(), elementMatrices,
+                                      scale, A.values.data()});
 }
 
 void applyDirichlet(BlockSparseMatrix& A, const uint8_t* fixedNode) {
-  for (int32_t r = 0; r < A.n; ++r) {
-    for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k) {
-      const int32_t c = A.col[k];
-      if (!fixedNode[r] && !fixedNode[c]) continue;
-      double* m = A.block(k);
-      std::memset(m, 0, 9 * sizeof(double));
-      if (r == c) m[0] = m[4] = m[8] = 1.0;
-    }
-  }
+  CpuExecutor(serialJobs())
+      .run(A.n, kRowGrain,
+           DirichletStage{A.rowStart.data(), A.col.data(), fixedNode, A.values.data()});
 }
 
 }  // namespace gf::detail

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "graphfrac/jobs.h"
+#include "solver/sparse_stages.h"
 
 namespace gf::detail {
 
@@ -44,6 +45,8 @@ struct BlockSparseMatrix {
   double* block(int32_t k) { return values.data() + 9 * static_cast<size_t>(k); }
   /// The 9 row-major values of block k.
   const double* block(int32_t k) const { return values.data() + 9 * static_cast<size_t>(k); }
+  /// The matrix as the stages read it (valid until the pattern or the values are reallocated).
+  BlockMatrixView view() const { return {n, rowStart.data(), col.data(), values.data()}; }
   /// Zeroes every value, keeping the pattern.
   void setZero();
   /// y = A x over 3 n scalars; parallel over block rows. x and y must not alias.

@@ -32,7 +32,9 @@
 #include <limits>
 #include <string>
 
+#include "solver/pcg_stages.h"
 #include "solver/vector_ops.h"
+#include "step/executor.h"
 #include "step/timing.h"
 
 namespace gf::detail {
@@ -48,50 +50,10 @@ constexpr double kLambdaMargin = 1.1;
 constexpr double kChebyshevLow = 0.1;
 
 // A level's block-CSR matrix, block size B.
-template <int B>
-struct LevelMatrix {
-  int32_t n = 0;
-  const int32_t* rowStart = nullptr;
-  const int32_t* col = nullptr;
-  const double* values = nullptr;
-};
-
 // Rows per parallel range for a level of block size B: a few thousand flops each.
 template <int B>
 constexpr uint32_t rowGrain() {
   return B == 3 ? 128 : 8;
-}
-
-// out = (A x)_r for block row r.
-template <int B>
-inline void rowProduct(const LevelMatrix<B>& A, int32_t r, const double* x, double* out) {
-  for (int i = 0; i < B; ++i) out[i] = 0;
-  for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k) {
-    const double* m = A.values + static_cast<size_t>(B * B) * k;
-    const double* xc = x + static_cast<size_t>(B) * A.col[k];
-    for (int i = 0; i < B; ++i) {
-      double s = 0;
-      for (int j = 0; j < B; ++j) s += m[B * i + j] * xc[j];
-      out[i] += s;
-    }
-  }
-}
-
-// out = b_r - (A x)_r for block row r.
-template <int B>
-inline void rowResidual(const LevelMatrix<B>& A, int32_t r, const double* b, const double* x,
-                        double* out) {
-  rowProduct<B>(A, r, x, out);
-  for (int i = 0; i < B; ++i) out[i] = b[B * r + i] - out[i];
-}
-
-template <int B>
-inline void blockApply(const double* m, const double* v, double* out) {
-  for (int i = 0; i < B; ++i) {
-    double s = 0;
-    for (int j = 0; j < B; ++j) s += m[B * i + j] * v[j];
-    out[i] = s;
-  }
 }
 
 // Smoother data of one level: inverse diagonal blocks, colouring, spectral bound, work vectors.
@@ -367,34 +329,23 @@ struct MultigridSolver::Impl {
     const LevelMatrix<B> m = matrix<B>(l, A);
     const double* inv = lv.invDiag.data();
     const uint32_t grain = rowGrain<B>();
+    const CpuExecutor exec(jobs);
     switch (settings.smoother) {
       case Smoother::GaussSeidel: {
         const int32_t colours = static_cast<int32_t>(lv.colourStart.size()) - 1;
+        GaussSeidelColourStage<B> sweep{lv.colourRows.data(),
+                                        lv.gsRowStart.data(),
+                                        lv.gsCol.data(),
+                                        lv.gsValues.data(),
+                                        inv,
+                                        b,
+                                        x,
+                                        0};
         for (int s = 0; s < sweeps; ++s)
           for (int32_t cc = 0; cc < colours; ++cc) {
             const int32_t c = forward ? cc : colours - 1 - cc;
-            const int32_t first = lv.colourStart[c];
-            const uint32_t count = static_cast<uint32_t>(lv.colourStart[c + 1] - first);
-            forRanges(jobs, count, grain, [&](uint32_t begin, uint32_t end) {
-              double res[B], dx[B];
-              for (uint32_t q = begin; q < end; ++q) {
-                const int32_t row = lv.colourRows[first + q];
-                // rowResidual on the colour-ordered copy: the same terms in the same order.
-                for (int i = 0; i < B; ++i) res[i] = 0;
-                for (int32_t k = lv.gsRowStart[first + q]; k < lv.gsRowStart[first + q + 1]; ++k) {
-                  const double* mk = lv.gsValues.data() + static_cast<size_t>(B * B) * k;
-                  const double* xc = x + static_cast<size_t>(B) * lv.gsCol[k];
-                  for (int i = 0; i < B; ++i) {
-                    double acc = 0;
-                    for (int j = 0; j < B; ++j) acc += mk[B * i + j] * xc[j];
-                    res[i] += acc;
-                  }
-                }
-                for (int i = 0; i < B; ++i) res[i] = b[B * row + i] - res[i];
-                blockApply<B>(inv + static_cast<size_t>(B * B) * row, res, dx);
-                for (int i = 0; i < B; ++i) x[B * row + i] += dx[i];
-              }
-            });
+            sweep.first = lv.colourStart[c];
+            exec.run(lv.colourStart[c + 1] - sweep.first, grain, sweep);
           }
         break;
       }
@@ -402,16 +353,10 @@ struct MultigridSolver::Impl {
         // Damping 4 / (3 lambda_max) of D^-1 A: 2/3 at the classic lambda_max = 2.
         const double omega = 4.0 / (3.0 * lv.lambdaMax);
         double* t = lv.t.data();
-        const size_t len = static_cast<size_t>(B) * lv.n;
+        const int32_t len = B * lv.n;
         for (int s = 0; s < sweeps; ++s) {
-          forRanges(jobs, static_cast<uint32_t>(lv.n), grain, [&](uint32_t begin, uint32_t end) {
-            double res[B];
-            for (uint32_t row = begin; row < end; ++row) {
-              rowResidual<B>(m, static_cast<int32_t>(row), b, x, res);
-              blockApply<B>(inv + static_cast<size_t>(B * B) * row, res, t + B * row);
-            }
-          });
-          axpy(omega, t, x, len, jobs);
+          exec.run(lv.n, grain, JacobiDirectionStage<B>{m, inv, b, x, t, 0.0, 1.0});
+          exec.run(len, 2048, AxpyStage{x, t, omega, x});
         }
         break;
       }
@@ -422,23 +367,14 @@ struct MultigridSolver::Impl {
         const double sigma = theta / delta;
         double rho = 1 / sigma;
         double* d = lv.t.data();
-        const size_t len = static_cast<size_t>(B) * lv.n;
-        auto update = [&](double keep, double scale) {
-          forRanges(jobs, static_cast<uint32_t>(lv.n), grain, [&](uint32_t begin, uint32_t end) {
-            double res[B], z[B];
-            for (uint32_t row = begin; row < end; ++row) {
-              rowResidual<B>(m, static_cast<int32_t>(row), b, x, res);
-              blockApply<B>(inv + static_cast<size_t>(B * B) * row, res, z);
-              for (int i = 0; i < B; ++i) d[B * row + i] = keep * d[B * row + i] + scale * z[i];
-            }
-          });
-        };
-        update(0.0, 1 / theta);
+        const int32_t len = B * lv.n;
+        exec.run(lv.n, grain, JacobiDirectionStage<B>{m, inv, b, x, d, 0.0, 1 / theta});
         for (int k = 1;; ++k) {
-          axpy(1.0, d, x, len, jobs);
+          exec.run(len, 2048, AxpyStage{x, d, 1.0, x});
           if (k == sweeps) break;
           const double rhoNew = 1 / (2 * sigma - rho);
-          update(rhoNew * rho, 2 * rhoNew / delta);
+          exec.run(lv.n, grain,
+                   JacobiDirectionStage<B>{m, inv, b, x, d, rhoNew * rho, 2 * rhoNew / delta});
           rho = rhoNew;
         }
         break;
@@ -450,10 +386,7 @@ struct MultigridSolver::Impl {
   void residual(int l, const BlockSparseMatrix& A, const double* b, const double* x, double* r,
                 JobSystem& jobs) {
     const LevelMatrix<B> m = matrix<B>(l, A);
-    forRanges(jobs, static_cast<uint32_t>(m.n), rowGrain<B>(), [&](uint32_t begin, uint32_t end) {
-      for (uint32_t row = begin; row < end; ++row)
-        rowResidual<B>(m, static_cast<int32_t>(row), b, x, r + B * row);
-    });
+    CpuExecutor(jobs).run(m.n, rowGrain<B>(), LevelResidualStage<B>{m, b, x, r});
   }
 
   // x = V b on level l (x is overwritten; eq 6.1-6.3).
@@ -574,56 +507,68 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
   }
   double* r = s.r.data();
   double* z = s.z.data();
-  double* p = s.p.data();
-  double* ap = s.ap.data();
-  double* rOld = s.rOld.data();
+  const CpuExecutor exec(jobs, &s.partials);
 
-  const double bb = dot(b, b, n3, s.partials, jobs);
-  if (!std::isfinite(bb)) return report;
-  if (bb == 0) {
-    fill(0.0, x, n3, jobs);
-    report.converged = true;
-    report.relativeResidual = 0;
-    return report;
-  }
-  if (!allFinite(x, n3)) fill(0.0, x, n3, jobs);
-  const double bnorm = std::sqrt(bb);
-  const double tol2 = relativeTolerance * relativeTolerance * bb;
-
-  auto trueResidual = [&]() {
-    A.multiply(x, ap, jobs);
-    return chunkedReduce(n3, s.partials, jobs, [&](size_t begin, size_t end) {
-      for (size_t i = begin; i < end; ++i) r[i] = b[i] - ap[i];
-      return dotRange(r, r, begin, end);
-    });
-  };
-  double rr = trueResidual();
-  if (!std::isfinite(rr)) {
-    fill(0.0, x, n3, jobs);
-    rr = trueResidual();
-  }
-  bool converged = std::isfinite(rr) && rr <= tol2;
-  if (!converged) {
-    // Set up what depends on A: coarse operators on refresh, fine diagonal every solve.
+  // Sets up what depends on A, once a solve needs a cycle: coarse operators on refresh, the
+  // fine diagonal every solve.
+  auto setUp = [&]() {
     auto t0 = Clock::now();
     if (s.patternsChanged) s.buildLevels(A);
+    s.invertDiagonals<3>(0, A, jobs);
     if (s.needRefresh || s.solvesSinceRefresh >= s.settings.coarseRefreshInterval) {
-      s.invertDiagonals<3>(0, A, jobs);
       s.refresh(A, jobs);
       s.needRefresh = false;
       s.solvesSinceRefresh = 0;
       st.refreshed = true;
-    } else {
-      s.invertDiagonals<3>(0, A, jobs);
     }
     ++s.solvesSinceRefresh;
     st.refreshMs = msSince(t0);
-  }
+  };
+  auto trueResidual = [&]() {
+    A.multiply(x, s.ap.data(), jobs);
+    return exec.reduce<SumOp>(int32_t(n3), ResidualTerm{b, s.ap.data(), r});
+  };
 
   int it = 0;
-  if (!converged && !s.settings.preconditionCG) {
-    s.cycleResiduals.push_back(std::sqrt(rr) / bnorm);
-    while (it < s.settings.cycles) {
+  if (s.settings.preconditionCG) {
+    // One V-cycle per iteration of flexible CG (the cycle is not a fixed linear map).
+    struct VCycle {
+      bool flexible = true;
+      Impl* s;
+      const BlockSparseMatrix* A;
+      JobSystem* jobs;
+      const CpuExecutor* exec;
+      const decltype(setUp)* setUpLevels;
+      void prepare() const { (*setUpLevels)(); }
+      double apply(const double* r, double* z) const {
+        s->cycle<3>(0, *A, r, z, *jobs);
+        ++s->stats.cycles;
+        return exec->dot(r, z, 3 * A->n);
+      }
+    };
+    report = conjugateGradients(
+        exec, A.view(), b, x, {r, z, s.p.data(), s.ap.data(), s.rOld.data()},
+        VCycle{true, &s, &A, &jobs, &exec, &setUp}, maxIterations, relativeTolerance);
+    it = report.iterations;
+  } else {
+    const double bb = exec.dot(b, b, int32_t(n3));
+    if (!std::isfinite(bb)) return report;
+    if (bb == 0) {
+      fill(0.0, x, n3, jobs);
+      report.converged = true;
+      report.relativeResidual = 0;
+      return report;
+    }
+    if (exec.reduce<MaxOp>(int32_t(n3), NonFiniteTerm{x}) > 0) fill(0.0, x, n3, jobs);
+    const double bnorm = std::sqrt(bb);
+    const double tol2 = relativeTolerance * relativeTolerance * bb;
+    double rr = trueResidual();
+    bool converged = std::isfinite(rr) && rr <= tol2;
+    if (!converged) {
+      setUp();
+      s.cycleResiduals.push_back(std::sqrt(rr) / bnorm);
+    }
+    while (!converged && it < s.settings.cycles) {
       s.cycle<3>(0, A, r, z, jobs);  // error equation A e = r
       ++it;
       ++st.cycles;
@@ -635,75 +580,21 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
         rr = trueResidual();
         break;
       }
-      if (rr <= tol2) {
-        converged = true;
-        break;
-      }
+      converged = rr <= tol2;
     }
-  } else if (!converged) {
-    // Flexible CG: beta = z_new . (r_new - r_old) / (z_old . r_old).
-    s.cycle<3>(0, A, r, z, jobs);
-    ++st.cycles;
-    double rz = dot(r, z, n3, s.partials, jobs);
-    copy(z, p, n3, jobs);
-    while (it < maxIterations) {
-      if (!(rz > 0) || !std::isfinite(rz)) {
-        break;
-      }
-      A.multiply(p, ap, jobs);
-      const double pap = dot(p, ap, n3, s.partials, jobs);
-      const double alpha = rz / pap;
-      if (!(pap > 0) || !std::isfinite(pap) || !std::isfinite(alpha)) {
-        break;
-      }
-      ++it;
-      rr = chunkedReduce(n3, s.partials, jobs, [&](size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i) {
-          x[i] += alpha * p[i];
-          rOld[i] = r[i];
-          r[i] -= alpha * ap[i];
-        }
-        return dotRange(r, r, begin, end);
-      });
-      if (!std::isfinite(rr)) {
-        axpy(-alpha, p, x, n3, jobs);
-        break;
-      }
-      if (rr <= tol2) {
-        rr = trueResidual();
-        if (rr <= tol2) {
-          converged = true;
-          break;
-        }
-        // Round-off drift: restart from the true residual.
-        s.cycle<3>(0, A, r, z, jobs);
-        ++st.cycles;
-        rz = dot(r, z, n3, s.partials, jobs);
-        copy(z, p, n3, jobs);
-        continue;
-      }
-      s.cycle<3>(0, A, r, z, jobs);
-      ++st.cycles;
-      const double rzNew = dot(r, z, n3, s.partials, jobs);
-      const double zrOld = dot(z, rOld, n3, s.partials, jobs);
-      const double beta = (rzNew - zrOld) / rz;
-      rz = rzNew;
-      if (!std::isfinite(beta)) {
-        break;
-      }
-      xpby(z, beta, p, n3, jobs);
-    }
-    if (!converged) rr = trueResidual();
+    report.iterations = it;
+    report.converged = converged && std::isfinite(rr);
+    report.relativeResidual =
+        std::isfinite(rr) ? std::sqrt(rr) / bnorm : std::numeric_limits<double>::infinity();
   }
-  if (!std::isfinite(rr)) {
+  if (const double bb = exec.dot(b, b, int32_t(n3));
+      !std::isfinite(report.relativeResidual) && std::isfinite(bb) && bb > 0) {
+    // Nothing finite came out: the zero vector, whose residual is |b| (relative 1).
     fill(0.0, x, n3, jobs);
-    rr = trueResidual();
+    report.converged = false;
+    report.relativeResidual = 1;
   }
   st.iterations = s.settings.preconditionCG ? it : 0;
-  report.iterations = it;
-  report.converged = converged && std::isfinite(rr);
-  report.relativeResidual =
-      std::isfinite(rr) ? std::sqrt(rr) / bnorm : std::numeric_limits<double>::infinity();
   st.totalMs = msSince(tStart);
   return report;
 }

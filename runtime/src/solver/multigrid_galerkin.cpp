@@ -2,12 +2,12 @@
 // Galerkin products A_{l+1} = P^T A_l P and the transfers P, P^T. The patterns these fill are
 // built in multigrid_hierarchy.cpp; every product sums precomputed block pairs in a fixed
 // order and every parallel loop writes disjoint blocks (the same bits for any thread count).
-#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 
 #include "solver/multigrid_hierarchy.h"
 #include "solver/vector_ops.h"
+#include "step/executor.h"
 
 namespace gf::detail {
 
@@ -293,101 +293,37 @@ void MultigridHierarchy::assemble(const BlockSparseMatrix& A, JobSystem& jobs) {
   }
 }
 
+ProlongationView MultigridHierarchy::prolongation(int level) const {
+  const CoarseLevel& lv = m_levels[static_cast<size_t>(level)];
+  ProlongationView P;
+  P.kind = smoothesLevel(level + 1) ? Prolongation::kSmoothed
+           : level == 0             ? Prolongation::kTentativeNodes
+                                    : Prolongation::kTentativeHandles;
+  P.blockRows = level == 0 ? 3 : 12;
+  P.pStart = lv.pStart.data();
+  P.pCol = lv.pCol.data();
+  P.pRow = lv.pRow.data();
+  P.pValues = lv.pValues.data();
+  P.ptStart = lv.ptStart.data();
+  P.ptBlock = lv.ptBlock.data();
+  P.coord = lv.coord.data();
+  P.childOffset = lv.childOffset.data();
+  P.childRatio = lv.childRatio;
+  return P;
+}
+
 void MultigridHierarchy::restrictTo(int level, const double* fine, double* coarse,
                                     JobSystem& jobs) const {
-  const CoarseLevel& lv = m_levels[static_cast<size_t>(level)];
-  const int B = level == 0 ? 3 : 12;
-  const bool tentative = !smoothesLevel(level + 1);
-  const uint32_t k = static_cast<uint32_t>(lv.handleNode.size());
-  forRanges(jobs, k, kHandleGrain, [&](uint32_t begin, uint32_t end) {
-    for (uint32_t h = begin; h < end; ++h) {
-      // coarse_H = sum over the column's blocks of P_rH^T fine_r, rows increasing.
-      double s[12] = {};
-      for (int32_t t = lv.ptStart[h]; t < lv.ptStart[h + 1]; ++t) {
-        const int32_t p = lv.ptBlock[t];
-        const size_t r = static_cast<size_t>(lv.pRow[p]);
-        const double* f = fine + static_cast<size_t>(B) * r;
-        if (tentative && level == 0) {
-          // U^T of a fine node: [x; 1] (x) r_i (eq 6.7).
-          const double* x = lv.coord.data() + 3 * r;
-          for (int a = 0; a < 3; ++a)
-            for (int i = 0; i < 3; ++i) s[3 * a + i] += x[a] * f[i];
-          for (int i = 0; i < 3; ++i) s[9 + i] += f[i];
-        } else if (tentative) {
-          // Transpose of eq 6.8's change of reference point.
-          const double* d = lv.childOffset.data() + 3 * r;
-          for (int a = 0; a < 3; ++a)
-            for (int i = 0; i < 3; ++i)
-              s[3 * a + i] += lv.childRatio * f[3 * a + i] + d[a] * f[9 + i];
-          for (int i = 0; i < 3; ++i) s[9 + i] += f[9 + i];
-        } else {
-          const double* pb = lv.pValues.data() + static_cast<size_t>(12 * B) * p;
-          for (int m = 0; m < B; ++m) {
-            const double fm = f[m];
-            const double* pm = pb + 12 * m;
-            for (int i = 0; i < 12; ++i) s[i] += pm[i] * fm;
-          }
-        }
-      }
-      std::copy(s, s + 12, coarse + 12 * static_cast<size_t>(h));
-    }
-  });
+  const int32_t handles =
+      static_cast<int32_t>(m_levels[static_cast<size_t>(level)].handleNode.size());
+  CpuExecutor(jobs).run(handles, kHandleGrain, RestrictStage{prolongation(level), fine, coarse});
 }
 
 void MultigridHierarchy::prolongAdd(int level, const double* coarse, double* fine,
                                     JobSystem& jobs) const {
-  const CoarseLevel& lv = m_levels[static_cast<size_t>(level)];
-  const int B = level == 0 ? 3 : 12;
-  const bool tentative = !smoothesLevel(level + 1);
-  const uint32_t rows = static_cast<uint32_t>(lv.pStart.size()) - 1;
-  forRanges(jobs, rows, level == 0 ? kNodeGrain : kHandleGrain * 8,
-            [&](uint32_t begin, uint32_t end) {
-              for (uint32_t r = begin; r < end; ++r) {
-                double* out = fine + static_cast<size_t>(B) * r;
-                for (int32_t p = lv.pStart[r]; p < lv.pStart[r + 1]; ++p) {
-                  const double* q = coarse + 12 * static_cast<size_t>(lv.pCol[p]);
-                  if (tentative && level == 0) {
-                    // eq 6.6: x_i = T_h [x; 1].
-                    const double* x = lv.coord.data() + 3 * static_cast<size_t>(r);
-                    for (int k = 0; k < 3; ++k)
-                      out[k] += x[0] * q[k] + x[1] * q[3 + k] + x[2] * q[6 + k] + q[9 + k];
-                  } else if (tentative) {
-                    // eq 6.8: the coarser affine map seen from the finer handle's origin.
-                    const double* d = lv.childOffset.data() + 3 * static_cast<size_t>(r);
-                    for (int j = 0; j < 9; ++j) out[j] += lv.childRatio * q[j];
-                    for (int k = 0; k < 3; ++k)
-                      out[9 + k] += d[0] * q[k] + d[1] * q[3 + k] + d[2] * q[6 + k] + q[9 + k];
-                  } else {
-                    // eq 6.3: fine_r += P_rK coarse_K.
-                    const double* pb = lv.pValues.data() + static_cast<size_t>(12 * B) * p;
-                    for (int m = 0; m < B; ++m) {
-                      double s = 0;
-                      for (int i = 0; i < 12; ++i) s += pb[12 * m + i] * q[i];
-                      out[m] += s;
-                    }
-                  }
-                }
-              }
-            });
+  const int32_t rows = static_cast<int32_t>(m_levels[static_cast<size_t>(level)].pStart.size()) - 1;
+  CpuExecutor(jobs).run(rows, level == 0 ? kNodeGrain : kHandleGrain * 8,
+                        ProlongAddStage{prolongation(level), coarse, fine});
 }
-
-template <int B>
-void invertSpdBlock(const double* m, double* inv) {
-  using Mat = Eigen::Matrix<double, B, B, Eigen::RowMajor>;
-  Eigen::LLT<Mat> llt(Eigen::Map<const Mat>{m});
-  if (llt.info() == Eigen::Success) {
-    Eigen::Map<Mat>{inv} = llt.solve(Mat::Identity());
-    bool finite = true;
-    for (int i = 0; i < B * B; ++i) finite = finite && std::isfinite(inv[i]);
-    if (finite) return;
-  }
-  for (int i = 0; i < B * B; ++i) inv[i] = 0;
-  for (int i = 0; i < B; ++i) {
-    const double d = m[(B + 1) * i];
-    inv[(B + 1) * i] = (d > 0 && std::isfinite(1 / d)) ? 1 / d : 1.0;
-  }
-}
-template void invertSpdBlock<3>(const double*, double*);
-template void invertSpdBlock<12>(const double*, double*);
 
 }  // namespace gf::detail

@@ -35,6 +35,7 @@
 #include "graphfrac/jobs.h"
 #include "graphfrac/status.h"
 #include "solver/block_sparse.h"
+#include "solver/multigrid_stages.h"
 
 namespace gf::detail {
 
@@ -153,6 +154,9 @@ class MultigridHierarchy {
   /// Re-smooth the prolongators with the matrix of the next assemble.
   void invalidateProlongation();
 
+  /// The prolongator between MG level `level` and level + 1 as the transfer stages read it
+  /// (valid until the next build, rebind or assemble).
+  ProlongationView prolongation(int level) const;
   /// coarse = P^T fine between MG level `level` and level + 1 (level 0 is the fine mesh).
   void restrictTo(int level, const double* fine, double* coarse, JobSystem& jobs) const;
   /// fine += P coarse between MG level `level` and level + 1 (eq 6.3, 6.8).
@@ -193,11 +197,5 @@ class MultigridHierarchy {
   std::vector<double> m_invDiag, m_v, m_w, m_t, m_partials;
   std::vector<int32_t> m_graphBlock;  ///< fine block of each m_graph adjacency entry
 };
-
-/// Inverse of an SPD B x B block (row-major) by Cholesky; a block that is not numerically SPD
-/// gets the inverse of its positive diagonal entries (1 where not positive), so the smoothers'
-/// and the prolongation's D^-1 stay SPD. B is 3 (nodes) or 12 (handles).
-template <int B>
-void invertSpdBlock(const double* m, double* inv);
 
 }  // namespace gf::detail

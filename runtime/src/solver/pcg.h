@@ -1,4 +1,4 @@
-// Preconditioned conjugate gradients with a block-Jacobi preconditioner.
+// Preconditioned conjugate gradients with a block-Jacobi preconditioner (solver/pcg_stages.h).
 #pragma once
 
 #include <vector>
@@ -21,7 +21,6 @@ class PcgSolver {
                     double relativeTolerance, JobSystem& jobs);
 
  private:
-  void buildPreconditioner(const BlockSparseMatrix& A, JobSystem& jobs);
   // Work vectors, 3 n each, and the inverse diagonal blocks, 9 n.
   std::vector<double> m_r, m_z, m_p, m_ap, m_invDiag, m_partials;
 };

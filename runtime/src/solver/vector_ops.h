@@ -96,20 +96,6 @@ inline void axpy(double alpha, const double* x, double* y, size_t n, JobSystem& 
   });
 }
 
-/// y = x + beta y.
-inline void xpby(const double* x, double beta, double* y, size_t n, JobSystem& jobs) {
-  chunkedFor(n, jobs, [&](size_t begin, size_t end) {
-    for (size_t i = begin; i < end; ++i) y[i] = x[i] + beta * y[i];
-  });
-}
-
-/// y = x.
-inline void copy(const double* x, double* y, size_t n, JobSystem& jobs) {
-  chunkedFor(n, jobs, [&](size_t begin, size_t end) {
-    for (size_t i = begin; i < end; ++i) y[i] = x[i];
-  });
-}
-
 /// y = value.
 inline void fill(double value, double* y, size_t n, JobSystem& jobs) {
   chunkedFor(n, jobs, [&](size_t begin, size_t end) {

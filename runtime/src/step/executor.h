@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "graphfrac/jobs.h"
 #include "step/reduce.h"
@@ -14,7 +15,10 @@ namespace gf::detail {
 
 class CpuExecutor {
  public:
-  explicit CpuExecutor(JobSystem& jobs) : m_jobs(&jobs) {}
+  /// With `partials` (kept by the caller, so a step allocates nothing after warm-up) the
+  /// chunks of a reduction run in parallel; without, on the calling thread. Same bits.
+  explicit CpuExecutor(JobSystem& jobs, std::vector<double>* partials = nullptr)
+      : m_jobs(&jobs), m_partials(partials) {}
 
   /// stage(i) for every i in [0, count), in ranges of at least `grain` items.
   template <class Stage>
@@ -27,24 +31,32 @@ class CpuExecutor {
 
   /// Op over term(0..count) in the order of chunkedReduce (Op's identity for count 0).
   template <class Op, class Term>
-  static double reduce(int32_t count, const Term& term) {
-    return chunkedReduce<Op>(term, count);
+  double reduce(int32_t count, const Term& term) const {
+    const int32_t chunks = sumChunks(count);
+    if (!m_partials || chunks < 2 || m_jobs->threadCount() < 2)
+      return chunkedReduce<Op>(term, count);
+    if (m_partials->size() < size_t(chunks)) m_partials->resize(size_t(chunks));
+    run(chunks, 4, ChunkReduceStage<Op, Term>{term, count, m_partials->data()});
+    double r = Op::identity();
+    for (int32_t c = 0; c < chunks; ++c) r = Op::apply(r, (*m_partials)[size_t(c)]);
+    return r;
   }
-  static double sum(const double* values, int32_t count) {
+  double sum(const double* values, int32_t count) const {
     return reduce<SumOp>(count, ArrayTerm{values});
   }
-  static double max(const double* values, int32_t count) {
+  double max(const double* values, int32_t count) const {
     return reduce<MaxOp>(count, ArrayTerm{values});
   }
-  static double min(const double* values, int32_t count) {
+  double min(const double* values, int32_t count) const {
     return reduce<MinOp>(count, ArrayTerm{values});
   }
-  static double dot(const double* a, const double* b, int32_t count) {
+  double dot(const double* a, const double* b, int32_t count) const {
     return reduce<SumOp>(count, DotTerm{a, b});
   }
 
  private:
   JobSystem* m_jobs;
+  std::vector<double>* m_partials;
 };
 
 }  // namespace gf::detail

@@ -1,7 +1,7 @@
 // Reductions of the step (energy sums, stress bounds) in one fixed order for both executors:
-// chunks of kSumChunk items reduced in index order, then the chunk results in chunk order.
-// The CPU runs it serially, the CUDA executor one chunk per thread; both give the same bits
-// for any thread count or launch shape.
+// chunks of kSumChunk items (chunkReduce's fixed order inside), then the chunk results in chunk
+// order. Either executor reduces the chunks in parallel and adds their results on one thread,
+// so both give the same bits for any thread count or launch shape.
 #pragma once
 
 #include <cstdint>
@@ -42,13 +42,22 @@ struct DotTerm {
   GF_HD double operator()(int32_t i) const { return a[i] * b[i]; }
 };
 
-/// Op over chunk c of term(0..count), in index order.
+/// Op over chunk c of term(0..count): four interleaved lanes (items i with i % 4 == lane, in
+/// index order), then the lanes as (0 op 1) op (2 op 3). Each term(i) is called once, in index
+/// order, so a term may also write item i (a fused update and its norm).
 template <class Op, class Term>
 GF_HD double chunkReduce(const Term& term, int32_t count, int32_t c) {
   const int32_t end = (c + 1) * kSumChunk < count ? (c + 1) * kSumChunk : count;
-  double r = Op::identity();
-  for (int32_t i = c * kSumChunk; i < end; ++i) r = Op::apply(r, term(i));
-  return r;
+  double r0 = Op::identity(), r1 = Op::identity(), r2 = Op::identity(), r3 = Op::identity();
+  int32_t i = c * kSumChunk;
+  for (; i + 4 <= end; i += 4) {
+    r0 = Op::apply(r0, term(i));
+    r1 = Op::apply(r1, term(i + 1));
+    r2 = Op::apply(r2, term(i + 2));
+    r3 = Op::apply(r3, term(i + 3));
+  }
+  for (; i < end; ++i) r0 = Op::apply(r0, term(i));
+  return Op::apply(Op::apply(r0, r1), Op::apply(r2, r3));
 }
 
 /// Op over term(0..count): the chunk results of ChunkReduceStage combined in chunk order.
