@@ -428,6 +428,57 @@ TEST(Scene, MultigridKeysLoadEveryValue) {
   EXPECT_TRUE(a.value().bodies[0].def.solver.multigrid.levels.empty());
 }
 
+TEST(Scene, ImpurityKeysLoadEveryValue) {
+  const std::string text = R"({"dt": 0.01, "frames": 1, "bodies": [{
+    "mesh": {"generator": "box", "size": [0.4, 0.1, 0.1], "cells": [8, 2, 2]},
+    "translate": [1, 0, 0],
+    "material": {"E": 1e6, "nu": 0.3, "rho": 1000},
+    "fracture": {"strength": 1e5},
+    "impurities": {"noise": "uniform", "sigma": 2.5, "mode": "upgradation", "seed": 9,
+                   "random_graph": false},
+    "impurity_maps": [
+      {"polyline": [[0.1, 0.1, 0.05], [0.3, 0.1, 0.05]], "width": 0.02, "depth": 0.03,
+       "potency": 0.25},
+      {"image": "images/crack_pattern.png", "origin": [0.2, 0.05, 0.1], "scale": 0.3,
+       "orientation": {"axis": [0, 0, 1], "angle_deg": 90}, "potency": 0, "threshold": 0.4}]}]})";
+  const Result<Scene> r = parseScene(text, "inline", (kSceneData).string());
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const FractureSettings& f = r.value().bodies[0].def.fracture;
+  EXPECT_TRUE(f.impurities.enabled);
+  EXPECT_EQ(f.impurities.noise, ImpurityNoise::Uniform);
+  EXPECT_EQ(f.impurities.mode, ImpurityMode::Upgradation);
+  EXPECT_DOUBLE_EQ(f.impurities.sigma, 2.5);
+  EXPECT_EQ(f.impurities.seed, 9u);
+  EXPECT_FALSE(f.impurities.randomGraph);
+  ASSERT_EQ(f.impurityMaps.size(), 2u);
+  const ImpurityMap& line = f.impurityMaps[0];
+  EXPECT_EQ(line.kind, ImpurityMap::Kind::Polyline);
+  ASSERT_EQ(line.points.size(), 2u);
+  expectNear(line.points[1], {1.3, 0.1, 0.05}, 1e-15, "polyline moves with translate");
+  EXPECT_DOUBLE_EQ(line.width, 0.02);
+  EXPECT_DOUBLE_EQ(line.depth, 0.03);
+  EXPECT_DOUBLE_EQ(line.potency, 0.25);
+  const ImpurityMap& img = f.impurityMaps[1];
+  EXPECT_EQ(img.kind, ImpurityMap::Kind::Image);
+  expectNear(img.origin, {1.2, 0.05, 0.1}, 1e-15, "image origin moves with translate");
+  EXPECT_DOUBLE_EQ(img.scale, 0.3);
+  EXPECT_DOUBLE_EQ(img.potency, 0);
+  EXPECT_NEAR(std::fabs(img.rotation.w), std::cos(std::numbers::pi / 4), 1e-12);
+  // The PNG (96 x 48, scenes/images/crack_pattern.png) was drawn with 1-pixel strokes: every
+  // segment joins the centres of two neighbouring pixels, 1 or sqrt(2) pixels apart, inside
+  // the image (1 wide, 0.5 high in image units).
+  ASSERT_FALSE(img.segments.empty());
+  ASSERT_EQ(img.segments.size() % 2, 0u);
+  for (size_t k = 0; k < img.segments.size(); k += 2) {
+    const double len = glm::length(img.segments[k + 1] - img.segments[k]) * 96;
+    EXPECT_TRUE(std::fabs(len - 1) < 1e-9 || std::fabs(len - std::sqrt(2.0)) < 1e-9) << len;
+    for (int e = 0; e < 2; ++e) {
+      EXPECT_LT(std::fabs(img.segments[k + e].x), 0.5);
+      EXPECT_LT(std::fabs(img.segments[k + e].y), 0.25);
+    }
+  }
+}
+
 // Every bad file and the pieces its message must contain: the file, the JSON path (or line and
 // column for a syntax error) and the reason.
 const std::map<std::string, std::vector<std::string>> kBadScenes = {
@@ -510,6 +561,21 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
      {": bodies[0].fracture.model: expected one of \"projection\", \"degradation\", got "
       "\"linear\""}},
     {"bad_fracture_regions.json", {": bodies[0].fracture.regions: must be >= 1, got 0"}},
+    // Impurities and impurity maps (thesis sec 5.2-5.4).
+    {"bad_impurity_image_missing.json",
+     {": bodies[0].impurity_maps[0].image: cannot open", "missing.png", "No such file"}},
+    {"bad_impurity_image_not_png.json",
+     {": bodies[0].impurity_maps[0].image: ", "not_a_png.png' is not a PNG image"}},
+    {"bad_impurity_scale.json",
+     {": bodies[0].impurity_maps[0].scale: must be a positive finite length", "got 0"}},
+    {"bad_impurity_potency.json",
+     {": bodies[0].impurity_maps[0].potency: must lie in [0, 1]", "got -0.5"}},
+    {"bad_impurity_noise.json",
+     {": bodies[0].impurities.noise: expected one of \"gaussian\", \"uniform\", got \"pink\""}},
+    {"bad_impurity_polyline_width.json",
+     {": bodies[0].impurity_maps[0].width: must be a positive finite length, got -1"}},
+    {"bad_impurity_both_kinds.json",
+     {": bodies[0].impurity_maps[0]: needs exactly one of \"polyline\" and \"image\""}},
     {"bad_fracture_brittle.json",
      {": bodies[0].fracture.brittle: expected true or false, got \"yes\""}},
     {"bad_fracture_radius.json", {": bodies[0].fracture.radius: must be >= 0 and finite, got -1"}},

@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "kernels/svd3.h"
+#include "scene/impurity_image.h"
 #include "scene/json_reader.h"
 
 namespace gf::scene {
@@ -617,6 +618,89 @@ FractureSettings readFracture(const json& v, const std::string& path) {
   return f;
 }
 
+glm::dquat readOrientation(const json& v, const std::string& path);
+
+ImpuritySettings readImpurities(const json& v, const std::string& path) {
+  ObjReader o(v, path);
+  o.keys({"noise", "sigma", "mode", "seed", "random_graph"});
+  ImpuritySettings s;
+  s.enabled = true;
+  if (const json* n = o.find("noise"))
+    s.noise = readChoice(*n, o.at("noise"), {"gaussian", "uniform"}) == "uniform"
+                  ? ImpurityNoise::Uniform
+                  : ImpurityNoise::Gaussian;
+  if (const json* m = o.find("mode"))
+    s.mode = readChoice(*m, o.at("mode"), {"degradation", "upgradation"}) == "upgradation"
+                 ? ImpurityMode::Upgradation
+                 : ImpurityMode::Degradation;
+  if (const json* g = o.find("sigma")) {
+    s.sigma = readNumber(*g, o.at("sigma"));
+    if (!(s.sigma >= 0 && s.sigma <= 1e9))
+      throw SceneError{o.at("sigma"), "must be >= 0 (at most 1e9), got " + describe(*g)};
+  }
+  if (const json* k = o.find("seed")) {
+    const int seed = readInteger(*k, o.at("seed"));
+    if (seed < 0) throw SceneError{o.at("seed"), "must be >= 0, got " + describe(*k)};
+    s.seed = uint64_t(seed);
+  }
+  if (const json* r = o.find("random_graph")) s.randomGraph = readBool(*r, o.at("random_graph"));
+  o.finish();
+  return s;
+}
+
+constexpr FieldName kImpurityMapNames[] = {{"potency", "potency"},      {"width", "width"},
+                                           {"depth", "depth"},          {"scale", "scale"},
+                                           {"rotation", "orientation"}, {"origin", "origin"}};
+
+// Map coordinates are the mesh's own: the body's "translate" moves them with it.
+ImpurityMap readImpurityMap(const json& v, const std::string& path, const std::string& baseDir,
+                            const glm::dvec3& translate) {
+  ObjReader o(v, path);
+  o.keys({"polyline", "width", "depth", "image", "threshold", "origin", "orientation", "scale",
+          "potency"});
+  ImpurityMap m;
+  if (o.has("polyline") == o.has("image"))
+    throw SceneError{path, "needs exactly one of \"polyline\" and \"image\""};
+  if (const json* p = o.find("potency")) m.potency = readNumber(*p, o.at("potency"));
+  if (const json* pl = o.find("polyline")) {
+    m.kind = ImpurityMap::Kind::Polyline;
+    const std::string pp = o.at("polyline");
+    if (!pl->is_array()) throw SceneError{pp, "expected an array of [x, y, z] points"};
+    for (size_t i = 0; i < pl->size(); ++i)
+      m.points.push_back(readVec3((*pl)[i], indexPath(pp, i)) + translate);
+    m.width = readNumber(o.require("width"), o.at("width"));
+    m.depth = readNumber(o.require("depth"), o.at("depth"));
+  } else {
+    m.kind = ImpurityMap::Kind::Image;
+    const std::string ip = o.at("image");
+    const std::string file = resolvePath(readString(*o.find("image"), ip), baseDir);
+    double threshold = 0.5;
+    if (const json* t = o.find("threshold")) {
+      threshold = readNumber(*t, o.at("threshold"));
+      if (!(threshold > 0 && threshold <= 1))
+        throw SceneError{o.at("threshold"), "must lie in (0, 1], got " + describe(*t)};
+    }
+    GreyImage img;
+    try {
+      img = readPngGrey(file);
+    } catch (const std::runtime_error& e) {
+      throw SceneError{ip, e.what()};
+    }
+    m.segments = imageSegments(img, threshold);
+    if (m.segments.empty())
+      throw SceneError{ip, "'" + file +
+                               "' has no stroke (no two neighbouring pixels darker than "
+                               "the threshold)"};
+    m.origin = readVec3(o.require("origin"), o.at("origin")) + translate;
+    if (const json* q = o.find("orientation"))
+      m.rotation = readOrientation(*q, o.at("orientation"));
+    m.scale = readNumber(o.require("scale"), o.at("scale"));
+  }
+  o.finish();
+  requireValid(m.check(), path, kImpurityMapNames);
+  return m;
+}
+
 PlasticitySettings readPlasticity(const json& v, const std::string& path) {
   ObjReader o(v, path);
   o.keys({"yield", "flow_rate", "hardening"});
@@ -879,9 +963,26 @@ glm::dmat3 readDeformation(const json& v, const std::string& path) {
 SceneBody readBody(const json& v, const std::string& path, size_t index,
                    const std::string& baseDir) {
   ObjReader o(v, path);
-  o.keys({"name", "mesh", "translate", "material", "solver", "pins", "grips", "forces",
-          "initial_velocity", "angular_velocity", "initial_deformation", "fracture", "plasticity",
-          "fibre_field", "handoff", "colour", "crack_colour", "friction"});
+  o.keys({"name",
+          "mesh",
+          "translate",
+          "material",
+          "solver",
+          "pins",
+          "grips",
+          "forces",
+          "initial_velocity",
+          "angular_velocity",
+          "initial_deformation",
+          "fracture",
+          "plasticity",
+          "fibre_field",
+          "handoff",
+          "colour",
+          "crack_colour",
+          "friction",
+          "impurities",
+          "impurity_maps"});
   SceneBody body;
   body.name = "body" + std::to_string(index);
   body.colour = kBodyPalette[index % kBodyPalette.size()];
@@ -895,8 +996,10 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
     }
   }
   body.def.mesh = readMesh(o.require("mesh"), o.at("mesh"), baseDir);
+  glm::dvec3 translate(0);
   if (const json* t = o.find("translate")) {
     const glm::dvec3 d = readVec3(*t, o.at("translate"));
+    translate = d;
     for (size_t i = 0; i < body.def.mesh.nodeCount(); ++i) {
       for (int k = 0; k < 3; ++k) body.def.mesh.positions[3 * i + k] += d[k];
     }
@@ -917,6 +1020,20 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
   if (const json* f = o.find("fracture")) body.def.fracture = readFracture(*f, o.at("fracture"));
   if (const json* p = o.find("plasticity")) {
     body.def.plasticity = readPlasticity(*p, o.at("plasticity"));
+  }
+  if (o.has("impurities") || o.has("impurity_maps")) {
+    if (!body.def.fracture.enabled)
+      throw SceneError{o.at(o.has("impurities") ? "impurities" : "impurity_maps"),
+                       "needs \"fracture\" (impurities change edge strengths)"};
+  }
+  if (const json* im = o.find("impurities"))
+    body.def.fracture.impurities = readImpurities(*im, o.at("impurities"));
+  if (const json* maps = o.find("impurity_maps")) {
+    const std::string mp = o.at("impurity_maps");
+    if (!maps->is_array()) throw SceneError{mp, "expected an array of maps"};
+    for (size_t i = 0; i < maps->size(); ++i)
+      body.def.fracture.impurityMaps.push_back(
+          readImpurityMap((*maps)[i], indexPath(mp, i), baseDir, translate));
   }
   if (const json* h = o.find("handoff")) {
     body.handoff = readHandoff(*h, o.at("handoff"), body.def.fracture.enabled);

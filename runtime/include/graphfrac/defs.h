@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <glm/gtc/quaternion.hpp>
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <vector>
 
@@ -154,6 +155,60 @@ enum class DamageModel : uint8_t {
   Degradation,
 };
 
+/// How impurities change an edge's strength (thesis sec 5.2, eq 5.1).
+enum class ImpurityMode : uint8_t {
+  Degradation,  ///< Impurities weaken (damp wood, mud in asphalt).
+  Upgradation,  ///< Impurities strengthen (copper in gold).
+};
+/// Distribution of the per-node impurity alpha_k (eq 5.2).
+enum class ImpurityNoise : uint8_t {
+  Gaussian,  ///< N(0, sigma^2), alpha_k != 0 (eq 5.2).
+  Uniform,   ///< U(-sqrt(3) sigma, sqrt(3) sigma): the same variance.
+};
+/// Random-graph impurities of a fracturing body (thesis sec 5.2, SPEC §4). Each node k gets
+/// alpha_k from `noise` with `seed` (a counter-based hash of (seed, k): the same on every
+/// thread count and backend); an edge ij then has the break probability p_ij of eq 5.1 with
+/// h of eq 5.3, computed from the nodes' CURRENT degree in the graph of unbroken edges
+/// divided by their rest degree. It enters the stress criterion as an effective strength
+/// (Kachanov's effective stress): the edge breaks when sigma_n >= sigma_th (1 - p_ij) /
+/// (1 - p_ref), p_ref the pure, intact edge's p (0 when degrading, 1 - h(2) when upgrading).
+/// So strengths fall as a neighbourhood breaks, and nothing is drawn per step: results do not
+/// depend on the time step's draw count (docs/design.md "Impurities").
+struct ImpuritySettings {
+  bool enabled = false;
+  ImpurityNoise noise = ImpurityNoise::Gaussian;
+  ImpurityMode mode = ImpurityMode::Degradation;
+  double sigma = 1;   ///< Standard deviation of alpha_k (>= 0, finite; 0 = only maps).
+  uint64_t seed = 1;  ///< Seed of the draws.
+  /// false: alpha and the degree term are ignored (no random graph): maps only scale the
+  /// strengths they cover by their potency, the thesis's "without random graph" (fig 5.10).
+  bool randomGraph = true;
+};
+/// An impurity map (thesis sec 5.4): edges it covers get strength * potency and their nodes
+/// the impurity |alpha| = 1 / potency (more potent = weaker; 0 = a sharp pre-cut: the edges
+/// break at the next step). Either polylines painted on the rest surface (a band `width` wide
+/// and `depth` deep under each polyline), or 2D segments of an image projected through the
+/// body along the image plane's normal (edges whose projection crosses a segment).
+struct ImpurityMap {
+  enum class Kind : uint8_t { Polyline, Image };
+  Kind kind = Kind::Polyline;
+  double potency = 0.5;  ///< >= 0 and finite; 0 = pre-cut, 1 = no static weakening.
+  /// Polyline: points in rest coordinates, each within half a mean edge length of the rest
+  /// surface. The band holds the edges whose midpoint lies within width / 2 across the line
+  /// and `depth` under the surface.
+  std::vector<glm::dvec3> points;
+  double width = 0;  ///< Polyline: band width [m] (> 0).
+  double depth = 0;  ///< Polyline: band depth under the surface [m] (> 0).
+  /// Image: segment end points in image units (the image is 1 wide, centred on 0, v up), 2
+  /// per segment; x = origin + scale * rotation * (u, v, 0) in rest coordinates.
+  std::vector<glm::dvec2> segments;
+  glm::dvec3 origin{0, 0, 0};
+  glm::dquat rotation{1, 0, 0, 0};  ///< Image plane to rest frame (unit, or normalised).
+  double scale = 1;                 ///< Image width in metres (> 0).
+  /// Empty when valid; otherwise names the field ("potency: ...") and the reason. Whether
+  /// points lie on the surface is checked against the body (World::applyImpurityMap).
+  Result<void> check() const;
+};
 /// Graph-based fracture of a body (thesis ch. 4). Disabled by default: a body without
 /// fracture computes no edge stresses.
 struct FractureSettings {
@@ -182,6 +237,11 @@ struct FractureSettings {
   /// regions each start a crack plane normal to the maximum principal stress.
   bool brittle = false;
   int regions = 1;
+  /// Random-graph impurities (thesis sec 5.2); off by default: then no work is added.
+  ImpuritySettings impurities;
+  /// Impurity maps applied when the body is created (World::applyImpurityMap adds more).
+  /// Maps without `impurities.enabled` give only the map nodes an impurity.
+  std::vector<ImpurityMap> impurityMaps;
   /// Empty when valid or disabled; otherwise names the field ("strength: ...") and the reason.
   Result<void> check() const;
 };

@@ -219,6 +219,12 @@ class World {
   /// order, see fractureStats().edgeCount; positive and finite). Error for a body without
   /// fracture.
   Result<void> setEdgeStrengths(BodyId id, std::span<const double> strength);
+  /// Applies an impurity map (thesis sec 5.4) to the body's rest mesh: the edges it covers get
+  /// their strength times map.potency and their nodes the impurity 1 / potency; potency 0
+  /// cuts them at the next step. Error (nothing changed) for a body without fracture, an
+  /// invalid map (ImpurityMap::check) or a polyline point off the rest surface; the message
+  /// names the field ("applyImpurityMap: map.points[2]: ...").
+  Result<void> applyImpurityMap(BodyId id, const ImpurityMap& map);
   /// Replaces the material (same MaterialModel, validated like createBody; fibreStiffness must
   /// stay zero or non-zero as at creation). A new density changes the lumped masses.
   Result<void> setMaterial(BodyId id, const Material& material);

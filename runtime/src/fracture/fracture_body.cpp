@@ -57,7 +57,45 @@ Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem,
   fb->m_stress.assign(6 * nt, 0.0);
   fb->m_nodeVolume = Fragments::nodeVolumes(fem.tets.data(), nt, fem.restPositions.data(), nn);
   fb->m_fragments.build(fb->m_graph, fb->m_broken.data());
+  const FractureSettings& fs = fem.fracture;
+  if (fs.impurities.enabled || !fs.impurityMaps.empty()) {
+    fb->m_hasImpurity = true;
+    fb->m_impurity.init(fb->m_graph, fs.impurities, fb->m_model.strength);
+    for (size_t i = 0; i < fs.impurityMaps.size(); ++i)
+      if (auto r = fb->applyImpurityMap(fem, fs.impurityMaps[i]); !r)
+        return fail("BodyDef.fracture.impurityMaps[", std::to_string(i), "].", r.error().message);
+    fb->m_impurity.refreshAll(fb->m_graph, fb->m_broken.data(), fb->m_model.strength);
+  }
   return fb;
+}
+
+Result<void> FractureBody::applyImpurityMap(const FemModel& fem, const ImpurityMap& map) {
+  const ImpurityRest rest{fem.restPositions.data(), fem.tets.data(), fem.nodeCount, fem.tetCount,
+                          m_model.meanEdgeLength};
+  auto edges = ImpurityField::mapEdges(m_graph, rest, map);
+  if (!edges) return edges.error();
+  if (!m_hasImpurity) {
+    // Pure nodes everywhere: only the map's nodes will carry an impurity.
+    ImpuritySettings pure = fem.fracture.impurities;
+    pure.enabled = false;
+    m_impurity.init(m_graph, pure, m_model.strength);
+    for (int32_t e = 0; e < m_graph.edgeCount; ++e)
+      if (m_broken[size_t(e)]) {
+        --m_impurity.degree[size_t(m_graph.edgeNodes[2 * e])];
+        --m_impurity.degree[size_t(m_graph.edgeNodes[2 * e + 1])];
+      }
+    m_hasImpurity = true;
+  }
+  m_impurity.applyMap(m_graph, edges.value(), map.potency);
+  m_impurity.refreshAll(m_graph, m_broken.data(), m_model.strength);
+  return {};
+}
+
+void FractureBody::setStrengths(std::vector<double> strength) {
+  m_model.strength = std::move(strength);
+  if (!m_hasImpurity) return;
+  m_impurity.baseStrength = m_model.strength;
+  m_impurity.refreshAll(m_graph, m_broken.data(), m_model.strength);
 }
 
 CriterionStressStage FractureBody::stressStage(const FemModel& fem, const FemState& data,
@@ -103,6 +141,9 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState
       m_chi[t] = degradationFactor(sigmaN, brokenLocal);
     }
   }
+  if (m_hasImpurity)
+    m_impurity.onBreaks(m_graph, m_newEdges.data(), m_newEdges.size(), m_broken.data(),
+                        m_model.strength);
   m_brokenCount += int32_t(m_breaks.size() - first);
   m_breakOrder.insert(m_breakOrder.end(), m_newEdges.begin(), m_newEdges.end());
   if (m_fragments.update(m_graph, m_broken.data(), m_newEdges)) {
@@ -127,6 +168,8 @@ FractureBody::State FractureBody::saveState() const {
   s.breakOrder = m_breakOrder;
   s.brokenCount = m_brokenCount;
   s.brittleFired = m_brittleFired;
+  s.hasImpurity = m_hasImpurity;
+  if (m_hasImpurity) s.impurity = m_impurity;
   return s;
 }
 
@@ -144,6 +187,8 @@ void FractureBody::restoreState(const State& s) {
   m_breakOrder = s.breakOrder;
   m_brokenCount = s.brokenCount;
   m_brittleFired = s.brittleFired;
+  m_hasImpurity = s.hasImpurity;
+  m_impurity = s.impurity;
 }
 
 int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const double* x,
@@ -159,6 +204,22 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     applyBreaks(first, fem, data, x);
   }
   m_pendingCuts.clear();
+  if (m_hasImpurity && !m_impurity.pendingPrecut.empty()) {
+    // Potency-0 maps are sharp pre-cuts (sec 5.4): their edges open like a blade's.
+    const size_t first = m_breaks.size();
+    for (int32_t e : m_impurity.pendingPrecut) {
+      if (m_broken[size_t(e)]) continue;
+      m_broken[size_t(e)] = 1;
+      EdgeBreak b;
+      b.edge = e;
+      b.position =
+          0.5 * (load3(x, m_graph.edgeNodes[2 * e]) + load3(x, m_graph.edgeNodes[2 * e + 1]));
+      m_breaks.push_back(b);
+    }
+    m_impurity.pendingPrecut.clear();
+    m_breakCause.resize(m_breaks.size(), cause(FractureEvent::Cause::Cut));
+    applyBreaks(first, fem, data, x);
+  }
 
   computeStresses(fem, data, x, !stressesReady, jobs);
   size_t first = m_breaks.size();

@@ -13,6 +13,7 @@
 #include "fracture/criterion.h"
 #include "fracture/cutting.h"
 #include "fracture/fracture_model.h"
+#include "fracture/impurity.h"
 #include "graphfrac/jobs.h"
 #include "kernels/math.h"
 #include "mesh/edge_graph.h"
@@ -69,7 +70,15 @@ class FractureBody {
 
   /// Per-edge strengths sigma_th (FractureModel::strength); World validates replacements.
   const std::vector<double>& strengths() const { return m_model.strength; }
-  void setStrengths(std::vector<double> strength) { m_model.strength = std::move(strength); }
+  /// With impurities the given strengths become the base the impurities scale.
+  void setStrengths(std::vector<double> strength);
+
+  /// The body's impurities (thesis sec 5.2), or null when it has none.
+  const ImpurityField* impurities() const { return m_hasImpurity ? &m_impurity : nullptr; }
+  /// Applies an impurity map (checked with ImpurityMap::check) to the rest mesh; an error
+  /// naming the field (a polyline point off the surface) changes nothing. A body without
+  /// impurities gets a field of pure nodes first.
+  Result<void> applyImpurityMap(const FemModel& fem, const ImpurityMap& map);
 
   /// What changes during a run (World::snapshot); the rest is fixed at creation or scratch.
   struct State {
@@ -83,6 +92,8 @@ class FractureBody {
     std::vector<int32_t> breakOrder;
     int32_t brokenCount = 0;
     bool brittleFired = false;
+    bool hasImpurity = false;
+    ImpurityField impurity;
   };
   State saveState() const;
   void restoreState(const State& s);
@@ -116,6 +127,8 @@ class FractureBody {
   int32_t m_brokenCount = 0;
   std::vector<int32_t> m_breakOrder;
   bool m_brittleFired = false;
+  bool m_hasImpurity = false;
+  ImpurityField m_impurity;
 };
 
 }  // namespace gf::detail

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <glm/common.hpp>
+#include <glm/vector_relational.hpp>
 #include <string>
 
 #include "graphfrac/defs.h"
@@ -114,6 +116,55 @@ Result<void> FractureSettings::check() const {
   if (static_cast<unsigned>(model) > static_cast<unsigned>(DamageModel::Degradation))
     return fail("model: unknown damage model ", std::to_string(static_cast<int>(model)));
   if (regions < 1) return fail("regions: must be >= 1, got ", std::to_string(regions));
+  if (static_cast<unsigned>(impurities.noise) > static_cast<unsigned>(ImpurityNoise::Uniform))
+    return fail("impurities.noise: unknown distribution ",
+                std::to_string(static_cast<int>(impurities.noise)));
+  if (static_cast<unsigned>(impurities.mode) > static_cast<unsigned>(ImpurityMode::Upgradation))
+    return fail("impurities.mode: unknown mode ",
+                std::to_string(static_cast<int>(impurities.mode)));
+  if (!(std::isfinite(impurities.sigma) && impurities.sigma >= 0 && impurities.sigma <= 1e9))
+    return fail("impurities.sigma: must be >= 0 and finite (at most 1e9), got ",
+                num(impurities.sigma));
+  for (size_t i = 0; i < impurityMaps.size(); ++i)
+    if (auto r = impurityMaps[i].check(); !r)
+      return fail("impurityMaps[", std::to_string(i), "].", r.error().message);
+  return {};
+}
+
+Result<void> ImpurityMap::check() const {
+  if (!(std::isfinite(potency) && potency >= 0 && potency <= 1))
+    return fail("potency: must lie in [0, 1] (0 = a sharp pre-cut, 1 = no weakening), got ",
+                num(potency));
+  if (kind == Kind::Polyline) {
+    if (points.size() < 2)
+      return fail("points: a polyline needs at least 2 points, got ",
+                  std::to_string(points.size()));
+    for (size_t i = 0; i < points.size(); ++i)
+      if (!(glm::all(glm::lessThanEqual(glm::abs(points[i]), glm::dvec3(detail::kMaxMagnitude)))))
+        return fail("points[", std::to_string(i), "]: must be finite, at most 1e9 m");
+    if (!(positiveFinite(width) && width <= detail::kMaxMagnitude))
+      return fail("width: must be a positive finite length, got ", num(width));
+    if (!(positiveFinite(depth) && depth <= detail::kMaxMagnitude))
+      return fail("depth: must be a positive finite length, got ", num(depth));
+    return {};
+  }
+  if (kind != Kind::Image)
+    return fail("kind: unknown map kind ", std::to_string(static_cast<int>(kind)));
+  if (segments.empty() || segments.size() % 2 != 0)
+    return fail("segments: expected a non-empty list of end-point pairs, got ",
+                std::to_string(segments.size()), " points");
+  for (size_t i = 0; i < segments.size(); ++i)
+    if (!(std::isfinite(segments[i].x) && std::isfinite(segments[i].y)))
+      return fail("segments[", std::to_string(i), "]: must be finite");
+  if (!(glm::all(glm::lessThanEqual(glm::abs(origin), glm::dvec3(detail::kMaxMagnitude)))))
+    return fail("origin: must be finite, at most 1e9 m");
+  const double qn = rotation.w * rotation.w + rotation.x * rotation.x + rotation.y * rotation.y +
+                    rotation.z * rotation.z;
+  if (!(std::isfinite(qn) && qn > 1e-12))
+    return fail("rotation: must be a finite, non-zero quaternion");
+  if (!(positiveFinite(scale) && scale <= detail::kMaxMagnitude))
+    return fail("scale: must be a positive finite length (the image width in metres), got ",
+                num(scale));
   return {};
 }
 
@@ -182,6 +233,9 @@ Result<void> checkBodySettings(const BodyDef& def) {
   if (auto r = def.material.check(); !r) return r;
   if (auto r = def.solver.check(); !r) return fail("solver.", r.error().message);
   if (auto r = def.fracture.check(); !r) return fail("fracture.", r.error().message);
+  if (!def.fracture.enabled &&
+      (def.fracture.impurities.enabled || !def.fracture.impurityMaps.empty()))
+    return fail("fracture.impurities: impurities and impurity maps need fracture.enabled");
   if (def.fracture.enabled && def.fracture.fibreStrengthRatio != 1 &&
       !(def.material.fibreStiffness > 0))
     return fail("fracture.fibreStrengthRatio: ", num(def.fracture.fibreStrengthRatio),

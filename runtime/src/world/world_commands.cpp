@@ -217,6 +217,18 @@ Result<void> World::setEdgeStrengths(BodyId id, std::span<const double> strength
   return {};
 }
 
+Result<void> World::applyImpurityMap(BodyId id, const ImpurityMap& map) {
+  if (std::string e = m_impl->busy("applyImpurityMap"); !e.empty()) return fail(e);
+  BodyRecord* b = m_impl->get(id);
+  if (!b) return fail("applyImpurityMap: stale or null BodyId");
+  if (!b->fracture)
+    return fail("applyImpurityMap: the body was created without fracture (BodyDef.fracture)");
+  if (auto r = map.check(); !r) return fail("applyImpurityMap: map.", r.error().message);
+  if (auto r = b->fracture->applyImpurityMap(b->model, map); !r)
+    return fail("applyImpurityMap: map.", r.error().message);
+  return {};
+}
+
 Result<void> World::setMaterial(BodyId id, const Material& material) {
   if (std::string e = m_impl->busy("setMaterial"); !e.empty()) return fail(e);
   BodyRecord* b = m_impl->get(id);
