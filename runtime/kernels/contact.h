@@ -183,6 +183,80 @@ struct SweptContacts {
   }
 };
 
+/// The point of triangle abc nearest to p, as barycentric weights w (w[0] a + w[1] b + w[2] c)
+/// (Ericson, Real-Time Collision Detection, sec 5.1.5: Voronoi regions of vertices, edges, face).
+GF_HD Vec3 closestOnTriangle(Vec3 p, Vec3 a, Vec3 b, Vec3 c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
+  const Vec3 bp = p - b;
+  const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return {0, 1, 0};
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double t = d1 / (d1 - d3);
+    return {1 - t, t, 0};
+  }
+  const Vec3 cp = p - c;
+  const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return {0, 0, 1};
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double t = d2 / (d2 - d6);
+    return {1 - t, 0, t};
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {0, 1 - t, t};
+  }
+  const double denom = 1 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  return {1 - v - w, v, w};
+}
+
+/// Body-body and self contacts of one body for one step (contact/body_contact.h): per node a
+/// run of half-spaces, each a point and an outward unit normal that the node must stay in
+/// front of, with the one-sided penalty of a collider (energy k d^2 / 2, gradient, PSD Hessian
+/// k n n^T; k per half-space, contact/body_contact.h), so the sparse pattern needs nothing new.
+struct HalfSpaceContacts {
+  const int32_t* start = nullptr;  ///< nodeCount + 1 offsets; null: no half-space this step
+  const Vec3* point = nullptr;
+  const Vec3* normal = nullptr;
+  const double* stiffness = nullptr;  ///< per half-space [N/m]
+  /// Per half-space, friction's lagged normal force times the pair's coefficient (null: none),
+  /// and the motion over the step of the face point it slides on.
+  const double* muLambda = nullptr;
+  const Vec3* faceMotion = nullptr;
+  double slipEps = 0;  ///< nodeFriction's smoothing length (slip speed times dt)
+
+  /// Half-space k of a node at x: its depth (> 0 behind the plane).
+  GF_HD double depth(int32_t k, Vec3 x) const { return dot(point[k] - x, normal[k]); }
+  /// The penalty of node n at x over its half-spaces, added to grad and hess.
+  GF_HD double contact(int32_t n, Vec3 x, Vec3& grad, Mat3& hess) const {
+    if (!start) return 0;
+    double e = 0;
+    for (int32_t k = start[n]; k < start[n + 1]; ++k)
+      e += penaltyContact(stiffness[k], depth(k, x), normal[k], grad, hess);
+    return e;
+  }
+  /// The friction of node n sliding from xn to x over its half-spaces' faces (nodeFriction,
+  /// defined below), added to grad and hess.
+  GF_HD double friction(int32_t n, Vec3 x, Vec3 xn, Vec3& grad, Mat3& hess) const;
+  /// True when node n at x is behind any of its half-spaces.
+  GF_HD bool inside(int32_t n, Vec3 x) const {
+    if (!start) return false;
+    for (int32_t k = start[n]; k < start[n + 1]; ++k)
+      if (depth(k, x) > 0) return true;
+    return false;
+  }
+};
+
+/// Sliding speed [m/s] below which friction is smoothed (IPC's eps_v): static friction becomes a
+/// stiff viscous drag, so a body held by friction creeps at most at about this speed times
+/// tan(angle) / (2 mu), and the potential stays differentiable for Newton.
+constexpr double kFrictionSlipSpeed = 1e-3;
+
 /// Smoothed Coulomb friction of a node sliding by u (tangential, over the step) under the
 /// lagged normal force lambda: the dissipation potential mu lambda f0(|u|) with f0' = f1,
 /// f1(y) = 2 y / eps - y^2 / eps^2 below eps and 1 above (Li et al. 2020, IPC, sec 5), eps =
@@ -205,6 +279,19 @@ GF_HD double nodeFriction(double muLambda, Vec3 normal, Vec3 u, double eps, Vec3
     for (int j = 0; j < 3; ++j)
       hess(i, j) += muLambda * f1OverY * ((i == j ? 1.0 : 0.0) - normal[i] * normal[j]);
   return muLambda * f0;
+}
+
+GF_HD double HalfSpaceContacts::friction(int32_t n, Vec3 x, Vec3 xn, Vec3& grad, Mat3& hess) const {
+  if (!start || !muLambda) return 0;
+  double e = 0;
+  for (int32_t k = start[n]; k < start[n + 1]; ++k) {
+    if (!(muLambda[k] > 0)) continue;
+    // Sliding relative to the face, in the face's plane.
+    Vec3 u = x - xn - faceMotion[k];
+    u = u - dot(u, normal[k]) * normal[k];
+    e += nodeFriction(muLambda[k], normal[k], u, slipEps, grad, hess);
+  }
+  return e;
 }
 
 }  // namespace gf

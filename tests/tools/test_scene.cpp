@@ -361,6 +361,22 @@ TEST(Scene, FrictionKeysLoadAndAreChecked) {
       << rb.error().message;
 }
 
+TEST(Scene, ContactKeyLoadsAndIsChecked) {
+  const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
+      "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1}, "contact": true},
+      {"mesh": {"generator": "box", "size": [1, 1, 1], "cells": [1, 1, 1]},
+      "material": {"E": 1, "nu": 0, "rho": 1}}]})";
+  const Result<Scene> r = parseScene(text, "inline", "");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_TRUE(r.value().bodies[0].def.contact);
+  EXPECT_FALSE(r.value().bodies[1].def.contact);  // opt-in
+  const std::string bad = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
+      "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1}, "contact": 1}]})";
+  const Result<Scene> rb = parseScene(bad, "inline", "");
+  ASSERT_FALSE(rb.ok());
+  EXPECT_NE(rb.error().message.find("bodies[0].contact"), std::string::npos) << rb.error().message;
+}
+
 TEST(Scene, SolverKeysLoad) {
   const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
       "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},

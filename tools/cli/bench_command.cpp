@@ -12,10 +12,13 @@
 // numerical damping, the fracture averaging in edge lengths or metres) against the default, in
 // alternating rounds.
 // `graphfrac bench stages`: per-stage ms per frame (fracture, elements, assembly,
-// solve, surface, Bullet) of whole scenes run through the Bullet bridge, the glass bunny hit
-// by a Bullet ball and the Charpy bar by default.
-// `graphfrac bench debris`: 200 small boxes falling onto the ground against one box of the
-// same tet count, at 1 and 2 threads in one run, and the OS threads the process holds.
+// solve, contact, surface, Bullet) of whole scenes run through the Bullet bridge, the glass bunny
+// hit by a Bullet ball and the Charpy bar by default. `graphfrac bench debris`: 200 small boxes
+// falling onto the ground against one box of the same tet count, at 1 and 2 threads in one run, and
+// the OS threads the process holds. `graphfrac bench contact`: body-body contact's cost. Boxes
+// falling side by side onto the ground, never touching, with BodyDef::contact on and off in
+// alternating rounds (the ratio is what a scene without contact pairs pays); then columns of boxes
+// stacked on each other, where the contact stage's ms over its pairs is the cost per pair.
 #include <dirent.h>
 
 #include <algorithm>
@@ -476,7 +479,8 @@ int benchStages(int argc, char** argv) {
       "impulses, hand-off, Bullet steps, fragment transforms)\n");
   std::printf(
       "scene,tets,threads,frames,substeps,ms_frame,ms_fracture,ms_elements,ms_assembly,"
-      "ms_solve,ms_surface,ms_bullet,ms_other,broken_edges,fragments,in_bullet\n");
+      "ms_solve,ms_contact,ms_surface,ms_bullet,ms_other,broken_edges,fragments,in_bullet,"
+      "contact_pairs\n");
   for (const std::string& path : scenes) {
     gf::Result<scene::Scene> sc = scene::loadScene(path);
     if (!sc.ok()) {
@@ -513,6 +517,8 @@ int benchStages(int argc, char** argv) {
       sum.elementsMs += t.world.elementsMs;
       sum.assemblyMs += t.world.assemblyMs;
       sum.solveMs += t.world.solveMs;
+      sum.contactMs += t.world.contactMs;
+      sum.contactPairs += t.world.contactPairs;
       sum.surfaceMs += surfaceMs;
       bullet += t.bulletMs;
       total += t.totalMs + surfaceMs;
@@ -523,11 +529,12 @@ int benchStages(int argc, char** argv) {
       fragments += bs.world().fractureStats(bs.body(b)).fragments;
     }
     const double other = total - sum.fractureMs - sum.elementsMs - sum.assemblyMs - sum.solveMs -
-                         sum.surfaceMs - bullet;
-    std::printf("%s,%zu,%d,%d,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%d,%d,%zu\n",
+                         sum.contactMs - sum.surfaceMs - bullet;
+    std::printf("%s,%zu,%d,%d,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.3f,%.2f,%.2f,%.2f,%d,%d,%zu,%lld\n",
                 sc.value().name.c_str(), tets, threads, n, sc.value().world.substeps, total / n,
                 sum.fractureMs / n, sum.elementsMs / n, sum.assemblyMs / n, sum.solveMs / n,
-                sum.surfaceMs / n, bullet / n, other / n, broken, fragments, bs.handedOff());
+                sum.contactMs / n, sum.surfaceMs / n, bullet / n, other / n, broken, fragments,
+                bs.handedOff(), (long long)sum.contactPairs);
     std::fflush(stdout);
   }
   return kExitOk;
@@ -658,6 +665,94 @@ int benchDebris(int argc, char** argv) {
   return kExitOk;
 }
 
+// 16 bodies on the ground, 0.3 m apart on a 4 x 4 grid: boxes of 0.1 m and `cells`^3 cells
+// (stacked false: apart, never touching), or the two blocks of BodyContact.TwoBlocksComeToRest-
+// Stacked (20 cm of 4^3 cells with 15 cm of 3^3 cells dropped on it) at each place.
+std::unique_ptr<World> contactWorld(int cells, bool stacked, bool contact) {
+  Collider ground;  // the plane y = 0
+  ground.friction = 0.5;
+  auto world =
+      std::make_unique<World>(WorldDef{glm::vec3(0, -9.81f, 0), g_backend, nullptr, 1, {ground}});
+  BodyDef def;
+  def.material = Material::stableNeoHookean(stacked ? 2e5 : 1e6, 0.3, 1000);
+  def.material.stiffnessDamping = 0.02;
+  def.contact = contact;
+  for (int b = 0; b < 16 * (stacked ? 2 : 1); ++b) {
+    const int place = stacked ? b / 2 : b;
+    const bool top = stacked && b % 2 == 1;
+    def.mesh = !stacked ? gen::box(0.1, 0.1, 0.1, cells, cells, cells)
+               : top    ? gen::box(0.15, 0.15, 0.15, 3, 3, 3)
+                        : gen::box(0.2, 0.2, 0.2, 4, 4, 4);
+    for (size_t n = 0; n < def.mesh.nodeCount(); ++n) {
+      def.mesh.positions[3 * n] += 0.3 * (place % 4) + (top ? 0.025 : 0.0);
+      def.mesh.positions[3 * n + 1] += top ? 0.25 : 0.01;
+      def.mesh.positions[3 * n + 2] += 0.3 * (place / 4) + (top ? 0.025 : 0.0);
+    }
+    if (!world->createBody(def).ok()) return nullptr;
+  }
+  return world;
+}
+
+int benchContact(int argc, char** argv) {
+  int frames = 60, rounds = 5, cells = 4;
+  for (int i = 2; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--frames")) frames = std::max(1, std::atoi(argv[i + 1]));
+    if (!std::strcmp(argv[i], "--rounds")) rounds = std::max(1, std::atoi(argv[i + 1]));
+    if (!std::strcmp(argv[i], "--cells")) cells = std::max(1, std::atoi(argv[i + 1]));
+  }
+  const double dt = 1.0 / 60;
+  // No pairs: the same falling boxes with contact on and off, the best of `rounds` alternating
+  // runs each (the same fall in both, so the solver work is equal).
+  double best[2] = {1e300, 1e300}, contactMs = 0;
+  int64_t pairsApart = 0;
+  for (int r = 0; r < rounds; ++r)
+    for (int on = 1; on >= 0; --on) {
+      std::unique_ptr<World> w = contactWorld(cells, false, on != 0);
+      if (!w) return kExitScene;
+      (void)w->step(dt);  // warm-up: first-use allocations, the contact surfaces
+      double contact = 0;
+      int64_t pairs = 0;
+      const auto t0 = std::chrono::steady_clock::now();
+      for (int f = 0; f < frames; ++f) {
+        (void)w->step(dt);
+        contact += w->timings().contactMs;
+        pairs += w->timings().contactPairs;
+      }
+      const double ms = msSince(t0) / frames;
+      if (ms < best[on]) {
+        best[on] = ms;
+        if (on) {
+          contactMs = contact / frames;
+          pairsApart = pairs;
+        }
+      }
+    }
+  std::printf("# 16 boxes of %d tets falling apart onto the ground, %d frames, best of %d\n",
+              6 * cells * cells * cells, frames, rounds);
+  std::printf("case,ms_frame_contact_on,ms_frame_contact_off,ratio,ms_contact_stage,pairs\n");
+  std::printf("apart,%.3f,%.3f,%.4f,%.4f,%lld\n", best[1], best[0], best[1] / best[0], contactMs,
+              (long long)pairsApart);
+  // Pairs: 16 stacks of two blocks at rest.
+  std::unique_ptr<World> w = contactWorld(cells, true, true);
+  if (!w) return kExitScene;
+  for (int f = 0; f < 120; ++f) (void)w->step(dt);  // they land and settle
+  double contact = 0, total = 0;
+  int64_t pairs = 0;
+  for (int f = 0; f < frames; ++f) {
+    const auto t0 = std::chrono::steady_clock::now();
+    (void)w->step(dt);
+    total += msSince(t0);
+    contact += w->timings().contactMs;
+    pairs += w->timings().contactPairs;
+  }
+  std::printf("# 16 stacks of two blocks (BodyContact.TwoBlocks...) at rest, %d frames after 120\n",
+              frames);
+  std::printf("case,ms_frame,ms_contact_stage,pairs_per_frame,us_per_pair\n");
+  std::printf("stacked,%.3f,%.4f,%.1f,%.3f\n", total / frames, contact / frames,
+              double(pairs) / frames, pairs > 0 ? 1e3 * contact / double(pairs) : 0.0);
+  return kExitOk;
+}
+
 }  // namespace
 
 int runBenchCommand(int argc, char** argv) {
@@ -682,6 +777,10 @@ int runBenchCommand(int argc, char** argv) {
         "  200 boxes of 48 and of 162 tets falling onto the ground against one box of the same\n"
         "  tets, ms per frame at 1 and 2 threads, and the OS threads of the process; S is\n"
         "  default, pcg, direct or multigrid (the multigrid at every size)\n"
+        "       graphfrac bench contact [--cells N] [--frames F] [--rounds R]\n"
+        "  body-body contact: 16 boxes of N^3 cells (default 4) falling apart with contact on\n"
+        "  and off (the ratio is the cost without pairs), then 16 stacks of two blocks at rest\n"
+        "  (ms of the contact stage per pair)\n"
         "Every mode takes --backend auto|cpu|cuda (default cpu) for its worlds.");
     return argc < 2 ? kExitUsage : kExitOk;
   }
@@ -711,6 +810,7 @@ int runBenchCommand(int argc, char** argv) {
   if (!std::strcmp(argv[1], "stages")) return benchStages(argc, argv);
   if (!std::strcmp(argv[1], "options")) return benchOptions(argc, argv);
   if (!std::strcmp(argv[1], "debris")) return benchDebris(argc, argv);
+  if (!std::strcmp(argv[1], "contact")) return benchContact(argc, argv);
   std::fprintf(stderr, "graphfrac bench: unknown benchmark '%s'\n", argv[1]);
   return kExitUsage;
 }

@@ -154,6 +154,8 @@ StepStatus BulletScene::step() {
     m_timings.world.elementsMs += t.elementsMs;
     m_timings.world.assemblyMs += t.assemblyMs;
     m_timings.world.solveMs += t.solveMs;
+    m_timings.world.contactMs += t.contactMs;
+    m_timings.world.contactPairs += t.contactPairs;
     m_timings.world.totalMs += t.totalMs;
     const World& w = *m_world;
     m_fractureEvents.insert(m_fractureEvents.end(), w.fractureEvents().begin(),

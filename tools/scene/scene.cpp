@@ -981,6 +981,7 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
           "colour",
           "crack_colour",
           "friction",
+          "contact",
           "impurities",
           "impurity_maps"});
   SceneBody body;
@@ -1011,6 +1012,7 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
     body.def.initialVelocity = glm::vec3(readVec3(*iv, o.at("initial_velocity")));
   }
   if (const json* f = o.find("friction")) body.def.friction = readNumber(*f, o.at("friction"));
+  if (const json* c = o.find("contact")) body.def.contact = readBool(*c, o.at("contact"));
   if (const json* w = o.find("angular_velocity")) {
     body.angularVelocity = readVec3(*w, o.at("angular_velocity"));
   }

@@ -283,6 +283,12 @@ struct BodyDef {
   /// resting on a slope steeper than its friction allows slides; on a gentler one it creeps
   /// at under (1 mm/s) tan(angle) / (2 mu).
   double friction = 0.6;
+  /// Body-body and self contact (opt-in): the body's boundary (and, once it breaks, the
+  /// surfaces of its fragments) pushes the other bodies that take part, and its fragments push
+  /// each other, through a penalty in the implicit step (docs/design.md, "Body-body and self
+  /// contact", with its limits: stacks of more than two bodies and coincident faces are not
+  /// reliable yet). False, the default: the body meets only the colliders, at no cost.
+  bool contact = false;
   FractureSettings fracture;
   PlasticitySettings plasticity;
   /// Optional per-tet rest-space fibre directions (one per tet) overriding

@@ -69,7 +69,12 @@ struct StepTimings {
   double elementsMs = 0;    ///< Per-element energy, forces and Hessians.
   double assemblyMs = 0;    ///< Gathering element blocks into the sparse matrix.
   double solveMs = 0;       ///< Linear solves.
+  /// Body-body and self contact: surfaces, broad and narrow phase, momentum exchange (0 when no
+  /// body takes part, BodyDef::contact).
+  double contactMs = 0;
   double totalMs = 0;
+  /// Vertex-triangle contact pairs the step's substeps found (summed over substeps).
+  int64_t contactPairs = 0;
 };
 
 /// A copy of everything a step reads (positions, velocities, plastic state, damage, broken

@@ -24,6 +24,7 @@ FemModel buildFemModel(const BodyDef& def) {
   m.restPositions = mesh.positions;
   m.solver = def.solver;
   m.friction = def.friction;
+  m.contact = def.contact;
   m.restInverse.resize(m.tetCount);
   m.restVolume.resize(m.tetCount);
   for (int32_t e = 0; e < m.tetCount; ++e) {

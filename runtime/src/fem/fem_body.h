@@ -24,6 +24,7 @@ struct FemModel {
   double lengthScale = 1;             ///< rest bounding-box diagonal (round-off thresholds)
   SolverSettings solver;
   double friction = 0.6;  ///< BodyDef::friction
+  bool contact = false;   ///< BodyDef::contact
   FractureSettings fracture;
   PlasticitySettings plasticity;
   std::vector<Vec3> fibreDir;  ///< per tet, only with a fibre field (else empty)

@@ -39,10 +39,6 @@ constexpr double kEnergyRoundOff = 1e-11;
 // mean stretch of about a thousand) diverged: no material holds together there, so it is
 // rolled back like a NaN instead of handing the game an exploded body.
 constexpr double kBlowUpEnergyDensity = 1e6;
-// Sliding speed below which friction is smoothed (IPC's eps_v): static friction becomes a
-// stiff viscous drag, so a body held by friction creeps at most at about this speed times
-// tan(angle) / (2 mu), and the potential stays differentiable for Newton.
-constexpr double kFrictionSlipSpeed = 1e-3;
 
 Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i + 2]}; }
 
@@ -215,6 +211,7 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
   nodes.colliders = ctx.colliders;
   nodes.colliderCount = ctx.colliderCount;
   nodes.swept = m_swept;
+  nodes.bodies = ctx.bodyContacts;
   nodes.dt = dt;
   nodes.massDamping = r1;
   nodes.lengthScale = model.lengthScale;
@@ -275,8 +272,9 @@ double Integrator::dampingTerm(const FemState& state, const double* xn, const do
 
 bool Integrator::enteredUnseenContact(const FemModel& model, const FemState& state,
                                       const StepContext& ctx) const {
-  const UnseenContactTerm unseen{m_x.data(),    m_contactSeen.data(), state.fixedNode.data(),
-                                 ctx.colliders, ctx.colliderCount,    m_swept};
+  const UnseenContactTerm unseen{m_x.data(),      m_contactSeen.data(), state.fixedNode.data(),
+                                 ctx.colliders,   ctx.colliderCount,    m_swept,
+                                 ctx.bodyContacts};
   return chunkedReduce<MaxOp>(unseen, model.nodeCount) > 0;
 }
 
@@ -420,6 +418,14 @@ Vec3 Integrator::externalImpulse(const FemState& state, const StepContext& ctx, 
       if (m_swept.contact(ctx.colliders[c], c, n, xl, m, g, h) != 0)
         impulse -= ctx.dt * (g + h * (x - xl));
     }
+  }
+  if (ctx.bodyContacts.start) {
+    Vec3 g;
+    Mat3 h;
+    const Vec3 xl = load3(m_xLin.data(), n);
+    const HalfSpaceContacts& hs = ctx.bodyContacts;
+    if (hs.contact(n, xl, g, h) + hs.friction(n, xl, load3(m_xStart.data(), n), g, h) != 0)
+      impulse -= ctx.dt * (g + h * (x - xl));
   }
   if (!m_frictionOfNode.empty() && m_frictionOfNode[size_t(n)] >= 0)
     for (size_t k = size_t(m_frictionOfNode[size_t(n)]);
@@ -614,6 +620,56 @@ EnergyBreakdown Integrator::energies(const FemModel& model, const FemState& stat
   return out;
 }
 
+BodyContactBalance Integrator::bodyContactImpulses(const FemState& state, const StepContext& ctx,
+                                                   bool rolledBack, double* out) const {
+  const HalfSpaceContacts& hs = ctx.bodyContacts;
+  if (!hs.start) return {};
+  const int32_t nodeCount = int32_t(state.nodeMass.size());
+  std::fill_n(out, 3 * size_t(hs.start[nodeCount]), 0.0);
+  if (rolledBack) return {};
+  // As for the colliders: the force that entered the momentum balance is the penalty
+  // linearised at the last Newton step's start, g + H (x - x_lin), one half-space at a time.
+  Vec3 linearised{0, 0, 0};
+  for (int32_t n = 0; n < nodeCount; ++n) {
+    if (state.fixedNode[n] || hs.start[n] == hs.start[n + 1]) continue;
+    const Vec3 x = load3(state.x.data(), n), xl = load3(m_xLin.data(), n);
+    for (int32_t c = hs.start[n]; c < hs.start[n + 1]; ++c) {
+      Vec3 g;
+      Mat3 h;
+      double e = penaltyContact(hs.stiffness[c], hs.depth(c, xl), hs.normal[c], g, h);
+      if (hs.muLambda && hs.muLambda[c] > 0) {
+        Vec3 u = xl - load3(m_xStart.data(), n) - hs.faceMotion[c];
+        u = u - dot(u, hs.normal[c]) * hs.normal[c];
+        e += nodeFriction(hs.muLambda[c], hs.normal[c], u, hs.slipEps, g, h);
+      }
+      if (e == 0) continue;
+      const Vec3 j = -ctx.dt * (g + h * (x - xl));
+      linearised += j;
+      for (int i = 0; i < 3; ++i) out[3 * size_t(c) + i] = j[i];
+    }
+  }
+  // The linear model is what moved the body only when Newton's last step was taken whole and
+  // solved exactly; otherwise its residual moved it too. What the body's momentum did that
+  // gravity, point forces and mass damping do not explain is the contact's (eq 2.7:
+  // m (v' - v) = dt f - r1 m (x' - x_n) + ... at a zero residual). A body on a grip or a
+  // collider also takes momentum from outside, which cannot be told apart from the residual.
+  BodyContactBalance out3;
+  Vec3 change{0, 0, 0};
+  const double r1 = state.material.massDamping;
+  for (int32_t n = 0; n < nodeCount; ++n) {
+    if (state.fixedNode[n]) out3.external = true;
+    const double m = state.nodeMass[n];
+    const Vec3 x = load3(state.x.data(), n), x0 = load3(m_xStart.data(), n);
+    change += m * (load3(state.v.data(), n) - load3(m_vStart.data(), n));
+    change -= ctx.dt * (load3(state.externalForce.data(), n) + m * ctx.gravity);
+    change += (r1 * m) * (x - x0);
+  }
+  if (ctx.colliderImpulse)
+    for (int k = 0; k < 6 * ctx.colliderCount; ++k) out3.external |= ctx.colliderImpulse[k] != 0;
+  if (!out3.external) out3.unexplained = change - linearised;
+  return out3;
+}
+
 void Integrator::prescribedNodeForces(const FemModel& model, const FemState& state,
                                       const StepContext& ctx, JobSystem& jobs,
                                       std::vector<double>& out) {
@@ -786,7 +842,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       }
       rep.elementsMs += msSince(t0);
     }
-    if (ctx.colliderCount > 0) m_xLin = m_x;
+    if (ctx.colliderCount > 0 || ctx.bodyContacts.start) m_xLin = m_x;
     exec.run(n3i, kNodeGrain, AxpyStage{m_x.data(), m_dx.data(), alpha, m_x.data()});
     const double relStep = firstStepNorm > 0 ? alpha * stepNorm / firstStepNorm : 0.0;
     if (fullNewton || swept) {
@@ -871,6 +927,8 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   if (theta < 1 && ctx.colliderCount > 0 &&
       nearCollider(model, state, state.x.data(), state.v.data(), ctx.dt, ctx))
     theta = 1;
+  // Body contact likewise, and its momentum exchange reads the backward-Euler impulses.
+  if (ctx.bodyContacts.start) theta = 1;
 
   // Moving grips shift the start point away from x_n, so fracture is judged on x_n first.
   if (m_fracture && state.movingGrips) {

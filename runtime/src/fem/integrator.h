@@ -47,6 +47,8 @@ struct StepContext {
   /// nodes (dt times the contact force of the last Newton step's linearisation at the accepted
   /// positions), then that impulse's moment about the collider's point.
   double* colliderImpulse = nullptr;
+  /// This body's half-spaces of body-body and self contact (World: contact/body_contact.h).
+  HalfSpaceContacts bodyContacts;
 };
 
 /// What a body step reports.
@@ -57,6 +59,12 @@ struct BodyStepReport {
   double residual = 0;
   double elementsMs = 0, assemblyMs = 0, solveMs = 0, fractureMs = 0;
   std::string message;  // why the state was rolled back (kStepNanContained), else empty
+};
+
+/// Integrator::bodyContactImpulses' account of a body's momentum.
+struct BodyContactBalance {
+  Vec3 unexplained;       ///< momentum change beyond the half-spaces' and the external impulses
+  bool external = false;  ///< a grip or a collider also acted (unexplained is then zero)
 };
 
 /// Energies of a configuration (for diagnostics).
@@ -102,6 +110,15 @@ class Integrator {
   /// Elastic and contact energy at positions x. Touches no scratch buffer of the step.
   EnergyBreakdown energies(const FemModel& model, const FemState& state, const double* x,
                            const StepContext& ctx, JobSystem& jobs) const;
+  /// The impulse [N s] each half-space of ctx.bodyContacts gave its node over the last step, as
+  /// the last Newton step linearised it (what entered the momentum balance), 3 per half-space
+  /// into `out`; zero for prescribed nodes and after a rolled-back step. Returns what the
+  /// body's momentum change has beyond those and gravity, point forces and mass damping (the
+  /// linear model's residual, where the line search shortened the step or the solve stopped
+  /// early), or that the body also took momentum from a grip or a collider. Valid while
+  /// `state` is the one the last step() produced with this ctx.
+  BodyContactBalance bodyContactImpulses(const FemState& state, const StepContext& ctx,
+                                         bool rolledBack, double* out) const;
   /// The force [N] each prescribed node (grip or detached fragment) needs to stay on its path
   /// at the end of the last step: the gradient of that step's incremental potential at
   /// state.x over dt^2 (zero for free nodes, whose gradient the step drove to zero), 3 per node

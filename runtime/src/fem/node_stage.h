@@ -30,6 +30,7 @@ struct NodePotentialStage {
   const ColliderData* colliders = nullptr;
   int colliderCount = 0;
   SweptContacts swept;
+  HalfSpaceContacts bodies;  ///< body-body and self contact
   double dt = 0, massDamping = 0, lengthScale = 1;
   int32_t nodeCount = 0;
   double* terms = nullptr;  ///< kNodeTerms * nodeCount
@@ -51,6 +52,7 @@ struct NodePotentialStage {
     double contact = 0;
     for (int c = 0; c < colliderCount; ++c)
       contact += swept.contact(colliders[c], c, n, xi, m, cg, ch);
+    contact += bodies.contact(n, xi, cg, ch) + bodies.friction(n, xi, xni, cg, ch);
     const Vec3 dy = xi - yi, dn = xi - xni;
     const double inertia = 0.5 * m * dot(dy, dy) + 0.5 * dt * r1 * m * dot(dn, dn);
     const double work = dt2 * dot(fext, xi);
@@ -116,10 +118,12 @@ struct UnseenContactTerm {
   const ColliderData* colliders = nullptr;
   int colliderCount = 0;
   SweptContacts swept;
+  HalfSpaceContacts bodies;
 
   GF_HD double operator()(int32_t n) const {
     if (contactSeen[n] || fixedNode[n]) return 0.0;
     const Vec3 xi{x[3 * int64_t(n)], x[3 * int64_t(n) + 1], x[3 * int64_t(n) + 2]};
+    if (bodies.inside(n, xi)) return 1.0;
     for (int c = 0; c < colliderCount; ++c) {
       Vec3 normal;
       if (swept.depth(colliders[c], c, n, xi, normal) > 0) return 1.0;

@@ -6,6 +6,8 @@
 #include <limits>
 #include <string>
 
+#include "mesh/mesh_internal.h"
+
 namespace gf::detail {
 
 // Counting sort of tets into cells (CSR) keeps each cell's tets in id order, so the build
@@ -189,31 +191,17 @@ Result<FractureModel> FractureModel::build(const RestMeshView& rest, const EdgeG
 }
 
 void FractureModel::buildFaceAdjacency(const RestMeshView& rest) {
-  // Every face as its sorted node triple plus the slot 4 t + f (face opposite node f); after
-  // sorting, the two slots of an interior face are neighbours.
-  struct FaceRef {
-    std::array<int32_t, 3> key;
-    int32_t slot;
-  };
-  std::vector<FaceRef> faces;
-  faces.reserve(4 * size_t(rest.tetCount));
-  for (int32_t t = 0; t < rest.tetCount; ++t)
-    for (int f = 0; f < 4; ++f) {
-      std::array<int32_t, 3> k;
-      int n = 0;
-      for (int v = 0; v < 4; ++v)
-        if (v != f) k[n++] = rest.tets[4 * size_t(t) + v];
-      std::sort(k.begin(), k.end());
-      faces.push_back({k, 4 * t + f});
-    }
-  std::sort(faces.begin(), faces.end(), [](const FaceRef& a, const FaceRef& b) {
-    return a.key != b.key ? a.key < b.key : a.slot < b.slot;
-  });
+  // After sorting, the two records of an interior face are neighbours; record (tet, f) is the
+  // face opposite node f, slot 4 tet + f.
+  const std::vector<FaceRecord> faces = sortedFaces(rest.tets, size_t(rest.tetCount));
   faceNeighbours.assign(4 * size_t(rest.tetCount), -1);
+  auto same = [](const FaceRecord& a, const FaceRecord& b) {
+    return a.key[0] == b.key[0] && a.key[1] == b.key[1] && a.key[2] == b.key[2];
+  };
   for (size_t i = 0; i + 1 < faces.size(); ++i)
-    if (faces[i].key == faces[i + 1].key) {
-      faceNeighbours[size_t(faces[i].slot)] = faces[i + 1].slot / 4;
-      faceNeighbours[size_t(faces[i + 1].slot)] = faces[i].slot / 4;
+    if (same(faces[i], faces[i + 1])) {
+      faceNeighbours[4 * size_t(faces[i].tet) + size_t(faces[i].local)] = faces[i + 1].tet;
+      faceNeighbours[4 * size_t(faces[i + 1].tet) + size_t(faces[i + 1].local)] = faces[i].tet;
       ++i;
     }
 }

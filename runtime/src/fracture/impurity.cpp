@@ -11,7 +11,9 @@
 #include <queue>
 #include <string>
 
+#include "kernels/contact.h"
 #include "kernels/impurity.h"
+#include "mesh/mesh_internal.h"
 
 namespace gf::detail {
 
@@ -28,50 +30,6 @@ double pointSegmentDistance(const V3& p, const V3& a, const V3& b) {
   const double l2 = glm::dot(ab, ab);
   const double t = l2 > 0 ? std::clamp(glm::dot(p - a, ab) / l2, 0.0, 1.0) : 0.0;
   return glm::length(p - (a + t * ab));
-}
-
-// Ericson, Real-Time Collision Detection, sec 5.1.5: closest point of triangle abc to p.
-V3 closestOnTriangle(const V3& p, const V3& a, const V3& b, const V3& c) {
-  const V3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
-  if (d1 <= 0 && d2 <= 0) return a;
-  const V3 bp = p - b;
-  const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
-  if (d3 >= 0 && d4 <= d3) return b;
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
-  const V3 cp = p - c;
-  const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
-  if (d6 >= 0 && d5 <= d6) return c;
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
-    return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
-  const double denom = 1.0 / (va + vb + vc);
-  return a + ab * (vb * denom) + ac * (vc * denom);
-}
-
-// Faces of exactly one tet (3 node indices each); orientation does not matter here.
-std::vector<int32_t> boundaryFaces(const ImpurityRest& r) {
-  static constexpr int kFace[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
-  std::vector<std::array<int32_t, 3>> faces;
-  faces.reserve(4 * size_t(r.tetCount));
-  for (int32_t t = 0; t < r.tetCount; ++t)
-    for (const auto& f : kFace) {
-      std::array<int32_t, 3> k{r.tets[4 * t + f[0]], r.tets[4 * t + f[1]], r.tets[4 * t + f[2]]};
-      std::sort(k.begin(), k.end());
-      faces.push_back(k);
-    }
-  std::sort(faces.begin(), faces.end());
-  std::vector<int32_t> out;
-  for (size_t i = 0; i < faces.size();) {
-    size_t j = i;
-    while (j < faces.size() && faces[j] == faces[i]) ++j;
-    if (j - i == 1) out.insert(out.end(), faces[i].begin(), faces[i].end());
-    i = j;
-  }
-  return out;
 }
 
 // Depth under the surface of every node: Dijkstra over the edge graph from the boundary nodes
@@ -119,15 +77,16 @@ bool segmentsCross(const glm::dvec2& a, const glm::dvec2& b, const glm::dvec2& c
 
 Result<std::vector<int32_t>> polylineEdges(const EdgeGraph& g, const ImpurityRest& r,
                                            const ImpurityMap& map) {
-  const std::vector<int32_t> faces = boundaryFaces(r);
+  const std::vector<int32_t> faces = boundaryFaces(r.tets, size_t(r.tetCount));
   const double tol = 0.5 * r.meanEdgeLength;
   for (size_t i = 0; i < map.points.size(); ++i) {
     const V3 p = map.points[i];
     double best = std::numeric_limits<double>::infinity();
     for (size_t f = 0; f < faces.size(); f += 3) {
-      const V3 c =
-          closestOnTriangle(p, node(r, faces[f]), node(r, faces[f + 1]), node(r, faces[f + 2]));
-      best = std::min(best, glm::length(p - c));
+      const V3 a = node(r, faces[f]), b = node(r, faces[f + 1]), c = node(r, faces[f + 2]);
+      const Vec3 w = closestOnTriangle(Vec3{p.x, p.y, p.z}, Vec3{a.x, a.y, a.z},
+                                       Vec3{b.x, b.y, b.z}, Vec3{c.x, c.y, c.z});
+      best = std::min(best, glm::length(p - (w.x * a + w.y * b + w.z * c)));
     }
     if (!(best <= tol))
       return fail("points[", std::to_string(i), "]: ", std::to_string(best),

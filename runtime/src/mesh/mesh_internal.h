@@ -86,9 +86,16 @@ struct FaceRecord {
   int32_t local;  ///< 0..3, index into kTetFaces.
 };
 
-/// All 4 * tetCount faces sorted by key, so that faces shared by tets are adjacent. Indices
-/// must be in range.
-std::vector<FaceRecord> sortedFaces(const TetMesh& mesh);
+/// All 4 * tetCount faces sorted by key (ties by tet), so that faces shared by tets are
+/// adjacent. Indices must be in range.
+std::vector<FaceRecord> sortedFaces(const int32_t* tets, size_t tetCount);
+inline std::vector<FaceRecord> sortedFaces(const TetMesh& mesh) {
+  return sortedFaces(mesh.tets.data(), mesh.tetCount());
+}
+
+/// Faces of exactly one tet (3 node indices each), oriented as kTetFaces gives them: outward
+/// for positively oriented tets. Indices must be in range.
+std::vector<int32_t> boundaryFaces(const int32_t* tets, size_t tetCount);
 
 /// Lower-case extension with the dot (".msh"), or "" when there is none.
 std::string lowerExtension(const std::string& path);

@@ -25,11 +25,11 @@ double tetSixVolume(const double* p, const int32_t* t) {
          e1[2] * (e2[0] * e3[1] - e2[1] * e3[0]);
 }
 
-std::vector<FaceRecord> sortedFaces(const TetMesh& mesh) {
-  const size_t nt = mesh.tetCount();
+std::vector<FaceRecord> sortedFaces(const int32_t* tets, size_t tetCount) {
+  const size_t nt = tetCount;
   std::vector<FaceRecord> faces(4 * nt);
   for (size_t e = 0; e < nt; ++e) {
-    const int32_t* t = &mesh.tets[4 * e];
+    const int32_t* t = &tets[4 * e];
     for (int f = 0; f < 4; ++f) {
       FaceRecord& r = faces[4 * e + static_cast<size_t>(f)];
       r.key[0] = t[kTetFaces[f][0]];
@@ -48,6 +48,21 @@ std::vector<FaceRecord> sortedFaces(const TetMesh& mesh) {
     return x.tet < y.tet;
   });
   return faces;
+}
+
+std::vector<int32_t> boundaryFaces(const int32_t* tets, size_t tetCount) {
+  std::vector<int32_t> out;
+  const std::vector<FaceRecord> faces = sortedFaces(tets, tetCount);
+  for (size_t i = 0; i < faces.size();) {
+    size_t j = i + 1;
+    while (j < faces.size() && std::equal(faces[j].key, faces[j].key + 3, faces[i].key)) ++j;
+    if (j - i == 1) {
+      const int32_t* t = &tets[4 * static_cast<size_t>(faces[i].tet)];
+      for (int k = 0; k < 3; ++k) out.push_back(t[kTetFaces[faces[i].local][k]]);
+    }
+    i = j;
+  }
+  return out;
 }
 
 Result<TetMesh> finishRawMesh(RawMesh&& raw, MeshLoadInfo* info) {
@@ -138,17 +153,7 @@ std::vector<int32_t> TetMesh::boundaryFaces() const {
   for (int32_t t : tets) {
     if (t < 0 || t >= n) return out;  // unvalidated garbage: no boundary rather than a crash
   }
-  const std::vector<detail::FaceRecord> faces = detail::sortedFaces(*this);
-  for (size_t i = 0; i < faces.size();) {
-    size_t j = i + 1;
-    while (j < faces.size() && std::equal(faces[j].key, faces[j].key + 3, faces[i].key)) ++j;
-    if (j - i == 1) {
-      const int32_t* t = &tets[4 * static_cast<size_t>(faces[i].tet)];
-      for (int k = 0; k < 3; ++k) out.push_back(t[detail::kTetFaces[faces[i].local][k]]);
-    }
-    i = j;
-  }
-  return out;
+  return detail::boundaryFaces(tets.data(), tetCount());
 }
 
 namespace {

@@ -139,13 +139,55 @@ void World::Impl::stepBody(size_t si, const detail::StepContext& ctx, JobSystem&
   detail::StepContext own = ctx;
   own.colliderImpulse = colliders.empty() ? nullptr : &bodyImpulse[6 * colliders.size() * si];
   if (own.colliderImpulse) std::fill_n(own.colliderImpulse, 6 * colliders.size(), 0.0);
+  own.bodyContacts = bodyContact.halfSpaces(si);
   r = b->integrator->step(b->model, b->state, own, js);
+  if (own.bodyContacts.start)
+    bodyContact.setBalance(
+        si, b->integrator->bodyContactImpulses(b->state, own, (r.flags & kStepNanContained) != 0,
+                                               bodyContact.impulseBuffer(si)));
   // A rolled-back body is where it was before the substep: nothing flowed.
   if (b->model.plasticity.enabled && !(r.flags & kStepNanContained)) {
     const auto tp = detail::Clock::now();
     plasticUpdate(*b, own.dt, js);
     plasticityMs[si] = detail::msSince(tp);
   }
+}
+
+int64_t World::Impl::findContacts(double h) {
+  contactViews.assign(slots.size(), {});
+  contactStates.assign(slots.size(), nullptr);
+  for (size_t si = 0; si < slots.size(); ++si) {
+    BodyRecord* b = slots[si].body.get();
+    if (!b || b->allRigid || !b->model.contact) continue;
+    if (!b->contactSurface) {
+      b->contactSurface = std::make_unique<detail::ContactSurface>();
+      b->contactSurface->init(b->model);
+    }
+    detail::ContactBodyView& view = contactViews[si];
+    const uint8_t* excluded = nullptr;
+    uint64_t key = 0;
+    if (b->fracture) {
+      const detail::Fragments& f = b->fracture->fragments();
+      view.nodeFragment = f.nodeFragment();
+      view.fragmentCount = f.count();
+      // Fragments handed to rigid physics meet the other bodies as Bullet's, not as ours.
+      if (!b->rigid.empty()) {
+        b->contactExcluded.assign(size_t(f.count()), 0);
+        for (const auto& r : b->rigid) b->contactExcluded[size_t(r.first)] = 1;
+        excluded = b->contactExcluded.data();
+        view.excluded = excluded;
+      }
+      key = (f.version() << 20) ^ uint64_t(b->rigid.size());
+    }
+    b->contactSurface->update(
+        b->model, view.nodeFragment.empty() ? nullptr : view.nodeFragment.data(), excluded, key);
+    view.model = &b->model;
+    view.state = &b->state;
+    view.surface = b->contactSurface.get();
+    contactStates[si] = &b->state;
+  }
+  return bodyContact.find(contactViews, h, detail::kAutoContactStiffnessDt2 / (h * h),
+                          kFrictionSlipSpeed * h);
 }
 
 World::World(const WorldDef& def) : m_impl(std::make_unique<Impl>()) {
@@ -279,10 +321,18 @@ StepStatus World::step(double dt) {
     // have loops too short to split, so they run side by side, one body per item, each serial
     // inside. Both give the bits of a serial run (jobs.h), so the state is the same for any
     // thread count.
+    // Body contact is a half-space per node that each body's step sees as fixed, so the
+    // bodies still step apart; the exchange after evens out their impulses.
+    auto tc = detail::Clock::now();
+    w.timings.contactPairs += w.findContacts(h);
+    w.timings.contactMs += detail::msSince(tc);
     for (uint32_t si : w.single) w.stepBody(si, ctx, *w.jobs);
     detail::forRanges(*w.jobs, uint32_t(w.batched.size()), 1, [&](uint32_t lo, uint32_t hi) {
       for (uint32_t k = lo; k < hi; ++k) w.stepBody(w.batched[k], ctx, serialJobs());
     });
+    tc = detail::Clock::now();
+    w.bodyContact.exchange(w.contactViews, w.contactStates);
+    w.timings.contactMs += detail::msSince(tc);
     // Events, flags and sums in slot order, whichever thread stepped the body.
     for (size_t si = 0; si < w.slots.size(); ++si) {
       BodyRecord* b = w.slots[si].body.get();

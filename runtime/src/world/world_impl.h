@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "contact/body_contact.h"
 #include "fem/fem_body.h"
 #include "fem/integrator.h"
 #include "fracture/fracture_body.h"
@@ -64,6 +65,10 @@ struct BodyRecord {
   // Every node is in a detached fragment: the body only moves rigidly, so a step just advances
   // the nodes by their prescribed velocities (what the integrator would do, without its cost).
   bool allRigid = false;
+  // Body-body and self contact (BodyDef::contact): the surface, made at the first step that
+  // uses it, and its scratch of excluded (detached) fragments.
+  std::unique_ptr<detail::ContactSurface> contactSurface;
+  std::vector<uint8_t> contactExcluded;
 };
 
 /// Kernel form of a collider; the stiffness is filled in per step (World::Impl::context).
@@ -98,6 +103,11 @@ struct World::Impl {
   std::vector<detail::BodyStepReport> reports;
   std::vector<double> plasticityMs;
   std::vector<uint32_t> batched, single;  // slots of the substep's small and large bodies
+  // Body-body and self contact of the substep: its pairs and half-spaces, the bodies as it
+  // sees them (one per slot; null model: not taking part) and their states.
+  detail::BodyContact bodyContact;
+  std::vector<detail::ContactBodyView> contactViews;
+  std::vector<detail::FemState*> contactStates;
   std::vector<glm::dvec3> impulses, angularImpulses;  // of the last step
   StepTimings timings;
   std::vector<FractureEvent> fractureEvents;
@@ -127,6 +137,10 @@ struct World::Impl {
   // One substep of the body in slot si with `js` for its loops: its report into reports[si],
   // its collider impulses into its share of bodyImpulse.
   void stepBody(size_t si, const detail::StepContext& ctx, JobSystem& js);
+
+  // The substep's contact pairs (BodyContact::find) among the bodies that take part; returns
+  // their count.
+  int64_t findContacts(double h);
 
   // Keeps a requested render surface in step with the body: topology only after fractures.
   void updateSurface(BodyRecord& b) {

@@ -102,6 +102,7 @@ Result<void> World::restore(const WorldSnapshot& snapshot) {
     // Cannot fail: the same set-up succeeded when the body was created.
     if (Result<void> r = b.integrator->restoreSolver(b.model, b.state, s.rebindHistory); !r)
       return fail("restore: body ", std::to_string(s.slot + 1), ": ", r.error().message);
+    b.contactSurface.reset();  // made again from the restored fragments
     if (b.surface) {
       b.surface->brokenCount = ~uint64_t(0);  // force a full rebuild
       w.updateSurface(b);
