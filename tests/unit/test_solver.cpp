@@ -17,7 +17,7 @@
 #include "solver/block_sparse.h"
 #include "solver/cholesky.h"
 #include "solver/pcg.h"
-#include "solver/vector_ops.h"
+#include "step/executor.h"
 
 namespace {
 
@@ -249,8 +249,8 @@ TEST(BlockSparse, IdenticalBitsForOneAndFourThreads) {
   // Dot over many chunks: same bits, and equal to a long-double reference to rounding.
   const std::vector<double> a = randomVector(1000003, 1), b = randomVector(1000003, 2);
   std::vector<double> p1, p4;
-  const double d1 = gf::detail::dot(a.data(), b.data(), a.size(), p1, one);
-  const double d4 = gf::detail::dot(a.data(), b.data(), a.size(), p4, four);
+  const double d1 = gf::detail::CpuExecutor(one, &p1).dot(a.data(), b.data(), int32_t(a.size()));
+  const double d4 = gf::detail::CpuExecutor(four, &p4).dot(a.data(), b.data(), int32_t(a.size()));
   EXPECT_EQ(std::memcmp(&d1, &d4, 8), 0);
   long double ref = 0;
   for (size_t i = 0; i < a.size(); ++i) ref += static_cast<long double>(a[i]) * b[i];

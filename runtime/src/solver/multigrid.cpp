@@ -50,6 +50,9 @@ constexpr double kLambdaMargin = 1.1;
 constexpr double kChebyshevLow = 0.1;
 
 // A level's block-CSR matrix, block size B.
+// Entries per parallel range of an element-wise vector pass.
+constexpr uint32_t kEntryGrain = 2048;
+
 // Rows per parallel range for a level of block size B: a few thousand flops each.
 template <int B>
 constexpr uint32_t rowGrain() {
@@ -277,7 +280,8 @@ struct MultigridSolver::Impl {
                   for (uint32_t row = begin; row < end; ++row)
                     rowProduct<B>(m, static_cast<int32_t>(row), v, w + B * row);
                 });
-      const double vav = dot(v, w, len, partials, jobs);
+      const CpuExecutor exec(jobs, &partials);
+      const double vav = exec.dot(v, w, int32_t(len));
       double* t = lv.t.data();
       forRanges(jobs, static_cast<uint32_t>(lv.n), rowGrain<B>(),
                 [&](uint32_t begin, uint32_t end) {
@@ -285,7 +289,7 @@ struct MultigridSolver::Impl {
                     blockApply<B>(m.values + static_cast<size_t>(B * B) * lv.diagIndex[row],
                                   v + B * row, t + B * row);
                 });
-      const double vdv = dot(v, t, len, partials, jobs);
+      const double vdv = exec.dot(v, t, int32_t(len));
       if (!(vdv > 0) || !std::isfinite(vav)) break;
       lambda = vav / vdv;
       // v = D^-1 A v, normalised.
@@ -295,12 +299,9 @@ struct MultigridSolver::Impl {
                     blockApply<B>(lv.invDiag.data() + static_cast<size_t>(B * B) * row, w + B * row,
                                   v + B * row);
                 });
-      const double nv = norm2(v, len, partials, jobs);
+      const double nv = std::sqrt(exec.dot(v, v, int32_t(len)));
       if (!(nv > 0) || !std::isfinite(nv)) break;
-      const double inv = 1 / nv;
-      chunkedFor(len, jobs, [&](size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i) v[i] *= inv;
-      });
+      exec.run(int32_t(len), kEntryGrain, ScaleStage{1 / nv, v});
     }
     lv.lambdaMax = lambda > 0 && std::isfinite(lambda) ? kLambdaMargin * lambda : 2.0;
   }
@@ -401,14 +402,14 @@ struct MultigridSolver::Impl {
         Eigen::Map<Eigen::VectorXd> xm(x, static_cast<Eigen::Index>(len));
         const SerialOpenMpScope serial;
         xm = coarseLlt.solve(bm);
-        if (!allFinite(x, len)) fill(0.0, x, len, jobs);
+        if (!allFinite(x, len)) CpuExecutor(jobs).run(int32_t(len), kEntryGrain, FillStage{0.0, x});
       } else {
-        fill(0.0, x, len, jobs);
+        CpuExecutor(jobs).run(int32_t(len), kEntryGrain, FillStage{0.0, x});
       }
       stats.coarseSolveMs += msSince(t0);
       return;
     }
-    fill(0.0, x, len, jobs);
+    CpuExecutor(jobs).run(int32_t(len), kEntryGrain, FillStage{0.0, x});
     if (L == 0) {
       auto t0 = Clock::now();
       smooth<B>(l, A, b, x, settings.preSweeps, true, jobs);
@@ -495,7 +496,8 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
   s.cycleResiduals.clear();
   const size_t n3 = 3 * static_cast<size_t>(std::max(A.n, 0));
   if (s.fineBlocks != A.blockCount() || s.levels.empty() || s.levels[0].n != A.n) {
-    fill(0.0, x, n3, jobs);  // not set up for this pattern
+    CpuExecutor(jobs).run(int32_t(n3), kEntryGrain,
+                          FillStage{0.0, x});  // not set up for this pattern
     return report;
   }
   if (s.r.size() < n3) {
@@ -554,12 +556,13 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
     const double bb = exec.dot(b, b, int32_t(n3));
     if (!std::isfinite(bb)) return report;
     if (bb == 0) {
-      fill(0.0, x, n3, jobs);
+      exec.run(int32_t(n3), kEntryGrain, FillStage{0.0, x});
       report.converged = true;
       report.relativeResidual = 0;
       return report;
     }
-    if (exec.reduce<MaxOp>(int32_t(n3), NonFiniteTerm{x}) > 0) fill(0.0, x, n3, jobs);
+    if (exec.reduce<MaxOp>(int32_t(n3), NonFiniteTerm{x}) > 0)
+      exec.run(int32_t(n3), kEntryGrain, FillStage{0.0, x});
     const double bnorm = std::sqrt(bb);
     const double tol2 = relativeTolerance * relativeTolerance * bb;
     double rr = trueResidual();
@@ -572,11 +575,11 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
       s.cycle<3>(0, A, r, z, jobs);  // error equation A e = r
       ++it;
       ++st.cycles;
-      axpy(1.0, z, x, n3, jobs);
+      exec.run(int32_t(n3), kEntryGrain, AxpyStage{x, z, 1.0, x});
       rr = trueResidual();
       s.cycleResiduals.push_back(std::sqrt(rr) / bnorm);
       if (!std::isfinite(rr)) {
-        axpy(-1.0, z, x, n3, jobs);  // back to the last finite iterate
+        exec.run(int32_t(n3), kEntryGrain, AxpyStage{x, z, -1.0, x});  // the last finite iterate
         rr = trueResidual();
         break;
       }
@@ -590,7 +593,7 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
   if (const double bb = exec.dot(b, b, int32_t(n3));
       !std::isfinite(report.relativeResidual) && std::isfinite(bb) && bb > 0) {
     // Nothing finite came out: the zero vector, whose residual is |b| (relative 1).
-    fill(0.0, x, n3, jobs);
+    exec.run(int32_t(n3), kEntryGrain, FillStage{0.0, x});
     report.converged = false;
     report.relativeResidual = 1;
   }

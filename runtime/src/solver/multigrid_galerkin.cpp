@@ -156,8 +156,9 @@ void MultigridHierarchy::smoothProlongation(int l, const BlockSparseMatrix& A, J
         }
       }
     });
-    const double vav = dot(v, w, len, m_partials, jobs);
-    const double vdv = dot(v, t, len, m_partials, jobs);
+    const CpuExecutor exec(jobs, &m_partials);
+    const double vav = exec.dot(v, w, int32_t(len));
+    const double vdv = exec.dot(v, t, int32_t(len));
     if (!(vdv > 0) || !std::isfinite(vav)) break;
     lambda = vav / vdv;
     forRanges(jobs, static_cast<uint32_t>(rows), kHandleGrain, [&](uint32_t begin, uint32_t end) {
@@ -167,7 +168,7 @@ void MultigridHierarchy::smoothProlongation(int l, const BlockSparseMatrix& A, J
         mulAdd<B, 1>(inv + BB * static_cast<size_t>(r), w + B * static_cast<size_t>(r), vr);
       }
     });
-    const double nv = norm2(v, len, m_partials, jobs);
+    const double nv = std::sqrt(exec.dot(v, v, int32_t(len)));
     if (!(nv > 0) || !std::isfinite(nv)) break;
     const double s = 1 / nv;
     for (size_t i = 0; i < len; ++i) v[i] *= s;

@@ -26,6 +26,14 @@ struct CopyStage {
   GF_HD void operator()(int32_t i) const { out[i] = a[i]; }
 };
 
+/// x[i] *= s.
+struct ScaleStage {
+  double s = 1;
+  double* x = nullptr;
+
+  GF_HD void operator()(int32_t i) const { x[i] *= s; }
+};
+
 /// out[i] = value.
 struct FillStage {
   double value = 0;
