@@ -1,8 +1,9 @@
 // `graphfrac report error-vs-time` end to end on a small hanging beam: the reference must be
 // the converged implicit step (the direct solver with one Newton step differs from it by the
 // linearisation error, which shrinks with dt), solvers run to a tight tolerance must agree
-// with the direct solver, a starved PCG must not (and must be flagged), and the volume gain of a
-// hanging beam must stay a fraction of a percent.
+// with the direct solver, a starved PCG must not (and must be flagged), the volume gain of a
+// hanging beam must stay a fraction of a percent, and every setting rerun on 2 threads must
+// give the same bits.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -67,9 +68,10 @@ TEST(Report, ErrorVsTimeRanksSolversAgainstTheConvergedStep) {
       "material": {"model": "stable_neo_hookean", "E": 2e5, "nu": 0.3, "rho": 1000},
       "pins": [{"region": {"min": [0, 0, 0], "max": [0, 0.1, 0.1]}}]}]})";
   const fs::path out = dir / "out";
-  ASSERT_EQ(report({"report", "error-vs-time", scene.string(), "--out", out.string(), "--levels",
-                    "8/all", "--cycles", "1", "--pcg-caps", "2,500"}),
-            gf::cli::kExitFlagged)
+  ASSERT_EQ(
+      report({"report", "error-vs-time", scene.string(), "--out", out.string(), "--levels", "8/all",
+              "--cycles", "1", "--pcg-caps", "2,500", "--threads", "1", "--compare-threads", "2"}),
+      gf::cli::kExitFlagged)
       << "pcg 2 cannot converge, so the run must say a frame was flagged";
   const std::vector<Row> rows = readRows(out / "error_vs_time.csv");
   ASSERT_EQ(rows.size(), 6u);  // reference, direct, pcg 2, pcg 500, 8/all x1, 8/all cg
@@ -95,6 +97,12 @@ TEST(Report, ErrorVsTimeRanksSolversAgainstTheConvergedStep) {
     EXPECT_GT(num(r, "cpu_ms_per_frame"), 0) << r.at("setting");
     // A hanging beam changes its volume by a fraction of a percent, not more.
     EXPECT_LT(std::abs(num(r, "volume_gain_pct")), 1.0) << r.at("setting");
+    // Every setting ran again on 2 threads and must have given the same bits.
+    if (r.at("setting") != "reference") {
+      EXPECT_EQ(num(r, "compare_threads"), 2) << r.at("setting");
+      EXPECT_GT(num(r, "ms_per_frame_compare"), 0) << r.at("setting");
+      EXPECT_EQ(num(r, "same_bits"), 1) << r.at("setting");
+    }
   }
   std::ifstream svg(out / "error_vs_time.svg");
   std::stringstream text;

@@ -31,7 +31,8 @@ namespace {
 
 constexpr const char* kReportUsage =
     "usage: graphfrac report error-vs-time SCENE [--frames N] [--out DIR] [--threads T]\n"
-    "                    [--levels L1,L2,...] [--cycles C1,C2,...] [--pcg-caps K1,K2,...]\n"
+    "                    [--compare-threads T2] [--levels L1,L2,...] [--cycles C1,C2,...]\n"
+    "                    [--pcg-caps K1,K2,...]\n"
     "\n"
     "Runs SCENE once per solver setting, in one process, and writes DIR/error_vs_time.csv and\n"
     "DIR/error_vs_time.svg (default DIR = out/<scene name>/report):\n"
@@ -44,11 +45,13 @@ constexpr const char* kReportUsage =
     "robust to other load; the plot's x axis), relative displacement error\n"
     "|x - x_ref| / |x_ref - X| after N frames (and the same against the direct run: the linear\n"
     "solver's share), volume gain 100 (V_N / V_0 - 1) [%], broken edges, fragments, average\n"
-    "linear iterations per frame, flagged frames.\n";
+    "linear iterations per frame, flagged frames. With --compare-threads every setting but the\n"
+    "reference runs again on T2 threads in the same process: its ms per frame there, the\n"
+    "speed-up T -> T2, and whether the positions have the same bits (they must).\n";
 
 struct Options {
   std::string scene, out;
-  std::optional<int> frames, threads;
+  std::optional<int> frames, threads, compareThreads;
   std::vector<std::vector<int32_t>> levels;
   std::vector<int> cycles{1, 2, 4}, pcgCaps{10, 30, 100, 300};
 };
@@ -71,6 +74,9 @@ struct Outcome {
   double relErrorDirect = 0;  // against the direct solver with the same Newton count
   int broken = 0, fragments = 0, flaggedFrames = 0;
   std::vector<double> x;  // all bodies' positions after the last frame, concatenated
+  // The same setting on --compare-threads: ms per frame (0: not run) and whether x matched.
+  double msCompare = 0;
+  bool sameBits = false;
 };
 
 std::string levelsText(const std::vector<int32_t>& levels) {
@@ -134,13 +140,15 @@ std::optional<std::string> parseOptions(int argc, char** argv, Options& opt) {
   for (int i = 2; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
-    if (a == "--frames" || a == "--threads") {
+    if (a == "--frames" || a == "--threads" || a == "--compare-threads") {
       const char* v = value();
       char* end = nullptr;
       const long n = v ? std::strtol(v, &end, 10) : -1;
       if (!v || *end != '\0' || n < (a == "--frames" ? 1 : 0) || n > 1'000'000)
         return a + ": expected a non-negative integer (frames >= 1)";
-      (a == "--frames" ? opt.frames : opt.threads) = static_cast<int>(n);
+      (a == "--frames"    ? opt.frames
+       : a == "--threads" ? opt.threads
+                          : opt.compareThreads) = static_cast<int>(n);
     } else if (a == "--out") {
       const char* v = value();
       if (!v) return std::string("--out: expected a directory");
@@ -389,6 +397,15 @@ int errorVsTime(int argc, char** argv) {
           "fragments %d%s\n",
           o.msPerFrame, o.cpuMsPerFrame, o.relError, o.relErrorDirect, o.volumeGain, o.broken,
           o.fragments, o.flaggedFrames ? "  (flagged frames)" : "");
+      if (opt.compareThreads && cfg.family != "reference") {
+        const Outcome c = runOnce(sc, cfg, frames, *opt.compareThreads);
+        o.msCompare = c.ok ? c.msPerFrame : 0;
+        o.sameBits = c.ok && c.x.size() == o.x.size() &&
+                     std::memcmp(c.x.data(), o.x.data(), 8 * o.x.size()) == 0;
+        std::printf("  %-22s %9.2f ms/frame on %d thread(s): speed-up %.2f, %s\n", "", o.msCompare,
+                    *opt.compareThreads, o.msCompare > 0 ? o.msPerFrame / o.msCompare : 0.0,
+                    o.sameBits ? "same bits" : "DIFFERENT BITS");
+      }
     }
     results.push_back(std::move(o));
   }
@@ -398,12 +415,15 @@ int errorVsTime(int argc, char** argv) {
   Result<void> r = csv.open(
       csvPath, {"family", "setting", "ms_per_frame", "cpu_ms_per_frame", "rel_displacement_error",
                 "rel_error_vs_direct", "volume_gain_pct", "broken_edges", "fragments",
-                "linear_iterations_per_frame", "flagged_frames", "ok"});
+                "linear_iterations_per_frame", "flagged_frames", "ok", "compare_threads",
+                "ms_per_frame_compare", "speedup", "same_bits"});
   for (size_t i = 0; r.ok() && i < configs.size(); ++i) {
     const Outcome& o = results[i];
     r = csv.row({configs[i].family, configs[i].label, o.msPerFrame, o.cpuMsPerFrame, o.relError,
                  o.relErrorDirect, o.volumeGain, int64_t(o.broken), int64_t(o.fragments),
-                 o.linearPerFrame, int64_t(o.flaggedFrames), int64_t(o.ok ? 1 : 0)});
+                 o.linearPerFrame, int64_t(o.flaggedFrames), int64_t(o.ok ? 1 : 0),
+                 int64_t(o.msCompare > 0 ? *opt.compareThreads : 0), o.msCompare,
+                 o.msCompare > 0 ? o.msPerFrame / o.msCompare : 0.0, int64_t(o.sameBits ? 1 : 0)});
   }
   if (r.ok()) r = csv.close();
   if (!r.ok()) {
@@ -441,7 +461,7 @@ int errorVsTime(int argc, char** argv) {
   }
   std::printf("  wrote %s and %s\n", csvPath.c_str(), svgPath.c_str());
   for (const Outcome& o : results)
-    if (!o.ok || o.flaggedFrames > 0) return kExitFlagged;
+    if (!o.ok || o.flaggedFrames > 0 || (o.msCompare > 0 && !o.sameBits)) return kExitFlagged;
   return kExitOk;
 }
 
