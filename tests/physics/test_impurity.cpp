@@ -13,50 +13,20 @@
 #include <glm/gtc/quaternion.hpp>
 #include <string>
 
+#include "common/impurity_bar.h"
 #include "common/sim_helpers.h"
 #include "kernels/impurity.h"
 
 namespace gf {
 namespace {
 
-constexpr double kL = 1.0, kE = 1e6, kSpeed = 0.01, kStrength = 2e4;
-
-BodyDef tensionBar(const ImpuritySettings& imp) {
-  BodyDef def;
-  def.mesh = gen::box(kL, 0.1, 0.1, 20, 2, 2);
-  // nu = 0: the stress is uniaxial, so an edge at angle theta to x sees sigma cos^2 theta.
-  def.material = Material::stableNeoHookean(kE, 0.0, 1000);
-  def.material.massDamping = 5;
-  def.fracture.enabled = true;
-  def.fracture.strength = kStrength;
-  def.fracture.impurities = imp;
-  Grip left, right;
-  left.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
-  right.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x > kL - 1e-9; });
-  left.velocity = glm::vec3(-kSpeed, 0, 0);
-  right.velocity = glm::vec3(kSpeed, 0, 0);
-  def.grips = {left, right};
-  return def;
-}
-
-// Nominal stress at the first break, as in test_fracture.cpp's tension bar.
-double firstBreakStress(const ImpuritySettings& imp) {
-  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
-  auto id = world.createBody(tensionBar(imp));
-  EXPECT_TRUE(id.ok()) << (id.ok() ? "" : id.error().message);
-  if (!id.ok()) return 0;
-  const double dt = 1e-2;
-  for (int s = 1; s < 3000; ++s) {
-    const double stress = kE * (2 * kSpeed * (s - 1) * dt) / kL;
-    (void)world.step(dt);
-    if (!world.fractureEvents().empty()) return stress;
-  }
-  return -1;
-}
+using test::impurityFirstBreakStress;
+using test::impurityTensionBar;
+constexpr double kStrength = test::kBarStrength;
 
 // min over edges of sigma_eff / cos^2 theta, from the public edges and the draw formulas.
 double predictedFirstBreak(const ImpuritySettings& imp) {
-  const BodyDef def = tensionBar(imp);
+  const BodyDef def = impurityTensionBar(imp);
   World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
   auto id = world.createBody(def);
   const auto edges = world.edges(id.value());
@@ -86,7 +56,7 @@ TEST(Impurity, BarFirstBreaksAtItsWeakestEffectiveStrength) {
     imp.sigma = 3;
     imp.seed = 11;
     imp.mode = mode;
-    const double at = firstBreakStress(imp), predicted = predictedFirstBreak(imp);
+    const double at = impurityFirstBreakStress(imp), predicted = predictedFirstBreak(imp);
     std::printf("impure bar, mode %d: first break at %.4e Pa, predicted %.4e Pa (pure %.4e)\n",
                 int(mode), at, predicted, kStrength);
     EXPECT_NEAR(at, predicted, 0.03 * predicted);
@@ -108,7 +78,7 @@ TornBar tearBar(uint64_t seed, JobSystem* jobs, int steps) {
   imp.enabled = true;
   imp.sigma = 3;
   imp.seed = seed;
-  BodyDef def = tensionBar(imp);
+  BodyDef def = impurityTensionBar(imp);
   for (Grip& g : def.grips) g.velocity *= 20.0f;
   World world(WorldDef{glm::vec3(0), Backend::Cpu, jobs, 1, {}});
   auto id = world.createBody(def);
@@ -137,7 +107,7 @@ TEST(Impurity, SnapshotCarriesTheImpurityState) {
   ImpuritySettings imp;
   imp.enabled = true;
   imp.sigma = 3;
-  BodyDef def = tensionBar(imp);
+  BodyDef def = impurityTensionBar(imp);
   for (Grip& g : def.grips) g.velocity *= 20.0f;
   World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
   auto id = world.createBody(def);
@@ -156,7 +126,7 @@ TEST(Impurity, SnapshotCarriesTheImpurityState) {
 }
 
 TEST(Impurity, BadMapsAreErrorsNamingTheFieldAndChangeNothing) {
-  BodyDef def = tensionBar({});
+  BodyDef def = impurityTensionBar({});
   World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
   auto id = world.createBody(def);
   ASSERT_TRUE(id.ok());
@@ -208,7 +178,7 @@ TEST(Impurity, BadMapsAreErrorsNamingTheFieldAndChangeNothing) {
 }
 
 TEST(Impurity, PotencyZeroIsASharpPreCut) {
-  BodyDef def = tensionBar({});
+  BodyDef def = impurityTensionBar({});
   for (Grip& g : def.grips) g.velocity = glm::vec3(0);
   World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
   auto id = world.createBody(def);

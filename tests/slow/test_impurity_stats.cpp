@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <vector>
 
+#include "common/impurity_bar.h"
 #include "common/sim_helpers.h"
 
 namespace gf {
@@ -28,36 +29,10 @@ Stats stats(const std::vector<double>& v) {
   return s;
 }
 
-constexpr double kL = 1.0, kE = 1e6, kSpeed = 0.01, kStrength = 2e4;
-
-double firstBreakStress(const ImpuritySettings& imp) {
-  BodyDef def;
-  def.mesh = gen::box(kL, 0.1, 0.1, 20, 2, 2);
-  def.material = Material::stableNeoHookean(kE, 0.0, 1000);
-  def.material.massDamping = 5;
-  def.fracture.enabled = true;
-  def.fracture.strength = kStrength;
-  def.fracture.impurities = imp;
-  Grip left, right;
-  left.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
-  right.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x > kL - 1e-9; });
-  left.velocity = glm::vec3(-kSpeed, 0, 0);
-  right.velocity = glm::vec3(kSpeed, 0, 0);
-  def.grips = {left, right};
-  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
-  auto id = world.createBody(def);
-  EXPECT_TRUE(id.ok());
-  const double dt = 1e-2;
-  for (int s = 1; s < 3000; ++s) {
-    const double stress = kE * (2 * kSpeed * (s - 1) * dt) / kL;
-    (void)world.step(dt);
-    if (!world.fractureEvents().empty()) return stress;
-  }
-  return -1;
-}
+using test::impurityFirstBreakStress;
 
 TEST(ImpuritySlow, FirstFractureLoadOver20Seeds) {
-  const double pure = firstBreakStress({});
+  const double pure = impurityFirstBreakStress({});
   std::printf("pure bar: first break at %.4e Pa\n", pure);
   double shift[2][2] = {};
   const double sigmas[2] = {1, 3};
@@ -70,7 +45,7 @@ TEST(ImpuritySlow, FirstFractureLoadOver20Seeds) {
         imp.sigma = sigmas[k];
         imp.seed = seed;
         imp.mode = m == 0 ? ImpurityMode::Degradation : ImpurityMode::Upgradation;
-        rel.push_back(firstBreakStress(imp) / pure);
+        rel.push_back(impurityFirstBreakStress(imp) / pure);
       }
       const Stats s = stats(rel);
       shift[m][k] = s.mean - 1;
