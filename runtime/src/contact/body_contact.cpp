@@ -462,28 +462,22 @@ void BodyContact::exchange(std::span<const ContactBodyView> bodies,
             Vec3{j[0], j[1], j[2]};
       }
   }
-  for (size_t si = 0; si < bodies.size(); ++si) {
+  // Each body's unexplained momentum (the linear solve's residual) belongs to the cluster of
+  // its first contact node; a cluster on a grip or a collider keeps to its own linear model
+  // (design note), so it is left out there.
+  auto bodyCluster = [&](size_t si) -> int32_t {
     const Slot& s = m_bodies[si];
-    if (!s.active) continue;
-    for (int32_t n = 0; n < bodies[si].model->nodeCount; ++n)
-      if (s.start[size_t(n)] < s.start[size_t(n) + 1]) {
-        const size_t r = size_t(root(m_groupBase[si] + fragmentOf(bodies[si], n)));
-        m_clusterImpulse[r] += s.balance.unexplained;
-        if (s.balance.external) m_clusterExternal[r] = 1;
-        break;
-      }
-  }
-  // A cluster on a grip or a collider: its own linear model only (design note).
-  for (size_t si = 0; si < bodies.size(); ++si) {
-    const Slot& s = m_bodies[si];
-    if (!s.active) continue;
-    for (int32_t n = 0; n < bodies[si].model->nodeCount; ++n)
-      if (s.start[size_t(n)] < s.start[size_t(n) + 1]) {
-        const size_t r = size_t(root(m_groupBase[si] + fragmentOf(bodies[si], n)));
-        if (m_clusterExternal[r]) m_clusterImpulse[r] -= s.balance.unexplained;
-        break;
-      }
-  }
+    for (int32_t n = 0; s.active && n < bodies[si].model->nodeCount; ++n)
+      if (s.start[size_t(n)] < s.start[size_t(n) + 1])
+        return root(m_groupBase[si] + fragmentOf(bodies[si], n));
+    return -1;
+  };
+  for (size_t si = 0; si < bodies.size(); ++si)
+    if (const int32_t r = bodyCluster(si); r >= 0 && m_bodies[si].balance.external)
+      m_clusterExternal[size_t(r)] = 1;
+  for (size_t si = 0; si < bodies.size(); ++si)
+    if (const int32_t r = bodyCluster(si); r >= 0 && !m_clusterExternal[size_t(r)])
+      m_clusterImpulse[size_t(r)] += m_bodies[si].balance.unexplained;
   // The same velocity change for every free node of the cluster: its momentum becomes exactly
   // what it was plus the impulses from outside it, and no relative motion changes.
   bool any = false;
