@@ -1,9 +1,11 @@
-// The device backend's linear solve (gpu/pcg.cu) against the CPU's PcgSolver on the same
-// systems: the step matrix of a clamped bar, whole and with a band of broken tets (which only
-// keep their mass), solved to a tolerance, cut off by the iteration cap, and with a zero
-// right-hand side. One source: the host build must give the CPU's bits; a device may contract
-// multiply-adds differently, which moves the iterates by round-off. Either way the solution is
-// checked against the system itself (its true residual, computed here).
+// The device backend's linear solves (gpu/pcg.cu, gpu/multigrid.cu) against the CPU's
+// PcgSolver and MultigridSolver on the same systems: the step matrix of a clamped bar, whole
+// and with a band of broken tets (which only keep their mass), solved to a tolerance, cut off
+// by the iteration cap, and with a zero right-hand side; the multigrid with each smoother, one
+// and two coarse levels, both prolongations, as CG's preconditioner and cycling alone. One source:
+// the host build must give the CPU's bits; a device may contract multiply-adds differently, which
+// moves the iterates by round-off. Either way the solution is checked against the system itself
+// (its true residual, computed here).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,8 +15,10 @@
 #include <vector>
 
 #include "common/elastic_system.h"
+#include "gpu/multigrid.h"
 #include "gpu/pcg.h"
 #include "graphfrac/mesh.h"
+#include "solver/multigrid.h"
 #include "solver/pcg.h"
 
 namespace gf {
@@ -121,10 +125,118 @@ const Case kCases[] = {
     {"ZeroRightHandSide", false, 1000, true},
 };
 
+struct MultigridCase {
+  const char* name;
+  bool broken;
+  Smoother smoother;
+  std::vector<int32_t> levels;  // coarsest first; empty: chosen from the size
+  bool smoothed, preconditionCG;
+  int maxIterations;
+  bool refreshOnDevice;  // the coarse operators of this matrix computed by the device
+};
+
+std::string multigridCaseName(const testing::TestParamInfo<MultigridCase>& info) {
+  return info.param.name;
+}
+
+class MultigridBackend : public testing::TestWithParam<MultigridCase> {};
+
+TEST_P(MultigridBackend, MultigridMatchesTheCpu) {
+  std::string why;
+  if (!gpu::deviceAvailable(why)) GTEST_SKIP() << why;
+  const MultigridCase& c = GetParam();
+  const test::ElasticSystem s = barSystem({c.name, c.broken, c.maxIterations, false});
+  const size_t n3 = s.b.size();
+  const double tol = 1e-8;
+  MultigridSettings settings;
+  settings.smoother = c.smoother;
+  settings.levels = c.levels;
+  settings.smoothedProlongation = c.smoothed;
+  settings.preconditionCG = c.preconditionCG;
+  settings.cycles = c.maxIterations;
+  settings.directBelowNodes = 0;
+
+  std::vector<double> xCpu(n3), xDev(n3);
+  for (size_t i = 0; i < n3; ++i)
+    xCpu[i] = xDev[i] = s.fixed[i / 3] ? 0.0 : 1e-4 * std::sin(0.1 * double(i));
+  ThreadPoolJobSystem jobs(2);
+  detail::MultigridSolver cpu, host;
+  ASSERT_TRUE(cpu.setup(settings, s.mesh.positions.data(), s.fixed.data(), s.A).ok());
+  ASSERT_TRUE(host.setup(settings, s.mesh.positions.data(), s.fixed.data(), s.A).ok());
+  const detail::SolveReport rc =
+      cpu.solve(s.A, s.b.data(), xCpu.data(), c.maxIterations, tol, jobs);
+
+  // The device solver mirrors what the host set up; with refreshOnDevice the host sets up for
+  // the other bar (whole or broken) and the device recomputes the levels for this one.
+  const test::ElasticSystem other = barSystem({c.name, !c.broken, c.maxIterations, false});
+  ASSERT_EQ(other.A.col, s.A.col);
+  host.prepare(c.refreshOnDevice ? other.A : s.A, jobs);
+  gpu::HostMultigrid mirrored{host.cycleLevels(c.refreshOnDevice ? other.A : s.A),
+                              host.galerkinLevels(), host.cycleSettings(),
+                              [&](const double* values) { host.factorCoarsest(values); },
+                              [&](const double* b, double* x) { host.solveCoarsest(b, x, jobs); }};
+  gpu::DeviceMultigrid dev;
+  ASSERT_TRUE(dev.upload(c.refreshOnDevice ? other.A : s.A, mirrored)) << dev.error();
+  if (c.refreshOnDevice) {
+    ASSERT_TRUE(dev.refresh(s.A.values.data())) << dev.error();
+  }
+  detail::MultigridRun run;
+  run.preconditionCG = c.preconditionCG;
+  run.cycles = c.maxIterations;
+  detail::SolveReport rd;
+  ASSERT_TRUE(dev.solve(s.b.data(), xDev.data(), c.maxIterations, tol, run, rd)) << dev.error();
+
+  double diff = 0, scale = 0;
+  for (size_t i = 0; i < n3; ++i) {
+    diff = std::max(diff, std::fabs(xCpu[i] - xDev[i]));
+    scale = std::max(scale, std::fabs(xCpu[i]));
+  }
+  const double dx = diff / scale;
+  std::printf(
+      "  %s on %s: %zu unknowns, %d coarse levels; CPU %d iterations (%d V-cycles), residual "
+      "%.2e; device %d (%d), %.2e; max relative difference %.1e\n",
+      c.name, gpu::deviceName().c_str(), n3, cpu.hierarchy().coarseLevelCount(), rc.iterations,
+      cpu.stats().cycles, rc.relativeResidual, rd.iterations, run.vCycles, rd.relativeResidual, dx);
+
+  ASSERT_GT(cpu.stats().cycles, 0);
+  EXPECT_EQ(cpu.hierarchy().coarseLevelCount(), c.levels.empty() ? 1 : int(c.levels.size()));
+  // The report tells the truth about the returned x, and a converged solve solved the system.
+  EXPECT_NEAR(trueRelativeResidual(s, xDev), rd.relativeResidual, 1e-3 * rd.relativeResidual);
+  EXPECT_EQ(rd.converged, rc.converged);
+  if (rd.converged) {
+    EXPECT_LE(trueRelativeResidual(s, xDev), tol);
+  }
+#if defined(GF_GPU_CUDA)
+  EXPECT_LE(std::abs(rd.iterations - rc.iterations), 2);
+  EXPECT_LE(dx, 1e-6);
+#else
+  EXPECT_EQ(rd.iterations, rc.iterations);
+  EXPECT_EQ(run.vCycles, cpu.stats().cycles);
+  EXPECT_EQ(rd.relativeResidual, rc.relativeResidual);
+  EXPECT_EQ(xDev, xCpu);
+#endif
+}
+
+const MultigridCase kMultigridCases[] = {
+    {"GaussSeidelCG", false, Smoother::GaussSeidel, {}, false, true, 200, false},
+    {"GaussSeidelCGBrokenBand", true, Smoother::GaussSeidel, {}, false, true, 200, false},
+    {"TwoLevelsSmoothedCG", false, Smoother::GaussSeidel, {6, 40}, true, true, 200, false},
+    {"JacobiCyclesAlone", false, Smoother::Jacobi, {6, 40}, false, false, 6, false},
+    {"ChebyshevCGBrokenBand", true, Smoother::Chebyshev, {}, true, true, 200, false},
+    // The device refreshes: the broken bar's levels from the whole bar's set-up and back.
+    {"GaussSeidelCGRefreshed", true, Smoother::GaussSeidel, {}, false, true, 200, true},
+    {"TwoLevelsJacobiCGRefreshed", false, Smoother::Jacobi, {6, 40}, false, true, 200, true},
+    {"TwoLevelsChebyshevCGRefreshed", true, Smoother::Chebyshev, {6, 40}, false, true, 200, true},
+};
+
 #if defined(GF_GPU_CUDA)
 INSTANTIATE_TEST_SUITE_P(Device, SolverBackend, testing::ValuesIn(kCases), caseName);
+INSTANTIATE_TEST_SUITE_P(Device, MultigridBackend, testing::ValuesIn(kMultigridCases),
+                         multigridCaseName);
 #else
 INSTANTIATE_TEST_SUITE_P(HostBuild, SolverBackend, testing::ValuesIn(kCases), caseName);
+INSTANTIATE_TEST_SUITE_P(HostBuild, MultigridBackend, testing::ValuesIn(kMultigridCases),
+                         multigridCaseName);
 #endif
 
 }  // namespace

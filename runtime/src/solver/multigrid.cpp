@@ -1,10 +1,12 @@
-// Galerkin multigrid V-cycles and flexible CG (thesis sec 6.2, eq 6.1-6.4).
+// Galerkin multigrid V-cycles and flexible CG (thesis sec 6.2, eq 6.1-6.4): the levels' data
+// and their set-up on the host; the solve itself is multigrid_cycle.h's, which the device
+// backend runs too.
 //
 // Design: level 0 is the fine 3x3-block matrix, levels 1..L the 12x12-block Galerkin operators;
 // the smoothers are written once for both block sizes. Every pass writes disjoint rows (the
 // Gauss-Seidel sweeps go colour by colour of a greedy colouring, so a colour's rows never
-// touch each other) and every reduction uses the fixed chunks of vector_ops.h: the same bits
-// for any thread count. Symmetry: pre-smoothing runs forward Gauss-Seidel, post-smoothing the
+// touch each other) and every reduction uses the executor's fixed chunks: the same bits for
+// any thread count. Symmetry: pre-smoothing runs forward Gauss-Seidel, post-smoothing the
 // same number of backward sweeps, Jacobi and Chebyshev are symmetric polynomials, and the coarse
 // solve is an exact Cholesky of an SPD matrix, so with preSweeps == postSweeps the V-cycle is
 // an SPD preconditioner. CG still uses the flexible (Polak-Ribiere) beta, one extra dot per
@@ -32,7 +34,7 @@
 #include <limits>
 #include <string>
 
-#include "solver/pcg_stages.h"
+#include "solver/multigrid_cycle.h"
 #include "solver/vector_ops.h"
 #include "step/executor.h"
 #include "step/timing.h"
@@ -49,15 +51,8 @@ constexpr double kLambdaMargin = 1.1;
 // coarse levels do not represent (the interval PETSc's Chebyshev smoother uses).
 constexpr double kChebyshevLow = 0.1;
 
-// A level's block-CSR matrix, block size B.
 // Entries per parallel range of an element-wise vector pass.
 constexpr uint32_t kEntryGrain = 2048;
-
-// Rows per parallel range for a level of block size B: a few thousand flops each.
-template <int B>
-constexpr uint32_t rowGrain() {
-  return B == 3 ? 128 : 8;
-}
 
 // Smoother data of one level: inverse diagonal blocks, colouring, spectral bound, work vectors.
 struct Level {
@@ -130,25 +125,6 @@ struct MultigridSolver::Impl {
   std::vector<double> r, z, p, ap, rOld;
 
   int coarseCount() const { return hierarchy.coarseLevelCount(); }
-
-  template <int B>
-  LevelMatrix<B> matrix(int l, const BlockSparseMatrix& A) const {
-    LevelMatrix<B> m;
-    if constexpr (B == 3) {
-      (void)l;
-      m.n = A.n;
-      m.rowStart = A.rowStart.data();
-      m.col = A.col.data();
-      m.values = A.values.data();
-    } else {
-      const CoarseMatrix& C = hierarchy.level(l).A;
-      m.n = C.n;
-      m.rowStart = C.rowStart.data();
-      m.col = C.col.data();
-      m.values = C.values.data();
-    }
-    return m;
-  }
 
   void buildLevels(const BlockSparseMatrix& A) {
     levels.assign(static_cast<size_t>(coarseCount()) + 1, Level{});
@@ -225,12 +201,12 @@ struct MultigridSolver::Impl {
     if (coarseLower.cols() > 0) coarseLlt.analyzePattern(coarseLower);
   }
 
-  void factorCoarsest() {
+  // values: the coarsest operator's blocks (the hierarchy's, or a copy of them).
+  void factorCoarsest(const double* values) {
     coarseOk = false;
     if (coarseCount() == 0 || coarseLower.cols() == 0) return;
-    const CoarseMatrix& C = hierarchy.level(coarseCount()).A;
     double* v = coarseLower.valuePtr();
-    for (size_t i = 0; i < coarseMap.size(); ++i) v[i] = C.values[coarseMap[i]];
+    for (size_t i = 0; i < coarseMap.size(); ++i) v[i] = values[coarseMap[i]];
     const SerialOpenMpScope serial;
     coarseLlt.factorize(coarseLower);
     // Round-off can leave a regularised null direction a hair below zero: retry with a growing
@@ -248,62 +224,14 @@ struct MultigridSolver::Impl {
 
   template <int B>
   void invertDiagonals(int l, const BlockSparseMatrix& A, JobSystem& jobs) {
-    Level& lv = levels[static_cast<size_t>(l)];
-    const LevelMatrix<B> m = matrix<B>(l, A);
-    const bool gs = !lv.gsValues.empty();
-    forRanges(jobs, static_cast<uint32_t>(lv.n), rowGrain<B>(), [&](uint32_t begin, uint32_t end) {
-      for (uint32_t row = begin; row < end; ++row)
-        invertSpdBlock<B>(m.values + static_cast<size_t>(B * B) * lv.diagIndex[row],
-                          lv.invDiag.data() + static_cast<size_t>(B * B) * row);
-      // The colour-ordered copy, position by position (q indexes the copy's rows).
-      for (uint32_t q = begin; gs && q < end; ++q)
-        for (int32_t k = lv.gsRowStart[q]; k < lv.gsRowStart[q + 1]; ++k)
-          std::copy_n(m.values + static_cast<size_t>(B * B) * lv.gsBlock[k], B * B,
-                      lv.gsValues.data() + static_cast<size_t>(B * B) * k);
-    });
+    setUpDiagonals<B>(CpuExecutor(jobs), cycleLevel(l, A),
+                      settings.smoother == Smoother::GaussSeidel);
   }
 
-  // Largest eigenvalue of D^-1 A by power iteration with the Rayleigh quotient v.Av / v.Dv.
   template <int B>
   void estimateLambda(int l, const BlockSparseMatrix& A, JobSystem& jobs) {
-    Level& lv = levels[static_cast<size_t>(l)];
-    const LevelMatrix<B> m = matrix<B>(l, A);
-    const size_t len = static_cast<size_t>(B) * lv.n;
-    double* v = lv.x.data();
-    double* w = lv.r.data();
-    // A fixed, non-smooth start vector: deterministic and rich in the high modes sought.
-    for (size_t i = 0; i < len; ++i) v[i] = 1.0 + 0.37 * static_cast<double>((i * 7919) % 13);
-    double lambda = 0;
-    for (int it = 0; it < kPowerIterations; ++it) {
-      forRanges(jobs, static_cast<uint32_t>(lv.n), rowGrain<B>(),
-                [&](uint32_t begin, uint32_t end) {
-                  for (uint32_t row = begin; row < end; ++row)
-                    rowProduct<B>(m, static_cast<int32_t>(row), v, w + B * row);
-                });
-      const CpuExecutor exec(jobs, &partials);
-      const double vav = exec.dot(v, w, int32_t(len));
-      double* t = lv.t.data();
-      forRanges(jobs, static_cast<uint32_t>(lv.n), rowGrain<B>(),
-                [&](uint32_t begin, uint32_t end) {
-                  for (uint32_t row = begin; row < end; ++row)
-                    blockApply<B>(m.values + static_cast<size_t>(B * B) * lv.diagIndex[row],
-                                  v + B * row, t + B * row);
-                });
-      const double vdv = exec.dot(v, t, int32_t(len));
-      if (!(vdv > 0) || !std::isfinite(vav)) break;
-      lambda = vav / vdv;
-      // v = D^-1 A v, normalised.
-      forRanges(jobs, static_cast<uint32_t>(lv.n), rowGrain<B>(),
-                [&](uint32_t begin, uint32_t end) {
-                  for (uint32_t row = begin; row < end; ++row)
-                    blockApply<B>(lv.invDiag.data() + static_cast<size_t>(B * B) * row, w + B * row,
-                                  v + B * row);
-                });
-      const double nv = std::sqrt(exec.dot(v, v, int32_t(len)));
-      if (!(nv > 0) || !std::isfinite(nv)) break;
-      exec.run(int32_t(len), kEntryGrain, ScaleStage{1 / nv, v});
-    }
-    lv.lambdaMax = lambda > 0 && std::isfinite(lambda) ? kLambdaMargin * lambda : 2.0;
+    levels[static_cast<size_t>(l)].lambdaMax = detail::estimateLambda<B>(
+        CpuExecutor(jobs, &partials), cycleLevel(l, A), kPowerIterations, kLambdaMargin);
   }
 
   void refresh(const BlockSparseMatrix& A, JobSystem& jobs) {
@@ -316,123 +244,89 @@ struct MultigridSolver::Impl {
       for (int l = 1; l < coarseCount(); ++l) estimateLambda<12>(l, A, jobs);
     }
     t0 = Clock::now();
-    factorCoarsest();
+    if (coarseCount() > 0) factorCoarsest(hierarchy.level(coarseCount()).A.values.data());
     stats.factorMs = msSince(t0);
     stats.coarseFactorOk = coarseOk || coarseCount() == 0;
   }
 
-  // `sweeps` smoothing steps on level l; forward selects the Gauss-Seidel colour order.
-  template <int B>
-  void smooth(int l, const BlockSparseMatrix& A, const double* b, double* x, int sweeps,
-              bool forward, JobSystem& jobs) {
-    if (sweeps <= 0) return;
+  // Level l as the cycle and its set-up read it (valid until the next buildLevels).
+  CycleLevel cycleLevel(int l, const BlockSparseMatrix& A) {
     Level& lv = levels[static_cast<size_t>(l)];
-    const LevelMatrix<B> m = matrix<B>(l, A);
-    const double* inv = lv.invDiag.data();
-    const uint32_t grain = rowGrain<B>();
-    const CpuExecutor exec(jobs);
-    switch (settings.smoother) {
-      case Smoother::GaussSeidel: {
-        const int32_t colours = static_cast<int32_t>(lv.colourStart.size()) - 1;
-        GaussSeidelColourStage<B> sweep{lv.colourRows.data(),
-                                        lv.gsRowStart.data(),
-                                        lv.gsCol.data(),
-                                        lv.gsValues.data(),
-                                        inv,
-                                        b,
-                                        x,
-                                        0};
-        for (int s = 0; s < sweeps; ++s)
-          for (int32_t cc = 0; cc < colours; ++cc) {
-            const int32_t c = forward ? cc : colours - 1 - cc;
-            sweep.first = lv.colourStart[c];
-            exec.run(lv.colourStart[c + 1] - sweep.first, grain, sweep);
-          }
-        break;
-      }
-      case Smoother::Jacobi: {
-        // Damping 4 / (3 lambda_max) of D^-1 A: 2/3 at the classic lambda_max = 2.
-        const double omega = 4.0 / (3.0 * lv.lambdaMax);
-        double* t = lv.t.data();
-        const int32_t len = B * lv.n;
-        for (int s = 0; s < sweeps; ++s) {
-          exec.run(lv.n, grain, JacobiDirectionStage<B>{m, inv, b, x, t, 0.0, 1.0});
-          exec.run(len, 2048, AxpyStage{x, t, omega, x});
-        }
-        break;
-      }
-      case Smoother::Chebyshev: {
-        // Chebyshev iteration (Saad, Alg. 12.1) on D^-1 A over [low, high]; degree = sweeps.
-        const double high = lv.lambdaMax, low = kChebyshevLow * lv.lambdaMax;
-        const double theta = 0.5 * (high + low), delta = 0.5 * (high - low);
-        const double sigma = theta / delta;
-        double rho = 1 / sigma;
-        double* d = lv.t.data();
-        const int32_t len = B * lv.n;
-        exec.run(lv.n, grain, JacobiDirectionStage<B>{m, inv, b, x, d, 0.0, 1 / theta});
-        for (int k = 1;; ++k) {
-          exec.run(len, 2048, AxpyStage{x, d, 1.0, x});
-          if (k == sweeps) break;
-          const double rhoNew = 1 / (2 * sigma - rho);
-          exec.run(lv.n, grain,
-                   JacobiDirectionStage<B>{m, inv, b, x, d, rhoNew * rho, 2 * rhoNew / delta});
-          rho = rhoNew;
-        }
-        break;
-      }
+    CycleLevel c;
+    c.n = lv.n;
+    if (l == 0) {
+      c.rowStart = A.rowStart.data();
+      c.col = A.col.data();
+      c.values = A.values.data();
+    } else {
+      const CoarseMatrix& C = hierarchy.level(l).A;
+      c.rowStart = C.rowStart.data();
+      c.col = C.col.data();
+      c.values = C.values.data();
     }
+    c.diagIndex = lv.diagIndex.data();
+    c.invDiag = lv.invDiag.data();
+    c.colourStart = lv.colourStart.data();
+    c.colours = static_cast<int32_t>(lv.colourStart.size()) - 1;
+    c.colourRows = lv.colourRows.data();
+    c.gsRowStart = lv.gsRowStart.data();
+    c.gsCol = lv.gsCol.data();
+    c.gsBlock = lv.gsBlock.data();
+    c.gsValues = lv.gsValues.data();
+    c.lambdaMax = lv.lambdaMax;
+    c.b = lv.b.data();
+    c.x = lv.x.data();
+    c.r = lv.r.data();
+    c.t = lv.t.data();
+    if (l < coarseCount()) c.P = hierarchy.prolongation(l);
+    return c;
   }
 
-  template <int B>
-  void residual(int l, const BlockSparseMatrix& A, const double* b, const double* x, double* r,
-                JobSystem& jobs) {
-    const LevelMatrix<B> m = matrix<B>(l, A);
-    CpuExecutor(jobs).run(m.n, rowGrain<B>(), LevelResidualStage<B>{m, b, x, r});
+  std::vector<CycleLevel> cycleLevels(const BlockSparseMatrix& A) {
+    std::vector<CycleLevel> out;
+    for (int l = 0; l <= coarseCount(); ++l) out.push_back(cycleLevel(l, A));
+    return out;
   }
 
-  // x = V b on level l (x is overwritten; eq 6.1-6.3).
-  template <int B>
-  void cycle(int l, const BlockSparseMatrix& A, const double* b, double* x, JobSystem& jobs) {
-    const int L = coarseCount();
-    const size_t len = static_cast<size_t>(B) * levels[static_cast<size_t>(l)].n;
-    if (l == L && L > 0) {
-      auto t0 = Clock::now();
-      if (coarseOk) {
-        Eigen::Map<const Eigen::VectorXd> bm(b, static_cast<Eigen::Index>(len));
-        Eigen::Map<Eigen::VectorXd> xm(x, static_cast<Eigen::Index>(len));
-        const SerialOpenMpScope serial;
-        xm = coarseLlt.solve(bm);
-        if (!allFinite(x, len)) CpuExecutor(jobs).run(int32_t(len), kEntryGrain, FillStage{0.0, x});
-      } else {
-        CpuExecutor(jobs).run(int32_t(len), kEntryGrain, FillStage{0.0, x});
-      }
-      stats.coarseSolveMs += msSince(t0);
-      return;
+  CycleSettings cycleSettings() const {
+    static_assert(int(Smoother::Jacobi) == int(CycleSmoother::kJacobi) &&
+                  int(Smoother::GaussSeidel) == int(CycleSmoother::kGaussSeidel) &&
+                  int(Smoother::Chebyshev) == int(CycleSmoother::kChebyshev));
+    return {static_cast<CycleSmoother>(settings.smoother),
+            settings.preSweeps,
+            settings.postSweeps,
+            kChebyshevLow,
+            kPowerIterations,
+            kLambdaMargin};
+  }
+
+  // The coarsest level's exact solve (zero where it has no factor or the result is not finite).
+  void solveCoarsest(const double* b, double* x, JobSystem& jobs) {
+    const int32_t len = 12 * levels.back().n;
+    if (coarseOk) {
+      Eigen::Map<const Eigen::VectorXd> bm(b, len);
+      Eigen::Map<Eigen::VectorXd> xm(x, len);
+      const SerialOpenMpScope serial;
+      xm = coarseLlt.solve(bm);
+      if (allFinite(x, size_t(len))) return;
     }
-    CpuExecutor(jobs).run(int32_t(len), kEntryGrain, FillStage{0.0, x});
-    if (L == 0) {
-      auto t0 = Clock::now();
-      smooth<B>(l, A, b, x, settings.preSweeps, true, jobs);
-      smooth<B>(l, A, b, x, settings.postSweeps, false, jobs);
-      stats.smoothMs += msSince(t0);
-      return;
+    CpuExecutor(jobs).run(len, kEntryGrain, FillStage{0.0, x});
+  }
+
+  // What a cycle needs of A's values: coarse operators on refresh, the fine diagonal every
+  // solve.
+  void prepare(const BlockSparseMatrix& A, JobSystem& jobs) {
+    const auto t0 = Clock::now();
+    if (patternsChanged) buildLevels(A);
+    invertDiagonals<3>(0, A, jobs);
+    if (needRefresh || solvesSinceRefresh >= settings.coarseRefreshInterval) {
+      refresh(A, jobs);
+      needRefresh = false;
+      solvesSinceRefresh = 0;
+      stats.refreshed = true;
     }
-    Level& lv = levels[static_cast<size_t>(l)];
-    Level& next = levels[static_cast<size_t>(l) + 1];
-    auto t0 = Clock::now();
-    smooth<B>(l, A, b, x, settings.preSweeps, true, jobs);
-    stats.smoothMs += msSince(t0);
-    t0 = Clock::now();
-    residual<B>(l, A, b, x, lv.r.data(), jobs);
-    hierarchy.restrictTo(l, lv.r.data(), next.b.data(), jobs);  // eq 6.1
-    stats.transferMs += msSince(t0);
-    cycle<12>(l + 1, A, next.b.data(), next.x.data(), jobs);
-    t0 = Clock::now();
-    hierarchy.prolongAdd(l, next.x.data(), x, jobs);  // eq 6.3
-    stats.transferMs += msSince(t0);
-    t0 = Clock::now();
-    smooth<B>(l, A, b, x, settings.postSweeps, false, jobs);
-    stats.smoothMs += msSince(t0);
+    ++solvesSinceRefresh;
+    stats.refreshMs = msSince(t0);
   }
 };
 
@@ -483,21 +377,47 @@ void MultigridSolver::rebind(const int32_t* edgeNodes, const uint8_t* broken, in
   s.stats.rebindMs = msSince(t0);
 }
 
+bool MultigridSolver::ready(const BlockSparseMatrix& A) const {
+  const Impl& s = *m_impl;
+  return s.fineBlocks == A.blockCount() && !s.levels.empty() && s.levels[0].n == A.n;
+}
+
+void MultigridSolver::prepare(const BlockSparseMatrix& A, JobSystem& jobs) {
+  m_impl->prepare(A, jobs);
+}
+
+std::vector<CycleLevel> MultigridSolver::cycleLevels(const BlockSparseMatrix& A) {
+  return m_impl->cycleLevels(A);
+}
+
+std::vector<GalerkinLevelView> MultigridSolver::galerkinLevels() {
+  std::vector<GalerkinLevelView> out;
+  for (int l = 1; l <= m_impl->coarseCount(); ++l) out.push_back(m_impl->hierarchy.galerkinView(l));
+  return out;
+}
+
+void MultigridSolver::factorCoarsest(const double* values) { m_impl->factorCoarsest(values); }
+
+CycleSettings MultigridSolver::cycleSettings() const { return m_impl->cycleSettings(); }
+
+void MultigridSolver::solveCoarsest(const double* b, double* x, JobSystem& jobs) {
+  m_impl->solveCoarsest(b, x, jobs);
+}
+
 SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, double* x,
                                    int maxIterations, double relativeTolerance, JobSystem& jobs) {
   Impl& s = *m_impl;
   const auto tStart = Clock::now();
-  SolveReport report;
-  report.relativeResidual = std::numeric_limits<double>::infinity();
   MultigridStats& st = s.stats;
   st.refreshMs = st.galerkinMs = st.factorMs = st.smoothMs = st.coarseSolveMs = st.transferMs = 0;
   st.iterations = st.cycles = 0;
   st.refreshed = false;
   s.cycleResiduals.clear();
   const size_t n3 = 3 * static_cast<size_t>(std::max(A.n, 0));
-  if (s.fineBlocks != A.blockCount() || s.levels.empty() || s.levels[0].n != A.n) {
-    CpuExecutor(jobs).run(int32_t(n3), kEntryGrain,
-                          FillStage{0.0, x});  // not set up for this pattern
+  if (!ready(A)) {
+    CpuExecutor(jobs).run(int32_t(n3), kEntryGrain, FillStage{0.0, x});  // not set up for A
+    SolveReport report;
+    report.relativeResidual = std::numeric_limits<double>::infinity();
     return report;
   }
   if (s.r.size() < n3) {
@@ -507,97 +427,29 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
     s.ap.resize(n3);
     s.rOld.resize(n3);
   }
-  double* r = s.r.data();
-  double* z = s.z.data();
   const CpuExecutor exec(jobs, &s.partials);
-
-  // Sets up what depends on A, once a solve needs a cycle: coarse operators on refresh, the
-  // fine diagonal every solve.
-  auto setUp = [&]() {
-    auto t0 = Clock::now();
-    if (s.patternsChanged) s.buildLevels(A);
-    s.invertDiagonals<3>(0, A, jobs);
-    if (s.needRefresh || s.solvesSinceRefresh >= s.settings.coarseRefreshInterval) {
-      s.refresh(A, jobs);
-      s.needRefresh = false;
-      s.solvesSinceRefresh = 0;
-      st.refreshed = true;
-    }
-    ++s.solvesSinceRefresh;
-    st.refreshMs = msSince(t0);
+  // The level views are taken once the levels exist for this pattern (prepare may rebuild
+  // them after a crack re-binding), i.e. inside prepare.
+  std::vector<CycleLevel> levels;
+  auto prepareLevels = [&]() {
+    s.prepare(A, jobs);
+    levels = s.cycleLevels(A);
   };
-  auto trueResidual = [&]() {
-    A.multiply(x, s.ap.data(), jobs);
-    return exec.reduce<SumOp>(int32_t(n3), ResidualTerm{b, s.ap.data(), r});
-  };
-
-  int it = 0;
-  if (s.settings.preconditionCG) {
-    // One V-cycle per iteration of flexible CG (the cycle is not a fixed linear map).
-    struct VCycle {
-      bool flexible = true;
-      Impl* s;
-      const BlockSparseMatrix* A;
-      JobSystem* jobs;
-      const CpuExecutor* exec;
-      const decltype(setUp)* setUpLevels;
-      void prepare() const { (*setUpLevels)(); }
-      double apply(const double* r, double* z) const {
-        s->cycle<3>(0, *A, r, z, *jobs);
-        ++s->stats.cycles;
-        return exec->dot(r, z, 3 * A->n);
-      }
-    };
-    report = conjugateGradients(
-        exec, A.view(), b, x, {r, z, s.p.data(), s.ap.data(), s.rOld.data()},
-        VCycle{true, &s, &A, &jobs, &exec, &setUp}, maxIterations, relativeTolerance);
-    it = report.iterations;
-  } else {
-    const double bb = exec.dot(b, b, int32_t(n3));
-    if (!std::isfinite(bb)) return report;
-    if (bb == 0) {
-      exec.run(int32_t(n3), kEntryGrain, FillStage{0.0, x});
-      report.converged = true;
-      report.relativeResidual = 0;
-      return report;
-    }
-    if (exec.reduce<MaxOp>(int32_t(n3), NonFiniteTerm{x}) > 0)
-      exec.run(int32_t(n3), kEntryGrain, FillStage{0.0, x});
-    const double bnorm = std::sqrt(bb);
-    const double tol2 = relativeTolerance * relativeTolerance * bb;
-    double rr = trueResidual();
-    bool converged = std::isfinite(rr) && rr <= tol2;
-    if (!converged) {
-      setUp();
-      s.cycleResiduals.push_back(std::sqrt(rr) / bnorm);
-    }
-    while (!converged && it < s.settings.cycles) {
-      s.cycle<3>(0, A, r, z, jobs);  // error equation A e = r
-      ++it;
-      ++st.cycles;
-      exec.run(int32_t(n3), kEntryGrain, AxpyStage{x, z, 1.0, x});
-      rr = trueResidual();
-      s.cycleResiduals.push_back(std::sqrt(rr) / bnorm);
-      if (!std::isfinite(rr)) {
-        exec.run(int32_t(n3), kEntryGrain, AxpyStage{x, z, -1.0, x});  // the last finite iterate
-        rr = trueResidual();
-        break;
-      }
-      converged = rr <= tol2;
-    }
-    report.iterations = it;
-    report.converged = converged && std::isfinite(rr);
-    report.relativeResidual =
-        std::isfinite(rr) ? std::sqrt(rr) / bnorm : std::numeric_limits<double>::infinity();
-  }
-  if (const double bb = exec.dot(b, b, int32_t(n3));
-      !std::isfinite(report.relativeResidual) && std::isfinite(bb) && bb > 0) {
-    // Nothing finite came out: the zero vector, whose residual is |b| (relative 1).
-    exec.run(int32_t(n3), kEntryGrain, FillStage{0.0, x});
-    report.converged = false;
-    report.relativeResidual = 1;
-  }
-  st.iterations = s.settings.preconditionCG ? it : 0;
+  auto coarse = [&](const double* cb, double* cx) { s.solveCoarsest(cb, cx, jobs); };
+  CycleTimes times;
+  const VCycle<CpuExecutor, decltype(coarse)> cycle(exec, levels, s.cycleSettings(), coarse, times);
+  MultigridRun run;
+  run.preconditionCG = s.settings.preconditionCG;
+  run.cycles = s.settings.cycles;
+  run.cycleResiduals = &s.cycleResiduals;
+  const SolveReport report = multigridSolve(
+      exec, A.view(), b, x, {s.r.data(), s.z.data(), s.p.data(), s.ap.data(), s.rOld.data()}, cycle,
+      prepareLevels, maxIterations, relativeTolerance, run);
+  st.cycles = run.vCycles;
+  st.iterations = s.settings.preconditionCG ? report.iterations : 0;
+  st.smoothMs = times.smoothMs;
+  st.transferMs = times.transferMs;
+  st.coarseSolveMs = times.coarseSolveMs;
   st.totalMs = msSince(tStart);
   return report;
 }

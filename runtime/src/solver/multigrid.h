@@ -10,6 +10,7 @@
 #include "graphfrac/jobs.h"
 #include "graphfrac/status.h"
 #include "solver/block_sparse.h"
+#include "solver/multigrid_cycle.h"
 #include "solver/multigrid_hierarchy.h"
 
 namespace gf::detail {
@@ -57,6 +58,19 @@ class MultigridSolver {
   /// converged = that residual <= relativeTolerance. Never leaves NaN in x.
   SolveReport solve(const BlockSparseMatrix& A, const double* b, double* x, int maxIterations,
                     double relativeTolerance, JobSystem& jobs);
+
+  /// For a solve on another executor (gpu::DeviceMultigrid): whether the solver is set up for
+  /// A's pattern; prepare() sets up what a V-cycle needs of A's values (what solve() does
+  /// before its first cycle); cycleLevels() and galerkinLevels() (coarse level 1 first) are
+  /// then the host buffers to mirror, valid until the next prepare() after a crack re-binding;
+  /// the coarsest level's factorisation from a copy of its values and its solve on host arrays.
+  bool ready(const BlockSparseMatrix& A) const;
+  void prepare(const BlockSparseMatrix& A, JobSystem& jobs);
+  std::vector<CycleLevel> cycleLevels(const BlockSparseMatrix& A);
+  std::vector<GalerkinLevelView> galerkinLevels();
+  CycleSettings cycleSettings() const;
+  void factorCoarsest(const double* values);
+  void solveCoarsest(const double* b, double* x, JobSystem& jobs);
 
   const MultigridStats& stats() const;
   const MultigridHierarchy& hierarchy() const;

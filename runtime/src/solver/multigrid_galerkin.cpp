@@ -1,10 +1,13 @@
-// Multigrid hierarchy, the numeric half: prolongator smoothing (smoothed aggregation), the
-// Galerkin products A_{l+1} = P^T A_l P and the transfers P, P^T. The patterns these fill are
-// built in multigrid_hierarchy.cpp; every product sums precomputed block pairs in a fixed
-// order and every parallel loop writes disjoint blocks (the same bits for any thread count).
+// Multigrid hierarchy, the numeric half: prolongator smoothing (smoothed aggregation, on the
+// host: it runs after a set-up or a crack re-binding only), the Galerkin products A_{l+1} =
+// P^T A_l P (galerkin_stages.h, on either executor) and the transfers P, P^T. The patterns
+// these fill are built in multigrid_hierarchy.cpp; every product sums precomputed block pairs
+// in a fixed order and every parallel loop writes disjoint blocks (the same bits for any
+// thread count).
 #include <algorithm>
 #include <cmath>
 
+#include "solver/galerkin_stages.h"
 #include "solver/multigrid_hierarchy.h"
 #include "solver/vector_ops.h"
 #include "step/executor.h"
@@ -29,77 +32,6 @@ struct FinerValues {
   const double* values = nullptr;
   const double* block(int32_t k) const { return values + static_cast<size_t>(B * B) * k; }
 };
-
-// out (B x C) = a (B x B) * b (B x C), or += with add.
-template <int B, int C>
-inline void mulAdd(const double* a, const double* b, double* out) {
-  for (int i = 0; i < B; ++i) {
-    double* o = out + C * i;
-    for (int m = 0; m < B; ++m) {
-      const double am = a[B * i + m];
-      if (am == 0) continue;
-      const double* bm = b + C * m;
-      for (int j = 0; j < C; ++j) o[j] += am * bm[j];
-    }
-  }
-}
-
-// out (B x 12) += a (B x B) T_j, T_j the tentative block of finer row j (eq 6.6-6.8).
-template <int B>
-inline void tentativeRight(const CoarseLevel& lv, const double* a, int32_t j, double* out) {
-  if constexpr (B == 3) {
-    const double* x = lv.coord.data() + 3 * static_cast<size_t>(j);
-    for (int i = 0; i < 3; ++i)
-      for (int k = 0; k < 3; ++k) {
-        const double v = a[3 * i + k];
-        double* o = out + 12 * i;
-        o[k] += x[0] * v;
-        o[3 + k] += x[1] * v;
-        o[6 + k] += x[2] * v;
-        o[9 + k] += v;
-      }
-  } else {
-    const double* d = lv.childOffset.data() + 3 * static_cast<size_t>(j);
-    const double ratio = lv.childRatio;
-    for (int i = 0; i < 12; ++i) {
-      const double* ai = a + 12 * i;
-      double* o = out + 12 * i;
-      for (int c = 0; c < 9; ++c) o[c] += ratio * ai[c] + ai[9 + c % 3] * d[c / 3];
-      for (int k = 0; k < 3; ++k) o[9 + k] += ai[9 + k];
-    }
-  }
-}
-
-// out (12 x 12) += T_r^T q, q = Q_rK (B x 12), T_r the tentative block of finer row r.
-template <int B>
-inline void tentativeLeft(const CoarseLevel& lv, int32_t r, const double* q, double* out) {
-  if constexpr (B == 3) {
-    const double* x = lv.coord.data() + 3 * static_cast<size_t>(r);
-    for (int k = 0; k < 3; ++k) {
-      const double* qk = q + 12 * k;
-      for (int a = 0; a < 3; ++a) {
-        double* o = out + 12 * (3 * a + k);
-        for (int c = 0; c < 12; ++c) o[c] += x[a] * qk[c];
-      }
-      double* o = out + 12 * (9 + k);
-      for (int c = 0; c < 12; ++c) o[c] += qk[c];
-    }
-  } else {
-    const double* d = lv.childOffset.data() + 3 * static_cast<size_t>(r);
-    const double ratio = lv.childRatio;
-    for (int j = 0; j < 9; ++j) {
-      const double* qj = q + 12 * j;
-      const double* qt = q + 12 * (9 + j % 3);
-      double* o = out + 12 * j;
-      for (int c = 0; c < 12; ++c) o[c] += ratio * qj[c] + d[j / 3] * qt[c];
-    }
-    for (int k = 0; k < 3; ++k) {
-      const double* qk = q + 12 * (9 + k);
-      double* o = out + 12 * (9 + k);
-      for (int c = 0; c < 12; ++c) o[c] += qk[c];
-    }
-  }
-}
 
 }  // namespace
 
@@ -201,84 +133,25 @@ void MultigridHierarchy::smoothProlongation(int l, const BlockSparseMatrix& A, J
   lv.prolongationFresh = true;
 }
 
-// A_l = P^T (A_{l-1} P) (eq 6.4): Q row by row, then each coarse block from its listed pairs.
-template <int B>
-void MultigridHierarchy::galerkin(int l, const BlockSparseMatrix& A, JobSystem& jobs) {
+GalerkinLevelView MultigridHierarchy::galerkinView(int l) {
   CoarseLevel& lv = m_levels[static_cast<size_t>(l - 1)];
-  const FinerValues<B> F{B == 3 ? A.values.data()
-                                : m_levels[static_cast<size_t>(l - 2)].A.values.data()};
-  constexpr int BC = B * 12;
-  // A tentative P (one structured block per row, eq 6.6-6.8) is applied from its coordinates:
-  // a third of the flops and none of P's memory.
-  const bool tentative = !smoothesLevel(l);
-  const int32_t rows = static_cast<int32_t>(lv.qStart.size()) - 1;
-  forRanges(jobs, static_cast<uint32_t>(rows), B == 3 ? kNodeGrain / 4 : kHandleGrain,
-            [&](uint32_t begin, uint32_t end) {
-              for (uint32_t r = begin; r < end; ++r)
-                for (int32_t q = lv.qStart[r]; q < lv.qStart[r + 1]; ++q) {
-                  double* out = lv.qValues.data() + BC * static_cast<size_t>(q);
-                  std::fill(out, out + BC, 0.0);
-                  for (int32_t c = lv.qcStart[q]; c < lv.qcStart[q + 1]; ++c) {
-                    if (tentative) {
-                      tentativeRight<B>(lv, F.block(lv.qcA[c]), lv.pRow[lv.qcP[c]], out);
-                    } else {
-                      mulAdd<B, 12>(F.block(lv.qcA[c]),
-                                    lv.pValues.data() + BC * static_cast<size_t>(lv.qcP[c]), out);
-                    }
-                  }
-                }
-            });
-  CoarseMatrix& C = lv.A;
-  forRanges(jobs, static_cast<uint32_t>(C.n), kHandleGrain, [&](uint32_t begin, uint32_t end) {
-    for (uint32_t h = begin; h < end; ++h) {
-      for (int32_t kc = C.rowStart[h]; kc < C.rowStart[h + 1]; ++kc) {
-        if (lv.mirror[kc] >= 0) continue;  // the lower triangle, below
-        double out[144] = {};
-        for (int32_t g = lv.gatherStart[kc]; g < lv.gatherStart[kc + 1]; ++g) {
-          const double* pb = lv.pValues.data() + BC * static_cast<size_t>(lv.gatherP[g]);
-          const double* qb = lv.qValues.data() + BC * static_cast<size_t>(lv.gatherQ[g]);
-          if (tentative) {
-            tentativeLeft<B>(lv, lv.pRow[lv.gatherP[g]], qb, out);
-            continue;
-          }
-          // out += P_rH^T Q_rK.
-          for (int m = 0; m < B; ++m) {
-            const double* pm = pb + 12 * m;
-            const double* qm = qb + 12 * m;
-            for (int i = 0; i < 12; ++i) {
-              const double a = pm[i];
-              if (a == 0) continue;
-              double* o = out + 12 * i;
-              for (int j = 0; j < 12; ++j) o[j] += a * qm[j];
-            }
-          }
-        }
-        if (l == 1 && C.col[kc] == static_cast<int32_t>(h)) {
-          // Null directions of the aggregate get the block's mean diagonal (see nullProjector).
-          double trace = 0;
-          for (int i = 0; i < 12; ++i) trace += out[13 * i];
-          const double delta = trace > 0 && std::isfinite(trace) ? trace / 12 : 1.0;
-          const double* proj = lv.nullProjector.data() + 16 * static_cast<size_t>(h);
-          for (int a = 0; a < 4; ++a)
-            for (int c = 0; c < 4; ++c)
-              for (int i = 0; i < 3; ++i)
-                out[(3 * a + i) * 12 + 3 * c + i] += delta * proj[4 * a + c];
-        }
-        std::copy(out, out + 144, C.block(kc));
-      }
-    }
-  });
-  // The lower triangle is the transpose of the upper: A_l is symmetric to the last bit.
-  forRanges(jobs, static_cast<uint32_t>(C.n), kHandleGrain, [&](uint32_t begin, uint32_t end) {
-    for (uint32_t h = begin; h < end; ++h)
-      for (int32_t kc = C.rowStart[h]; kc < C.rowStart[h + 1]; ++kc) {
-        if (lv.mirror[kc] < 0) continue;
-        const double* src = C.block(lv.mirror[kc]);
-        double* dst = C.block(kc);
-        for (int i = 0; i < 12; ++i)
-          for (int j = 0; j < 12; ++j) dst[12 * i + j] = src[12 * j + i];
-      }
-  });
+  GalerkinLevelView g;
+  g.finerRows = static_cast<int32_t>(lv.qStart.size()) - 1;
+  g.coarseRows = lv.A.n;
+  g.P = prolongation(l - 1);
+  g.qStart = lv.qStart.data();
+  g.qcStart = lv.qcStart.data();
+  g.qcA = lv.qcA.data();
+  g.qcP = lv.qcP.data();
+  g.qValues = lv.qValues.data();
+  g.rowStart = lv.A.rowStart.data();
+  g.col = lv.A.col.data();
+  g.mirror = lv.mirror.data();
+  g.gatherStart = lv.gatherStart.data();
+  g.gatherP = lv.gatherP.data();
+  g.gatherQ = lv.gatherQ.data();
+  g.nullProjector = l == 1 ? lv.nullProjector.data() : nullptr;
+  return g;
 }
 
 void MultigridHierarchy::assemble(const BlockSparseMatrix& A, JobSystem& jobs) {
@@ -286,10 +159,13 @@ void MultigridHierarchy::assemble(const BlockSparseMatrix& A, JobSystem& jobs) {
     const bool fresh = m_levels[static_cast<size_t>(l - 1)].prolongationFresh;
     if (l == 1) {
       if (!fresh) smoothProlongation<3>(l, A, jobs);
-      galerkin<3>(l, A, jobs);
+      galerkinProduct<3>(CpuExecutor(jobs), galerkinView(l), A.values.data(),
+                         m_levels[0].A.values.data());
     } else {
       if (!fresh) smoothProlongation<12>(l, A, jobs);
-      galerkin<12>(l, A, jobs);
+      galerkinProduct<12>(CpuExecutor(jobs), galerkinView(l),
+                          m_levels[static_cast<size_t>(l - 2)].A.values.data(),
+                          m_levels[static_cast<size_t>(l - 1)].A.values.data());
     }
   }
 }

@@ -35,6 +35,7 @@
 #include "graphfrac/jobs.h"
 #include "graphfrac/status.h"
 #include "solver/block_sparse.h"
+#include "solver/galerkin_stages.h"
 #include "solver/multigrid_stages.h"
 
 namespace gf::detail {
@@ -157,6 +158,9 @@ class MultigridHierarchy {
   /// The prolongator between MG level `level` and level + 1 as the transfer stages read it
   /// (valid until the next build, rebind or assemble).
   ProlongationView prolongation(int level) const;
+  /// What coarse level l's operator is computed from (galerkin_stages.h), valid until the
+  /// next build or rebind; assemble() runs galerkinProduct on it.
+  GalerkinLevelView galerkinView(int l);
   /// coarse = P^T fine between MG level `level` and level + 1 (level 0 is the fine mesh).
   void restrictTo(int level, const double* fine, double* coarse, JobSystem& jobs) const;
   /// fine += P coarse between MG level `level` and level + 1 (eq 6.3, 6.8).
@@ -182,8 +186,6 @@ class MultigridHierarchy {
   void buildPatterns();
   template <int B>
   void smoothProlongation(int l, const BlockSparseMatrix& A, JobSystem& jobs);
-  template <int B>
-  void galerkin(int l, const BlockSparseMatrix& A, JobSystem& jobs);
 
   NodeGraph m_graph;
   bool m_smooth = true;

@@ -52,6 +52,38 @@ GF_HD void blockApply(const double* m, const double* v, double* out) {
   }
 }
 
+/// out = A x, one block row per item.
+template <int B>
+struct LevelProductStage {
+  LevelMatrix<B> A;
+  const double* x = nullptr;
+  double* out = nullptr;
+
+  GF_HD void operator()(int32_t row) const { rowProduct<B>(A, row, x, out + B * row); }
+};
+
+/// out_i = M_i v_i with M_i the B x B block blocks[index[i]] (index null: blocks[i]).
+template <int B>
+struct BlockDiagonalApplyStage {
+  const double* blocks = nullptr;
+  const int32_t* index = nullptr;
+  const double* v = nullptr;
+  double* out = nullptr;
+
+  GF_HD void operator()(int32_t i) const {
+    const int64_t k = index ? index[i] : i;
+    blockApply<B>(blocks + int64_t(B * B) * k, v + B * i, out + B * i);
+  }
+};
+
+/// The power iterations' start: fixed and non-smooth, so deterministic and rich in the high
+/// modes they look for.
+struct PowerStartStage {
+  double* v = nullptr;
+
+  GF_HD void operator()(int32_t i) const { v[i] = 1.0 + 0.37 * double((int64_t(i) * 7919) % 13); }
+};
+
 /// r = b - A x, one block row per item.
 template <int B>
 struct LevelResidualStage {

@@ -1,0 +1,75 @@
+// The multigrid on the device: solver/multigrid_cycle.h's flexible CG and V-cycle and
+// galerkin_stages.h's coarse operators, run by the device executor on device copies of a
+// detail::MultigridSolver's levels. The hierarchy (aggregates, prolongators, patterns) is built
+// on the host and mirrored once per re-binding; a new matrix of the same pattern is refreshed
+// on the device except for the coarsest level's sparse Cholesky factor, which stays on the
+// host (its values go there once per refresh, and 12 doubles per coarsest handle each way per
+// V-cycle). Built twice from one source like gpu/pcg.h.
+#pragma once
+
+#include <deque>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "gpu/device.h"
+#include "gpu/executor.h"
+#include "solver/block_sparse.h"
+#include "solver/multigrid_cycle.h"
+
+namespace gf::gpu {
+inline namespace GF_GPU_ABI {
+
+/// What DeviceMultigrid mirrors: a prepared MultigridSolver's host views and its coarsest
+/// level's factorisation and solve.
+struct HostMultigrid {
+  std::vector<detail::CycleLevel> levels;           ///< cycleLevels(A); level 0 is A
+  std::vector<detail::GalerkinLevelView> galerkin;  ///< galerkinLevels()
+  detail::CycleSettings settings;
+  std::function<void(const double* values)> factorCoarsest;  ///< from its blocks' values
+  std::function<void(const double* b, double* x)> solveCoarsest;
+};
+
+class DeviceMultigrid {
+ public:
+  /// Copies A and the levels to the device. False when device memory runs out (error()).
+  bool upload(const detail::BlockSparseMatrix& A, const HostMultigrid& host);
+  /// A new matrix of the uploaded pattern (host array of its values): the fine diagonal, the
+  /// coarse operators P^T A P with their diagonals and spectral bounds on the device, the
+  /// coarsest factor on the host; what MultigridSolver::prepare does on a refresh, with the
+  /// prolongators of the upload. False on a device error (error()).
+  bool refresh(const double* values);
+  /// Solves the uploaded A x = b as MultigridSolver::solve does (same arguments and report);
+  /// b and x are host arrays of 3 n, x the initial guess on entry. `run` says how (CG or
+  /// cycles alone) and receives the cycle count. False on a device error (error()), x then
+  /// unchanged.
+  bool solve(const double* b, double* x, int maxIterations, double relativeTolerance,
+             detail::MultigridRun& run, detail::SolveReport& report);
+  const std::string& error() const { return m_error; }
+
+ private:
+  bool fail(const char* what);
+  // A device copy of n items of host (null stays null); false when it cannot be made.
+  template <class T, class Out>
+  bool mirror(const T* host, size_t n, Out*& out);
+  bool scratch(size_t n, double*& out);
+
+  int32_t m_n = 0;
+  size_t m_fineBlocks = 0;
+  detail::BlockMatrixView m_A;
+  std::vector<detail::CycleLevel> m_levels;  // device pointers; colourStart on the host
+  std::vector<detail::GalerkinLevelView> m_galerkin;
+  std::vector<std::vector<int32_t>> m_colourStart;
+  HostMultigrid m_host;
+  std::vector<double> m_coarsestValues;      // host copy for the factorisation
+  std::vector<double> m_coarseB, m_coarseX;  // host staging of the coarsest solve
+  std::deque<DeviceBuffer<int32_t>> m_ints;
+  std::deque<DeviceBuffer<double>> m_doubles;
+  DeviceBuffer<double> m_b, m_x, m_r, m_z, m_p, m_ap, m_rOld;
+  Executor m_exec;
+  bool m_coarseFailed = false;
+  std::string m_error;
+};
+
+}  // namespace GF_GPU_ABI
+}  // namespace gf::gpu
