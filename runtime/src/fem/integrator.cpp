@@ -73,12 +73,6 @@ Mat3 turnBy(Vec3 spin, double dt) {
   return Mat3::identity() + std::sin(angle) * K + (1 - std::cos(angle)) * (K * K);
 }
 
-bool allFinite(const std::vector<double>& a) {
-  for (double v : a)
-    if (!std::isfinite(v)) return false;
-  return true;
-}
-
 }  // namespace
 
 Integrator::Integrator(const FemModel& model) {
@@ -894,27 +888,21 @@ void Integrator::sweepColliders(const FemModel& model, const FemState& state,
 }
 
 bool Integrator::nearCollider(const FemModel& model, const FemState& state, const double* x,
-                              const double* v, double dt, const StepContext& ctx) const {
+                              const double* v, double dt, const StepContext& ctx,
+                              JobSystem& jobs) const {
   if (v && m_swept.collider &&
       std::any_of(m_sweptCollider.begin(), m_sweptCollider.end(), [](int32_t c) { return c >= 0; }))
     return true;
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    if (state.fixedNode[n]) continue;
-    const Vec3 xi = load3(x, n);
-    for (int c = 0; c < ctx.colliderCount; ++c) {
-      Vec3 normal;
-      if (penetration(ctx.colliders[c], xi, normal) > 0 ||
-          (v && penetration(ctx.colliders[c], xi + dt * load3(v, n), normal) > 0))
-        return true;
-    }
-  }
-  return false;
+  const InsideColliderTerm inside{
+      x, v, dt, state.fixedNode.data(), ctx.colliders, ctx.colliderCount};
+  return CpuExecutor(jobs).reduce<MaxOp>(model.nodeCount, inside) > 0;
 }
 
 BodyStepReport Integrator::step(const FemModel& model, FemState& state, const StepContext& ctx,
                                 JobSystem& jobs) {
   BodyStepReport rep;
   const size_t n3 = state.x.size();
+  const CpuExecutor exec(jobs);
   m_xStart = state.x;
   m_vStart = state.v;
   // theta = 1: backward Euler. Below it the solve covers theta dt (the one-leg theta method)
@@ -925,7 +913,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   sweepColliders(model, state, ctx, jobs, rep);
   double theta = 0.5 + 0.5 * model.solver.numericalDamping;
   if (theta < 1 && ctx.colliderCount > 0 &&
-      nearCollider(model, state, state.x.data(), state.v.data(), ctx.dt, ctx))
+      nearCollider(model, state, state.x.data(), state.v.data(), ctx.dt, ctx, jobs))
     theta = 1;
   // Body contact likewise, and its momentum exchange reads the backward-Euler impulses.
   if (ctx.bodyContacts.start) theta = 1;
@@ -943,17 +931,15 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
     const uint32_t flagsBefore = rep.flags;
     psi = solve(model, state, inner, ctx.dt, judgeFracture, jobs, rep);
     if (theta == 1) {
-      // v_{n+1} = (x_{n+1} - x_n) / dt; prescribed nodes move at exactly their grip velocity.
-      for (size_t i = 0; i < n3; ++i) {
-        state.v[i] =
-            state.fixedNode[i / 3] ? state.gripVelocity[i] : (m_x[i] - m_xStart[i]) / inner.dt;
-        state.x[i] = m_x[i];
-      }
+      exec.run(int32_t(n3), kNodeGrain,
+               EndOfStepStage{m_x.data(), m_xStart.data(), state.gripVelocity.data(),
+                              state.fixedNode.data(), inner.dt, state.x.data(), state.v.data()});
       rigidEndVelocities(model, state, inner);
       break;
     }
     thetaEndState(model, state, inner, ctx.dt, theta);
-    if (ctx.colliderCount == 0 || !nearCollider(model, state, state.x.data(), nullptr, 0, ctx))
+    if (ctx.colliderCount == 0 ||
+        !nearCollider(model, state, state.x.data(), nullptr, 0, ctx, jobs))
       break;
     // The extrapolation reached into a collider: the step again, as backward Euler from the
     // same start (fracture was judged there already).
@@ -969,7 +955,8 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
                         m_restVolume;
   // The divergence check reads the solved point's energy; the extrapolated state is checked for
   // finite values. A rolled-back step leaves z at the start too (prescribedNodeForces).
-  if (!allFinite(state.x) || !allFinite(state.v) || !std::isfinite(psi)) {
+  if (exec.reduce<MaxOp>(int32_t(n3), NonFiniteTerm{state.x.data()}) > 0 ||
+      exec.reduce<MaxOp>(int32_t(n3), NonFiniteTerm{state.v.data()}) > 0 || !std::isfinite(psi)) {
     state.x = m_xStart;
     state.v = m_vStart;
     m_x = m_xStart;
@@ -986,27 +973,19 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
                   "the start of the step; use a smaller dt or substeps",
                   psi, blowUp);
     rep.message = text;
-  } else if (ctx.colliderImpulse) {
+  } else if (ctx.colliderImpulse && ctx.colliderCount > 0) {
     // The last Newton step solved the linearisation at m_xLin, so the contact force that
     // entered the momentum balance is the linearised one, g + H (x - x_lin) (equal to the
-    // force at x when the contact set and normals did not change). Serial, in node order: the
-    // same sums for any thread count. Below theta = 1 that force acts over the whole step.
-    for (int32_t n = 0; n < model.nodeCount; ++n) {
-      if (state.fixedNode[n]) continue;  // prescribed nodes take no part in the balance
-      const Vec3 xi = load3(m_x.data(), n), xl = load3(m_xLin.data(), n);
-      for (int c = 0; c < ctx.colliderCount; ++c) {
-        Vec3 g;
-        Mat3 h;
-        if (m_swept.contact(ctx.colliders[c], c, n, xl, state.nodeMass[n], g, h) == 0) continue;
-        const Vec3 j = (-dt / theta) * (g + h * (xi - xl));
-        const Vec3 moment = cross(xi - ctx.colliders[c].point, j);
-        double* out = ctx.colliderImpulse + 6 * c;
-        for (int i = 0; i < 3; ++i) {
-          out[i] += j[i];
-          out[3 + i] += moment[i];
-        }
-      }
-    }
+    // force at x when the contact set and normals did not change). Below theta = 1 that force
+    // acts over the whole step.
+    const int32_t nn = model.nodeCount;
+    m_impulses.resize(6 * size_t(ctx.colliderCount) * size_t(nn));
+    exec.run(nn, kNodeGrain,
+             ColliderImpulseStage{m_x.data(), m_xLin.data(), state.fixedNode.data(),
+                                  state.nodeMass.data(), ctx.colliders, ctx.colliderCount, m_swept,
+                                  -dt / theta, nn, m_impulses.data()});
+    for (int k = 0; k < 6 * ctx.colliderCount; ++k)
+      ctx.colliderImpulse[k] += exec.sum(m_impulses.data() + size_t(k) * size_t(nn), nn);
     for (const FrictionContact& f : m_friction) {
       const Vec3 xi = load3(m_x.data(), f.node);
       const Vec3 j = (1.0 / theta) * frictionImpulse(inner, f, xi);

@@ -180,7 +180,7 @@ class Integrator {
   // True when a free node at x, or at x + dt v (v non-null: also when its path enters a thin
   // collider), penetrates a collider.
   bool nearCollider(const FemModel& model, const FemState& state, const double* x, const double* v,
-                    double dt, const StepContext& ctx) const;
+                    double dt, const StepContext& ctx, JobSystem& jobs) const;
   // True when a free node now penetrates a collider that the last linearisation missed.
   bool enteredUnseenContact(const FemModel& model, const FemState& state,
                             const StepContext& ctx) const;
@@ -212,6 +212,7 @@ class Integrator {
   BlockSparseMatrix m_dampK;                // K(x_n) for Rayleigh r2, only when r2 > 0
   bool m_dampKValid = false;                // m_dampK belongs to the current step
   std::vector<double> m_xLin;               // the last linearisation point, for collider impulses
+  std::vector<double> m_impulses;           // ColliderImpulseStage's, 6 per collider and node
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
   double m_theta = 1;  // of the last step; below 1, m_x keeps the solved point the forces act at
   FractureBody* m_fracture = nullptr;

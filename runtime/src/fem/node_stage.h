@@ -132,6 +132,83 @@ struct UnseenContactTerm {
   }
 };
 
+/// The end of a backward-Euler step: x = the solved positions, v = (x - x_n) / dt on free
+/// nodes and exactly the grip velocity on prescribed ones; one entry per item.
+struct EndOfStepStage {
+  const double* solved = nullptr;
+  const double* xn = nullptr;
+  const double* gripVelocity = nullptr;
+  const uint8_t* fixedNode = nullptr;
+  double dt = 0;
+  double* x = nullptr;
+  double* v = nullptr;
+
+  GF_HD void operator()(int32_t i) const {
+    v[i] = fixedNode[i / 3] ? gripVelocity[i] : (solved[i] - xn[i]) / dt;
+    x[i] = solved[i];
+  }
+};
+
+/// 1 when free node n at x, or at x + dt v (v non-null), is inside a collider, else 0: a
+/// max-reduction term.
+struct InsideColliderTerm {
+  const double* x = nullptr;
+  const double* v = nullptr;
+  double dt = 0;
+  const uint8_t* fixedNode = nullptr;
+  const ColliderData* colliders = nullptr;
+  int colliderCount = 0;
+
+  GF_HD double operator()(int32_t n) const {
+    if (fixedNode[n]) return 0.0;
+    const int64_t i3 = 3 * int64_t(n);
+    const Vec3 xi{x[i3], x[i3 + 1], x[i3 + 2]};
+    const Vec3 ahead = v ? xi + dt * Vec3{v[i3], v[i3 + 1], v[i3 + 2]} : xi;
+    for (int c = 0; c < colliderCount; ++c) {
+      Vec3 normal;
+      if (penetration(colliders[c], xi, normal) > 0 ||
+          (v && penetration(colliders[c], ahead, normal) > 0))
+        return 1.0;
+    }
+    return 0.0;
+  }
+};
+
+/// What each collider's penalty gave free node n over the step, as the last Newton step
+/// linearised it at xLin: j = scale (g + H (x - xLin)) with scale = -dt (over theta below 1)
+/// and its moment about the collider's point, 6 values per collider into
+/// out[(6 c + k) nodeCount + n], so each total is one fixed-order sum over the nodes.
+struct ColliderImpulseStage {
+  const double* x = nullptr;
+  const double* xLin = nullptr;
+  const uint8_t* fixedNode = nullptr;
+  const double* nodeMass = nullptr;
+  const ColliderData* colliders = nullptr;
+  int colliderCount = 0;
+  SweptContacts swept;
+  double scale = 0;
+  int32_t nodeCount = 0;
+  double* out = nullptr;
+
+  GF_HD void operator()(int32_t n) const {
+    const int64_t i3 = 3 * int64_t(n);
+    const Vec3 xi{x[i3], x[i3 + 1], x[i3 + 2]}, xl{xLin[i3], xLin[i3 + 1], xLin[i3 + 2]};
+    for (int c = 0; c < colliderCount; ++c) {
+      Vec3 j, moment, g;
+      Mat3 h;
+      // Prescribed nodes take no part in the balance.
+      if (!fixedNode[n] && swept.contact(colliders[c], c, n, xl, nodeMass[n], g, h) != 0) {
+        j = scale * (g + h * (xi - xl));
+        moment = cross(xi - colliders[c].point, j);
+      }
+      for (int k = 0; k < 3; ++k) {
+        out[(6 * int64_t(c) + k) * nodeCount + n] = j[k];
+        out[(6 * int64_t(c) + 3 + k) * nodeCount + n] = moment[k];
+      }
+    }
+  }
+};
+
 /// Per free node, the box or sphere collider that it is in at the step's start (its nearest
 /// face), or else the first one that its path over the step (x_n to x_n + dt v_n, in the
 /// colliders' end-of-step frame) enters, with the face's point and normal (SweptContacts),
