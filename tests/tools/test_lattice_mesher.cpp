@@ -1,5 +1,5 @@
-// The winding-number lattice mesher (tools/cli/lattice_mesher.h) against independent truths: the
-// winding number of a closed cube is 1 inside, 0 outside and 1/2 on a face, and its far-field
+// The winding-number lattice mesher (tools/meshing/lattice_mesher.h) against independent truths:
+// the winding number of a closed cube is 1 inside, 0 outside and 1/2 on a face, and its far-field
 // approximation stays close to the exact sum; a sphere and a box meshed at rising resolution
 // converge to their analytic volumes; an open box, two overlapping cubes and two apart give valid
 // meshes (gf::validate) with positive angles and the expected volumes; and assimp test models
@@ -16,14 +16,14 @@
 #include <vector>
 
 #include "cli/commands.h"
-#include "cli/lattice_mesher.h"
-#include "cli/surface_reader.h"
-#include "cli/triangle_soup.h"
 #include "graphfrac/mesh.h"
+#include "meshing/lattice_mesher.h"
+#include "meshing/surface_reader.h"
+#include "meshing/triangle_soup.h"
 
 namespace fs = std::filesystem;
 using gf::Vec3;
-using gf::cli::TriangleSoup;
+using gf::meshing::TriangleSoup;
 
 namespace {
 
@@ -97,11 +97,11 @@ Soup sphere(double r, int levels) {
   return s;
 }
 
-gf::cli::LatticeResult meshOf(const Soup& s, int cells) {
+gf::meshing::LatticeResult meshOf(const Soup& s, int cells) {
   const TriangleSoup soup(s.v, s.f);
-  gf::cli::LatticeOptions o;
+  gf::meshing::LatticeOptions o;
   o.cells = cells;
-  gf::Result<gf::cli::LatticeResult> r = gf::cli::latticeMesh(soup, o);
+  gf::Result<gf::meshing::LatticeResult> r = gf::meshing::latticeMesh(soup, o);
   EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.error().message);
   if (!r.ok()) return {};
   // What the runtime demands of a body's mesh, checked again on a copy.
@@ -110,7 +110,7 @@ gf::cli::LatticeResult meshOf(const Soup& s, int cells) {
   const gf::Result<void> valid = gf::validate(copy, "lattice", &flipped);
   EXPECT_TRUE(valid.ok()) << (valid.ok() ? "" : valid.error().message);
   EXPECT_EQ(flipped, 0);
-  const gf::cli::TetQuality q = gf::cli::measureQuality(r.value().mesh);
+  const gf::meshing::TetQuality q = gf::meshing::measureQuality(r.value().mesh);
   EXPECT_GT(q.minVolume, 0);
   EXPECT_GT(q.minDihedralDeg, 5.0);
   EXPECT_GT(q.meanRadiusRatio, 0.5);
@@ -166,9 +166,9 @@ TEST(LatticeMesher, SphereAndBoxConvergeToTheirVolume) {
   const double exact = 4.0 / 3 * kPi;
   double last = 1;
   for (int cells : {8, 16, 32}) {
-    const gf::cli::LatticeResult r = meshOf(ball, cells);
+    const gf::meshing::LatticeResult r = meshOf(ball, cells);
     const double err = std::abs(r.mesh.volume() - exact) / exact;
-    const gf::cli::TetQuality q = gf::cli::measureQuality(r.mesh);
+    const gf::meshing::TetQuality q = gf::meshing::measureQuality(r.mesh);
     std::printf("[ sphere  ] %2d cells: %zu tets, volume error %.4f, min dihedral %.1f deg\n",
                 cells, r.mesh.tetCount(), err, q.minDihedralDeg);
     EXPECT_LT(err, last);
@@ -189,7 +189,7 @@ TEST(LatticeMesher, SphereAndBoxConvergeToTheirVolume) {
 
 // One side missing: the winding number still closes the hole (at about its plane).
 TEST(LatticeMesher, OpenBoxGivesAValidMesh) {
-  const gf::cli::LatticeResult r = meshOf(box({0, 0, 0}, {1, 1, 1}, 3), 20);
+  const gf::meshing::LatticeResult r = meshOf(box({0, 0, 0}, {1, 1, 1}, 3), 20);
   EXPECT_EQ(r.parts, 1u);
   EXPECT_NEAR(r.mesh.volume(), 1.0, 0.1);
   EXPECT_NEAR(r.mesh.volume() / r.windingVolume, 1.0, 0.03);
@@ -199,7 +199,7 @@ TEST(LatticeMesher, OpenBoxGivesAValidMesh) {
 TEST(LatticeMesher, SelfIntersectingCubesGiveTheirUnion) {
   Soup s = box({0, 0, 0}, {1, 1, 1});
   s.add(box({0.5, 0.5, 0.5}, {1, 1, 1}));
-  const gf::cli::LatticeResult r = meshOf(s, 24);
+  const gf::meshing::LatticeResult r = meshOf(s, 24);
   EXPECT_EQ(r.parts, 1u);
   EXPECT_NEAR(r.mesh.volume(), 1.875, 0.03);
   // The divergence-theorem volume counts the overlap twice; the winding number does not.
@@ -210,7 +210,7 @@ TEST(LatticeMesher, SelfIntersectingCubesGiveTheirUnion) {
 TEST(LatticeMesher, TwoPartsGiveTwoComponents) {
   Soup s = box({0, 0, 0}, {1, 1, 1});
   s.add(box({2, 0, 0}, {1, 0.5, 0.5}));
-  const gf::cli::LatticeResult r = meshOf(s, 30);
+  const gf::meshing::LatticeResult r = meshOf(s, 30);
   EXPECT_EQ(r.parts, 2u);
   EXPECT_NEAR(r.mesh.volume(), 1.25, 0.02);
 }
@@ -220,7 +220,7 @@ TEST(LatticeMesher, TwoPartsGiveTwoComponents) {
 TEST(LatticeMesher, EdgeContactIsMadeManifold) {
   Soup s = box({0, 0, 0}, {1, 1, 1});
   s.add(box({1, 1, 0}, {1, 1, 1}));
-  const gf::cli::LatticeResult r = meshOf(s, 8);
+  const gf::meshing::LatticeResult r = meshOf(s, 8);
   EXPECT_EQ(r.parts, 1u);
   EXPECT_NEAR(r.mesh.volume(), 2.0, 0.1);
 }
@@ -299,7 +299,7 @@ TEST(LatticeMesher, AutoFallsBackToTheLattice) {
 // refuses both; auto goes to the lattice and the results load as a body's mesh.
 TEST(LatticeMesher, AssimpModelThatTetgenRefuses) {
   const fs::path model = "/usr/share/assimp/models/STL/sphereWithHole.stl";
-  if (!gf::cli::haveAssimp() || !fs::exists(model)) {
+  if (!gf::meshing::haveAssimp() || !fs::exists(model)) {
     GTEST_SKIP() << "needs assimp and Debian's assimp-testmodels (tools/setup tools)";
   }
   const fs::path dir = fs::temp_directory_path() / "gf_lattice_test_assimp";

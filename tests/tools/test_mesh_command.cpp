@@ -23,8 +23,8 @@
 #include <vector>
 
 #include "cli/commands.h"
-#include "cli/surface_reader.h"
 #include "graphfrac/mesh.h"
+#include "meshing/surface_reader.h"
 
 namespace fs = std::filesystem;
 
@@ -63,7 +63,7 @@ bool haveTetgen() {
 const fs::path kModels = "/usr/share/assimp/models";
 
 #define REQUIRE_ASSIMP()                                                                 \
-  if (!gf::cli::haveAssimp())                                                            \
+  if (!gf::meshing::haveAssimp())                                                        \
   GTEST_SKIP() << "built without assimp (install libassimp-dev: tools/setup tools, and " \
                   "configure again)"
 
@@ -218,7 +218,8 @@ TEST(MeshFromSurface, NamesWhatCannotBeRead) {
   for (const auto& c : cases) {
     const Outcome o = mesh({"from-surface", (dir / c.file).string(), (dir / "out.msh").string()});
     EXPECT_EQ(o.code, gf::cli::kExitScene) << c.file;
-    const std::string want = (dir / c.file).string() + (gf::cli::haveAssimp() ? c.with : c.without);
+    const std::string want =
+        (dir / c.file).string() + (gf::meshing::haveAssimp() ? c.with : c.without);
     EXPECT_NE(o.err.find(want), std::string::npos) << want << "\n" << o.err;
   }
 }
@@ -346,12 +347,12 @@ struct Shape {
 };
 
 // Read as `mesh from-surface` reads it; the bounding box and area are measured here.
-Shape shape(const fs::path& path, gf::cli::SurfaceReadOptions options = {}) {
-  gf::Result<gf::cli::SurfaceFile> r = gf::cli::readSurfaceFile(path.string(), options);
+Shape shape(const fs::path& path, gf::meshing::SurfaceReadOptions options = {}) {
+  gf::Result<gf::meshing::SurfaceFile> r = gf::meshing::readSurfaceFile(path.string(), options);
   Shape s;
   EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.error().message);
   if (!r.ok()) return s;
-  const gf::cli::SurfaceFile& f = r.value();
+  const gf::meshing::SurfaceFile& f = r.value();
   s.triangles = f.triangles.size() / 3;
   s.lo = {INFINITY, INFINITY, INFINITY};
   s.hi = {-INFINITY, -INFINITY, -INFINITY};
@@ -392,7 +393,7 @@ TEST(MeshFromSurfaceAssimp, OneModelInStlPlyAndObjReadsTheSame) {
   EXPECT_NEAR(stl.hi[1] - stl.lo[1], 1.515816, 1e-5);  // its height, Y up as written
   expectSameShape(stl, shape(kModels / "PLY" / "Wuson.ply"), 1e-6, "PLY");
   expectSameShape(stl, shape(kModels / "OBJ" / "WusonOBJ.obj"), 1e-6, "OBJ");
-  gf::cli::SurfaceReadOptions viaAssimp;
+  gf::meshing::SurfaceReadOptions viaAssimp;
   viaAssimp.assimp = true;
   expectSameShape(stl, shape(kModels / "OBJ" / "WusonOBJ.obj", viaAssimp), 1e-6, "OBJ (assimp)");
 }
@@ -436,11 +437,11 @@ TEST(MeshFromSurfaceAssimp, FbxUnitsBecomeMetres) {
 
   // --scale replaces the file's unit (UnitScaleFactor 500: 5 m per unit).
   const fs::path five = kModels / "FBX" / "global_settings.fbx";
-  gf::cli::SurfaceReadOptions raw;
+  gf::meshing::SurfaceReadOptions raw;
   raw.scale = 1;
   const Shape declared = shape(five), unscaled = shape(five, raw);
   EXPECT_NEAR(declared.hi[0] - declared.lo[0], 5 * (unscaled.hi[0] - unscaled.lo[0]), 1e-9);
-  gf::Result<gf::cli::SurfaceFile> r = gf::cli::readSurfaceFile(five.string());
+  gf::Result<gf::meshing::SurfaceFile> r = gf::meshing::readSurfaceFile(five.string());
   ASSERT_TRUE(r.ok());
   EXPECT_NE(r.value().conversion.find("unit 5 m (FBX UnitScaleFactor 500)"), std::string::npos)
       << r.value().conversion;
@@ -450,7 +451,7 @@ TEST(MeshFromSurfaceAssimp, FbxUnitsBecomeMetres) {
 TEST(MeshFromSurfaceAssimp, UpAxisTurnsToY) {
   REQUIRE_MODELS();
   const Shape y = shape(kModels / "STL" / "Wuson.stl");
-  gf::cli::SurfaceReadOptions zUp;
+  gf::meshing::SurfaceReadOptions zUp;
   zUp.up = 'z';
   const Shape z = shape(kModels / "STL" / "Wuson.stl", zUp);
   EXPECT_NEAR(z.lo[1], y.lo[2], 1e-9);

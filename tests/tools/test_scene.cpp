@@ -5,7 +5,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/vec4.hpp>
@@ -342,6 +344,74 @@ TEST(Scene, RadialFibreFieldOnTheAxisStaysPerpendicular) {
   }
 }
 
+// A box of `len` by 100 by 100 file units, the long side along the file's axis `longAxis`,
+// written as an OBJ with outward faces.
+void writeBoxObj(const fs::path& path, double len, int longAxis) {
+  std::FILE* f = std::fopen(path.string().c_str(), "w");
+  ASSERT_NE(f, nullptr);
+  for (int i = 0; i < 8; ++i) {
+    double p[3] = {100, 100, 100};
+    p[longAxis] = len;
+    std::fprintf(f, "v %g %g %g\n", (i & 1) * p[0], ((i >> 1) & 1) * p[1], ((i >> 2) & 1) * p[2]);
+  }
+  const int quads[6][4] = {{1, 3, 4, 2}, {5, 6, 8, 7}, {1, 2, 6, 5},
+                           {3, 7, 8, 4}, {1, 5, 7, 3}, {2, 4, 8, 6}};
+  for (const auto& q : quads) std::fprintf(f, "f %d %d %d %d\n", q[0], q[1], q[2], q[3]);
+  std::fclose(f);
+}
+
+TEST(Scene, SurfaceMeshesAreTetrahedralisedWithTheirUnitAndUpAxis) {
+  const fs::path dir = fs::temp_directory_path() / "gf_scene_surface";
+  fs::create_directories(dir);
+  // 300 x 100 x 100 cm, long along the file's z, which the scene says is up: a body 1 m wide
+  // and deep and 3 m tall in the world's Y-up frame.
+  writeBoxObj(dir / "box.obj", 300, 2);
+  const std::string text = R"({"bodies": [{"mesh": {"surface": "box.obj", "unit": 0.01,
+      "up": "z", "cells": 24}, "material": {"E": 1, "nu": 0, "rho": 1}}]})";
+  const Result<Scene> r = parseScene(text, "inline", dir.string());
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const TetMesh& m = r.value().bodies[0].def.mesh;
+  glm::dvec3 lo(1e30), hi(-1e30);
+  for (size_t i = 0; i < m.nodeCount(); ++i) {
+    lo = glm::min(lo, node(m, int32_t(i)));
+    hi = glm::max(hi, node(m, int32_t(i)));
+  }
+  const glm::dvec3 extent = hi - lo;
+  EXPECT_NEAR(extent.y, 3.0, 0.05);
+  EXPECT_NEAR(extent.x, 1.0, 0.05);
+  EXPECT_NEAR(extent.z, 1.0, 0.05);
+  EXPECT_NEAR(m.volume(), 3.0, 0.03 * 3.0);  // snapped to the box's faces
+  EXPECT_GT(m.tetCount(), 1000u);
+
+  // Errors name the key and the reason, and no mesh is made.
+  auto error = [&](const std::string& mesh) {
+    const Result<Scene> bad = parseScene(
+        R"({"bodies": [{"mesh": )" + mesh + R"(, "material": {"E": 1, "nu": 0, "rho": 1}}]})",
+        "inline", dir.string());
+    return bad.ok() ? std::string("loaded") : bad.error().message;
+  };
+  EXPECT_NE(error(R"({"surface": "missing.obj"})").find("bodies[0].mesh.surface: no such file"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"surface": "box.obj", "up": "w"})").find("bodies[0].mesh.up"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"surface": "box.obj", "cells": 8, "target_tets": 100})")
+                .find("give \"cells\" or \"target_tets\", not both"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"surface": "box.obj", "generator": "box"})").find("exactly one of"),
+            std::string::npos);
+  // A file that is not a surface: the reader's message, under the key.
+  {
+    std::FILE* f = std::fopen((dir / "empty.obj").string().c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs("# nothing\n", f);
+    std::fclose(f);
+  }
+  const std::string empty = error(R"({"surface": "empty.obj"})");
+  EXPECT_NE(empty.find("bodies[0].mesh.surface: "), std::string::npos) << empty;
+  EXPECT_NE(empty.find("empty.obj"), std::string::npos) << empty;
+  fs::remove_all(dir);
+}
+
 TEST(Scene, FrictionKeysLoadAndAreChecked) {
   const std::string text = R"({"colliders": [{"type": "plane", "friction": 0.4}],
       "bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1], "cells": [1, 1, 1]},
@@ -535,7 +605,7 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
      {": bodies[0].mesh.file: no such file", "tests/data/scenes/meshes/missing.msh"}},
     {"broken_mesh_file.json", {": bodies[0].mesh.file: ", "broken.msh", "42"}},
     {"file_and_generator.json",
-     {": bodies[0].mesh: needs exactly one of \"file\" or \"generator\""}},
+     {": bodies[0].mesh: needs exactly one of \"file\", \"generator\" or \"surface\""}},
     {"bad_generator_name.json",
      {": bodies[0].mesh.generator: expected one of \"box\", \"cylinder\"", "got \"torus\""}},
     {"bad_generator_cells.json",

@@ -32,15 +32,17 @@
 #include <vector>
 
 #include "cli/commands.h"
-#include "cli/lattice_mesher.h"
-#include "cli/surface_reader.h"
-#include "cli/triangle_soup.h"
 #include "graphfrac/mesh.h"
+#include "meshing/lattice_mesher.h"
+#include "meshing/surface_reader.h"
+#include "meshing/triangle_soup.h"
 
 extern char** environ;
 
 namespace gf::cli {
 namespace {
+
+using namespace gf::meshing;
 
 namespace fs = std::filesystem;
 

@@ -33,6 +33,9 @@
 #include <vector>
 
 #include "kernels/svd3.h"
+#include "meshing/lattice_mesher.h"
+#include "meshing/surface_reader.h"
+#include "meshing/triangle_soup.h"
 #include "scene/impurity_image.h"
 #include "scene/json_reader.h"
 
@@ -44,6 +47,8 @@ using namespace detail;  // NOLINT: the readers are this file's vocabulary
 // Generous caps that keep a typo (cells: 10000) from exhausting memory.
 constexpr long long kMaxCells = 4'000'000;
 constexpr int kMaxCellsPerAxis = 2000;
+// Surface meshes: about 100 bytes per tet while the lattice mesher works.
+constexpr double kMaxSurfaceTets = 5e6;
 constexpr int kMaxThreads = 1024;
 constexpr int kMaxSubsteps = 10000;
 
@@ -237,21 +242,62 @@ glm::dvec3 readScale(const json& v, const std::string& path) {
   return readPositiveVec3(v, path);
 }
 
+// A triangle surface in any format graphfrac_meshing reads, tetrahedralised by the lattice
+// mesher (open, multi-part and self-intersecting surfaces too): "cells" along the longest
+// axis or about "target_tets" tets; "unit" (metres per file unit) and "up" override what the
+// file declares.
+TetMesh readSurfaceMesh(ObjReader& o, const std::string& baseDir) {
+  o.keys({"surface", "cells", "target_tets", "unit", "up", "scale"});
+  const std::string file = readString(o.require("surface"), o.at("surface"));
+  const std::string resolved = resolvePath(file, baseDir);
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(resolved, ec)) {
+    throw SceneError{o.at("surface"), "no such file \"" + resolved + "\""};
+  }
+  meshing::SurfaceReadOptions read;
+  if (const json* unit = o.find("unit")) read.scale = readPositive(*unit, o.at("unit"));
+  if (const json* up = o.find("up")) read.up = readChoice(*up, o.at("up"), {"x", "y", "z"})[0];
+  meshing::LatticeOptions lattice;
+  if (o.has("cells") && o.has("target_tets")) {
+    throw SceneError{o.at("cells"), "give \"cells\" or \"target_tets\", not both"};
+  }
+  if (const json* cells = o.find("cells")) {
+    lattice.cells = readInt(*cells, o.at("cells"), 1, meshing::kMaxCells);
+  }
+  if (const json* target = o.find("target_tets")) {
+    lattice.targetTets = readPositive(*target, o.at("target_tets"));
+    requireAtMost(lattice.targetTets, kMaxSurfaceTets, o.at("target_tets"), *target);
+  }
+  Result<meshing::SurfaceFile> loaded = meshing::readSurfaceFile(resolved, read);
+  if (!loaded.ok()) throw SceneError{o.at("surface"), loaded.error().message};
+  const meshing::SurfaceFile& surface = loaded.value();
+  if (surface.vertexCount() > size_t(std::numeric_limits<int32_t>::max())) {
+    throw SceneError{o.at("surface"), resolved + ": too many vertices"};
+  }
+  const std::vector<int32_t> triangles(surface.triangles.begin(), surface.triangles.end());
+  Result<meshing::LatticeResult> meshed =
+      meshing::latticeMesh(meshing::TriangleSoup(surface.positions, triangles), lattice);
+  if (!meshed.ok()) throw SceneError{o.at("surface"), meshed.error().message};
+  return std::move(meshed.value().mesh);
+}
+
 TetMesh readMesh(const json& v, const std::string& path, const std::string& baseDir) {
   ObjReader o(v, path);
   TetMesh mesh;
   // Read first so that every branch below accepts it.
   const json* scaleJ = o.find("scale");
-  const bool hasFile = o.has("file"), hasGen = o.has("generator");
-  if (!hasFile && !hasGen) {
-    // Catches a misspelt "file"/"generator" as the typo it is.
-    o.keys({"file", "generator", "size", "cells", "notch", "radius", "height", "segments", "layers",
-            "rings", "thickness", "scale"});
+  const bool hasFile = o.has("file"), hasGen = o.has("generator"), hasSurface = o.has("surface");
+  if (!hasFile && !hasGen && !hasSurface) {
+    // Catches a misspelt "file"/"generator"/"surface" as the typo it is.
+    o.keys({"file", "generator", "surface", "size", "cells", "notch", "radius", "height",
+            "segments", "layers", "rings", "thickness", "scale", "target_tets", "unit", "up"});
   }
-  if (hasFile == hasGen) {
-    throw SceneError{path, "needs exactly one of \"file\" or \"generator\""};
+  if (int(hasFile) + int(hasGen) + int(hasSurface) != 1) {
+    throw SceneError{path, "needs exactly one of \"file\", \"generator\" or \"surface\""};
   }
-  if (hasFile) {
+  if (hasSurface) {
+    mesh = readSurfaceMesh(o, baseDir);
+  } else if (hasFile) {
     o.keys({"file"});
     const std::string file = readString(o.require("file"), o.at("file"));
     const std::string resolved = resolvePath(file, baseDir);

@@ -1,7 +1,7 @@
 // Triangle surfaces as files hold them: Wavefront OBJ and PLY (ASCII and both binary byte
 // orders) read here, with where each vertex and face came from so that errors point into the
 // file; other formats are handed to assimp (surface_reader_assimp.cpp).
-#include "cli/surface_reader.h"
+#include "meshing/surface_reader.h"
 
 #include <algorithm>
 #include <bit>
@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-namespace gf::cli {
+namespace gf::meshing {
 
 namespace fs = std::filesystem;
 
@@ -458,7 +458,7 @@ Result<SurfaceFile> readPly(const std::string& path) {
 
 }  // namespace
 
-#ifndef GF_CLI_HAS_ASSIMP
+#ifndef GF_MESHING_HAS_ASSIMP
 bool haveAssimp() { return false; }
 
 Result<SurfaceFile> detail::readWithAssimp(const std::string& path, const SurfaceReadOptions&) {
@@ -490,4 +490,4 @@ Result<SurfaceFile> readSurfaceFile(const std::string& path, const SurfaceReadOp
   return r;
 }
 
-}  // namespace gf::cli
+}  // namespace gf::meshing

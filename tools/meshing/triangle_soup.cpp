@@ -9,14 +9,14 @@
 // against 1/2 is used, and w jumps by 1 across the surface, so this moves the cut by a small
 // fraction of a cell; the lattice mesher uses beta = 3. (A second-order term that omits the
 // Hessian term is no better: on a curved cap both are of the same order.)
-#include "cli/triangle_soup.h"
+#include "meshing/triangle_soup.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numeric>
 
-namespace gf::cli {
+namespace gf::meshing {
 namespace {
 
 constexpr int32_t kLeafSize = 8;
@@ -218,4 +218,4 @@ double TriangleSoup::signedVolume() const {
   return v6 / 6;
 }
 
-}  // namespace gf::cli
+}  // namespace gf::meshing

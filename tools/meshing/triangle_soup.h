@@ -11,7 +11,7 @@
 
 #include "kernels/math.h"
 
-namespace gf::cli {
+namespace gf::meshing {
 
 /// A triangle soup with a BVH over it. Triangle orientation matters for the winding number
 /// (outward counter-clockwise); nothing else about the input is assumed.
@@ -60,4 +60,4 @@ class TriangleSoup {
 /// closed outward surface sum to 4 pi from inside.
 double solidAngle(Vec3 q, Vec3 a, Vec3 b, Vec3 c);
 
-}  // namespace gf::cli
+}  // namespace gf::meshing

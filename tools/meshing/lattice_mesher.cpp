@@ -17,7 +17,7 @@
 //     its smallest dihedral angle above minDihedralDeg (or no worse than before). Nodes with no
 //     triangle within a cell (on the surface the winding number spans across a hole) stay.
 //     Two sweeps in node order: deterministic.
-#include "cli/lattice_mesher.h"
+#include "meshing/lattice_mesher.h"
 
 #include <algorithm>
 #include <array>
@@ -27,7 +27,7 @@
 #include <numeric>
 #include <vector>
 
-namespace gf::cli {
+namespace gf::meshing {
 namespace {
 
 constexpr int kPad = 2;                  // empty cells around the box: fans never reach the edge
@@ -510,4 +510,4 @@ Result<LatticeResult> latticeMesh(const TriangleSoup& soup, const LatticeOptions
   return r;
 }
 
-}  // namespace gf::cli
+}  // namespace gf::meshing

@@ -24,9 +24,9 @@
 #include <string>
 #include <vector>
 
-#include "cli/surface_reader.h"
+#include "meshing/surface_reader.h"
 
-namespace gf::cli {
+namespace gf::meshing {
 
 bool haveAssimp() { return true; }
 
@@ -269,4 +269,4 @@ Result<SurfaceFile> readWithAssimp(const std::string& path, const SurfaceReadOpt
 }
 
 }  // namespace detail
-}  // namespace gf::cli
+}  // namespace gf::meshing

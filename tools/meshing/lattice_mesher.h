@@ -11,9 +11,9 @@
 
 #include <cstddef>
 
-#include "cli/triangle_soup.h"
+#include "meshing/triangle_soup.h"
 
-namespace gf::cli {
+namespace gf::meshing {
 
 /// How a lattice mesh is made.
 struct LatticeOptions {
@@ -61,4 +61,4 @@ Result<LatticeResult> latticeMesh(const TriangleSoup& soup, const LatticeOptions
 /// Dihedral angles, radius ratios and volumes over every tet.
 TetQuality measureQuality(const TetMesh& mesh);
 
-}  // namespace gf::cli
+}  // namespace gf::meshing

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-namespace gf::cli {
+namespace gf::meshing {
 
 /// "%.9g": enough digits to tell coordinates apart in messages.
 std::string formatDouble(double v);
@@ -86,4 +86,4 @@ void transformSurface(SurfaceFile& s, const double m[9]);
 void upToY(char up, double m[9]);
 }  // namespace detail
 
-}  // namespace gf::cli
+}  // namespace gf::meshing
