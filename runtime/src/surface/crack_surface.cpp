@@ -10,14 +10,12 @@
 #include "kernels/math.h"
 #include "kernels/svd3.h"
 #include "mesh/mesh_internal.h"
+#include "step/executor.h"
+#include "surface/surface_stages.h"
 
 namespace gf::detail {
 
 namespace {
-
-// Largest stretch (and inverse of the smallest) an affine vertex frame may have; see
-// computeFrames. Real material strain in a frame's 1-ring stays far below it.
-constexpr double kMaxFrameStretch = 3.0;
 
 // Local edge index of local nodes (a, b), either order; -1 on the diagonal.
 struct LocalEdgeTable {
@@ -98,25 +96,6 @@ inline Vec3 load(const double* p, int32_t i) {
   return {p[k], p[k + 1], p[k + 2]};
 }
 
-// Smallest rotation turning unit vector u into unit vector w.
-Mat3 minimalRotation(Vec3 u, Vec3 w) {
-  const Vec3 v = cross(u, w);
-  const double c = dot(u, w);
-  Mat3 r = Mat3::identity();
-  if (c < -1 + 1e-12) {
-    // Half turn about any axis orthogonal to u.
-    const Vec3 k = gf::detail::anyOrthogonal(u);
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) r(a, b) = 2 * k[a] * k[b] - (a == b ? 1.0 : 0.0);
-    return r;
-  }
-  // Rodrigues with the half-angle factor 1 / (1 + c): R = I + [v]x + [v]x^2 / (1 + c).
-  const Mat3 vx = fromColumns({0, v.z, -v.y}, {-v.z, 0, v.x}, {v.y, -v.x, 0});
-  const Mat3 vx2 = vx * vx;
-  for (int a = 0; a < 9; ++a) r.m[a] += vx.m[a] + vx2.m[a] / (1 + c);
-  return r;
-}
-
 }  // namespace
 
 void CrackSurface::init(const TetMesh& rest, const EdgeGraph& graph,
@@ -175,7 +154,8 @@ double CrackSurface::splitRatio(int32_t edge) const {
   return m_ratio.empty() ? 0.5 : m_ratio[static_cast<size_t>(edge)];
 }
 
-void CrackSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment, const double* x) {
+void CrackSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment, const double* x,
+                           JobSystem* jobs) {
   const TetMesh& mesh = *m_rest;
   const EdgeGraph& g = *m_graph;
   const double* X = mesh.positions.data();
@@ -400,159 +380,62 @@ void CrackSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment, c
   }
   m_frameR.resize(9 * m_frameNode.size());
 
+  // Each vertex's triangles, by increasing index: the normals' fixed summation order.
+  const size_t nv = m_vertexNode.size();
+  m_vertexTriStart.assign(nv + 1, 0);
+  for (uint32_t v : m_indices) ++m_vertexTriStart[v + 1];
+  for (size_t v = 0; v < nv; ++v) m_vertexTriStart[v + 1] += m_vertexTriStart[v];
+  m_vertexTri.resize(m_indices.size());
+  std::vector<int32_t> fill(m_vertexTriStart.begin(), m_vertexTriStart.end() - 1);
+  for (size_t k = 0; k < m_indices.size(); ++k)
+    m_vertexTri[size_t(fill[m_indices[k]]++)] = int32_t(k / 3);
+
   ++m_topologyVersion;
   m_positionsF.clear();  // new vertices: every one of them is dirty
-  updatePositions(x);
+  updatePositions(x, jobs);
 }
 
-void CrackSurface::computeFrames(const double* x) {
-  const double* X = m_rest->positions.data();
-  for (size_t fr = 0; fr < m_frameNode.size(); ++fr) {
-    const int32_t a = m_frameNode[fr];
-    const Vec3 xa = load(x, a), Xa = load(X, a);
-    // Covariance of current against rest neighbourhood; its polar part is the best rotation.
-    Mat3 A;
-    for (int32_t s = m_frameRingStart[fr]; s < m_frameRingStart[fr + 1]; ++s) {
-      const int32_t b = m_frameRing[static_cast<size_t>(s)];
-      const Vec3 dx = load(x, b) - xa, dX = load(X, b) - Xa;
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) A(r, c) += dx[r] * dX[c];
-    }
-    Mat3 R = Mat3::identity();
-    bool done = false;
-    if (m_frameAffine[fr]) {
-      // Least-squares affine map of the neighbourhood, unless it is (nearly) inverted.
-      Mat3 Cinv;
-      std::copy_n(&m_frameCinv[9 * fr], 9, Cinv.m);
-      const Mat3 F = A * Cinv;
-      if (det(F) > 1e-2) {
-        // A fit that stretches or squashes a direction beyond kMaxFrameStretch comes from a
-        // neighbourhood that is thin or being torn apart, not from the material: it would throw
-        // the vertices it places far off the body, so the best rotation stands in for it.
-        const Svd3 fs = svd3(F);
-        if (fs.s.x < kMaxFrameStretch && fs.s.z > 1 / kMaxFrameStretch) {
-          R = F;
-          done = true;
-        }
-      }
-    }
-    const Svd3 svd = done ? Svd3{} : svd3(A);
-    if (!done && svd.s.x > 1e-300) {
-      if (std::fabs(svd.s.y) > 1e-8 * svd.s.x) {
-        R = svd.U * transpose(svd.V);
-      } else {
-        // All usable neighbours on one line: turn that line, no twist about it.
-        R = minimalRotation(column(svd.V, 0), column(svd.U, 0));
-      }
-    }
-    std::copy(R.m, R.m + 9, m_frameR.begin() + static_cast<std::ptrdiff_t>(9 * fr));
-  }
-}
-
-void CrackSurface::updatePositions(const double* x) {
+void CrackSurface::updatePositions(const double* x, JobSystem* jobs) {
   const double* X = m_rest->positions.data();
   if (!x) x = X;
-  computeFrames(x);
-
-  const size_t nv = m_vertexNode.size();
-  m_positions.resize(3 * nv);
-  for (size_t v = 0; v < nv; ++v) {
-    const int32_t* par = &m_vParent[4 * v];
-    const double* w = &m_vWeight[4 * v];
-    const unsigned group = m_vGroup[v];
-    int count = 0;
-    while (count < 4 && par[count] >= 0) ++count;
-    Vec3 p{};
-    if (group == (1u << count) - 1) {
-      // Whole group: the element's own (affine) interpolation.
-      for (int k = 0; k < count; ++k) p += w[k] * load(x, par[k]);
-    } else {
-      // Partial group: mean of the group nodes' rigid predictions.
-      const Vec3 P{m_vRest[3 * v], m_vRest[3 * v + 1], m_vRest[3 * v + 2]};
-      int members = 0;
-      for (int k = 0; k < count; ++k) {
-        if (!(group >> k & 1u)) continue;
-        const int32_t a = par[k];
-        Mat3 R;
-        std::copy_n(&m_frameR[9 * static_cast<size_t>(m_nodeFrame[static_cast<size_t>(a)])], 9,
-                    R.m);
-        p += load(x, a) + R * (P - load(X, a));
-        ++members;
-      }
-      p = (1.0 / members) * p;
-    }
-    m_positions[3 * v] = p.x;
-    m_positions[3 * v + 1] = p.y;
-    m_positions[3 * v + 2] = p.z;
-  }
-
-  // Area-weighted vertex normals; where opposite sides cancel (crack fronts) the vertex takes
-  // its first triangle's normal.
-  m_normals.assign(3 * nv, 0.0);
-  std::vector<double>& weight = m_normalWeight;
-  weight.assign(nv, 0.0);
-  const size_t ntri = m_triCrack.size();
-  for (size_t tri = 0; tri < ntri; ++tri) {
-    const uint32_t* id = &m_indices[3 * tri];
-    const Vec3 p0 = load(m_positions.data(), static_cast<int32_t>(id[0]));
-    const Vec3 nrm = cross(load(m_positions.data(), static_cast<int32_t>(id[1])) - p0,
-                           load(m_positions.data(), static_cast<int32_t>(id[2])) - p0);
-    const double len = norm(nrm);
-    for (int k = 0; k < 3; ++k) {
-      double* o = &m_normals[3 * id[k]];
-      o[0] += nrm.x;
-      o[1] += nrm.y;
-      o[2] += nrm.z;
-      weight[id[k]] += len;
-    }
-  }
-  std::vector<uint8_t>& cancelled = m_cancelled;
-  bool anyCancelled = false;
-  for (size_t v = 0; v < nv; ++v) {
-    double* o = &m_normals[3 * v];
-    const double len = std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
-    if (len > 1e-6 * weight[v] && len > 0) {
-      for (int c = 0; c < 3; ++c) o[c] /= len;
-    } else {
-      if (!anyCancelled) cancelled.assign(nv, 0);
-      anyCancelled = true;
-      cancelled[v] = 1;
-    }
-  }
-  if (anyCancelled) {
-    for (size_t tri = 0; tri < ntri; ++tri) {
-      const uint32_t* id = &m_indices[3 * tri];
-      const Vec3 p0 = load(m_positions.data(), static_cast<int32_t>(id[0]));
-      Vec3 nrm = cross(load(m_positions.data(), static_cast<int32_t>(id[1])) - p0,
-                       load(m_positions.data(), static_cast<int32_t>(id[2])) - p0);
-      const double len = norm(nrm);
-      nrm = len > 0 ? (1.0 / len) * nrm : Vec3{0, 0, 1};
-      for (int k = 0; k < 3; ++k) {
-        if (!cancelled[id[k]]) continue;
-        cancelled[id[k]] = 0;
-        double* o = &m_normals[3 * id[k]];
-        o[0] = nrm.x;
-        o[1] = nrm.y;
-        o[2] = nrm.z;
-      }
-    }
-  }
+  const CpuExecutor exec(jobs ? *jobs : serialJobs());
+  exec.run(int32_t(m_frameNode.size()), 64,
+           SurfaceFrameStage{x, X, m_frameNode.data(), m_frameRingStart.data(), m_frameRing.data(),
+                             m_frameAffine.data(), m_frameCinv.data(), m_frameR.data()});
+  const int32_t nv = int32_t(m_vertexNode.size());
+  m_positions.resize(3 * size_t(nv));
+  m_normals.resize(3 * size_t(nv));
+  exec.run(
+      nv, 512,
+      SurfaceVertexStage{x, X, m_vParent.data(), m_vWeight.data(), m_vGroup.data(), m_vRest.data(),
+                         m_nodeFrame.data(), m_frameR.data(), m_positions.data()});
+  exec.run(nv, 512,
+           SurfaceNormalStage{m_positions.data(), m_indices.data(), m_vertexTriStart.data(),
+                              m_vertexTri.data(), m_normals.data()});
 
   // The dirty range grows by the vertices whose float position or normal (what a renderer
   // uploads) changed; vertices that kept both stay out of it.
-  const bool sameLayout = m_positionsF.size() == 3 * nv && m_normalsF.size() == 3 * nv;
-  uint32_t lo = static_cast<uint32_t>(nv), hi = 0;
-  for (size_t v = 0; v < nv; ++v) {
-    bool changed = !sameLayout;
-    for (size_t k = 3 * v; k < 3 * v + 3 && !changed; ++k)
-      changed = static_cast<float>(m_positions[k]) != m_positionsF[k] ||
-                static_cast<float>(m_normals[k]) != m_normalsF[k];
-    if (!changed) continue;
-    lo = std::min(lo, static_cast<uint32_t>(v));
-    hi = static_cast<uint32_t>(v + 1);
+  const bool sameLayout =
+      m_positionsF.size() == 3 * size_t(nv) && m_normalsF.size() == 3 * size_t(nv);
+  uint32_t lo = uint32_t(nv), hi = 0;
+  if (!sameLayout) {
+    lo = 0;
+    hi = uint32_t(nv);
+    m_positionsF.resize(3 * size_t(nv));
+    m_normalsF.resize(3 * size_t(nv));
+  } else if (nv > 0) {
+    ChangedVertexTerm changed{m_positions.data(), m_normals.data(), m_positionsF.data(),
+                              m_normalsF.data(), false};
+    const double first = exec.reduce<MinOp>(nv, changed);
+    changed.last = true;
+    const double end = exec.reduce<MaxOp>(nv, changed);
+    if (first < end) {
+      lo = uint32_t(first);
+      hi = uint32_t(end);
+    }
   }
-  m_positionsF.assign(m_positions.begin(), m_positions.end());
-  m_normalsF.assign(m_normals.begin(), m_normals.end());
+  exec.run(3 * nv, 2048, ToFloatStage{m_positions.data(), m_positionsF.data()});
+  exec.run(3 * nv, 2048, ToFloatStage{m_normals.data(), m_normalsF.data()});
   ++m_positionVersion;
   if (lo < hi) {
     m_dirty = m_dirty.begin < m_dirty.end

@@ -62,6 +62,7 @@
 #include <string>
 #include <vector>
 
+#include "graphfrac/jobs.h"
 #include "graphfrac/mesh.h"
 #include "graphfrac/status.h"
 #include "mesh/edge_graph.h"
@@ -102,10 +103,12 @@ class CrackSurface {
   /// Increments topologyVersion(); all vertices are dirty. Call it after every step that broke
   /// an edge (with renderPartialCracks) or split a fragment (without); otherwise only
   /// updatePositions().
-  void rebuild(const uint8_t* broken, const int32_t* nodeFragment, const double* x);
+  /// `jobs` (null: the calling thread) runs the per-vertex work (surface/surface_stages.h).
+  void rebuild(const uint8_t* broken, const int32_t* nodeFragment, const double* x,
+               JobSystem* jobs = nullptr);
   /// Recomputes positions and normals for node positions `x` (3 per node); topology unchanged.
   /// Widens the dirty range to cover the vertices whose position or normal changed.
-  void updatePositions(const double* x);
+  void updatePositions(const double* x, JobSystem* jobs = nullptr);
 
   /// Positions, 3 floats per vertex (for the renderer).
   std::span<const float> positions() const { return m_positionsF; }
@@ -148,7 +151,6 @@ class CrackSurface {
 
  private:
   double splitRatio(int32_t edge) const;
-  void computeFrames(const double* x);
 
   // Rest data from init().
   const TetMesh* m_rest = nullptr;
@@ -187,8 +189,7 @@ class CrackSurface {
 
   // Output.
   std::vector<double> m_positions, m_normals;
-  std::vector<double> m_normalWeight;  // scratch: summed triangle areas per vertex
-  std::vector<uint8_t> m_cancelled;    // scratch: vertices whose normals cancelled
+  std::vector<int32_t> m_vertexTriStart, m_vertexTri;  // each vertex's triangles, ascending
   std::vector<float> m_positionsF, m_normalsF;
   std::vector<uint32_t> m_indices;
   std::vector<uint8_t> m_triCrack;

@@ -149,9 +149,9 @@ struct World::Impl {
     if (b.fracture && uint64_t(b.fracture->brokenCount()) != r.brokenCount) {
       r.brokenCount = uint64_t(b.fracture->brokenCount());
       r.surface.rebuild(b.fracture->broken().data(), b.fracture->fragments().nodeFragment().data(),
-                        b.state.x.data());
+                        b.state.x.data(), jobs);
     } else {
-      r.surface.updatePositions(b.state.x.data());
+      r.surface.updatePositions(b.state.x.data(), jobs);
     }
   }
 

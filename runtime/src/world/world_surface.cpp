@@ -61,9 +61,11 @@ SurfaceView World::surface(BodyId id) {
     if (b->fracture) {
       r->brokenCount = uint64_t(b->fracture->brokenCount());
       r->surface.rebuild(b->fracture->broken().data(),
-                         b->fracture->fragments().nodeFragment().data(), b->state.x.data());
+                         b->fracture->fragments().nodeFragment().data(), b->state.x.data(),
+                         m_impl->jobs);
     } else {
-      r->surface.rebuild(r->noBreaks.data(), r->oneFragment.data(), b->state.x.data());
+      r->surface.rebuild(r->noBreaks.data(), r->oneFragment.data(), b->state.x.data(),
+                         m_impl->jobs);
     }
     b->surface = std::move(r);
   }
