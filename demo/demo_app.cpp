@@ -49,7 +49,14 @@ constexpr const char* kUsage =
     "  --frames N                 frames to run (default: the scene's \"frames\")\n"
     "  --size WxH                 image size (default 640x360)\n"
     "  --out DIR                  output directory (default: out/<scene name>)\n"
-    "  --video                    also encode OUT/demo.mp4 with ffmpeg (H.264), if installed\n"
+    "  --video                    also encode OUT/demo.mp4 with ffmpeg (H.264, yuv420p, the\n"
+    "                             scene's real-time rate), if installed\n"
+    "  --sheet                    also write OUT/sheet.png, a contact sheet: 12 frames\n"
+    "                             (--sheet-frames N) evenly spread, first and last included,\n"
+    "                             in rows of 4 (--sheet-columns C), each 200 pixels wide\n"
+    "                             (--sheet-width W)\n"
+    "  --no-overlay               no text (frame, sim ms, tets, broken edges, fragments)\n"
+    "  --no-shadows               no shadow map from the key light\n"
     "  --renderer auto|vulkan|gl  back end (default auto: Vulkan, else OpenGL through EGL)\n"
     "  --backend auto|cpu|cuda    simulation backend (default: the scene's \"backend\")\n"
     "  --validation               Vulkan validation layers on; exit 1 if they report anything\n"
@@ -74,6 +81,18 @@ std::string parseArgs(int argc, char** argv, DemoOptions& o, bool& help) {
       o.video = true;
     } else if (arg == "--validation") {
       o.validation = true;
+    } else if (arg == "--no-overlay") {
+      o.overlay = false;
+    } else if (arg == "--no-shadows") {
+      o.shadows = false;
+    } else if (arg == "--sheet") {
+      if (o.sheetFrames == 0) o.sheetFrames = 12;
+    } else if (arg == "--sheet-frames") {
+      if (!a.intValue(1, 1000, o.sheetFrames)) return "--sheet-frames needs an integer in 1..1000";
+    } else if (arg == "--sheet-columns") {
+      if (!a.intValue(1, 100, o.sheetColumns)) return "--sheet-columns needs an integer in 1..100";
+    } else if (arg == "--sheet-width") {
+      if (!a.intValue(16, 4096, o.sheetWidth)) return "--sheet-width needs an integer in 16..4096";
     } else if (arg == "--frames") {
       int n = 0;
       if (!a.intValue(1, 100'000'000, n)) return "--frames needs an integer >= 1";
@@ -173,6 +192,41 @@ scene::SceneRigidBody colliderShape(const Collider& c) {
       break;
   }
   return r;
+}
+
+/// Near and far planes for everything in `pts` (and the target) seen from the eye.
+void fitPlanes(Camera& c, std::span<const glm::dvec3> pts) {
+  const glm::dvec3 eye(c.eye);
+  const double view = glm::length(glm::dvec3(c.target) - eye);
+  double farthest = 2 * view;
+  for (const glm::dvec3& p : pts) farthest = std::max(farthest, glm::length(p - eye));
+  c.nearPlane = float(0.02 * view);
+  c.farPlane = float(1.5 * farthest);
+}
+
+/// The corners of every scene body's rest bounds and of the rigid shapes (a plane's square).
+std::vector<glm::dvec3> staticPoints(const scene::Scene& sc) {
+  std::vector<glm::dvec3> pts;
+  for (const scene::SceneBody& b : sc.bodies) {
+    const std::vector<double>& x = b.def.mesh.positions;
+    for (size_t i = 0; i + 2 < x.size(); i += 3) pts.emplace_back(x[i], x[i + 1], x[i + 2]);
+  }
+  std::vector<scene::SceneRigidBody> shapes = sc.rigidBodies;
+  for (const Collider& c : sc.world.colliders) shapes.push_back(colliderShape(c));
+  for (const scene::SceneRigidBody& r : shapes)
+    for (const glm::dvec3& p : rigidBoundPoints(r)) pts.push_back(p);
+  return pts;
+}
+
+/// The frames of a contact sheet of `count` frames out of `frames`: evenly spread, the first
+/// and the last included.
+std::vector<int> sheetFrames(int count, int frames) {
+  count = std::min(count, frames);
+  std::vector<int> out;
+  for (int k = 0; k < count; ++k)
+    out.push_back(count == 1 ? frames
+                             : 1 + int(std::lround(double(k) * (frames - 1) / (count - 1))));
+  return out;
 }
 
 /// Fracture totals over the bodies, as `graphfrac run` counts them.
@@ -280,6 +334,15 @@ ShapeMesh rigidMesh(const scene::SceneRigidBody& r) {
   return m;
 }
 
+std::vector<Bounds> bodyBounds(const World& world, std::span<const BodyId> bodies) {
+  std::vector<Bounds> out(bodies.size());
+  for (size_t i = 0; i < bodies.size(); ++i) {
+    const std::span<const double> x = world.positions(bodies[i]);
+    for (size_t k = 0; k + 2 < x.size(); k += 3) out[i].add({x[k], x[k + 1], x[k + 2]});
+  }
+  return out;
+}
+
 Camera sceneCamera(const scene::Scene& sc) {
   std::vector<glm::dvec3> pts;
   glm::dvec3 lo(1e300), hi(-1e300);
@@ -314,12 +377,7 @@ Camera sceneCamera(const scene::Scene& sc) {
     c.target = glm::vec3(centre);
     c.eye = glm::vec3(centre + dist * glm::normalize(glm::dvec3(0.8, 0.55, 1.3)));
   }
-  const glm::dvec3 eye(c.eye);
-  const double view = glm::length(glm::dvec3(c.target) - eye);
-  double farthest = 2 * view;
-  for (const glm::dvec3& p : pts) farthest = std::max(farthest, glm::length(p - eye));
-  c.nearPlane = float(0.02 * view);
-  c.farPlane = float(1.5 * farthest);
+  fitPlanes(c, pts);
   return c;
 }
 
@@ -354,6 +412,10 @@ std::string formatSummary(const DemoSummary& s) {
   add("  wall time:  %s\n", cli::formatDuration(s.wallSeconds).c_str());
   add("  frames:     %s/frames/frame_0001.png .. frame_%04d.png\n", s.outDir.c_str(), s.frames);
   if (!s.video.empty()) add("  video:      %s\n", s.video.c_str());
+  if (!s.sheet.empty()) add("  sheet:      %s\n", s.sheet.c_str());
+  add("  camera:     %s; each body's projected box at least %.1f %% in the picture, line of "
+      "sight swings at most %.3f deg/frame\n",
+      s.follow ? "following the bodies" : "fixed", 100 * s.minInside, s.maxSwingDegrees);
   if (s.validation)
     add("  validation: %zu message%s from the Vulkan validation layers\n",
         s.validationMessages.size(), s.validationMessages.size() == 1 ? "" : "s");
@@ -393,6 +455,29 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
   s.dt = sc.dt;
   s.substeps = std::max(sc.world.substeps, 1);
   s.camera = sceneCamera(sc);
+  std::vector<BodyId> ids;
+  int64_t tets = 0;
+  for (size_t i = 0; i < sim.bodyCount(); ++i) {
+    ids.push_back(sim.body(i));
+    tets += int64_t(sc.bodies[i].def.mesh.tetCount());
+  }
+  // A follow camera starts framing the bodies as they stand; every later frame moves it by
+  // the rig's smoothing towards the bounds after that frame's step.
+  const double aspect = double(opt.width) / double(opt.height);
+  const std::vector<glm::dvec3> fixedPoints = staticPoints(sc);
+  std::optional<CameraRig> rig;
+  s.follow = sc.camera && sc.camera->follow;
+  if (s.follow) {
+    FollowSettings follow;
+    follow.smoothSeconds = sc.camera->smoothSeconds;
+    follow.maxTurnDegrees = sc.camera->maxTurnDegrees;
+    rig.emplace(s.camera, follow, aspect);
+    s.camera = rig->snap(bodyBounds(world, ids));
+    fitPlanes(s.camera, fixedPoints);
+  }
+  Camera previousCamera = s.camera;
+  const std::vector<int> sheetAt = sheetFrames(opt.sheetFrames, frames);
+  std::vector<Image> sheetImages;
   const fs::path outDir = opt.out.empty() ? fs::path("out") / sc.name : fs::path(opt.out);
   s.outDir = outDir.string();
   const fs::path frameDir = outDir / "frames";
@@ -427,6 +512,7 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
   for (size_t i = 0; i < sc.bodies.size(); ++i) {
     meshes[i].colour = sc.bodies[i].colour;
     meshes[i].crackColour = sc.bodies[i].crackColour;
+    meshes[i].crackLook = crackLook(sc.bodies[i].interior);
   }
   for (size_t k = 0; k < shapes.size(); ++k) {
     MeshFrame& m = meshes[sc.bodies.size() + k];
@@ -435,6 +521,11 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
     m.indices = shapes[k].indices;
     m.topologyVersion = 1;
     m.colour = drawn[k].colour;
+    // A plane is the ground: it shows its scale and receives shadows without casting any.
+    if (drawn[k].shape == scene::SceneRigidBody::Shape::Plane) {
+      m.gridSpacing = kGroundCell;
+      m.castsShadow = false;
+    }
   }
 
   std::vector<std::vector<float>> strain(sc.bodies.size());  // --strain: per vertex, 0..1
@@ -502,7 +593,36 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
       lastTriangles[i] = m.indices.size();
     }
 
-    Result<FrameStats> rs = renderer.render(meshes, s.camera, image);
+    f.bodyBounds = bodyBounds(world, ids);
+    if (rig) {
+      f.camera = rig->update(f.bodyBounds, sc.dt);
+      std::vector<glm::dvec3> pts = fixedPoints;
+      for (const Bounds& b : f.bodyBounds)
+        if (!b.empty()) pts.insert(pts.end(), {b.lo, b.hi});
+      fitPlanes(f.camera, pts);
+    } else {
+      f.camera = s.camera;
+    }
+    if (frame > 1)
+      s.maxSwingDegrees = std::max(s.maxSwingDegrees, swingDegrees(previousCamera, f.camera));
+    previousCamera = f.camera;
+    for (const Bounds& b : f.bodyBounds)
+      s.minInside = std::min(s.minInside, fractionInside(f.camera, aspect, b));
+
+    const Totals t = totals(world, sim);
+    FrameOptions fo;
+    fo.shadows = opt.shadows;
+    if (opt.overlay) {
+      char line[160];
+      std::snprintf(line, sizeof line, "frame %d/%d  t %.2f s  sim %.0f ms", frame, frames,
+                    frame * sc.dt, f.simMs);
+      fo.overlay.emplace_back(line);
+      std::snprintf(line, sizeof line, "tets %lld  broken edges %lld  fragments %lld",
+                    static_cast<long long>(tets), static_cast<long long>(t.brokenEdges),
+                    static_cast<long long>(t.fragments));
+      fo.overlay.emplace_back(line);
+    }
+    Result<FrameStats> rs = renderer.render(meshes, f.camera, fo, image);
     if (!rs) return fail("graphfrac-demo: frame ", std::to_string(frame), ": ", rs.error().message);
     f.renderMs = rs.value().renderMs;
     f.uploadedBytes = rs.value().uploadedBytes;
@@ -513,8 +633,9 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
     if (Result<void> w = writePng((frameDir / name).string(), image); !w)
       return fail("graphfrac-demo: ", w.error().message);
     f.pngMs = cli::msSince(tp);
+    if (std::find(sheetAt.begin(), sheetAt.end(), frame) != sheetAt.end())
+      sheetImages.push_back(image);
 
-    const Totals t = totals(world, sim);
     f.brokenEdges = t.brokenEdges;
     f.fragments = t.fragments;
     f.handedOff = sim.handedOff();
@@ -558,20 +679,57 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
     if (ffmpeg.empty()) {
       videoNote = "  video:      skipped: ffmpeg is not on PATH (install it for --video)\n";
     } else {
-      const long fps = std::max(1L, std::lround(1.0 / sc.dt));
+      // The scene's own rate, as an exact fraction where 1/dt is not a whole number (a frame
+      // of 1/24 s plays at 24 fps, one of 0.03 s at 100000/3000).
+      const double fps = 1.0 / sc.dt;
+      const std::string rate = std::abs(fps - std::round(fps)) < 1e-6 * fps
+                                   ? std::to_string(std::lround(fps))
+                                   : "1000000/" + std::to_string(std::lround(sc.dt * 1e6));
       const std::string video = (outDir / "demo.mp4").string();
-      // H.264 in yuv420p needs even sizes: pad odd ones by a pixel.
-      Result<int> r = runProgram(
-          {ffmpeg, "-y", "-loglevel", "error", "-framerate", std::to_string(fps), "-start_number",
-           "1", "-i", (frameDir / "frame_%04d.png").string(), "-vf",
-           "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264", "-pix_fmt", "yuv420p", video});
+      // What plays everywhere (browsers, phones, QuickTime): H.264 High profile, yuv420p,
+      // even sizes (odd ones padded by a pixel), the index at the front of the file.
+      Result<int> r = runProgram({ffmpeg,
+                                  "-y",
+                                  "-loglevel",
+                                  "error",
+                                  "-framerate",
+                                  rate,
+                                  "-start_number",
+                                  "1",
+                                  "-i",
+                                  (frameDir / "frame_%04d.png").string(),
+                                  "-vf",
+                                  "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+                                  "-c:v",
+                                  "libx264",
+                                  "-profile:v",
+                                  "high",
+                                  "-crf",
+                                  "20",
+                                  "-pix_fmt",
+                                  "yuv420p",
+                                  "-movflags",
+                                  "+faststart",
+                                  video});
       if (!r) return fail("graphfrac-demo: ", r.error().message);
       if (r.value() != 0)
         return fail("graphfrac-demo: ffmpeg failed (exit status ", std::to_string(r.value()),
                     ") making ", video);
-      s.video = video + " (H.264, " + std::to_string(fps) + " fps)";
+      char note[64];
+      std::snprintf(note, sizeof note, " (H.264, yuv420p, %.6g fps)", fps);
+      s.video = video + note;
     }
   }
+  if (!sheetImages.empty()) {
+    Result<Image> sheet = contactSheet(sheetImages, opt.sheetColumns, opt.sheetWidth);
+    if (!sheet) return fail("graphfrac-demo: ", sheet.error().message);
+    const std::string path = (outDir / "sheet.png").string();
+    if (Result<void> w = writePng(path, sheet.value()); !w)
+      return fail("graphfrac-demo: ", w.error().message);
+    s.sheet = path;
+  }
+  if (opt.overlay && !overlayAvailable())
+    videoNote += "  overlay:    skipped: built without stb_easy_font (libstb-dev)\n";
   s.wallSeconds = std::chrono::duration<double>(Clock::now() - wallStart).count();
   const std::string text = formatSummary(s) + videoNote;
   const fs::path summaryPath = outDir / "summary.txt";

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "camera_rig.h"
 #include "renderer.h"
 #include "scene/scene.h"
 
@@ -29,6 +30,12 @@ struct DemoOptions {
   bool quiet = false;  ///< No progress, summary or notes on stdout/stderr (summary.txt still).
   /// > 0: colour the bodies by World::nodeStrain, saturating (red) at this strain.
   double strainMax = 0;
+  bool shadows = true;  ///< The key light's shadow map.
+  bool overlay = true;  ///< Frame, sim ms, tets, broken edges, fragments over the picture.
+  /// > 0: also write OUT/sheet.png, this many frames evenly spread (first and last included)
+  /// in rows of sheetColumns, each sheetWidth pixels wide.
+  int sheetFrames = 0;
+  int sheetColumns = 4, sheetWidth = 200;
 };
 
 /// One rendered frame.
@@ -44,6 +51,8 @@ struct DemoFrame {
   uint64_t dirtyVertices = 0;
   int64_t brokenEdges = 0, fragments = 0;  ///< Summed over the bodies, after the step.
   size_t handedOff = 0;
+  Camera camera;                   ///< The camera this frame was drawn with.
+  std::vector<Bounds> bodyBounds;  ///< Per scene body: its nodes' bounds after the step.
 };
 
 struct DemoSummary {
@@ -67,10 +76,18 @@ struct DemoSummary {
   double wallSeconds = 0;
   bool validation = false;  ///< The validation layers were asked for.
   std::vector<std::string> validationMessages;
-  std::string video;  ///< Path of the video written, else empty.
-  Camera camera;      ///< The camera used.
+  std::string video;    ///< Path of the video written, else empty.
+  std::string sheet;    ///< Path of the contact sheet written, else empty.
+  Camera camera;        ///< The camera of the first frame.
+  bool follow = false;  ///< The camera followed the bodies (scene camera "follow").
+  /// Over the frames: the smallest share of a body's projected bounds inside the picture
+  /// (fractionInside), and the largest swing of the line of sight between frames.
+  double minInside = 1, maxSwingDegrees = 0;
   std::vector<DemoFrame> perFrame;
 };
+
+/// Cell of the grid drawn on ground planes [m] (a stronger line every 5 cells).
+inline constexpr float kGroundCell = 0.1f;
 
 /// Runs the demo. Errors (scene, renderer, output, ffmpeg failing) come back as the message to
 /// print; a missing ffmpeg is not one (the summary says so and `video` stays empty).
@@ -91,6 +108,9 @@ struct ShapeMesh {
   std::vector<uint32_t> indices;
 };
 ShapeMesh rigidMesh(const scene::SceneRigidBody& body);
+
+/// The bounds of each body's nodes now (its surface's vertices sit on them).
+std::vector<Bounds> bodyBounds(const World& world, std::span<const BodyId> bodies);
 
 /// The scene's camera, or one framing the bodies' rest bounds and the spheres and boxes of the
 /// rigid bodies and colliders when the scene has none; near and far planes cover those and

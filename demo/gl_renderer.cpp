@@ -1,7 +1,8 @@
 // OpenGL back end: a core-profile context from EGL with no window system (Mesa's surfaceless
 // platform, else the first EGL device, else the default display; a 1x1 pbuffer only where a
 // context cannot be made current without a surface), drawing into an MSAA framebuffer object
-// that is resolved and read back. Same shading as the Vulkan back end.
+// that is resolved and read back. Same shading as the Vulkan back end, including its shadow
+// map: a depth-only pass from the key light into a depth texture sampled with comparison.
 #define GL_GLEXT_PROTOTYPES 1  // glvnd's libOpenGL exports the core entry points directly
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
@@ -46,36 +47,115 @@ in vec3 vWorldPos;
 in vec3 vNormal;
 in float vScalar;
 uniform usamplerBuffer uCrackMask;
+uniform sampler2DShadow uShadowMap;
 uniform vec3 uEye;
 uniform vec3 uColour;
 uniform vec3 uCrackColour;
 uniform int uHasScalar;
 uniform int uHasCrack;
+uniform mat4 uLightViewProj;
+uniform vec4 uShadow;  // on, texel size, normal offset
+uniform vec4 uLook;    // crack faces: specular, shininess, grain, metallic
+uniform vec4 uGround;  // x: grid cell [m]
 out vec4 outColour;
 
 vec3 colourMap(float s) {
   const vec3 stops[5] = vec3[5](vec3(0.1, 0.2, 0.9), vec3(0.1, 0.8, 0.9), vec3(0.2, 0.85, 0.2),
-                                vec3(0.95, 0.9, 0.1), vec3(0.9, 0.15, 0.1));
-  float x = 4.0 * clamp(s, 0.0, 1.0);
+                               vec3(0.95, 0.9, 0.1), vec3(0.9, 0.15, 0.1));
+  float x = clamp(s, 0.0, 1.0) * 4.0;
   int i = min(int(x), 3);
   return mix(stops[i], stops[i + 1], x - float(i));
 }
 
+// Value noise in [0, 1] (pores of bread crumb, the grain of a steel break).
+float hash(vec3 p) {
+  p = fract(p * 0.3183099 + 0.1) * 17.0;
+  return fract(p.x * p.y * p.z * (p.x + p.y + p.z));
+}
+float noise(vec3 x) {
+  vec3 i = floor(x);
+  vec3 f = fract(x);
+  f = f * f * (3.0 - 2.0 * f);
+  return mix(mix(mix(hash(i), hash(i + vec3(1, 0, 0)), f.x),
+                 mix(hash(i + vec3(0, 1, 0)), hash(i + vec3(1, 1, 0)), f.x), f.y),
+             mix(mix(hash(i + vec3(0, 0, 1)), hash(i + vec3(1, 0, 1)), f.x),
+                 mix(hash(i + vec3(0, 1, 1)), hash(i + vec3(1, 1, 1)), f.x), f.y),
+             f.z);
+}
+
+// Share of the key light reaching p: four bilinear comparison taps half a texel off centre
+// (percentage-closer filtering over 3x3 texels), so edges are soft rather than stair-stepped;
+// four taps rather than nine keep lavapipe's cost down.
+float lightReaching(vec3 p, vec3 n) {
+  if (uShadow.x == 0.0) return 1.0;
+  vec4 c = uLightViewProj * vec4(p + uShadow.z * n, 1.0);
+  vec3 s = c.xyz / c.w;
+  float depth = min(s.z * 0.5 + 0.5, 1.0);  // beyond the far plane: nothing there casts
+  vec2 uv = s.xy * 0.5 + 0.5;
+  float sum = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    vec2 offset = vec2(k & 1, k >> 1) - 0.5;
+    sum += texture(uShadowMap, vec3(uv + offset * uShadow.y, depth));
+  }
+  return 0.25 * sum;
+}
+
 void main() {
-  vec3 n = normalize(vNormal);
-  if (!gl_FrontFacing) n = -n;
-  vec3 l = normalize(vec3(0.4, 1.0, 0.3));
   vec3 v = normalize(uEye - vWorldPos);
-  vec3 h = normalize(l + v);
+  // The triangle's own plane, for flat-shaded crack facets (in uniform control flow).
+  vec3 facet = cross(dFdx(vWorldPos), dFdy(vWorldPos));
+  bool crack = uHasCrack != 0 && texelFetch(uCrackMask, gl_PrimitiveID).r != 0u;
+  vec3 n = normalize(vNormal);
+  // Two-sided: crack slits are seen from both sides.
+  if (!gl_FrontFacing) n = -n;
   vec3 base = uHasScalar != 0 ? colourMap(vScalar) : uColour;
-  if (uHasCrack != 0 && texelFetch(uCrackMask, gl_PrimitiveID).r != 0u) base = uCrackColour;
+  float specular = 0.12, shininess = 48.0, metallic = 0.0;
+  if (crack) {
+    if (length(facet) > 0.0) n = normalize(dot(facet, v) < 0.0 ? -facet : facet);
+    base = uCrackColour;
+    specular = uLook.x;
+    shininess = uLook.y;
+    metallic = uLook.w;
+    if (uLook.z > 0.0)
+      base *= 1.0 - uLook.z * smoothstep(0.45, 0.8, noise(vWorldPos * 450.0));
+  }
+  if (uGround.x > 0.0) {
+    // Thin lines every cell and stronger ones every 5, faded out where they would alias, on
+    // a faint checker: the floor shows its scale without drawing attention.
+    vec2 g = vWorldPos.xz / uGround.x;
+    vec2 w = max(fwidth(g), vec2(1e-6));
+    vec2 d = abs(fract(g - 0.5) - 0.5) / w;
+    vec2 dm = abs(fract(g / 5.0 - 0.5) - 0.5) / (w / 5.0);
+    float fade = clamp(1.5 - 4.0 * max(w.x, w.y), 0.0, 1.0);
+    float minor = (1.0 - min(min(d.x, d.y), 1.0)) * fade;
+    float major = 1.0 - min(min(dm.x, dm.y) / 1.5, 1.0);
+    float checker = mod(floor(g.x) + floor(g.y), 2.0);
+    base *= (1.0 - 0.05 * checker) * (1.0 - 0.22 * minor) * (1.0 - 0.35 * major);
+  }
+  vec3 l = normalize(vec3(0.4, 1.0, 0.3));
+  vec3 h = normalize(l + v);
+  float lit = lightReaching(vWorldPos, n);
   float ambient = mix(0.18, 0.38, 0.5 * (n.y + 1.0));
-  float diffuse = 0.72 * max(dot(n, l), 0.0);
-  float specular = 0.12 * pow(max(dot(n, h), 0.0), 48.0);
-  vec3 linear = base * (ambient + diffuse) + vec3(specular);
+  float diffuse = 0.72 * max(dot(n, l), 0.0) * lit;
+  vec3 highlight = specular * pow(max(dot(n, h), 0.0), shininess) * lit *
+                         mix(vec3(1.0), base, metallic);
+  vec3 linear = base * (1.0 - 0.5 * metallic) * (ambient + diffuse) + highlight;
   outColour = vec4(pow(clamp(linear, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
 }
 )";
+
+// The shadow pass: depth only.
+const char* kShadowVertexShader = R"(#version 330 core
+layout(location = 0) in vec3 inPosition;
+uniform mat4 uModel;
+uniform mat4 uLightViewProj;
+void main() { gl_Position = uLightViewProj * (uModel * vec4(inPosition, 1.0)); }
+)";
+const char* kShadowFragmentShader = R"(#version 330 core
+void main() {}
+)";
+
+constexpr GLsizei kShadowSize = 1024;  // texels per side, as the Vulkan back end
 
 std::string eglErrorName(EGLint e) {
   switch (e) {
@@ -203,7 +283,7 @@ class GlRenderer final : public Renderer {
   Result<void> init(const RendererOptions& options);
   const std::string& description() const override { return m_description; }
   Result<FrameStats> render(std::span<const MeshFrame> meshes, const Camera& camera,
-                            Image& out) override;
+                            const FrameOptions& options, Image& out) override;
 
  private:
   Result<void> createContext();
@@ -220,7 +300,10 @@ class GlRenderer final : public Renderer {
   GLuint m_program = 0, m_msaaFbo = 0, m_msaaColour = 0, m_msaaDepth = 0;
   GLuint m_resolveFbo = 0, m_resolveColour = 0;
   GLint m_uModel = -1, m_uViewProj = -1, m_uEye = -1, m_uColour = -1, m_uCrackColour = -1,
-        m_uHasScalar = -1, m_uHasCrack = -1, m_uCrackMask = -1;
+        m_uHasScalar = -1, m_uHasCrack = -1, m_uCrackMask = -1, m_uShadowMap = -1,
+        m_uLightViewProj = -1, m_uShadow = -1, m_uLook = -1, m_uGround = -1;
+  GLuint m_shadowProgram = 0, m_shadowFbo = 0, m_shadowTexture = 0;
+  GLint m_uShadowModel = -1, m_uShadowLightViewProj = -1;
   GLint m_maxTextureBuffer = 0;
   std::vector<Slot> m_slots;
 };
@@ -334,29 +417,47 @@ Result<void> GlRenderer::makeCurrent() {
   return {};
 }
 
-Result<void> GlRenderer::createPipeline(const RendererOptions& options) {
-  Result<GLuint> vs = compileShader(GL_VERTEX_SHADER, kVertexShader, "vertex");
+// Compiles and links a program into `program` (left for the destructor even on failure).
+Result<void> linkProgram(const char* vertex, const char* fragment, const char* name,
+                         GLuint& program) {
+  Result<GLuint> vs = compileShader(GL_VERTEX_SHADER, vertex, "vertex");
   if (!vs) return vs.error();
-  Result<GLuint> fs = compileShader(GL_FRAGMENT_SHADER, kFragmentShader, "fragment");
+  Result<GLuint> fs = compileShader(GL_FRAGMENT_SHADER, fragment, "fragment");
   if (!fs) {
     glDeleteShader(vs.value());
     return fs.error();
   }
-  m_program = glCreateProgram();
-  glAttachShader(m_program, vs.value());
-  glAttachShader(m_program, fs.value());
-  glLinkProgram(m_program);
+  program = glCreateProgram();
+  glAttachShader(program, vs.value());
+  glAttachShader(program, fs.value());
+  glLinkProgram(program);
   glDeleteShader(vs.value());  // flagged; freed with the program
   glDeleteShader(fs.value());
   GLint linked = 0;
-  glGetProgramiv(m_program, GL_LINK_STATUS, &linked);
+  glGetProgramiv(program, GL_LINK_STATUS, &linked);
   if (!linked) {
     GLint length = 0;
-    glGetProgramiv(m_program, GL_INFO_LOG_LENGTH, &length);
+    glGetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
     std::string log(size_t(std::max(length, 1)), '\0');
-    glGetProgramInfoLog(m_program, GLsizei(log.size()), nullptr, log.data());
-    return fail("GL: shader program does not link: ", log.c_str());
+    glGetProgramInfoLog(program, GLsizei(log.size()), nullptr, log.data());
+    return fail("GL: ", name, " shader program does not link: ", log.c_str());
   }
+  return {};
+}
+
+Result<void> GlRenderer::createPipeline(const RendererOptions& options) {
+  if (Result<void> r = linkProgram(kVertexShader, kFragmentShader, "mesh", m_program); !r) return r;
+  if (Result<void> r =
+          linkProgram(kShadowVertexShader, kShadowFragmentShader, "shadow", m_shadowProgram);
+      !r)
+    return r;
+  m_uShadowModel = glGetUniformLocation(m_shadowProgram, "uModel");
+  m_uShadowLightViewProj = glGetUniformLocation(m_shadowProgram, "uLightViewProj");
+  m_uShadowMap = glGetUniformLocation(m_program, "uShadowMap");
+  m_uLightViewProj = glGetUniformLocation(m_program, "uLightViewProj");
+  m_uShadow = glGetUniformLocation(m_program, "uShadow");
+  m_uLook = glGetUniformLocation(m_program, "uLook");
+  m_uGround = glGetUniformLocation(m_program, "uGround");
   m_uModel = glGetUniformLocation(m_program, "uModel");
   m_uViewProj = glGetUniformLocation(m_program, "uViewProj");
   m_uEye = glGetUniformLocation(m_program, "uEye");
@@ -388,6 +489,28 @@ Result<void> GlRenderer::createPipeline(const RendererOptions& options) {
   if (status != GL_FRAMEBUFFER_COMPLETE)
     return fail("GL: ", std::to_string(samples), "x MSAA framebuffer ", std::to_string(m_width),
                 "x", std::to_string(m_height), " incomplete (status ", std::to_string(status), ")");
+  // The shadow map: a comparison-sampled depth texture, lit (depth 1) outside.
+  glGenTextures(1, &m_shadowTexture);
+  glBindTexture(GL_TEXTURE_2D, m_shadowTexture);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, kShadowSize, kShadowSize, 0,
+               GL_DEPTH_COMPONENT, GL_FLOAT, nullptr);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
+  const float border[4] = {1, 1, 1, 1};
+  glTexParameterfv(GL_TEXTURE_2D, GL_TEXTURE_BORDER_COLOR, border);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  glGenFramebuffers(1, &m_shadowFbo);
+  glBindFramebuffer(GL_FRAMEBUFFER, m_shadowFbo);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, m_shadowTexture, 0);
+  glDrawBuffer(GL_NONE);
+  glReadBuffer(GL_NONE);
+  status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+  if (status != GL_FRAMEBUFFER_COMPLETE)
+    return fail("GL: shadow framebuffer incomplete (status ", std::to_string(status), ")");
   glGenRenderbuffers(1, &m_resolveColour);
   glBindRenderbuffer(GL_RENDERBUFFER, m_resolveColour);
   glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, m_width, m_height);
@@ -418,8 +541,10 @@ GlRenderer::~GlRenderer() {
       glDeleteVertexArrays(1, &s.vao);
     }
     glDeleteProgram(m_program);
-    const GLuint fbos[] = {m_msaaFbo, m_resolveFbo};
-    glDeleteFramebuffers(2, fbos);
+    glDeleteProgram(m_shadowProgram);
+    glDeleteTextures(1, &m_shadowTexture);
+    const GLuint fbos[] = {m_msaaFbo, m_resolveFbo, m_shadowFbo};
+    glDeleteFramebuffers(3, fbos);
     const GLuint rbos[] = {m_msaaColour, m_msaaDepth, m_resolveColour};
     glDeleteRenderbuffers(3, rbos);
   }
@@ -540,7 +665,7 @@ Result<void> GlRenderer::upload(Slot& slot, const MeshFrame& mesh, FrameStats& s
 }
 
 Result<FrameStats> GlRenderer::render(std::span<const MeshFrame> meshes, const Camera& camera,
-                                      Image& out) {
+                                      const FrameOptions& options, Image& out) {
   const auto start = std::chrono::steady_clock::now();
   Result<void> current = makeCurrent();
   if (!current) return current.error();
@@ -562,14 +687,39 @@ Result<FrameStats> GlRenderer::render(std::span<const MeshFrame> meshes, const C
       glm::perspective(glm::radians(camera.fovYDegrees), float(m_width) / float(m_height),
                        camera.nearPlane, camera.farPlane) *
       glm::lookAt(camera.eye, camera.target, camera.up);
+  // The shadow pass, as the Vulkan back end's: the same light box, bias and map size; the
+  // texture is cleared (all lit) when the frame has no shadows.
+  const glm::mat4 light = shadowViewProj(meshes);
+  const float texelWorld =
+      2.0f / (glm::length(glm::vec3(light[0][0], light[1][0], light[2][0])) * float(kShadowSize));
+  glDisable(GL_CULL_FACE);
+  glEnable(GL_DEPTH_TEST);
+  glDepthMask(GL_TRUE);
+  glBindFramebuffer(GL_FRAMEBUFFER, m_shadowFbo);
+  glViewport(0, 0, kShadowSize, kShadowSize);
+  glClearDepth(1.0);
+  glClear(GL_DEPTH_BUFFER_BIT);
+  if (options.shadows) {
+    glDepthFunc(GL_LEQUAL);
+    glEnable(GL_POLYGON_OFFSET_FILL);
+    glPolygonOffset(2.0f, 2.0f);
+    glUseProgram(m_shadowProgram);
+    glUniformMatrix4fv(m_uShadowLightViewProj, 1, GL_FALSE, glm::value_ptr(light));
+    for (size_t i = 0; i < meshes.size(); ++i) {
+      if (m_slots[i].triangles == 0 || !meshes[i].castsShadow) continue;
+      glUniformMatrix4fv(m_uShadowModel, 1, GL_FALSE, glm::value_ptr(meshes[i].model));
+      glBindVertexArray(m_slots[i].vao);
+      glDrawElements(GL_TRIANGLES, GLsizei(3 * m_slots[i].triangles), GL_UNSIGNED_INT, nullptr);
+    }
+    glBindVertexArray(0);
+    glDisable(GL_POLYGON_OFFSET_FILL);
+  }
+
   glFrontFace(GL_CW);
   glBindFramebuffer(GL_FRAMEBUFFER, m_msaaFbo);
   glViewport(0, 0, m_width, m_height);
   glDisable(GL_FRAMEBUFFER_SRGB);
-  glDisable(GL_CULL_FACE);
-  glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
-  glDepthMask(GL_TRUE);
   glClearColor(0.62f, 0.70f, 0.80f, 1.0f);
   glClearDepth(1.0);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
@@ -577,6 +727,12 @@ Result<FrameStats> GlRenderer::render(std::span<const MeshFrame> meshes, const C
   glUniformMatrix4fv(m_uViewProj, 1, GL_FALSE, glm::value_ptr(viewProj));
   glUniform3fv(m_uEye, 1, glm::value_ptr(camera.eye));
   glUniform1i(m_uCrackMask, 0);
+  glUniform1i(m_uShadowMap, 1);
+  glUniformMatrix4fv(m_uLightViewProj, 1, GL_FALSE, glm::value_ptr(light));
+  glUniform4f(m_uShadow, options.shadows ? 1.0f : 0.0f, 1.0f / float(kShadowSize),
+              2.0f * texelWorld, 0.0f);
+  glActiveTexture(GL_TEXTURE1);
+  glBindTexture(GL_TEXTURE_2D, m_shadowTexture);
   glActiveTexture(GL_TEXTURE0);
   glVertexAttrib1f(2, 0.0f);  // the scalar of meshes without one
   for (size_t i = 0; i < meshes.size(); ++i) {
@@ -588,12 +744,18 @@ Result<FrameStats> GlRenderer::render(std::span<const MeshFrame> meshes, const C
     glUniform3fv(m_uCrackColour, 1, glm::value_ptr(mesh.crackColour));
     glUniform1i(m_uHasScalar, slot.hasScalar ? 1 : 0);
     glUniform1i(m_uHasCrack, slot.hasCrack ? 1 : 0);
+    glUniform4f(m_uLook, mesh.crackLook.specular, mesh.crackLook.shininess, mesh.crackLook.grain,
+                mesh.crackLook.metallic);
+    glUniform4f(m_uGround, mesh.gridSpacing, 0.0f, 0.0f, 0.0f);
     glBindTexture(GL_TEXTURE_BUFFER, slot.crackTexture);
     glBindVertexArray(slot.vao);
     glDrawElements(GL_TRIANGLES, GLsizei(3 * slot.triangles), GL_UNSIGNED_INT, nullptr);
   }
   glBindVertexArray(0);
   glBindTexture(GL_TEXTURE_BUFFER, 0);
+  glActiveTexture(GL_TEXTURE1);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  glActiveTexture(GL_TEXTURE0);
   std::string errors = drainGlErrors();
   if (!errors.empty()) return fail("GL: drawing: ", errors);
 
@@ -610,6 +772,7 @@ Result<FrameStats> GlRenderer::render(std::span<const MeshFrame> meshes, const C
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   errors = drainGlErrors();
   if (!errors.empty()) return fail("GL: resolving and reading back: ", errors);
+  drawOverlay(out, options.overlay);
   stats.renderMs =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return stats;

@@ -32,6 +32,18 @@ struct RendererOptions {
   bool validation = false;  ///< Vulkan: enable VK_LAYER_KHRONOS_validation (error if missing)
 };
 
+/// How crack faces of a mesh are drawn (flat-shaded facets either way). The defaults are the
+/// plain surface model's, so a mesh without a look is shaded as before.
+struct CrackLook {
+  float specular = 0.12f;   ///< Strength of the highlight.
+  float shininess = 48.0f;  ///< Blinn-Phong exponent: low = rough (crumb), high = polished (glass).
+  float grain = 0.0f;       ///< Depth of pore-sized mottling of the colour (bread crumb), 0..1.
+  float metallic = 0.0f;    ///< 1: the highlight takes the surface colour (steel).
+};
+
+/// The look of a scene's "interior" ("plain", "glass", "crumb", "steel"); plain for others.
+CrackLook crackLook(const std::string& interior);
+
 struct Camera {
   glm::vec3 eye{1.5f, 1.0f, 1.5f};
   glm::vec3 target{0.0f, 0.2f, 0.0f};
@@ -55,6 +67,17 @@ struct MeshFrame {
   glm::mat4 model{1.0f};                      ///< model to world
   glm::vec3 colour{0.8f, 0.8f, 0.8f};         ///< linear RGB of the original surface
   glm::vec3 crackColour{0.95f, 0.55f, 0.3f};  ///< linear RGB of crack faces
+  CrackLook crackLook;
+  float gridSpacing = 0;    ///< > 0: a grid and checker of this cell size [m] on x-z (ground)
+  bool castsShadow = true;  ///< drawn into the shadow map (FrameOptions::shadows)
+};
+
+/// Per-frame extras of render().
+struct FrameOptions {
+  /// A shadow map from the key light (a depth pass over the casting meshes) darkens what lies
+  /// behind them; off, the light reaches everything (the plain shading model).
+  bool shadows = false;
+  std::vector<std::string> overlay;  ///< Text lines drawn over the top left of the frame.
 };
 
 /// What one render() cost.
@@ -72,7 +95,11 @@ class Renderer {
   /// Draws the meshes over a ground-free sky-coloured background, lit by a fixed directional
   /// light plus ambient, and reads the resolved image back into `out` (resized to fit).
   virtual Result<FrameStats> render(std::span<const MeshFrame> meshes, const Camera& camera,
-                                    Image& out) = 0;
+                                    const FrameOptions& options, Image& out) = 0;
+  /// render() without shadows or overlay.
+  Result<FrameStats> render(std::span<const MeshFrame> meshes, const Camera& camera, Image& out) {
+    return render(meshes, camera, FrameOptions{}, out);
+  }
   /// Errors and warnings the Vulkan validation layers reported so far (RendererOptions::
   /// validation); always empty for GL.
   virtual std::vector<std::string> validationMessages() const { return {}; }
@@ -86,6 +113,23 @@ Result<std::unique_ptr<Renderer>> createRenderer(const RendererOptions& options)
 // saying it was not built).
 Result<std::unique_ptr<Renderer>> createVulkanRenderer(const RendererOptions& options);
 Result<std::unique_ptr<Renderer>> createGlRenderer(const RendererOptions& options);
+
+/// Unit vector towards the key light, the one the shaders light with.
+inline constexpr glm::vec3 kKeyLight{0.4f, 1.0f, 0.3f};  // normalised where it is used
+/// The key light's view-projection (GL clip conventions) for the shadow map: an orthographic
+/// box along the light around the bounding sphere of the casting meshes (identity if none).
+glm::mat4 shadowViewProj(std::span<const MeshFrame> meshes);
+
+/// Draws `lines` of text over the top left of `image` (a dark translucent panel with white
+/// text, 2x-scaled stb_easy_font glyphs; smaller for images under 480 pixels wide). Does
+/// nothing where the renderer was built without stb (the demo says so).
+void drawOverlay(Image& image, std::span<const std::string> lines);
+/// True when drawOverlay draws (stb_easy_font was found at configure).
+bool overlayAvailable();
+
+/// Frames side by side in rows of `columns`, each scaled (box filter) to `cellWidth` pixels
+/// wide, with a 2-pixel dark gap; the images must all have one size.
+Result<Image> contactSheet(std::span<const Image> frames, int columns, int cellWidth);
 
 /// Writes an RGBA image as PNG; the error names the path and the reason.
 Result<void> writePng(const std::string& path, const Image& image);

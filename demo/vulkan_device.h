@@ -74,6 +74,12 @@ class VulkanDevice {
   const VkPhysicalDeviceProperties& properties() const { return m_properties; }
   /// The first depth format of D32, X8_D24, D24_S8, D32_S8 the device can render to.
   VkFormat depthFormat() const { return m_depthFormat; }
+  /// What the device can do with `format` in optimal tiling.
+  VkFormatFeatureFlags formatFeatures(VkFormat format) const {
+    VkFormatProperties p{};
+    vkGetPhysicalDeviceFormatProperties(m_physical, format, &p);
+    return p.optimalTilingFeatures;
+  }
   /// e.g. "llvmpipe (LLVM 15.0.6, 256 bits), CPU".
   std::string name() const;
   std::vector<std::string> messages() const {

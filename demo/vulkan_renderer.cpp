@@ -7,6 +7,11 @@
 // streams (positions | normals | scalars | indices | crack flags) at aligned offsets, so a slot is
 // one allocation and one descriptor set; it grows geometrically and is only re-created when a
 // mesh outgrows it. All host data reaches it through one staging buffer per frame.
+//
+// Shadows: every frame first renders a depth-only pass from the key light into a square depth
+// image (cleared only when the frame has no shadows), which the main pass samples with a
+// comparison sampler; running the pass always keeps the image in the layout the frame's
+// descriptor names.
 #include "vulkan_renderer.h"
 
 #include <algorithm>
@@ -31,6 +36,11 @@ const uint32_t kMeshVert[] =
 const uint32_t kMeshFrag[] =
 #include "mesh.frag.inc"
     ;
+const uint32_t kShadowVert[] =
+#include "shadow.vert.inc"
+    ;
+
+constexpr uint32_t kShadowSize = 1024;  // texels per side of the shadow map
 
 VkDeviceSize alignUp(VkDeviceSize x, VkDeviceSize a) { return (x + a - 1) / a * a; }
 
@@ -51,12 +61,16 @@ struct Slot {
 struct FrameUniforms {
   glm::mat4 viewProj;
   glm::vec4 eye;
+  glm::mat4 lightViewProj;
+  glm::vec4 shadow;  // on, texel size, normal offset
 };
-// The Draw push-constant block (96 bytes; 128 are guaranteed).
+// The Draw push-constant block (128 bytes, the guaranteed maximum).
 struct DrawConstants {
   glm::mat4 model;
   glm::vec4 colour;       // w: has scalar
   glm::vec4 crackColour;  // w: has crack flags
+  glm::vec4 look;         // specular, shininess, grain, metallic
+  glm::vec4 ground;       // grid cell
 };
 
 constexpr uint32_t kSetsPerPool = 64;
@@ -68,17 +82,18 @@ class VulkanRenderer final : public Renderer {
 
   const std::string& description() const override { return m_description; }
   Result<FrameStats> render(std::span<const MeshFrame> meshes, const Camera& camera,
-                            Image& out) override;
+                            const FrameOptions& options, Image& out) override;
   std::vector<std::string> validationMessages() const override { return m_vk.messages(); }
 
  private:
   Result<void> createTargets();
   Result<void> createRenderPass();
   Result<void> createPipeline();
+  Result<void> createShadowPass();
   Result<void> createDescriptors();
   Result<void> growSlot(Slot& slot, uint32_t vertices, uint32_t triangles);
   Result<FrameStats> renderFrame(std::span<const MeshFrame> meshes, const Camera& camera,
-                                 Image& out);
+                                 const FrameOptions& options, Image& out);
 
   // First member: destroyed last, after everything made on it.
   detail::VulkanDevice m_vk;
@@ -93,6 +108,11 @@ class VulkanRenderer final : public Renderer {
   VkDescriptorSetLayout m_frameLayout = VK_NULL_HANDLE, m_meshLayout = VK_NULL_HANDLE;
   VkPipelineLayout m_pipelineLayout = VK_NULL_HANDLE;
   VkPipeline m_pipeline = VK_NULL_HANDLE;
+  GpuImage m_shadowMap;
+  VkRenderPass m_shadowPass = VK_NULL_HANDLE;
+  VkFramebuffer m_shadowFramebuffer = VK_NULL_HANDLE;
+  VkPipeline m_shadowPipeline = VK_NULL_HANDLE;
+  VkSampler m_shadowSampler = VK_NULL_HANDLE;
   VkDescriptorPool m_framePool = VK_NULL_HANDLE;
   VkDescriptorSet m_frameSet = VK_NULL_HANDLE;
   std::vector<VkDescriptorPool> m_meshPools;  // kSetsPerPool mesh sets each
@@ -127,6 +147,7 @@ Result<void> VulkanRenderer::init(const RendererOptions& options) {
 
   GF_TRY(createTargets());
   GF_TRY(createRenderPass());
+  GF_TRY(createShadowPass());
   GF_TRY(createDescriptors());
   GF_TRY(createPipeline());
   m_description = "Vulkan, " + m_vk.name();
@@ -232,16 +253,93 @@ Result<void> VulkanRenderer::createRenderPass() {
   return {};
 }
 
+Result<void> VulkanRenderer::createShadowPass() {
+  const VkFormat format = m_vk.depthFormat();
+  const VkFormatFeatureFlags features = m_vk.formatFeatures(format);
+  if (!(features & VK_FORMAT_FEATURE_SAMPLED_IMAGE_BIT))
+    return fail("Vulkan: depth format ", std::to_string(int(format)),
+                " cannot be sampled (needed for the shadow map)");
+  GF_TRY(m_vk.createImage(int(kShadowSize), int(kShadowSize), format,
+                          VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT,
+                          VK_SAMPLE_COUNT_1_BIT, VK_IMAGE_ASPECT_DEPTH_BIT, m_shadowMap));
+
+  VkAttachmentDescription att{};
+  att.format = format;
+  att.samples = VK_SAMPLE_COUNT_1_BIT;
+  att.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+  att.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  att.stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+  att.stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  att.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  att.finalLayout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_READ_ONLY_OPTIMAL;
+  const VkAttachmentReference depthRef{0, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
+  VkSubpassDescription subpass{};
+  subpass.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+  subpass.pDepthStencilAttachment = &depthRef;
+  // In: the previous frame's sampling finishes before this frame's clear. Out: the depth is
+  // written before the main pass samples it.
+  VkSubpassDependency deps[2]{};
+  deps[0].srcSubpass = VK_SUBPASS_EXTERNAL;
+  deps[0].dstSubpass = 0;
+  deps[0].srcStageMask = VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
+  deps[0].dstStageMask =
+      VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+  deps[0].srcAccessMask = VK_ACCESS_SHADER_READ_BIT;
+  deps[0].dstAccessMask =
+      VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+  deps[1].srcSubpass = 0;
+  deps[1].dstSubpass = VK_SUBPASS_EXTERNAL;
+  deps[1].srcStageMask = VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+  deps[1].dstStageMask = VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
+  deps[1].srcAccessMask = VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+  deps[1].dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+  auto info = vkInfo<VkRenderPassCreateInfo>(VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO);
+  info.attachmentCount = 1;
+  info.pAttachments = &att;
+  info.subpassCount = 1;
+  info.pSubpasses = &subpass;
+  info.dependencyCount = 2;
+  info.pDependencies = deps;
+  GF_VK(vkCreateRenderPass, (m_device, &info, nullptr, &m_shadowPass));
+  auto fb = vkInfo<VkFramebufferCreateInfo>(VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO);
+  fb.renderPass = m_shadowPass;
+  fb.attachmentCount = 1;
+  fb.pAttachments = &m_shadowMap.view;
+  fb.width = kShadowSize;
+  fb.height = kShadowSize;
+  fb.layers = 1;
+  GF_VK(vkCreateFramebuffer, (m_device, &fb, nullptr, &m_shadowFramebuffer));
+
+  // Outside the map counts as lit (border depth 1); bilinear comparison where the format
+  // allows it softens the edges a little more.
+  const bool linear = features & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT;
+  auto sampler = vkInfo<VkSamplerCreateInfo>(VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO);
+  sampler.magFilter = sampler.minFilter = linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST;
+  sampler.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
+  sampler.addressModeU = sampler.addressModeV = sampler.addressModeW =
+      VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER;
+  sampler.borderColor = VK_BORDER_COLOR_FLOAT_OPAQUE_WHITE;
+  sampler.compareEnable = VK_TRUE;
+  sampler.compareOp = VK_COMPARE_OP_LESS_OR_EQUAL;
+  sampler.maxLod = 0.0f;
+  GF_VK(vkCreateSampler, (m_device, &sampler, nullptr, &m_shadowSampler));
+  return {};
+}
+
 Result<void> VulkanRenderer::createDescriptors() {
   VkDescriptorSetLayoutBinding frame{};
   frame.binding = 0;
   frame.descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
   frame.descriptorCount = 1;
   frame.stageFlags = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
+  VkDescriptorSetLayoutBinding frameBindings[2] = {frame, frame};
+  frameBindings[1].binding = 1;
+  frameBindings[1].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  frameBindings[1].stageFlags = VK_SHADER_STAGE_FRAGMENT_BIT;
   auto info =
       vkInfo<VkDescriptorSetLayoutCreateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO);
-  info.bindingCount = 1;
-  info.pBindings = &frame;
+  info.bindingCount = 2;
+  info.pBindings = frameBindings;
   GF_VK(vkCreateDescriptorSetLayout, (m_device, &info, nullptr, &m_frameLayout));
 
   // 0: crack flags (fragment), 1: scalars (vertex).
@@ -257,11 +355,12 @@ Result<void> VulkanRenderer::createDescriptors() {
   info.pBindings = mesh;
   GF_VK(vkCreateDescriptorSetLayout, (m_device, &info, nullptr, &m_meshLayout));
 
-  VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1};
+  const VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+                                         {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1}};
   auto pool = vkInfo<VkDescriptorPoolCreateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO);
   pool.maxSets = 1;
-  pool.poolSizeCount = 1;
-  pool.pPoolSizes = &size;
+  pool.poolSizeCount = 2;
+  pool.pPoolSizes = sizes;
   GF_VK(vkCreateDescriptorPool, (m_device, &pool, nullptr, &m_framePool));
   auto alloc = vkInfo<VkDescriptorSetAllocateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO);
   alloc.descriptorPool = m_framePool;
@@ -269,13 +368,21 @@ Result<void> VulkanRenderer::createDescriptors() {
   alloc.pSetLayouts = &m_frameLayout;
   GF_VK(vkAllocateDescriptorSets, (m_device, &alloc, &m_frameSet));
   const VkDescriptorBufferInfo buffer{m_uniforms.buffer, 0, sizeof(FrameUniforms)};
-  auto write = vkInfo<VkWriteDescriptorSet>(VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET);
-  write.dstSet = m_frameSet;
-  write.dstBinding = 0;
-  write.descriptorCount = 1;
-  write.descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-  write.pBufferInfo = &buffer;
-  vkUpdateDescriptorSets(m_device, 1, &write, 0, nullptr);
+  const VkDescriptorImageInfo shadow{m_shadowSampler, m_shadowMap.view,
+                                     VK_IMAGE_LAYOUT_DEPTH_STENCIL_READ_ONLY_OPTIMAL};
+  VkWriteDescriptorSet writes[2];
+  writes[0] = vkInfo<VkWriteDescriptorSet>(VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET);
+  writes[0].dstSet = m_frameSet;
+  writes[0].dstBinding = 0;
+  writes[0].descriptorCount = 1;
+  writes[0].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+  writes[0].pBufferInfo = &buffer;
+  writes[1] = writes[0];
+  writes[1].dstBinding = 1;
+  writes[1].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  writes[1].pBufferInfo = nullptr;
+  writes[1].pImageInfo = &shadow;
+  vkUpdateDescriptorSets(m_device, 2, writes, 0, nullptr);
   return {};
 }
 
@@ -290,7 +397,8 @@ Result<void> VulkanRenderer::createPipeline() {
   layout.pPushConstantRanges = &push;
   GF_VK(vkCreatePipelineLayout, (m_device, &layout, nullptr, &m_pipelineLayout));
 
-  VkShaderModule modules[2] = {VK_NULL_HANDLE, VK_NULL_HANDLE};
+  // Mesh vertex and fragment stages, then the shadow pass's vertex stage.
+  VkShaderModule modules[3] = {VK_NULL_HANDLE, VK_NULL_HANDLE, VK_NULL_HANDLE};
   const std::pair<const uint32_t*, size_t> code[2] = {{kMeshVert, sizeof kMeshVert},
                                                       {kMeshFrag, sizeof kMeshFrag}};
   Result<void> status;
@@ -369,9 +477,41 @@ Result<void> VulkanRenderer::createPipeline() {
     info.layout = m_pipelineLayout;
     info.renderPass = m_renderPass;
     info.subpass = 0;
-    const VkResult r =
+    VkResult r =
         vkCreateGraphicsPipelines(m_device, VK_NULL_HANDLE, 1, &info, nullptr, &m_pipeline);
     if (r != VK_SUCCESS) status = detail::vkFail("vkCreateGraphicsPipelines", r);
+
+    // The shadow pass: positions only, no fragment stage, one sample, slope-scaled depth bias
+    // against self-shadowing stripes ("acne") on lit faces.
+    auto module = vkInfo<VkShaderModuleCreateInfo>(VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO);
+    module.codeSize = sizeof kShadowVert;
+    module.pCode = kShadowVert;
+    if (status) {
+      r = vkCreateShaderModule(m_device, &module, nullptr, &modules[2]);
+      if (r != VK_SUCCESS) {
+        modules[2] = VK_NULL_HANDLE;
+        status = detail::vkFail("vkCreateShaderModule", r);
+      }
+    }
+    if (status) {
+      stages[0].module = modules[2];
+      vertex.vertexBindingDescriptionCount = 1;
+      vertex.vertexAttributeDescriptionCount = 1;
+      const VkViewport shadowViewport{0, 0, float(kShadowSize), float(kShadowSize), 0, 1};
+      const VkRect2D shadowScissor{{0, 0}, {kShadowSize, kShadowSize}};
+      viewportState.pViewports = &shadowViewport;
+      viewportState.pScissors = &shadowScissor;
+      raster.depthBiasEnable = VK_TRUE;
+      raster.depthBiasConstantFactor = 2.0f;
+      raster.depthBiasSlopeFactor = 2.0f;
+      multisample.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
+      depth.depthCompareOp = VK_COMPARE_OP_LESS_OR_EQUAL;
+      info.stageCount = 1;
+      info.pColorBlendState = nullptr;
+      info.renderPass = m_shadowPass;
+      r = vkCreateGraphicsPipelines(m_device, VK_NULL_HANDLE, 1, &info, nullptr, &m_shadowPipeline);
+      if (r != VK_SUCCESS) status = detail::vkFail("vkCreateGraphicsPipelines (shadow)", r);
+    }
   }
   for (VkShaderModule m : modules)
     if (m) vkDestroyShaderModule(m_device, m, nullptr);
@@ -389,6 +529,10 @@ VulkanRenderer::~VulkanRenderer() {
   m_vk.destroyBuffer(m_readback);
   m_vk.destroyBuffer(m_uniforms);
   if (m_pipeline) vkDestroyPipeline(m_device, m_pipeline, nullptr);
+  if (m_shadowPipeline) vkDestroyPipeline(m_device, m_shadowPipeline, nullptr);
+  if (m_shadowSampler) vkDestroySampler(m_device, m_shadowSampler, nullptr);
+  if (m_shadowFramebuffer) vkDestroyFramebuffer(m_device, m_shadowFramebuffer, nullptr);
+  if (m_shadowPass) vkDestroyRenderPass(m_device, m_shadowPass, nullptr);
   if (m_pipelineLayout) vkDestroyPipelineLayout(m_device, m_pipelineLayout, nullptr);
   if (m_meshLayout) vkDestroyDescriptorSetLayout(m_device, m_meshLayout, nullptr);
   if (m_frameLayout) vkDestroyDescriptorSetLayout(m_device, m_frameLayout, nullptr);
@@ -397,6 +541,7 @@ VulkanRenderer::~VulkanRenderer() {
   m_vk.destroyImage(m_colourMs);
   m_vk.destroyImage(m_depth);
   m_vk.destroyImage(m_resolved);
+  m_vk.destroyImage(m_shadowMap);
 }
 
 // Makes the slot hold at least `vertices` and `triangles`: the buffer is re-created (contents
@@ -464,9 +609,9 @@ Result<void> VulkanRenderer::growSlot(Slot& slot, uint32_t vertices, uint32_t tr
 }
 
 Result<FrameStats> VulkanRenderer::render(std::span<const MeshFrame> meshes, const Camera& camera,
-                                          Image& out) {
+                                          const FrameOptions& options, Image& out) {
   if (m_broken) return fail("Vulkan: renderer unusable after an earlier error: ", m_brokenReason);
-  Result<FrameStats> r = renderFrame(meshes, camera, out);
+  Result<FrameStats> r = renderFrame(meshes, camera, options, out);
   if (!r) {
     // The slots may hold partial uploads: the next frame re-uploads everything.
     for (Slot& s : m_slots) s.valid = false;
@@ -475,7 +620,8 @@ Result<FrameStats> VulkanRenderer::render(std::span<const MeshFrame> meshes, con
 }
 
 Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes,
-                                               const Camera& camera, Image& out) {
+                                               const Camera& camera, const FrameOptions& options,
+                                               Image& out) {
   const auto start = std::chrono::steady_clock::now();
   VkCommandBuffer cmd = m_vk.commandBuffer();
   VkFence fence = m_vk.fence();
@@ -612,7 +758,59 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
                        camera.nearPlane, camera.farPlane) *
       glm::lookAt(camera.eye, camera.target, camera.up);
   frame.eye = glm::vec4(camera.eye, 1.0f);
+  const glm::mat4 light = shadowViewProj(meshes);
+  frame.lightViewProj = toVulkan * light;
+  // The normal offset: about two shadow-map texels in world units, so lit faces clear their
+  // own depth even at grazing angles.
+  const float texelWorld =
+      2.0f / (glm::length(glm::vec3(light[0][0], light[1][0], light[2][0])) * float(kShadowSize));
+  frame.shadow =
+      glm::vec4(options.shadows ? 1.0f : 0.0f, 1.0f / float(kShadowSize), 2.0f * texelWorld, 0.0f);
   std::memcpy(m_uniforms.mapped, &frame, sizeof frame);
+
+  auto draws = [&](bool shadowPass) {
+    for (size_t i = 0; i < meshes.size(); ++i) {
+      const MeshFrame& m = meshes[i];
+      const Plan& p = plans[i];
+      const Slot& s = m_slots[i];
+      if (p.triangles == 0 || (shadowPass && !m.castsShadow)) continue;
+      DrawConstants draw;
+      draw.model = m.model;
+      draw.colour = glm::vec4(m.colour, p.hasScalar ? 1.0f : 0.0f);
+      draw.crackColour = glm::vec4(m.crackColour, p.hasCrack ? 1.0f : 0.0f);
+      draw.look = glm::vec4(m.crackLook.specular, m.crackLook.shininess, m.crackLook.grain,
+                            m.crackLook.metallic);
+      draw.ground = glm::vec4(m.gridSpacing, 0.0f, 0.0f, 0.0f);
+      vkCmdPushConstants(cmd, m_pipelineLayout,
+                         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof draw,
+                         &draw);
+      if (!shadowPass)
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, m_pipelineLayout, 1, 1,
+                                &s.set, 0, nullptr);
+      const VkBuffer buffers[2] = {s.buffer.buffer, s.buffer.buffer};
+      const VkDeviceSize offsets[2] = {0, s.normalOffset};
+      vkCmdBindVertexBuffers(cmd, 0, shadowPass ? 1 : 2, buffers, offsets);
+      vkCmdBindIndexBuffer(cmd, s.buffer.buffer, s.indexOffset, VK_INDEX_TYPE_UINT32);
+      vkCmdDrawIndexed(cmd, 3 * p.triangles, 1, 0, 0, 0);
+    }
+  };
+
+  VkClearValue shadowClear{};
+  shadowClear.depthStencil = {1.0f, 0};
+  auto shadowPass = vkInfo<VkRenderPassBeginInfo>(VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO);
+  shadowPass.renderPass = m_shadowPass;
+  shadowPass.framebuffer = m_shadowFramebuffer;
+  shadowPass.renderArea = {{0, 0}, {kShadowSize, kShadowSize}};
+  shadowPass.clearValueCount = 1;
+  shadowPass.pClearValues = &shadowClear;
+  vkCmdBeginRenderPass(cmd, &shadowPass, VK_SUBPASS_CONTENTS_INLINE);
+  if (options.shadows) {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, m_shadowPipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, m_pipelineLayout, 0, 1,
+                            &m_frameSet, 0, nullptr);
+    draws(true);
+  }
+  vkCmdEndRenderPass(cmd);
 
   VkClearValue clears[3]{};
   clears[0].color = {{0.62f, 0.70f, 0.80f, 1.0f}};
@@ -627,26 +825,7 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, m_pipeline);
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, m_pipelineLayout, 0, 1, &m_frameSet,
                           0, nullptr);
-  for (size_t i = 0; i < meshes.size(); ++i) {
-    const MeshFrame& m = meshes[i];
-    const Plan& p = plans[i];
-    const Slot& s = m_slots[i];
-    if (p.triangles == 0) continue;
-    DrawConstants draw;
-    draw.model = m.model;
-    draw.colour = glm::vec4(m.colour, p.hasScalar ? 1.0f : 0.0f);
-    draw.crackColour = glm::vec4(m.crackColour, p.hasCrack ? 1.0f : 0.0f);
-    vkCmdPushConstants(cmd, m_pipelineLayout,
-                       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof draw,
-                       &draw);
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, m_pipelineLayout, 1, 1, &s.set, 0,
-                            nullptr);
-    const VkBuffer buffers[2] = {s.buffer.buffer, s.buffer.buffer};
-    const VkDeviceSize offsets[2] = {0, s.normalOffset};
-    vkCmdBindVertexBuffers(cmd, 0, 2, buffers, offsets);
-    vkCmdBindIndexBuffer(cmd, s.buffer.buffer, s.indexOffset, VK_INDEX_TYPE_UINT32);
-    vkCmdDrawIndexed(cmd, 3 * p.triangles, 1, 0, 0, 0);
-  }
+  draws(false);
   vkCmdEndRenderPass(cmd);
 
   // Rows top to bottom: the flipped projection puts the top of the view in row 0.
@@ -690,6 +869,7 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
   out.height = m_height;
   out.rgba.resize(size_t(m_width) * size_t(m_height) * 4);
   std::memcpy(out.rgba.data(), m_readback.mapped, out.rgba.size());
+  drawOverlay(out, options.overlay);
   stats.renderMs =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return stats;

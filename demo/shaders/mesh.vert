@@ -8,6 +8,8 @@ layout(location = 1) in vec3 inNormal;
 layout(set = 0, binding = 0) uniform Frame {
   mat4 viewProj;  // Vulkan-corrected: depth [0, 1], y down in clip space
   vec4 eye;
+  mat4 lightViewProj;
+  vec4 shadow;
 }
 frame;
 
@@ -20,6 +22,8 @@ layout(push_constant) uniform Draw {
   mat4 model;
   vec4 colour;       // w: 1 when the mesh has a scalar stream
   vec4 crackColour;  // w: 1 when the mesh has crack flags
+  vec4 look;         // crack faces: specular, shininess, grain, metallic
+  vec4 ground;       // x: grid cell [m], 0 = none
 }
 draw;
 

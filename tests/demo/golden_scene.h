@@ -18,6 +18,10 @@ struct GoldenScene {
   std::vector<uint32_t> indices;
   std::vector<uint8_t> crackMask;
   demo::Camera camera;
+  // The stage golden image: a floor square under the bunny with a grid of a tenth of its size.
+  std::vector<float> floorPositions, floorNormals;
+  std::vector<uint32_t> floorIndices;
+  float gridSpacing = 0;
 
   demo::MeshFrame frame() const {
     demo::MeshFrame f;
@@ -31,6 +35,22 @@ struct GoldenScene {
     f.colour = {0.55f, 0.75f, 0.85f};
     f.crackColour = {0.95f, 0.55f, 0.3f};
     return f;
+  }
+  /// The demo's look: the bunny with glass crack faces on a gridded floor (draw with shadows).
+  std::vector<demo::MeshFrame> stage() const {
+    demo::MeshFrame bunny = frame();
+    bunny.crackColour = {0.8f, 0.92f, 0.95f};
+    bunny.crackLook = demo::crackLook("glass");
+    demo::MeshFrame floor;
+    floor.positions = floorPositions;
+    floor.normals = floorNormals;
+    floor.indices = floorIndices;
+    floor.topologyVersion = 1;
+    floor.dirtyEnd = uint32_t(floorPositions.size() / 3);
+    floor.colour = {0.42f, 0.45f, 0.48f};
+    floor.gridSpacing = gridSpacing;
+    floor.castsShadow = false;
+    return {bunny, floor};
   }
 };
 
@@ -67,6 +87,15 @@ inline GoldenScene goldenScene() {
   s.camera.fovYDegrees = 40;
   s.camera.nearPlane = 0.05f * size;
   s.camera.farPlane = 10 * size;
+  const float h = 1.5f * size;
+  const float corners[4][2] = {
+      {-h, h}, {h, h}, {h, -h}, {-h, -h}};  // x, z: counter-clockwise from +y
+  for (const auto& c : corners) {
+    s.floorPositions.insert(s.floorPositions.end(), {centre.x + c[0], lo[1], centre.z + c[1]});
+    s.floorNormals.insert(s.floorNormals.end(), {0.0f, 1.0f, 0.0f});
+  }
+  s.floorIndices = {0, 1, 2, 0, 2, 3};
+  s.gridSpacing = 0.1f * size;
   return s;
 }
 

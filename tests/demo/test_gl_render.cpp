@@ -299,6 +299,29 @@ TEST(GlRender, GoldenBunnyMatchesReference) {
   EXPECT_LT(diff.value().fractionOver, 0.002);
 }
 
+// The stage golden image (test_vulkan_render.cpp): the GL shadow map, grid and glass crack faces
+// mirror the Vulkan back end's.
+TEST(GlRender, GoldenStageMatchesReference) {
+  const test::GoldenScene scene = test::goldenScene();
+  ASSERT_FALSE(scene.positions.empty());
+  MAKE_GL_OR_SKIP(gl, 160, 120, 4);
+  FrameOptions shadows;
+  shadows.shadows = true;
+  Image im;
+  ASSERT_TRUE(gl->render(scene.stage(), scene.camera, shadows, im).ok());
+  if (const char* dir = std::getenv("GF_GL_WRITE_DIR")) {
+    ASSERT_TRUE(writePng(std::string(dir) + "/stage_gl.png", im).ok());
+  }
+  Result<Image> golden = readPng(GF_SOURCE_DIR "/tests/demo/golden/bunny_stage_160x120.png");
+  ASSERT_TRUE(golden.ok()) << golden.error().message;
+  Result<ImageDiff> diff = compareImages(im, golden.value(), 24);
+  ASSERT_TRUE(diff.ok()) << diff.error().message;
+  std::printf("[ GL ] stage: mean abs %.3f, max %d, %.3f %% of pixels over 24\n",
+              diff.value().meanAbs, diff.value().maxAbs, 100.0 * diff.value().fractionOver);
+  EXPECT_LT(diff.value().meanAbs, 0.25);
+  EXPECT_LT(diff.value().fractionOver, 0.002);
+}
+
 // Bytes per vertex: positions and normals (3 floats each) plus the scalar when present; a
 // topology change re-sends vertices, indices (3 uint32) and, with a mask, crack flags (1 byte)
 // per triangle.

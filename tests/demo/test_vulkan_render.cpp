@@ -205,6 +205,40 @@ TEST(VulkanRender, GoldenBunny) {
               diff.value().maxAbs, 100 * diff.value().fractionOver);
 }
 
+std::string stagePath() { return GF_SOURCE_DIR "/tests/demo/golden/bunny_stage_160x120.png"; }
+
+// The demo's look (tests/demo/golden/bunny_stage_160x120.png, shared with GL): the golden bunny
+// with glass crack faces (flat facets, sharp highlight) standing on a gridded floor, with the
+// key light's shadow map. Regenerated with GoldenBunny (GF_UPDATE_GOLDEN=1, filter
+// VulkanRender.Golden*). The shadow must be there: the same frame without it differs.
+TEST(VulkanRender, GoldenStageWithShadowGridAndGlass) {
+  const test::GoldenScene scene = test::goldenScene();
+  ASSERT_FALSE(scene.positions.empty());
+  GF_MAKE_RENDERER(renderer, 160, 120, 4, false);
+  const std::vector<MeshFrame> frames = scene.stage();
+  FrameOptions shadows;
+  shadows.shadows = true;
+  Image im, flat;
+  ASSERT_TRUE(renderer->render(frames, scene.camera, shadows, im));
+  ASSERT_TRUE(renderer->render(frames, scene.camera, FrameOptions{}, flat));
+  Result<ImageDiff> shadowDiff = compareImages(im, flat, 24);
+  ASSERT_TRUE(shadowDiff);
+  EXPECT_GT(shadowDiff.value().fractionOver, 0.01);  // a visible shadow on the floor (2.3 %)
+  if (const char* update = std::getenv("GF_UPDATE_GOLDEN"); update && std::string(update) == "1") {
+    Result<void> written = writePng(stagePath(), im);
+    ASSERT_TRUE(written) << written.error().message;
+  }
+  Result<Image> golden = readPng(stagePath());
+  ASSERT_TRUE(golden) << golden.error().message;
+  Result<ImageDiff> diff = compareImages(im, golden.value(), 24);
+  ASSERT_TRUE(diff) << diff.error().message;
+  EXPECT_LT(diff.value().meanAbs, 0.25);
+  EXPECT_LT(diff.value().fractionOver, 0.002);
+  std::printf("stage golden diff: mean %.4f, max %d, over 24: %.4f%%; shadow pass changes %.2f%%\n",
+              diff.value().meanAbs, diff.value().maxAbs, 100 * diff.value().fractionOver,
+              100 * shadowDiff.value().fractionOver);
+}
+
 TEST(VulkanRender, UploadsOnlyTheDirtyRange) {
   const test::GoldenScene scene = test::goldenScene();
   ASSERT_FALSE(scene.positions.empty());

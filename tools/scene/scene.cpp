@@ -966,7 +966,7 @@ SceneRigidBody readRigidBody(const json& v, const std::string& path, size_t inde
 
 SceneCamera readCamera(const json& v, const std::string& path) {
   ObjReader o(v, path);
-  o.keys({"eye", "target", "up", "fov"});
+  o.keys({"eye", "target", "up", "fov", "follow", "smooth_s", "max_turn_deg"});
   SceneCamera c;
   c.eye = readVec3(o.require("eye"), o.at("eye"));
   c.target = readVec3(o.require("target"), o.at("target"));
@@ -983,6 +983,14 @@ SceneCamera readCamera(const json& v, const std::string& path) {
   }
   if (const json* f = o.find("fov"))
     c.fovDegrees = readInRange(*f, o.at("fov"), 0, 180, true, true);
+  if (const json* f = o.find("follow")) c.follow = readBool(*f, o.at("follow"));
+  for (const char* key : {"smooth_s", "max_turn_deg"}) {
+    if (o.has(key) && !c.follow) throw SceneError{o.at(key), "only with \"follow\": true"};
+  }
+  if (const json* t = o.find("smooth_s"))
+    c.smoothSeconds = readInRange(*t, o.at("smooth_s"), 0, 10, true, false);
+  if (const json* a = o.find("max_turn_deg"))
+    c.maxTurnDegrees = readInRange(*a, o.at("max_turn_deg"), 0, 45, true, false);
   o.finish();
   return c;
 }
@@ -1026,6 +1034,7 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
           "handoff",
           "colour",
           "crack_colour",
+          "interior",
           "friction",
           "contact",
           "impurities",
@@ -1089,6 +1098,8 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
   if (const json* c = o.find("colour")) body.colour = readColour(*c, o.at("colour"));
   if (const json* c = o.find("crack_colour"))
     body.crackColour = readColour(*c, o.at("crack_colour"));
+  if (const json* i = o.find("interior"))
+    body.interior = readChoice(*i, o.at("interior"), {"plain", "glass", "crumb", "steel"});
   if (const json* ff = o.find("fibre_field")) {
     body.def.fibreField = readFibreField(*ff, o.at("fibre_field"), body.def.mesh);
     // The field only steers the fibre term; without it the field would be silently ignored.

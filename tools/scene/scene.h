@@ -35,6 +35,8 @@ struct SceneBody {
   SceneHandoff handoff;
   glm::vec3 colour{0.8f};                     ///< Linear RGB of the surface (a palette default).
   glm::vec3 crackColour{0.95f, 0.55f, 0.3f};  ///< Linear RGB of crack faces.
+  /// How crack faces are drawn: "plain", "glass", "crumb" or "steel" (roughness, grain).
+  std::string interior = "plain";
   /// The JSON entry of each def.grips, in order ("pins[0]", "grips[1]"): pins and grips
   /// share BodyDef::grips, and an entry whose nodes were all held already makes none.
   std::vector<std::string> gripNames;
@@ -73,6 +75,10 @@ struct SceneCamera {
   glm::dvec3 target{0, 0.2, 0};
   glm::dvec3 up{0, 1, 0};
   double fovDegrees = 45;  ///< Vertical field of view.
+  /// Follow the bodies' bounds (eye - target keeps its direction; target and distance move).
+  bool follow = false;
+  double smoothSeconds = 0.4;  ///< Follow: time constant of the critically damped smoothing.
+  double maxTurnDegrees = 1;   ///< Follow: largest swing of the line of sight per frame.
 };
 
 /// A blade applied to one body before a given frame is stepped (World::cut).
