@@ -22,6 +22,11 @@ int runBenchCommand(int argc, char** argv);
 /// SVG plot of error against run time for every solver setting.
 int runReportCommand(int argc, char** argv);
 
+/// `graphfrac report lab [--quick] [--only TEST] [--out DIR] [--scenes DIR] [--crack-refine N]`;
+/// argv[0] is "report", argv[1] "lab". Runs the laboratory tests of scenes/lab (Brazilian,
+/// Charpy, Izod) and writes their curves and a summary (tools/cli/report_lab_command.cpp).
+int runLabReport(int argc, char** argv);
+
 /// `graphfrac mesh SUBCOMMAND ...`; argv[0] is "mesh", argv[1] the subcommand:
 ///   from-surface IN OUT.msh [--method auto|tetgen|lattice] [--cells N | --target-tets T]
 ///                [--max-volume V] [--quality Q] [--tetgen PATH] [--keep-temp] ...

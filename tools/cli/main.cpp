@@ -17,6 +17,7 @@ constexpr const char* kUsage =
     "                        benchmarks that print CSV figures (see bench --help)\n"
     "  report error-vs-time SCENE\n"
     "                        error against run time of every solver setting (CSV + SVG)\n"
+    "  report lab [--quick]  Brazilian, Charpy and Izod tests: curves (SVG) and a summary\n"
     "\n"
     "  graphfrac <command> --help   options of a command\n"
     "  graphfrac --version          print the version\n"

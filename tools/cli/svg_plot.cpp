@@ -124,19 +124,34 @@ void renderPanel(std::string& svg, const PlotPanel& p, double ox, int width, int
          num((top + bottom) / 2) + ")'>" + escape(p.yLabel) + "</text>\n";
   double legendY = top + 14;
   for (const PlotSeries& s : p.series) {
+    std::string polyline;
     for (const PlotPoint& q : s.points) {
       if ((p.logX && !(q.x > 0)) || (p.logY && !(q.y > 0)) || !std::isfinite(q.x) ||
           !std::isfinite(q.y))
         continue;
-      svg += "<circle cx='" + num(px(q.x)) + "' cy='" + num(py(q.y)) + "' r='4' fill='" + s.colour +
-             "'/>\n";
+      if (s.line) {
+        polyline += num(px(q.x)) + "," + num(py(q.y)) + " ";
+        continue;
+      }
+      // Dense clouds (crack maps) in small dots, so the pattern shows.
+      svg += "<circle cx='" + num(px(q.x)) + "' cy='" + num(py(q.y)) + "' r='" +
+             (s.points.size() > 200 ? "1.5" : "4") + "' fill='" + s.colour + "'/>\n";
       if (!q.label.empty())
         svg += "<text x='" + num(px(q.x) + 6) + "' y='" + num(py(q.y) - 4) +
                "' font-size='9' fill='#444'>" + escape(q.label) + "</text>\n";
     }
-    svg += "<circle cx='" + num(right - 150) + "' cy='" + num(legendY - 4) + "' r='4' fill='" +
-           s.colour + "'/><text x='" + num(right - 142) + "' y='" + num(legendY) +
-           "' font-size='11'>" + escape(s.name) + "</text>\n";
+    if (s.line) {
+      svg += "<polyline points='" + polyline + "' fill='none' stroke='" + s.colour +
+             "' stroke-width='1.5'/>\n";
+      svg += "<line x1='" + num(right - 158) + "' y1='" + num(legendY - 4) + "' x2='" +
+             num(right - 146) + "' y2='" + num(legendY - 4) + "' stroke='" + s.colour +
+             "' stroke-width='2'/>";
+    } else {
+      svg += "<circle cx='" + num(right - 150) + "' cy='" + num(legendY - 4) + "' r='4' fill='" +
+             s.colour + "'/>";
+    }
+    svg += "<text x='" + num(right - 142) + "' y='" + num(legendY) + "' font-size='11'>" +
+           escape(s.name) + "</text>\n";
     legendY += 15;
   }
   if (dropped > 0)

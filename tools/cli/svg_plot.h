@@ -19,6 +19,8 @@ struct PlotSeries {
   std::string name;  ///< Legend entry.
   std::string colour;
   std::vector<PlotPoint> points;
+  /// Joins the points, in order, by a line instead of drawing each (curves of many samples).
+  bool line = false;
 };
 
 struct PlotPanel {
