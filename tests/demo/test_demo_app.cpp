@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "common/temp_dir.h"
 #include "demo_app.h"
 #include "renderer.h"
 #include "scene/bullet_scene.h"
@@ -37,22 +38,7 @@ const std::string kDemoScene = GF_SOURCE_DIR "/scenes/demo.json";
 // Bytes a dirty vertex costs: its position and normal, 3 floats each (MeshFrame's streams).
 constexpr uint64_t kVertexBytes = 6 * sizeof(float);
 
-/// An empty directory of its own under the temporary directory, removed with everything in it
-/// when the test ends.
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& name)
-      : path(fs::temp_directory_path() / ("gf_demo_" + name + "_" + std::to_string(getpid()))) {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-};
+using test::TempDir;
 
 fs::path writeScene(const fs::path& dir, const std::string& text) {
   fs::create_directories(dir);
@@ -274,7 +260,7 @@ std::vector<Ball> ballsInside(World& world, BodyId id, glm::dvec3 eye, double mi
 
 TEST(DemoApp, ShortRunDrawsTheBodiesAndReportsTheWorldsNumbers) {
   SKIP_WITHOUT_RENDERER();
-  const TempDir tmp("short");
+  const TempDir tmp("demo_short");
   const fs::path out = tmp.path;
   DemoOptions opt;
   opt.scene = kDemoScene;
@@ -397,7 +383,7 @@ TEST(DemoApp, ShortRunDrawsTheBodiesAndReportsTheWorldsNumbers) {
 // each), the crate moves by its model matrix alone, and the mean is below a full upload.
 TEST(DemoApp, AfterTheFirstFrameOnlyDirtyVerticesAreUploaded) {
   SKIP_WITHOUT_RENDERER();
-  const TempDir tmp("stream");
+  const TempDir tmp("demo_stream");
   const fs::path dir = tmp.path;
   const fs::path scenePath = writeScene(dir, R"({
     "dt": 0.02, "frames": 4, "substeps": 2,
@@ -454,7 +440,7 @@ TEST(DemoApp, VulkanValidationLayersReportNothingOverAShortRun) {
   opt.frames = 2;
   opt.width = 160;
   opt.height = 90;
-  const TempDir tmp("validation");
+  const TempDir tmp("demo_validation");
   opt.out = tmp.path.string();
   opt.renderer = RendererKind::Vulkan;
   opt.validation = true;
@@ -482,7 +468,7 @@ TEST(DemoApp, CommandLineErrorsAndVideo) {
   EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--bogus"}), 2);
   EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--backend", "gpu"}), 2);
   EXPECT_EQ(callMain({"graphfrac-demo", "--help"}), 0);
-  const TempDir tmp("cli");
+  const TempDir tmp("demo_cli");
   const fs::path dir = tmp.path;
   EXPECT_EQ(callMain({"graphfrac-demo", (dir / "missing.json").string(), "--quiet"}), 1);
 

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "common/temp_dir.h"
 #include "demo/render_checks.h"
 #include "demo_app.h"
 #include "renderer.h"
@@ -37,18 +38,7 @@ const std::string kDemoScene = GF_SOURCE_DIR "/scenes/demo.json";
 constexpr double kMinInside = 0.6;
 constexpr double kMaxSwingDegrees = 1.0;
 
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& name)
-      : path(fs::temp_directory_path() / ("gf_look_" + name + "_" + std::to_string(getpid()))) {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
+using test::TempDir;
 
 glm::dmat4 viewProj(const Camera& c, int w, int h) {
   return glm::perspective(glm::radians(double(c.fovYDegrees)), double(w) / h, double(c.nearPlane),
@@ -98,7 +88,7 @@ double swing(const Camera& a, const Camera& b) {
 // The whole default demo (about a minute of simulation on 2 cores), drawn small.
 TEST(DemoFraming, EveryBodyStaysInThePictureAndTheCameraMovesSmoothly) {
   SKIP_WITHOUT_RENDERER();
-  const TempDir tmp("framing");
+  const TempDir tmp("look_framing");
   DemoOptions opt;
   opt.scene = kDemoScene;
   opt.width = 128;  // the video's 16:9
@@ -336,7 +326,7 @@ TEST(DemoSheet, CellsAreTheFramesInOrderScaledDown) {
 
 // Scene errors name the file and the field.
 TEST(DemoScene, BadCameraAndInteriorValuesNameTheFileAndField) {
-  const TempDir tmp("errors");
+  const TempDir tmp("look_errors");
   struct Case {
     std::string json, field, reason;
   };
@@ -383,7 +373,7 @@ TEST(DemoScene, BadCameraAndInteriorValuesNameTheFileAndField) {
 TEST(DemoVideo, H264Yuv420pEvenSizeAtTheScenesRate) {
   SKIP_WITHOUT_RENDERER();
   if (std::system("command -v ffprobe > /dev/null 2>&1") != 0) GTEST_SKIP() << "no ffprobe here";
-  const TempDir tmp("video");
+  const TempDir tmp("look_video");
   const fs::path path = tmp.path / "scene.json";
   // dt = 1/24 s: 24 fps; 0.03 s: 100/3 fps, not a whole number.
   for (const char* dt : {"0.041666666666666664", "0.03"}) {
