@@ -611,6 +611,8 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
     {"bad_generator_cells.json",
      {": bodies[0].mesh.cells[1]: expected an integer in [1, 2000], got 0"}},
     {"bad_generator_size.json", {": bodies[0].mesh.size[1]: expected a positive number, got -1"}},
+    {"bad_generator_inner_radius.json",
+     {": bodies[0].mesh.inner_radius: expected a number in (0, radius = 0.05), got 0.05"}},
     {"bad_generator_too_many_cells.json", {": bodies[0].mesh.cells: ", "too many"}},
     {"bad_generator_key.json", {": bodies[0].mesh.segments: unknown key"}},
     {"bad_notch_depth.json",

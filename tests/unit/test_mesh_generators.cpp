@@ -1,6 +1,6 @@
 // Generated meshes: every one must validate with no repairs, and its volume must be exact
-// (box, notched box, slab, the cylinder's inscribed polygon) or converge to the analytic
-// value at the expected second-order rate (cylinder, sphere).
+// (box, notched box, slab, the cylinder's and tube's inscribed polygons) or converge to the
+// analytic value at the expected second-order rate (cylinder, sphere).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -93,6 +93,34 @@ TEST(MeshGen, CylinderConvergesToPiR2H) {
   }
   expectValid(gf::gen::cylinder(1.0, 0.05, 24, 1, 4), "disc");
   expectValid(gf::gen::cylinder(1.0, 2.0, 3, 1, 1), "triangular prism");
+}
+
+TEST(MeshGen, TubeIsTheAnnulusOfItsPolygons) {
+  const double r = 0.05, ri = 0.035, h = 0.6;
+  for (int seg : {3, 12, 40}) {
+    for (int rings : {1, 3}) {
+      const gf::TetMesh m = gf::gen::tube(r, ri, h, seg, 20, rings);
+      const std::string what = "tube " + std::to_string(seg) + "/" + std::to_string(rings);
+      expectValid(m, what);
+      // The cross-section is the outer polygon less the inner one, both inscribed.
+      const double annulus = 0.5 * seg * (r * r - ri * ri) * std::sin(2 * kPi / seg);
+      EXPECT_NEAR(m.volume(), annulus * h, 1e-14) << what;
+      // The hole is empty: no node inside the inner circle, every tet's centroid in the wall.
+      for (size_t i = 0; i < m.nodeCount(); ++i) {
+        const double* p = &m.positions[3 * i];
+        EXPECT_GE(std::hypot(p[0], p[2]), ri * (1 - 1e-14)) << what;
+      }
+      for (size_t t = 0; t < m.tetCount(); ++t) {
+        double c[3] = {0, 0, 0};
+        for (int k = 0; k < 4; ++k) {
+          for (int d = 0; d < 3; ++d) c[d] += 0.25 * m.positions[3 * m.tets[4 * t + k] + d];
+        }
+        EXPECT_GT(std::hypot(c[0], c[2]), ri * std::cos(kPi / seg)) << what;
+      }
+    }
+  }
+  // No hole is the solid cylinder.
+  EXPECT_EQ(gf::gen::tube(0.4, 0, 1.0, 8, 2, 1).tets, gf::gen::cylinder(0.4, 1.0, 8, 2, 1).tets);
 }
 
 TEST(MeshGen, SphereConvergesToFourThirdsPiR3) {

@@ -185,9 +185,17 @@ TetMesh readGenerator(ObjReader& o) {
     return gen::box(s.x, s.y, s.z, cells[0], cells[1], cells[2], opt);
   }
   if (kind == "cylinder") {
-    o.keys({"generator", "radius", "height", "segments", "layers", "rings"});
+    o.keys({"generator", "radius", "inner_radius", "height", "segments", "layers", "rings"});
     const double r = readPositive(o.require("radius"), o.at("radius"));
     const double h = readPositive(o.require("height"), o.at("height"));
+    double inner = 0;
+    if (const json* v = o.find("inner_radius")) {
+      inner = readNumber(*v, o.at("inner_radius"));
+      if (!(inner > 0 && inner < r)) {
+        throw SceneError{o.at("inner_radius"),
+                         "expected a number in (0, radius = " + fmt(r) + "), got " + fmt(inner)};
+      }
+    }
     int segments = 16, rings = 2;
     if (const json* v = o.find("segments")) segments = readInt(*v, o.at("segments"), 3, 1000);
     if (const json* v = o.find("rings")) rings = readInt(*v, o.at("rings"), 1, 1000);
@@ -199,7 +207,8 @@ TetMesh readGenerator(ObjReader& o) {
       throw SceneError{o.path(), "segments * layers * rings is too many cells (at most " +
                                      std::to_string(kMaxCells) + ")"};
     }
-    return gen::cylinder(r, h, segments, layers, rings);
+    return inner > 0 ? gen::tube(r, inner, h, segments, layers, rings)
+                     : gen::cylinder(r, h, segments, layers, rings);
   }
   if (kind == "sphere") {
     o.keys({"generator", "radius", "cells"});

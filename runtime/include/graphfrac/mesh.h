@@ -79,6 +79,9 @@ TetMesh box(double sx, double sy, double sz, int nx, int ny, int nz, const BoxOp
 /// (ring k has about segments*k/rings nodes so triangles stay well shaped). Prisms are split
 /// into 3 tets with the smallest-index diagonal rule, which conforms between neighbours.
 TetMesh cylinder(double r, double h, int segments, int layers, int rings);
+/// Tube: the cylinder above with a coaxial hole of radius rInner (0 <= rInner < r; 0 gives
+/// cylinder()); `rings` + 1 circles of `segments` nodes from rInner to r.
+TetMesh tube(double r, double rInner, double h, int segments, int layers, int rings);
 /// Sphere of radius r centred at the origin, about `n` cells across the diameter (rounded up
 /// to even): a Kuhn-split cube grid mirrored per octant, mapped shell by shell onto the ball.
 TetMesh sphere(double r, int n);

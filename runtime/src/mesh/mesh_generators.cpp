@@ -1,4 +1,4 @@
-// Structured tet meshes: box (optionally V-notched), slab, cylinder and sphere. All are built
+// Structured tet meshes: box (optionally V-notched), slab, cylinder, tube and sphere. All are built
 // from splits that conform between neighbouring cells (Kuhn for cubes, the smallest-index
 // diagonal rule for prisms), and every tet is oriented by its computed volume, so the outputs
 // pass validate() by construction.
@@ -51,6 +51,31 @@ std::vector<double> columns(double sx, int nx, const double* kinks, int nk) {
     }
   }
   return x;
+}
+
+// Extrudes a triangulated x-z section along y into `layers` prisms of 3 tets each. Prism
+// (a,b,c)-(a',b',c') with a < b < c: each quad face takes the diagonal from its smaller bottom
+// node to the other top node, a rule both prisms sharing the face agree on.
+TetMesh extrude(const std::vector<double>& dx, const std::vector<double>& dz,
+                const std::vector<std::array<int32_t, 3>>& tris, double h, int layers) {
+  TetMesh m;
+  const int32_t perLayer = static_cast<int32_t>(dx.size());
+  for (int l = 0; l <= layers; ++l) {
+    for (size_t v = 0; v < dx.size(); ++v) {
+      m.positions.insert(m.positions.end(), {dx[v], h * l / layers, dz[v]});
+    }
+  }
+  for (int l = 0; l < layers; ++l) {
+    for (auto t : tris) {
+      std::sort(t.begin(), t.end());
+      const int32_t a = t[0] + l * perLayer, b = t[1] + l * perLayer, c = t[2] + l * perLayer;
+      const int32_t a1 = a + perLayer, b1 = b + perLayer, c1 = c + perLayer;
+      addTet(m, a, b, c, c1);
+      addTet(m, a, b, c1, b1);
+      addTet(m, a, b1, c1, a1);
+    }
+  }
+  return m;
 }
 
 }  // namespace
@@ -153,26 +178,35 @@ TetMesh cylinder(double r, double h, int segments, int layers, int rings) {
     }
   }
 
-  TetMesh m;
-  const int32_t perLayer = static_cast<int32_t>(dx.size());
-  for (int l = 0; l <= layers; ++l) {
-    for (size_t v = 0; v < dx.size(); ++v) {
-      m.positions.insert(m.positions.end(), {dx[v], h * l / layers, dz[v]});
+  return extrude(dx, dz, tris, h, layers);
+}
+
+TetMesh tube(double r, double rInner, double h, int segments, int layers, int rings) {
+  segments = std::max(segments, 3);
+  layers = std::max(layers, 1);
+  rings = std::max(rings, 1);
+  rInner = std::clamp(rInner, 0.0, r);
+  if (rInner <= 0) return cylinder(r, h, segments, layers, rings);
+  // Annulus in x-z: rings + 1 circles of `segments` nodes each, every quad between two
+  // circles split into two triangles.
+  std::vector<double> dx, dz;
+  for (int k = 0; k <= rings; ++k) {
+    const double rk = rInner + (r - rInner) * k / rings;
+    for (int s = 0; s < segments; ++s) {
+      const double a = 2.0 * std::numbers::pi * s / segments;
+      dx.push_back(rk * std::cos(a));
+      dz.push_back(rk * std::sin(a));
     }
   }
-  // Prism (a,b,c)-(a',b',c') with a < b < c: each quad face takes the diagonal from its
-  // smaller bottom node to the other top node, a rule both prisms sharing the face agree on.
-  for (int l = 0; l < layers; ++l) {
-    for (auto t : tris) {
-      std::sort(t.begin(), t.end());
-      const int32_t a = t[0] + l * perLayer, b = t[1] + l * perLayer, c = t[2] + l * perLayer;
-      const int32_t a1 = a + perLayer, b1 = b + perLayer, c1 = c + perLayer;
-      addTet(m, a, b, c, c1);
-      addTet(m, a, b, c1, b1);
-      addTet(m, a, b1, c1, a1);
+  std::vector<std::array<int32_t, 3>> tris;
+  for (int k = 0; k < rings; ++k) {
+    for (int s = 0; s < segments; ++s) {
+      const int32_t a = k * segments + s, b = k * segments + (s + 1) % segments;
+      tris.push_back({a, a + segments, b});
+      tris.push_back({b, a + segments, b + segments});
     }
   }
-  return m;
+  return extrude(dx, dz, tris, h, layers);
 }
 
 TetMesh sphere(double r, int n) {
