@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <span>
 
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
@@ -18,6 +19,7 @@ namespace {
 
 constexpr uint32_t kElementGrain = 128;
 constexpr uint32_t kNodeGrain = 512;
+constexpr uint32_t kPieceGrain = 64;
 // Armijo constant and the smallest step the backtracking line search tries.
 constexpr double kArmijo = 1e-4;
 constexpr double kMinLineSearchStep = 1.0 / 1024;
@@ -41,37 +43,6 @@ constexpr double kEnergyRoundOff = 1e-11;
 constexpr double kBlowUpEnergyDensity = 1e6;
 
 Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i + 2]}; }
-
-// Adds a point mass m at r to the second moment sum m r r^T (inertiaFromSecondMoment turns it
-// into the inertia tensor).
-void addSecondMoment(Mat3& c, double m, Vec3 r) {
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) c(i, j) += m * r[i] * r[j];
-}
-
-// w = I^-1 L; false for a piece of one node or one line, which has no inertia about some axis.
-bool spinOf(const Mat3& inertia, Vec3 angularMomentum, Vec3& spin) {
-  const double d = det(inertia);
-  const double scale = trace(inertia);
-  if (!(std::isfinite(d) && d > 1e-12 * scale * scale * scale)) return false;
-  spin = inverse(inertia) * angularMomentum;
-  return true;
-}
-
-// The turn exp(w dt) by Rodrigues: R = I + sin(a) K + (1 - cos(a)) K^2 about the unit axis k.
-Mat3 turnBy(Vec3 spin, double dt) {
-  const double angle = norm(spin) * dt;
-  if (!(angle > 0)) return Mat3::identity();
-  const Vec3 k = (1.0 / norm(spin)) * spin;
-  Mat3 K;
-  K(0, 1) = -k.z;
-  K(0, 2) = k.y;
-  K(1, 0) = k.z;
-  K(1, 2) = -k.x;
-  K(2, 0) = -k.y;
-  K(2, 1) = k.x;
-  return Mat3::identity() + std::sin(angle) * K + (1 - std::cos(angle)) * (K * K);
-}
 
 }  // namespace
 
@@ -126,6 +97,8 @@ void Integrator::refreshFixedNodes(const FemModel& model, const FemState& state)
 
 Result<void> Integrator::restoreSolver(const FemModel& model, const FemState& state,
                                        const std::vector<int32_t>& history) {
+  // The restored fragments may be another partition under the same version number.
+  m_piecesKey = kNoPieces;
   if (history == m_rebindHistory) return {};
   m_rebindHistory = history;
   m_boundBrokenCount = history.empty() ? 0 : history.back();
@@ -206,6 +179,7 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
   nodes.colliderCount = ctx.colliderCount;
   nodes.swept = m_swept;
   nodes.bodies = ctx.bodyContacts;
+  nodes.friction = m_friction;
   nodes.dt = dt;
   nodes.massDamping = r1;
   nodes.lengthScale = model.lengthScale;
@@ -222,25 +196,9 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
   auto termSum = [&](NodeTerm k) {
     return exec.sum(m_nodeTerms.data() + size_t(k) * size_t(model.nodeCount), model.nodeCount);
   };
-  double nodeTerms = termSum(kNodeEnergy), contact = termSum(kNodeContact);
-  double magnitude = termSum(kNodeMagnitude);
-  double gradMagnitude = withGradient ? termSum(kNodeGradMagnitude) : 0.0;
-  // Friction: its dissipation potential on each contact node's sliding over the step, with
-  // the normal force and normal of the step's start (buildFriction).
-  for (const FrictionContact& f : m_friction) {
-    const Vec3 xi = load3(x, f.node);
-    Vec3 g{0, 0, 0};
-    Mat3 h;
-    const double d =
-        nodeFriction(f.muLambda, f.normal, slideOf(ctx, f, xi), kFrictionSlipSpeed * dt, g, h);
-    nodeTerms += dt2 * d;
-    magnitude += dt2 * std::abs(d);
-    if (withGradient) {
-      gradMagnitude += dt2 * norm(g) * (norm(xi) + model.lengthScale);
-      for (int i = 0; i < 3; ++i) m_grad[3 * size_t(f.node) + i] += dt2 * g[i];
-      m_contactHess[size_t(f.node)] = m_contactHess[size_t(f.node)] + h;
-    }
-  }
+  const double nodeTerms = termSum(kNodeEnergy), contact = termSum(kNodeContact);
+  const double magnitude = termSum(kNodeMagnitude);
+  const double gradMagnitude = withGradient ? termSum(kNodeGradMagnitude) : 0.0;
   const double damping = (r2 > 0 && m_dampKValid)
                              ? dampingTerm(state, m_dampRef.data(), x, dt, withGradient, jobs)
                              : 0.0;
@@ -272,328 +230,177 @@ bool Integrator::enteredUnseenContact(const FemModel& model, const FemState& sta
   return chunkedReduce<MaxOp>(unseen, model.nodeCount) > 0;
 }
 
-void Integrator::predictRigidMotion(const FemModel& model, const FemState& state, double dt,
-                                    double fullDt, Vec3 gravity, JobSystem& jobs) {
-  const size_t n3 = state.x.size();
-  CpuExecutor(jobs).run(int32_t(n3), kNodeGrain,
-                        AxpyStage{state.x.data(), state.v.data(), dt, m_y.data()});
-  const bool damped = state.material.stiffnessDamping > 0;
-  if (damped) m_dampRef = state.x;
-  m_pieceOfNode.clear();
-  if (!model.solver.corotatedInertia) return;
-  // Per piece (a fragment, or the whole body): mass, centre, momentum, angular momentum and
-  // inertia of its lumped nodes. A piece holding a prescribed node moves as plain backward
-  // Euler says.
-  const std::span<const int32_t> fragmentOf =
-      m_fracture ? m_fracture->fragments().nodeFragment() : std::span<const int32_t>();
-  m_pieces.assign(m_fracture ? size_t(m_fracture->fragments().count()) : 1, RigidPiece{});
-  m_pieceOfNode.resize(size_t(model.nodeCount));
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    const int32_t f = fragmentOf.empty() ? 0 : fragmentOf[n];
-    m_pieceOfNode[size_t(n)] = f;
-    RigidPiece& p = m_pieces[size_t(f)];
-    const double m = state.nodeMass[n];
-    p.fixed |= state.fixedNode[n] != 0;
-    p.mass += m;
-    p.centre += m * load3(state.x.data(), n);
-    p.velocity += m * load3(state.v.data(), n);
+void Integrator::groupPieces(const FemModel& model) {
+  const size_t nn = size_t(model.nodeCount);
+  const Fragments* fragments = m_fracture ? &m_fracture->fragments() : nullptr;
+  if (fragments && fragments->nodeFragment().size() != nn) fragments = nullptr;
+  const uint64_t key = fragments ? fragments->version() : kNoPieces - 1;
+  if (key == m_piecesKey && m_pieceOfNode.size() == nn) return;
+  m_piecesKey = key;
+  const int32_t count = fragments ? fragments->count() : 1;
+  if (fragments) {
+    const std::span<const int32_t> of = fragments->nodeFragment();
+    m_pieceOfNode.assign(of.begin(), of.end());
+    m_pieceLists.build(m_pieceOfNode.data(), model.nodeCount, count);
+  } else {
+    m_pieceOfNode.assign(nn, 0);
+    m_pieceLists.build(nullptr, model.nodeCount, count);
   }
-  for (RigidPiece& p : m_pieces) {
-    if (!(p.mass > 0)) continue;
-    p.centre = (1.0 / p.mass) * p.centre;
-    p.velocity = (1.0 / p.mass) * p.velocity;
-  }
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (p.fixed) continue;
-    const double m = state.nodeMass[n];
-    const Vec3 r = load3(state.x.data(), n) - p.centre;
-    p.spin += m * cross(r, load3(state.v.data(), n) - p.velocity);  // angular momentum for now
-    addSecondMoment(p.inertia, m, r);                               // the second moment for now
-  }
-  for (RigidPiece& p : m_pieces) {
-    p.rigid = !p.fixed && p.mass > 0;
-    if (!p.rigid) continue;
-    p.inertia = inertiaFromSecondMoment(p.inertia);
-    // A piece without inertia about some axis only translates.
-    if (!spinOf(p.inertia, p.spin, p.spin)) p.spin = Vec3{0, 0, 0};
-    p.rotation = turnBy(p.spin, dt);
-    p.fullRotation = fullDt == dt ? p.rotation : turnBy(p.spin, fullDt);
-  }
-  if (!m_friction.empty()) frictionStart(model, state, dt, gravity);
-  // In the frame that turns with the piece, backward Euler on the deformation: y is the rigid
-  // motion of x_n (c + dt v_c + R r) plus the deformation's own velocity, turned, and the
-  // centrifugal and Coriolis accelerations of the turning frame; Newton starts from x_n turned
-  // (c + R r, which has the stresses of x_n: a spin stretches nothing). The rigid motion
-  // itself is carried exactly.
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (!p.rigid) continue;
-    const Vec3 r = load3(state.x.data(), n) - p.centre;
-    const Vec3 turned = p.rotation * r;
-    // Newton starts from the turn alone: the translation is linear in x and solved exactly, and
-    // a start moved along the velocity could begin inside a collider.
-    const Vec3 start = p.centre + turned;
-    const Vec3 vDefStart = load3(state.v.data(), n) - p.velocity - cross(p.spin, r);
-    Vec3 vDef = p.rotation * vDefStart;
-    Vec3 fictitious = -1.0 * cross(p.spin, cross(p.spin, turned));
-    if (fullDt == dt) {
-      fictitious -= 2.0 * cross(p.spin, vDef);
-    } else {
-      // The theta method below 1 leaves the stiff modes undamped, and an explicit Coriolis
-      // term pumps energy into them (a tumbling block gained 12 % in 2 s). So Coriolis is split
-      // off (Strang): over half a step on either side of the solve it turns the deformation
-      // velocity by exp(-2 w dt/2), the transpose of the whole step's turn, which keeps its size
-      // (thetaEndState applies the second half).
-      vDef = p.rotation * (transpose(p.fullRotation) * vDefStart);
-    }
-    const Vec3 y = start + dt * (p.velocity + vDef) + (dt * dt) * fictitious;
-    // Stiffness damping acts on the deformation: measured from the rigid motion, not x_n.
-    for (int i = 0; i < 3; ++i) {
-      m_x[3 * size_t(n) + i] = start[i] + p.slide[i];
-      m_y[3 * size_t(n) + i] = y[i];
-      if (damped) m_dampRef[3 * size_t(n) + i] = start[i];
-    }
-  }
+  m_pieces.resize(size_t(count));
+  m_pieceTerms.resize(kPieceSpinTerms * nn);
+  m_pieceSums.resize(kPieceSpinTerms * size_t(count));
+  m_piecePartials.resize(kPieceSpinTerms * size_t(m_pieceLists.view().chunks));
 }
 
-void Integrator::buildFriction(const FemModel& model, const FemState& state,
-                               const StepContext& ctx) {
-  m_friction.clear();
-  m_frictionOfNode.clear();
+void Integrator::sumPerPiece(const FemModel& model, const CpuExecutor& exec, int components) {
+  segmentedReduce<SumOp>(exec, m_pieceLists.view(), m_pieceTerms.data(), model.nodeCount,
+                         components, m_piecePartials.data(), m_pieceSums.data());
+}
+
+void Integrator::predictRigidMotion(const FemModel& model, const FemState& state,
+                                    const StepContext& ctx, double fullDt, JobSystem& jobs) {
+  const double dt = ctx.dt;
+  const size_t n3 = state.x.size();
+  const CpuExecutor exec(jobs);
+  exec.run(int32_t(n3), kNodeGrain, AxpyStage{state.x.data(), state.v.data(), dt, m_y.data()});
+  const bool damped = state.material.stiffnessDamping > 0;
+  if (damped) m_dampRef = state.x;
+  m_rigidPieces = model.solver.corotatedInertia;
+  if (!m_rigidPieces) return;
+  groupPieces(model);
+  // Per piece (a fragment, or the whole body): mass, centre, momentum, angular momentum and
+  // inertia of its lumped nodes, each a per-node term summed per piece. A piece holding a
+  // prescribed node moves as plain backward Euler says.
+  const int32_t nn = model.nodeCount, pieces = int32_t(m_pieces.size());
+  exec.run(nn, kNodeGrain,
+           PieceMassTerms{state.x.data(), state.v.data(), state.nodeMass.data(),
+                          state.fixedNode.data(), nn, m_pieceTerms.data()});
+  sumPerPiece(model, exec, kPieceMassTerms);
+  exec.run(pieces, kPieceGrain, PieceMassStage{m_pieceSums.data(), pieces, m_pieces.data()});
+  exec.run(nn, kNodeGrain,
+           PieceSpinTerms{state.x.data(), state.v.data(), state.nodeMass.data(), m_pieces.data(),
+                          m_pieceOfNode.data(), nn, m_pieceTerms.data()});
+  sumPerPiece(model, exec, kPieceSpinTerms);
+  exec.run(pieces, kPieceGrain,
+           PieceSpinStage{m_pieceSums.data(), pieces, dt, fullDt, m_pieces.data()});
+  if (m_friction.muLambda) frictionStart(model, state, ctx, exec);
+  exec.run(
+      nn, kNodeGrain,
+      RigidStartStage{state.x.data(), state.v.data(), m_pieces.data(), m_pieceOfNode.data(), dt,
+                      fullDt, m_x.data(), m_y.data(), damped ? m_dampRef.data() : nullptr});
+}
+
+void Integrator::buildFriction(const FemModel& model, const FemState& state, const StepContext& ctx,
+                               JobSystem& jobs) {
+  m_friction = {};
   bool anyFriction = false;
   for (int c = 0; c < ctx.colliderCount; ++c) anyFriction |= ctx.colliders[c].friction > 0;
   if (!(model.friction > 0) || !anyFriction) return;  // the default: frictionless colliders
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    if (state.fixedNode[n]) continue;
-    const Vec3 x = load3(m_xStart.data(), n);
-    for (int c = 0; c < ctx.colliderCount; ++c) {
-      const ColliderData& col = ctx.colliders[c];
-      if (!(col.friction > 0)) continue;
-      Vec3 normal;
-      const double depth = penetration(col, x, normal);
-      if (!(depth > 0)) continue;
-      if (m_frictionOfNode.empty()) m_frictionOfNode.assign(size_t(model.nodeCount), -1);
-      if (m_frictionOfNode[size_t(n)] < 0) m_frictionOfNode[size_t(n)] = int32_t(m_friction.size());
-      // The penalty's normal force k m d at the start, lagged over the step (IPC's lambda).
-      const double lambda = col.stiffness * state.nodeMass[n] * depth;
-      m_friction.push_back({n, c, std::sqrt(model.friction * col.friction) * lambda, normal});
-    }
-  }
+  const int32_t nn = model.nodeCount;
+  m_frictionMuLambda.resize(size_t(ctx.colliderCount) * size_t(nn));
+  m_frictionNormal.resize(m_frictionMuLambda.size());
+  m_frictionTouching.resize(size_t(nn));
+  const CpuExecutor exec(jobs);
+  exec.run(nn, kNodeGrain,
+           FrictionContactStage{m_xStart.data(), state.fixedNode.data(), state.nodeMass.data(),
+                                ctx.colliders, ctx.colliderCount, model.friction, nn,
+                                m_frictionMuLambda.data(), m_frictionNormal.data(),
+                                m_frictionTouching.data()});
+  if (exec.max(m_frictionTouching.data(), nn) > 0)
+    m_friction = {m_frictionMuLambda.data(), m_frictionNormal.data(), m_xStart.data(), nn};
 }
 
-Vec3 Integrator::slideOf(const StepContext& ctx, const FrictionContact& f, Vec3 x) const {
-  const Vec3 slide =
-      x - load3(m_xStart.data(), f.node) - ctx.dt * ctx.colliders[f.collider].velocity;
-  return slide - dot(slide, f.normal) * f.normal;
+ExternalImpulse Integrator::externalImpulse(const FemState& state, const StepContext& ctx) const {
+  ExternalImpulse e;
+  e.externalForce = state.externalForce.data();
+  e.nodeMass = state.nodeMass.data();
+  e.xStart = m_xStart.data();
+  e.xLin = m_xLin.data();
+  e.massDamping = state.material.massDamping;
+  e.dt = ctx.dt;
+  e.colliders = ctx.colliders;
+  e.colliderCount = ctx.colliderCount;
+  e.swept = m_swept;
+  e.bodies = ctx.bodyContacts;
+  e.friction = m_friction;
+  return e;
 }
 
-Vec3 Integrator::frictionImpulse(const StepContext& ctx, const FrictionContact& f, Vec3 x) const {
-  // As for the penalty: the force the last Newton step balanced is friction linearised at
-  // m_xLin, and the momentum bookkeeping must use that one (the exact force, smaller where the
-  // smoothing is concave, left a block on a slope with a spin it did not have).
-  const Vec3 xl = load3(m_xLin.data(), f.node);
-  Vec3 g{0, 0, 0};
-  Mat3 h;
-  (void)nodeFriction(f.muLambda, f.normal, slideOf(ctx, f, xl), kFrictionSlipSpeed * ctx.dt, g, h);
-  return -ctx.dt * (g + h * (x - xl));
+void Integrator::frictionStart(const FemModel& model, const FemState& state, const StepContext& ctx,
+                               const CpuExecutor& exec) {
+  // Each free piece's contact normal, friction force, gravity and point forces (the elastic
+  // forces are internal) summed per piece; the pieces are fresh from predictRigidMotion.
+  const int32_t nn = model.nodeCount, pieces = int32_t(m_pieces.size());
+  exec.run(nn, kNodeGrain,
+           PieceFrictionTerms{state.externalForce.data(), state.nodeMass.data(), ctx.gravity,
+                              m_friction, ctx.colliderCount, nn, m_pieceTerms.data()});
+  sumPerPiece(model, exec, kPieceFrictionTerms);
+  exec.run(pieces, kPieceGrain,
+           PieceSlideStage{m_pieceSums.data(), pieces, ctx.dt, m_pieces.data()});
 }
 
-Vec3 Integrator::externalImpulse(const FemState& state, const StepContext& ctx, int32_t n,
-                                 Vec3 x) const {
-  const double m = state.nodeMass[n];
-  Vec3 impulse = ctx.dt * load3(state.externalForce.data(), n) -
-                 (state.material.massDamping * m) * (x - load3(m_xStart.data(), n));
-  if (ctx.colliderCount > 0) {
-    const Vec3 xl = load3(m_xLin.data(), n);
-    for (int c = 0; c < ctx.colliderCount; ++c) {
-      Vec3 g;
-      Mat3 h;
-      if (m_swept.contact(ctx.colliders[c], c, n, xl, m, g, h) != 0)
-        impulse -= ctx.dt * (g + h * (x - xl));
-    }
-  }
-  if (ctx.bodyContacts.start) {
-    Vec3 g;
-    Mat3 h;
-    const Vec3 xl = load3(m_xLin.data(), n);
-    const HalfSpaceContacts& hs = ctx.bodyContacts;
-    if (hs.contact(n, xl, g, h) + hs.friction(n, xl, load3(m_xStart.data(), n), g, h) != 0)
-      impulse -= ctx.dt * (g + h * (x - xl));
-  }
-  if (!m_frictionOfNode.empty() && m_frictionOfNode[size_t(n)] >= 0)
-    for (size_t k = size_t(m_frictionOfNode[size_t(n)]);
-         k < m_friction.size() && m_friction[k].node == n; ++k)
-      impulse += frictionImpulse(ctx, m_friction[k], x);
-  return impulse;
-}
-
-void Integrator::solveEndSpins() {
-  for (RigidPiece& p : m_pieces) {
-    if (!p.rigid) continue;
-    p.newInertia = inertiaFromSecondMoment(p.newInertia);
-    if (!spinOf(p.newInertia, p.momentTarget, p.newSpin)) p.newSpin = p.spin;
-  }
-}
-
-void Integrator::frictionStart(const FemModel& model, const FemState& state, double dt,
-                               Vec3 gravity) {
-  // Linearised at no slide, smoothed friction is a stiff viscous drag, so one Newton step from
-  // there holds a sliding body still (a block on a 26 degree slope with mu = 0.2 stopped where
-  // it should accelerate at 2.6 m/s^2), and one from its old slide keeps a stopping body
-  // creeping. So each free piece on frictional contacts starts where Coulomb's law takes its
-  // centre: it sticks when the friction available, mu N, holds the tangential external force
-  // and stops the tangential velocity within the step; else it slides at the velocity that
-  // force and mu N leave, along the mean contact plane (no deeper into the collider).
-  for (const FrictionContact& f : m_friction) {  // the pieces are fresh from predictRigidMotion
-    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(f.node)])];
-    if (!p.rigid) continue;
-    p.contactNormal += f.muLambda * f.normal;
-    p.frictionForce += f.muLambda;
-  }
-  // Gravity and point forces per piece (the elastic forces are internal).
-  std::vector<Vec3>& force = m_pieceForce;
-  force.assign(m_pieces.size(), Vec3{0, 0, 0});
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (!p.rigid || !(p.frictionForce > 0)) continue;
-    force[size_t(m_pieceOfNode[size_t(n)])] +=
-        load3(state.externalForce.data(), n) + state.nodeMass[n] * gravity;
-  }
-  for (size_t i = 0; i < m_pieces.size(); ++i) {
-    RigidPiece& p = m_pieces[i];
-    const double len = norm(p.contactNormal);
-    if (!p.rigid || !(len > 0)) continue;
-    const Vec3 n = (1.0 / len) * p.contactNormal;
-    const Vec3 vt = p.velocity - dot(p.velocity, n) * n;
-    const Vec3 ft = force[i] - dot(force[i], n) * n;
-    // Tangential velocity at the end if nothing held it, then friction's most against it.
-    const Vec3 free = vt + (dt / p.mass) * ft;
-    const double speed = norm(free), cut = dt * p.frictionForce / p.mass;
-    if (speed <= cut) continue;  // sticks
-    p.slide = dt * ((1 - cut / speed) * free);
-  }
-}
-
-void Integrator::rigidEndVelocities(const FemModel& model, FemState& state,
-                                    const StepContext& ctx) {
-  const double dt = ctx.dt;
-  if (m_pieceOfNode.empty()) return;
-  // v = (c' - c) / dt + w' x r' + (r' - R r) / dt with r' = x' - c' about the new centre: the
-  // rigid spin carried over, the deformation's change over the step, and the centre's motion
-  // exactly as backward Euler gives it (so momentum changes only by the external impulses).
-  for (RigidPiece& p : m_pieces) p.newCentre = Vec3{0, 0, 0};
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (p.rigid) p.newCentre += state.nodeMass[n] * load3(state.x.data(), n);
-  }
-  for (RigidPiece& p : m_pieces) {
-    if (!p.rigid) continue;
-    p.newCentre = (1.0 / p.mass) * p.newCentre;
-    p.newInertia = Mat3{};
-    p.momentTarget = p.inertia * p.spin;  // the angular momentum at the start
-  }
-  // The angular momentum at the end is the start's plus the moment of the external impulses
-  // over the step (internal forces of a rotation-invariant energy have none): point forces,
-  // contact as the last Newton step linearised it (what colliderImpulses reports) and the drag
-  // of mass damping; uniform gravity has no moment about the centre. Taken from the forces,
-  // not from m (x' - y), which would count an unconverged Newton step's residual as a torque.
-  // The spin w' is chosen to give exactly that with the deformation's own velocities, so a
-  // free body keeps its angular momentum, and one that stretched turns slower, as a skater
-  // who opens her arms.
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (!p.rigid) continue;
-    const double m = state.nodeMass[n];
-    const Vec3 x = load3(state.x.data(), n);
-    const Vec3 r = x - p.newCentre;
-    const Vec3 turned = p.rotation * (load3(m_xStart.data(), n) - p.centre);
-    p.momentTarget += cross(r, externalImpulse(state, ctx, n, x));
-    p.momentTarget -= (m / dt) * cross(r, r - turned);  // what the deformation carries
-    addSecondMoment(p.newInertia, m, r);                // the second moment for now
-  }
-  solveEndSpins();
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (!p.rigid) continue;
-    const Vec3 rNew = load3(state.x.data(), n) - p.newCentre;
-    const Vec3 turned = p.rotation * (load3(m_xStart.data(), n) - p.centre);
-    const Vec3 v = (1.0 / dt) * (p.newCentre - p.centre) + cross(p.newSpin, rNew) +
-                   (1.0 / dt) * (rNew - turned);
-    for (int i = 0; i < 3; ++i) state.v[3 * size_t(n) + i] = v[i];
-  }
+void Integrator::rigidEndVelocities(const FemModel& model, FemState& state, const StepContext& ctx,
+                                    JobSystem& jobs) {
+  if (!m_rigidPieces) return;
+  const CpuExecutor exec(jobs);
+  const int32_t nn = model.nodeCount, pieces = int32_t(m_pieces.size());
+  // The new centres, then the end spins: the angular momentum at the end is the start's plus
+  // the moment of the external impulses over the step (EndSpinTerms), and the spin w' is
+  // chosen to give exactly that with the deformation's own velocities, so a free body keeps
+  // its angular momentum, and one that stretched turns slower, as a skater who opens her arms.
+  exec.run(nn, kNodeGrain,
+           EndCentreTerms{state.x.data(), state.nodeMass.data(), m_pieces.data(),
+                          m_pieceOfNode.data(), nn, m_pieceTerms.data()});
+  sumPerPiece(model, exec, 3);
+  exec.run(pieces, kPieceGrain, PieceEndCentreStage{m_pieceSums.data(), pieces, m_pieces.data()});
+  exec.run(nn, kNodeGrain,
+           EndSpinTerms{state.x.data(), m_xStart.data(), state.nodeMass.data(), m_pieces.data(),
+                        m_pieceOfNode.data(), externalImpulse(state, ctx), ctx.dt, nn,
+                        m_pieceTerms.data()});
+  sumPerPiece(model, exec, kPieceSpinTerms);
+  exec.run(pieces, kPieceGrain, PieceEndSpinStage{m_pieceSums.data(), pieces, m_pieces.data()});
+  exec.run(nn, kNodeGrain,
+           RigidEndVelocityStage{state.x.data(), m_xStart.data(), m_pieces.data(),
+                                 m_pieceOfNode.data(), ctx.dt, state.v.data()});
 }
 
 void Integrator::thetaEndState(const FemModel& model, FemState& state, const StepContext& inner,
-                               double dt, double theta) {
+                               double dt, double theta, JobSystem& jobs) {
   const double h = inner.dt;  // theta * dt, the step the solve took to z = m_x
-  const size_t n3 = state.x.size();
-  // Theta method, one-leg form (Hairer, Lubich & Wanner, Geometric Numerical Integration,
-  // sec. VI.3): z is backward Euler over theta dt; x' = x + (z - x) / theta and
-  // v' = v + (v_z - v) / theta with v_z = (z - x) / (theta dt). Prescribed nodes move exactly.
-  for (size_t i = 0; i < n3; ++i) {
-    const double x = m_xStart[i], v = m_vStart[i];
-    if (state.fixedNode[i / 3]) {
-      state.x[i] = x + dt * state.gripVelocity[i];
-      state.v[i] = state.gripVelocity[i];
-    } else {
-      state.x[i] = x + (m_x[i] - x) / theta;
-      state.v[i] = v + ((m_x[i] - x) / h - v) / theta;
-    }
-  }
-  if (m_pieceOfNode.empty()) return;
-  // Free pieces: extrapolating a turn linearly would stretch the body, so only the centre (a
-  // translation) and the deformation seen in the turning frame are extrapolated; the piece
-  // turns by its spin over the whole step. newCentre is first the centre of z.
-  for (RigidPiece& p : m_pieces) p.newCentre = Vec3{0, 0, 0};
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (p.rigid) p.newCentre += state.nodeMass[n] * load3(m_x.data(), n);
-  }
-  for (RigidPiece& p : m_pieces) {
-    if (!p.rigid) continue;
-    p.newCentre = (1.0 / p.mass) * p.newCentre;
-    p.newInertia = Mat3{};
-    p.momentTarget = p.inertia * p.spin;
-  }
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (!p.rigid) continue;
-    const double m = state.nodeMass[n];
-    const Vec3 z = load3(m_x.data(), n), x0 = load3(m_xStart.data(), n);
-    // The external impulses of the solved step, as in rigidEndVelocities, act at z over the
-    // whole step: 1 / theta of them.
-    p.momentTarget += (1.0 / theta) * cross(z - p.newCentre, externalImpulse(state, inner, n, z));
-    // The deformation over the solved step in the frame at the step's start, extrapolated and
-    // turned over the whole step; its velocity likewise, between the two Coriolis half-turns
-    // (predictRigidMotion), whose second one undoes the frame's turn.
-    const Vec3 r0 = x0 - p.centre;
-    const Vec3 deformation = transpose(p.rotation) * (z - p.newCentre) - r0;
-    const Vec3 vDefStart =
-        transpose(p.fullRotation) * (load3(m_vStart.data(), n) - p.velocity - cross(p.spin, r0));
-    const Vec3 r = p.fullRotation * (r0 + (1.0 / theta) * deformation);
-    const Vec3 vDef = (1 - 1.0 / theta) * vDefStart + (1.0 / (theta * h)) * deformation;
-    const Vec3 centre = p.centre + (1.0 / theta) * (p.newCentre - p.centre);
-    for (int i = 0; i < 3; ++i) {
-      state.x[3 * size_t(n) + i] = centre[i] + r[i];
-      state.v[3 * size_t(n) + i] = vDef[i];  // the spin is added below
-    }
-    p.momentTarget -= m * cross(r, vDef);  // what the deformation carries
-    addSecondMoment(p.newInertia, m, r);
-  }
-  // The spin that gives the piece its angular momentum with the deformation velocities set
-  // above (rigidEndVelocities).
-  solveEndSpins();
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-    if (!p.rigid) continue;
-    const Vec3 centre = p.centre + (1.0 / theta) * (p.newCentre - p.centre);
-    const Vec3 centreVelocity =
-        p.velocity + (1.0 / theta) * ((1.0 / h) * (p.newCentre - p.centre) - p.velocity);
-    const Vec3 v = centreVelocity + cross(p.newSpin, load3(state.x.data(), n) - centre) +
-                   load3(state.v.data(), n);
-    for (int i = 0; i < 3; ++i) state.v[3 * size_t(n) + i] = v[i];
-  }
+  const CpuExecutor exec(jobs);
+  exec.run(int32_t(state.x.size()), kNodeGrain,
+           ThetaEndStage{m_x.data(), m_xStart.data(), m_vStart.data(), state.gripVelocity.data(),
+                         state.fixedNode.data(), dt, h, theta, state.x.data(), state.v.data()});
+  if (!m_rigidPieces) return;
+  // Free pieces: the centre of z, then the extrapolated positions with the deformation
+  // velocities and the end spins that give each piece its angular momentum with them
+  // (rigidEndVelocities), then the spin added to the velocities.
+  const int32_t nn = model.nodeCount, pieces = int32_t(m_pieces.size());
+  exec.run(nn, kNodeGrain,
+           EndCentreTerms{m_x.data(), state.nodeMass.data(), m_pieces.data(), m_pieceOfNode.data(),
+                          nn, m_pieceTerms.data()});
+  sumPerPiece(model, exec, 3);
+  exec.run(pieces, kPieceGrain, PieceEndCentreStage{m_pieceSums.data(), pieces, m_pieces.data()});
+  ThetaSpinTerms spin;
+  spin.z = m_x.data();
+  spin.xStart = m_xStart.data();
+  spin.vStart = m_vStart.data();
+  spin.nodeMass = state.nodeMass.data();
+  spin.pieces = m_pieces.data();
+  spin.pieceOfNode = m_pieceOfNode.data();
+  spin.external = externalImpulse(state, inner);
+  spin.h = h;
+  spin.theta = theta;
+  spin.nodeCount = nn;
+  spin.x = state.x.data();
+  spin.v = state.v.data();
+  spin.out = m_pieceTerms.data();
+  exec.run(nn, kNodeGrain, spin);
+  sumPerPiece(model, exec, kPieceSpinTerms);
+  exec.run(pieces, kPieceGrain, PieceEndSpinStage{m_pieceSums.data(), pieces, m_pieces.data()});
+  exec.run(nn, kNodeGrain,
+           ThetaVelocityStage{state.x.data(), m_pieces.data(), m_pieceOfNode.data(), h, theta,
+                              state.v.data()});
 }
 
 EnergyBreakdown Integrator::energies(const FemModel& model, const FemState& state, const double* x,
@@ -691,8 +498,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   const int32_t n3i = int32_t(n3);
   // gripVelocity is zero on free nodes, so one pass moves exactly the prescribed ones.
   exec.run(n3i, kNodeGrain, AxpyStage{state.x.data(), state.gripVelocity.data(), dt, m_x.data()});
-  buildFriction(model, state, ctx);
-  predictRigidMotion(model, state, dt, fullDt, ctx.gravity, jobs);
+  buildFriction(model, state, ctx, jobs);
+  predictRigidMotion(model, state, ctx, fullDt, jobs);
 
   const double* start = m_xStart.data();  // x_n
   const bool fullNewton = maxNewton > 1;
@@ -764,16 +571,11 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     // buy a solve many times more accurate. So the first Newton step measures its residual
     // against the larger of the two.
     double toleranceScale = 1;
-    if (it == 0 && !m_cholesky && !m_pieceOfNode.empty()) {
-      double spin2 = 0, rhs2 = 0;
-      for (int32_t n = 0; n < model.nodeCount; ++n) {
-        const RigidPiece& p = m_pieces[size_t(m_pieceOfNode[size_t(n)])];
-        if (!p.rigid) continue;
-        const Vec3 u =
-            (state.nodeMass[n] * dt) * cross(p.spin, load3(m_xStart.data(), n) - p.centre);
-        spin2 += dot(u, u);
-      }
-      for (size_t i = 0; i < n3; ++i) rhs2 += m_rhs[i] * m_rhs[i];
+    if (it == 0 && !m_cholesky && m_rigidPieces) {
+      const double spin2 = exec.reduce<SumOp>(
+          model.nodeCount, SpinShareTerm{m_xStart.data(), state.nodeMass.data(), m_pieces.data(),
+                                         m_pieceOfNode.data(), dt});
+      const double rhs2 = exec.dot(m_rhs.data(), m_rhs.data(), n3i);
       if (spin2 > rhs2 && rhs2 > 0) toleranceScale = std::sqrt(spin2 / rhs2);
     }
     const double tolerance = model.solver.linearTolerance * toleranceScale;
@@ -934,10 +736,10 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
       exec.run(int32_t(n3), kNodeGrain,
                EndOfStepStage{m_x.data(), m_xStart.data(), state.gripVelocity.data(),
                               state.fixedNode.data(), inner.dt, state.x.data(), state.v.data()});
-      rigidEndVelocities(model, state, inner);
+      rigidEndVelocities(model, state, inner, jobs);
       break;
     }
-    thetaEndState(model, state, inner, ctx.dt, theta);
+    thetaEndState(model, state, inner, ctx.dt, theta, jobs);
     if (ctx.colliderCount == 0 ||
         !nearCollider(model, state, state.x.data(), nullptr, 0, ctx, jobs))
       break;
@@ -986,15 +788,12 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
                                   -dt / theta, nn, m_impulses.data()});
     for (int k = 0; k < 6 * ctx.colliderCount; ++k)
       ctx.colliderImpulse[k] += exec.sum(m_impulses.data() + size_t(k) * size_t(nn), nn);
-    for (const FrictionContact& f : m_friction) {
-      const Vec3 xi = load3(m_x.data(), f.node);
-      const Vec3 j = (1.0 / theta) * frictionImpulse(inner, f, xi);
-      const Vec3 moment = cross(xi - ctx.colliders[f.collider].point, j);
-      double* out = ctx.colliderImpulse + 6 * f.collider;
-      for (int i = 0; i < 3; ++i) {
-        out[i] += j[i];
-        out[3 + i] += moment[i];
-      }
+    if (m_friction.muLambda) {
+      exec.run(nn, kNodeGrain,
+               FrictionImpulseStage{m_x.data(), m_xLin.data(), ctx.colliders, ctx.colliderCount,
+                                    m_friction, dt, 1.0 / theta, nn, m_impulses.data()});
+      for (int k = 0; k < 6 * ctx.colliderCount; ++k)
+        ctx.colliderImpulse[k] += exec.sum(m_impulses.data() + size_t(k) * size_t(nn), nn);
     }
   }
   return rep;

@@ -26,6 +26,7 @@
 #include "fem/element_stage.h"
 #include "fem/fem_body.h"
 #include "fem/node_stage.h"
+#include "fem/rigid_stage.h"
 #include "fracture/fracture_body.h"
 #include "graphfrac/jobs.h"
 #include "graphfrac/status.h"
@@ -34,8 +35,11 @@
 #include "solver/cholesky.h"
 #include "solver/multigrid.h"
 #include "solver/pcg.h"
+#include "step/segments.h"
 
 namespace gf::detail {
+
+class CpuExecutor;
 
 /// What the world passes to a body step.
 struct StepContext {
@@ -85,7 +89,10 @@ class Integrator {
   /// The multigrid solver, or null when the body uses another linear solver.
   const MultigridSolver* multigrid() const { return m_multigrid.get(); }
   /// Damage state the element pass reads (null: no fracture); it outlives the integrator's use.
-  void attach(FractureBody* fracture) { m_fracture = fracture; }
+  void attach(FractureBody* fracture) {
+    m_fracture = fracture;
+    m_piecesKey = kNoPieces;
+  }
   /// Advances `state` by ctx.dt. With fracture attached, the first element pass also yields
   /// the stresses of the fracture criterion, which runs before the solve (FractureBody::detect).
   /// On a NaN/Inf the state is restored and flagged.
@@ -138,37 +145,27 @@ class Integrator {
                               bool withHessian, JobSystem& jobs);
   // Free pieces (fragments without a prescribed node) are stepped in the frame that turns
   // with them: fills m_y (the inertia target) and moves their start in m_x; see the .cpp.
-  // fullDt is the whole step when the solve covers only theta of it (numericalDamping < 1).
-  void predictRigidMotion(const FemModel& model, const FemState& state, double dt, double fullDt,
-                          Vec3 gravity, JobSystem& jobs);
+  // fullDt is the whole step when the solve covers only ctx.dt, theta of it.
+  void predictRigidMotion(const FemModel& model, const FemState& state, const StepContext& ctx,
+                          double fullDt, JobSystem& jobs);
+  // Groups the nodes by the pieces of the step's start when the fragments changed.
+  void groupPieces(const FemModel& model);
+  // m_pieceSums = the first `components` arrays of m_pieceTerms summed per piece.
+  void sumPerPiece(const FemModel& model, const CpuExecutor& exec, int components);
   // The end-of-step velocities of free pieces in that frame.
-  void rigidEndVelocities(const FemModel& model, FemState& state, const StepContext& ctx);
-  // What the outside gives node n over ctx.dt when it ends at x: point forces, mass-damping drag
-  // and contact as the last Newton step linearised it (no gravity: it has no moment about the
-  // centre).
-  Vec3 externalImpulse(const FemState& state, const StepContext& ctx, int32_t n, Vec3 x) const;
-  // Each free piece's end spin w' from its end inertia and target angular momentum.
-  void solveEndSpins();
-  // A free node touching a collider with friction at the step's start: its lagged normal
-  // force times the mixed coefficient, and the normal.
-  struct FrictionContact {
-    int32_t node = 0;
-    int collider = 0;
-    double muLambda = 0;
-    Vec3 normal;
-  };
-  // Fills m_friction from the contacts at x_n (m_xStart), in node order.
-  void buildFriction(const FemModel& model, const FemState& state, const StepContext& ctx);
-  // The contact node's sliding against its collider over ctx.dt when it ends at x.
-  Vec3 slideOf(const StepContext& ctx, const FrictionContact& f, Vec3 x) const;
-  // The impulse friction gives the contact's node over ctx.dt when it ends at x, as the last
-  // Newton step linearised it.
-  Vec3 frictionImpulse(const StepContext& ctx, const FrictionContact& f, Vec3 x) const;
+  void rigidEndVelocities(const FemModel& model, FemState& state, const StepContext& ctx,
+                          JobSystem& jobs);
+  // What the outside gives a node over ctx.dt (ExternalImpulse) in this step.
+  ExternalImpulse externalImpulse(const FemState& state, const StepContext& ctx) const;
+  // The step's collider friction contacts at x_n (m_xStart) into m_friction.
+  void buildFriction(const FemModel& model, const FemState& state, const StepContext& ctx,
+                     JobSystem& jobs);
   // The Newton start of free pieces on frictional contacts (RigidPiece::slide).
-  void frictionStart(const FemModel& model, const FemState& state, double dt, Vec3 gravity);
+  void frictionStart(const FemModel& model, const FemState& state, const StepContext& ctx,
+                     const CpuExecutor& exec);
   // theta < 1: the end of the step extrapolated from the solved step of theta * dt (m_x).
   void thetaEndState(const FemModel& model, FemState& state, const StepContext& inner, double dt,
-                     double theta);
+                     double theta, JobSystem& jobs);
   // The Newton solve of one backward-Euler step of ctx.dt (theta times the step, fullDt) into
   // m_x; fracture is judged in its first pass when asked. Returns the elastic energy at m_x.
   double solve(const FemModel& model, FemState& state, const StepContext& ctx, double fullDt,
@@ -206,13 +203,14 @@ class Integrator {
   std::vector<int32_t> m_sweptCollider;
   std::vector<Vec3> m_sweptPoint, m_sweptNormal;
   std::vector<double> m_sweptCrossed, m_sweptStiffness;
-  std::vector<FrictionContact> m_friction;  // this step's, in node order
-  std::vector<int32_t> m_frictionOfNode;    // first entry of each node, -1 none; empty: none
-  std::vector<Vec3> m_pieceForce;           // frictionStart's scratch
-  BlockSparseMatrix m_dampK;                // K(x_n) for Rayleigh r2, only when r2 > 0
-  bool m_dampKValid = false;                // m_dampK belongs to the current step
-  std::vector<double> m_xLin;               // the last linearisation point, for collider impulses
-  std::vector<double> m_impulses;           // ColliderImpulseStage's, 6 per collider and node
+  ColliderFriction m_friction;             // this step's; null muLambda when none
+  std::vector<double> m_frictionMuLambda;  // FrictionContactStage's, per collider and node
+  std::vector<Vec3> m_frictionNormal;
+  std::vector<double> m_frictionTouching;  // per node
+  BlockSparseMatrix m_dampK;               // K(x_n) for Rayleigh r2, only when r2 > 0
+  bool m_dampKValid = false;               // m_dampK belongs to the current step
+  std::vector<double> m_xLin;              // the last linearisation point, for collider impulses
+  std::vector<double> m_impulses;          // ColliderImpulseStage's, 6 per collider and node
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
   double m_theta = 1;  // of the last step; below 1, m_x keeps the solved point the forces act at
   FractureBody* m_fracture = nullptr;
@@ -222,23 +220,17 @@ class Integrator {
   std::unique_ptr<MultigridSolver> m_multigrid;
   int32_t m_boundBrokenCount = 0;  // broken edges the multigrid binding has seen
   std::vector<int32_t> m_rebindHistory;
-  // One free piece's rigid motion over the step (predictRigidMotion).
-  struct RigidPiece {
-    double mass = 0;
-    Vec3 centre{0, 0, 0}, velocity{0, 0, 0}, spin{0, 0, 0}, newCentre{0, 0, 0}, newSpin{0, 0, 0},
-        momentTarget{0, 0, 0};
-    Mat3 inertia, rotation, newInertia;
-    Mat3 fullRotation;  // the turn over the whole step when the solve covers theta of it
-    // Friction (frictionStart): summed mu lambda n, summed mu lambda, and the Newton start's
-    // slide over the step.
-    Vec3 contactNormal{0, 0, 0}, slide{0, 0, 0};
-    double frictionForce = 0;
-    bool fixed = false, rigid = false;
-  };
+  // Free pieces of this step (predictRigidMotion); m_rigidPieces false: none are stepped so.
+  bool m_rigidPieces = false;
   std::vector<RigidPiece> m_pieces;
   std::vector<int32_t> m_pieceOfNode;  // the piece of each node at the step's start
-  std::vector<double> m_y;             // inertia target of the step
-  std::vector<double> m_dampRef;       // what stiffness damping measures the motion from
+  SegmentLists m_pieceLists;           // the nodes grouped by piece
+  static constexpr uint64_t kNoPieces = ~uint64_t(0);
+  uint64_t m_piecesKey = kNoPieces;  // the fragments' version m_pieceLists belongs to
+  std::vector<double> m_pieceTerms;  // per-node terms of the piece sums, kPieceSpinTerms arrays
+  std::vector<double> m_pieceSums, m_piecePartials;
+  std::vector<double> m_y;        // inertia target of the step
+  std::vector<double> m_dampRef;  // what stiffness damping measures the motion from
 };
 
 }  // namespace gf::detail

@@ -1,11 +1,12 @@
 // The per-node part of the incremental potential (header of fem/integrator.h), written once
 // for both executors like fem/element_stage.h: inertia, mass damping, gravity and point forces,
-// collider contact. Each node writes its own terms; the integrator sums them in the fixed
-// order of step/reduce.h.
+// collider contact and friction. Each node writes its own terms; the integrator sums them in the
+// fixed order of step/reduce.h.
 #pragma once
 
 #include <cstdint>
 
+#include "fem/friction_stage.h"
 #include "kernels/contact.h"
 #include "solver/vector_stages.h"
 
@@ -15,11 +16,11 @@ namespace gf::detail {
 /// in NodePotentialStage::terms.
 enum NodeTerm : int { kNodeEnergy, kNodeContact, kNodeMagnitude, kNodeGradMagnitude, kNodeTerms };
 
-/// E_n(x) = 1/2 m |x-y|^2 + dt/2 r1 m |x-x_n|^2 - dt^2 f^T x + dt^2 Psi_c(x) per node (eq 2.7,
-/// 3.13 with Rayleigh r1), and, when `grad` is non-null, its gradient plus dt^2 times the
-/// elastic node gradient, the contact Hessian block and whether the node touches a collider.
-/// The magnitude terms are the summed sizes of the parts that cancel in E and in dE/dx |x|
-/// (round-off scale of the line search).
+/// E_n(x) = 1/2 m |x-y|^2 + dt/2 r1 m |x-x_n|^2 - dt^2 f^T x + dt^2 (Psi_c(x) + D_f(x)) per node
+/// (eq 2.7, 3.13 with Rayleigh r1; D_f collider friction's dissipation potential), and, when `grad`
+/// is non-null, its gradient plus dt^2 times the elastic node gradient, the contact Hessian block
+/// and whether the node touches a collider. The magnitude terms are the summed sizes of the parts
+/// that cancel in E and in dE/dx |x| (round-off scale of the line search).
 struct NodePotentialStage {
   const double* x = nullptr;   ///< 3 per node
   const double* xn = nullptr;  ///< start of the step
@@ -31,6 +32,7 @@ struct NodePotentialStage {
   int colliderCount = 0;
   SweptContacts swept;
   HalfSpaceContacts bodies;  ///< body-body and self contact
+  ColliderFriction friction;
   double dt = 0, massDamping = 0, lengthScale = 1;
   int32_t nodeCount = 0;
   double* terms = nullptr;  ///< kNodeTerms * nodeCount
@@ -73,6 +75,30 @@ struct NodePotentialStage {
       contactSeen[n] = frobeniusDot(ch, ch) > 0;
     }
     terms[kNodeGradMagnitude * int64_t(nodeCount) + n] = gradMagnitude;
+    if (friction.muLambda) addFriction(n, xi);
+  }
+
+  // Collider friction after the rest: the contact set that the impact test compares with
+  // (contactSeen) is the penalty's.
+  GF_HD void addFriction(int32_t n, Vec3 xi) const {
+    const double dt2 = dt * dt;
+    const int64_t i3 = 3 * int64_t(n);
+    double energy = 0, magnitude = 0, gradMagnitude = 0;
+    for (int c = 0; c < colliderCount; ++c) {
+      if (!friction.touches(c, n)) continue;
+      Vec3 g{0, 0, 0};
+      Mat3 h;
+      const double d = dt2 * friction.potential(colliders[c], c, n, xi, dt, g, h);
+      energy += d;
+      magnitude += d < 0 ? -d : d;
+      if (!grad) continue;
+      gradMagnitude += dt2 * norm(g) * (norm(xi) + lengthScale);
+      for (int i = 0; i < 3; ++i) grad[i3 + i] += dt2 * g[i];
+      contactHess[n] = contactHess[n] + h;
+    }
+    terms[kNodeEnergy * int64_t(nodeCount) + n] += energy;
+    terms[kNodeMagnitude * int64_t(nodeCount) + n] += magnitude;
+    terms[kNodeGradMagnitude * int64_t(nodeCount) + n] += gradMagnitude;
   }
 };
 

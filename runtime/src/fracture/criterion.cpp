@@ -1,7 +1,6 @@
 #include "fracture/criterion.h"
 
 #include <algorithm>
-#include <limits>
 
 #include "step/executor.h"
 
@@ -70,52 +69,36 @@ int32_t evaluateCriterion(const FractureModel& model, const EdgeGraph& graph,
   }
 
   ws.candidateEdges.clear();
-  for (size_t t = 0; t < T; ++t) {
-    const uint8_t mask = ws.candidates[t] & kEdgeBits;
-    if (!mask) continue;
-    for (int k = 0; k < 6; ++k)
-      if (mask & (1u << k)) ws.candidateEdges.push_back(graph.tetEdges[6 * t + k]);
-  }
-  if (ws.candidateEdges.empty()) return 0;
-  std::sort(ws.candidateEdges.begin(), ws.candidateEdges.end());
-  ws.candidateEdges.erase(std::unique(ws.candidateEdges.begin(), ws.candidateEdges.end()),
-                          ws.candidateEdges.end());
+  if (!(exec.reduce<MaxOp>(model.tetCount, AnyCandidateTerm{ws.candidates.data()}) > 0)) return 0;
+  const int32_t E = model.edgeCount;
+  ws.edgeFlag.resize(size_t(E));
+  ws.edgeStress.resize(size_t(E));
+  ws.edgeTet.resize(size_t(E));
+  exec.run(E, 1024,
+           EdgeCandidateStage{
+               graph.edgeTetStart.data(), graph.edgeTets.data(), ws.candidates.data(), tetStress,
+               model.nonLocal() ? ws.averaged.data() : nullptr, model.edgeDirections.data(),
+               ws.edgeFlag.data(), ws.edgeStress.data(), ws.edgeTet.data()});
+  // The candidates in edge-id order: counts per chunk, their offsets, then each chunk's edges.
+  const int32_t chunks = (E + kCompactChunk - 1) / kCompactChunk;
+  ws.chunkCount.resize(size_t(chunks));
+  ws.chunkOffset.resize(size_t(chunks) + 1);
+  exec.run(chunks, 4, CompactCountStage{ws.edgeFlag.data(), E, ws.chunkCount.data()});
+  exec.run(1, 1, CompactOffsetStage{ws.chunkCount.data(), chunks, ws.chunkOffset.data()});
+  const int32_t count = ws.chunkOffset[size_t(chunks)];
+  ws.candidateEdges.resize(size_t(count));
+  exec.run(
+      chunks, 4,
+      CompactScatterStage{ws.edgeFlag.data(), E, ws.chunkOffset.data(), ws.candidateEdges.data()});
 
-  // Serial decision in edge-id order (eq 4.12): the reporting tet is the incident tet with the
-  // largest normal stress; tets the bound skipped cannot reach this edge's strength, so they
-  // never report. Damage is only ever set, never cleared.
-  int32_t count = 0;
-  for (const int32_t edge : ws.candidateEdges) {
-    double best = -std::numeric_limits<double>::infinity();
-    int32_t bestTet = -1;
-    for (int32_t s = graph.edgeTetStart[edge]; s < graph.edgeTetStart[edge + 1]; ++s) {
-      const int32_t slot = graph.edgeTets[size_t(s)];
-      const size_t t = size_t(slot / 6);
-      const double* S = tetStress + 6 * t;
-      if (model.nonLocal()) {
-        if (!(ws.candidates[t] & kAveragedBit)) continue;
-        S = &ws.averaged[6 * t];
-      }
-      const double sig = edgeNormalStress(S, &model.edgeDirections[18 * t + 3 * (slot % 6)]);
-      if (sig > best) {
-        best = sig;
-        bestTet = int32_t(t);
-      }
-    }
-    broken[size_t(edge)] = 1;
-    EdgeBreak ev;
-    ev.edge = edge;
-    ev.tet = bestTet;
-    ev.stress = best;
-    ev.split = 0.5;
-    if (positions) {
-      const double* xa = positions + 3 * size_t(graph.edgeNodes[2 * size_t(edge)]);
-      const double* xb = positions + 3 * size_t(graph.edgeNodes[2 * size_t(edge) + 1]);
-      ev.position = {0.5 * (xa[0] + xb[0]), 0.5 * (xa[1] + xb[1]), 0.5 * (xa[2] + xb[2])};
-    }
-    events.push_back(ev);
-    ++count;
-  }
+  // The decision in edge-id order (eq 4.12): every candidate breaks, its events follow the
+  // list's order. Damage is only ever set, never cleared.
+  const size_t first = events.size();
+  events.resize(first + size_t(count));
+  exec.run(
+      count, 256,
+      BreakEventStage{ws.candidateEdges.data(), ws.edgeStress.data(), ws.edgeTet.data(),
+                      graph.edgeNodes.data(), positions, broken.data(), events.data() + first});
   return count;
 }
 

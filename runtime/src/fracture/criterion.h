@@ -4,9 +4,10 @@
 // strength. Damage never heals.
 //
 // Design: one parallel pass over tets writes, per tet, a 6-bit mask of the (tet, local edge)
-// pairs at or above strength; a serial pass over those few candidates, in edge-id order,
-// picks the reporting tet (largest normal stress, lowest tet id on ties), sets the flag and
-// emits the event. Nothing depends on the thread count.
+// pairs at or above strength; when any is set, a pass over edges flags the candidates and
+// picks each one's reporting tet (largest normal stress, lowest tet id on ties), a compaction
+// lists them in edge-id order, and a pass over that list sets the flags and writes the events
+// in that order. Nothing depends on the thread count.
 // Cost: the non-local average is the expensive part (at R_d = 5 mean edge lengths a tet of a
 // solid mesh has ~4k neighbours), so it is computed only where it could matter: a weighted
 // mean of normal stresses never exceeds the largest principal stress among the neighbours,
@@ -36,6 +37,11 @@ struct CriterionWorkspace {
   std::vector<double> bound;            ///< Per tet: Gershgorin bound of max principal stress.
   std::vector<double> cellMax;          ///< Per grid cell: largest bound of its tets.
   std::vector<int32_t> candidateEdges;  ///< Unique candidate edges of the last call, sorted.
+  // Per edge: candidate flag, and the reporting tet's stress and id (EdgeCandidateStage).
+  std::vector<uint8_t> edgeFlag;
+  std::vector<double> edgeStress;
+  std::vector<int32_t> edgeTet;
+  std::vector<int32_t> chunkCount, chunkOffset;  ///< of the compaction
 };
 
 /// Non-local average of eq 4.10 with the model's linear weights, normalised by their sum:

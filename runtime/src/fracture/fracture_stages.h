@@ -1,13 +1,14 @@
 // The per-tet and per-cell stages of fracture detection (thesis eq 4.10-4.12, SPEC §2),
 // written once for both executors like fem/element_stage.h: criterion stresses, the stress
 // bounds that let the non-local average be skipped, the average itself, the candidate edges
-// of each tet and the damage masks. The serial decision over the (few) candidate edges stays
-// in criterion.cpp.
+// of each tet, each candidate edge's reporting tet, the compaction of the candidate edges in
+// edge-id order and their events, and the damage masks.
 #pragma once
 
 #include <cstdint>
 
 #include "fem/element_stage.h"
+#include "fracture/fracture_model.h"
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
@@ -214,6 +215,125 @@ struct NonlocalCandidateStage {
     double* a = averaged + 6 * int64_t(t);
     avg.average(tetStress, t, a);
     candidates[t] = uint8_t(kAveragedBit | edges.edgesAtStrength(a, t));
+  }
+};
+
+/// 1 when tet t's candidate mask holds an edge at strength, else 0: a max-reduction term, so
+/// a step with nothing near its strength skips the edge pass.
+struct AnyCandidateTerm {
+  const uint8_t* candidates = nullptr;
+  GF_HD double operator()(int32_t t) const { return (candidates[t] & kEdgeBits) ? 1.0 : 0.0; }
+};
+
+/// Per edge e: flag[e] 1 when an incident tet's candidate mask holds it, and then the tet that
+/// reports it (eq 4.12): the largest normal stress over the incident tets in slot order (the
+/// first on ties) from the averaged stress where non-local, skipping the tets the bound left
+/// without one (they cannot reach this edge's strength).
+struct EdgeCandidateStage {
+  const int32_t* edgeTetStart = nullptr;
+  const int32_t* edgeTets = nullptr;  ///< slots 6 tet + local edge
+  const uint8_t* candidates = nullptr;
+  const double* tetStress = nullptr;
+  const double* averaged = nullptr;  ///< null: local
+  const double* edgeDirections = nullptr;
+  uint8_t* flag = nullptr;
+  double* stress = nullptr;
+  int32_t* tet = nullptr;
+
+  GF_HD void operator()(int32_t e) const {
+    flag[e] = 0;
+    for (int32_t s = edgeTetStart[e]; s < edgeTetStart[e + 1]; ++s)
+      if (candidates[edgeTets[s] / 6] & (1u << (edgeTets[s] % 6))) flag[e] = 1;
+    if (!flag[e]) return;
+    double best = -HUGE_VAL;
+    int32_t bestTet = -1;
+    for (int32_t s = edgeTetStart[e]; s < edgeTetStart[e + 1]; ++s) {
+      const int64_t t = edgeTets[s] / 6;
+      const double* S = tetStress + 6 * t;
+      if (averaged) {
+        if (!(candidates[t] & kAveragedBit)) continue;
+        S = averaged + 6 * t;
+      }
+      const double sig = edgeNormalStress(S, edgeDirections + 18 * t + 3 * (edgeTets[s] % 6));
+      if (sig > best) {
+        best = sig;
+        bestTet = int32_t(t);
+      }
+    }
+    stress[e] = best;
+    tet[e] = bestTet;
+  }
+};
+
+/// Items per chunk of a compaction.
+constexpr int32_t kCompactChunk = 1024;
+
+/// The number of set flags in chunk c of a compaction.
+struct CompactCountStage {
+  const uint8_t* flag = nullptr;
+  int32_t count = 0;
+  int32_t* chunkCount = nullptr;
+
+  GF_HD void operator()(int32_t c) const {
+    const int32_t end = (c + 1) * kCompactChunk < count ? (c + 1) * kCompactChunk : count;
+    int32_t n = 0;
+    for (int32_t i = c * kCompactChunk; i < end; ++i) n += flag[i] ? 1 : 0;
+    chunkCount[c] = n;
+  }
+};
+
+/// One item: chunkOffset[c] = the set flags before chunk c (chunks + 1 entries).
+struct CompactOffsetStage {
+  const int32_t* chunkCount = nullptr;
+  int32_t chunks = 0;
+  int32_t* chunkOffset = nullptr;
+
+  GF_HD void operator()(int32_t) const {
+    chunkOffset[0] = 0;
+    for (int32_t c = 0; c < chunks; ++c) chunkOffset[c + 1] = chunkOffset[c] + chunkCount[c];
+  }
+};
+
+/// The indices of chunk c's set flags, in index order, at out[chunkOffset[c]..].
+struct CompactScatterStage {
+  const uint8_t* flag = nullptr;
+  int32_t count = 0;
+  const int32_t* chunkOffset = nullptr;
+  int32_t* out = nullptr;
+
+  GF_HD void operator()(int32_t c) const {
+    const int32_t end = (c + 1) * kCompactChunk < count ? (c + 1) * kCompactChunk : count;
+    int32_t o = chunkOffset[c];
+    for (int32_t i = c * kCompactChunk; i < end; ++i)
+      if (flag[i]) out[o++] = i;
+  }
+};
+
+/// Candidate edge i breaks: its flag is set (damage never heals) and its event written, with
+/// the edge's midpoint in `positions` when given.
+struct BreakEventStage {
+  const int32_t* edges = nullptr;  ///< the candidate edges, sorted
+  const double* stress = nullptr;  ///< EdgeCandidateStage's, per edge
+  const int32_t* tet = nullptr;
+  const int32_t* edgeNodes = nullptr;
+  const double* positions = nullptr;
+  uint8_t* broken = nullptr;
+  EdgeBreak* events = nullptr;
+
+  GF_HD void operator()(int32_t i) const {
+    const int32_t e = edges[i];
+    broken[e] = 1;
+    EdgeBreak ev;
+    ev.edge = e;
+    ev.tet = tet[e];
+    ev.stress = stress[e];
+    ev.split = 0.5;
+    if (positions) {
+      const double* xa = positions + 3 * int64_t(edgeNodes[2 * int64_t(e)]);
+      const double* xb = positions + 3 * int64_t(edgeNodes[2 * int64_t(e) + 1]);
+      ev.position = {0.5 * (xa[0] + xb[0]), 0.5 * (xa[1] + xb[1]), 0.5 * (xa[2] + xb[2])};
+    }
+    events[i] = ev;
   }
 };
 
