@@ -55,6 +55,9 @@ constexpr const char* kUsage =
     "                             (--sheet-frames N) evenly spread, first and last included,\n"
     "                             in rows of 4 (--sheet-columns C), each 200 pixels wide\n"
     "                             (--sheet-width W)\n"
+    "  --compare SCENE2           draw SCENE2 beside SCENE (same options, same dt), each\n"
+    "                             half named in its overlay; the halves' own frames and\n"
+    "                             summaries in OUT/left and OUT/right\n"
     "  --no-overlay               no text (frame, sim ms, tets, broken edges, fragments)\n"
     "  --no-shadows               no shadow map from the key light\n"
     "  --renderer auto|vulkan|gl  back end (default auto: Vulkan, else OpenGL through EGL)\n"
@@ -112,6 +115,8 @@ std::string parseArgs(int argc, char** argv, DemoOptions& o, bool& help) {
         return "--size needs WxH with 1 <= W, H <= 8192 (e.g. 640x360)";
     } else if (arg == "--out") {
       if (!a.nonEmptyValue(o.out)) return "--out needs a directory";
+    } else if (arg == "--compare") {
+      if (!a.nonEmptyValue(o.compare)) return "--compare needs a second scene";
     } else if (arg == "--strain") {
       if (!a.positiveValue(o.strainMax))
         return "--strain needs the strain shown as red, a number > 0 (e.g. 0.05)";
@@ -288,6 +293,98 @@ std::string formatBytes(double b) {
   return buf;
 }
 
+// Encodes frameDir/frame_%04d.png into outDir/demo.mp4 at the scene's rate; returns the
+// video's description, or "" with a note when ffmpeg is missing (not an error).
+Result<std::string> encodeVideo(const fs::path& frameDir, const fs::path& outDir, double dt,
+                                std::string& note) {
+  const std::string ffmpeg = findOnPath("ffmpeg");
+  if (ffmpeg.empty()) {
+    note += "  video:      skipped: ffmpeg is not on PATH (install it for --video)\n";
+    return std::string();
+  }
+  // The scene's own rate, as an exact fraction where 1/dt is not a whole number (a frame
+  // of 1/24 s plays at 24 fps, one of 0.03 s at 100000/3000).
+  const double fps = 1.0 / dt;
+  const std::string rate = std::abs(fps - std::round(fps)) < 1e-6 * fps
+                               ? std::to_string(std::lround(fps))
+                               : "1000000/" + std::to_string(std::lround(dt * 1e6));
+  const std::string video = (outDir / "demo.mp4").string();
+  // What plays everywhere (browsers, phones, QuickTime): H.264 High profile, yuv420p,
+  // even sizes (odd ones padded by a pixel), the index at the front of the file.
+  Result<int> r = runProgram({ffmpeg,
+                              "-y",
+                              "-loglevel",
+                              "error",
+                              "-framerate",
+                              rate,
+                              "-start_number",
+                              "1",
+                              "-i",
+                              (frameDir / "frame_%04d.png").string(),
+                              "-vf",
+                              "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+                              "-c:v",
+                              "libx264",
+                              "-profile:v",
+                              "high",
+                              "-crf",
+                              "20",
+                              "-pix_fmt",
+                              "yuv420p",
+                              "-movflags",
+                              "+faststart",
+                              video});
+  if (!r) return fail("graphfrac-demo: ", r.error().message);
+  if (r.value() != 0)
+    return fail("graphfrac-demo: ffmpeg failed (exit status ", std::to_string(r.value()),
+                ") making ", video);
+  char rateNote[64];
+  std::snprintf(rateNote, sizeof rateNote, " (H.264, yuv420p, %.6g fps)", fps);
+  return video + rateNote;
+}
+
+// Writes outDir/sheet.png from the chosen frames; returns its path.
+Result<std::string> writeSheet(std::span<const Image> images, const DemoOptions& opt,
+                               const fs::path& outDir) {
+  Result<Image> sheet = contactSheet(images, opt.sheetColumns, opt.sheetWidth);
+  if (!sheet) return fail("graphfrac-demo: ", sheet.error().message);
+  const std::string path = (outDir / "sheet.png").string();
+  if (Result<void> w = writePng(path, sheet.value()); !w)
+    return fail("graphfrac-demo: ", w.error().message);
+  return path;
+}
+
+// Writes `text` to outDir/summary.txt and, unless quiet, to stdout.
+Result<void> writeSummary(const fs::path& outDir, const std::string& text, bool quiet) {
+  const fs::path path = outDir / "summary.txt";
+  std::ofstream file(path);
+  file << text;
+  file.close();
+  if (!file) return fail("graphfrac-demo: cannot write ", path.string());
+  if (!quiet) std::fputs(text.c_str(), stdout);
+  return {};
+}
+
+// Clears the frames of an earlier run from frameDir (they would continue this run's sequence
+// in the video).
+Result<void> prepareFrameDir(const fs::path& frameDir) {
+  std::error_code ec;
+  fs::create_directories(frameDir, ec);
+  if (ec) return fail("graphfrac-demo: cannot create ", frameDir.string(), ": ", ec.message());
+  for (const fs::directory_entry& e : fs::directory_iterator(frameDir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.size() == 14 && name.rfind("frame_", 0) == 0 && e.path().extension() == ".png")
+      fs::remove(e.path(), ec);
+  }
+  return {};
+}
+
+std::string frameName(int frame) {
+  char name[32];
+  std::snprintf(name, sizeof name, "frame_%04d.png", frame);
+  return name;
+}
+
 }  // namespace
 
 ShapeMesh rigidMesh(const scene::SceneRigidBody& r) {
@@ -422,7 +519,106 @@ std::string formatSummary(const DemoSummary& s) {
   return out;
 }
 
+namespace {
+
+// Between the halves of --compare, as between the cells of a contact sheet.
+constexpr int kSideGap = 2;
+constexpr uint8_t kGapGrey = 24;
+
+// --compare: each scene through runDemo at half the width, then each pair of frames composed.
+Result<DemoSummary> runSideBySide(const DemoOptions& opt) {
+  const auto wallStart = Clock::now();
+  const int half = (opt.width - kSideGap) / 2;
+  if (half < 1)
+    return fail("graphfrac-demo: --compare needs a width of at least ",
+                std::to_string(kSideGap + 2), " pixels, got ", std::to_string(opt.width));
+  Result<scene::Scene> left = scene::loadScene(opt.scene);
+  if (!left) return left.error();
+  Result<scene::Scene> right = scene::loadScene(opt.compare);
+  if (!right) return right.error();
+  if (left.value().dt != right.value().dt) {
+    char msg[160];
+    std::snprintf(msg, sizeof msg, "dt %.6g differs from the first scene's %.6g", right.value().dt,
+                  left.value().dt);
+    return fail(opt.compare, ": ", msg, ": side by side, the halves would show different times");
+  }
+  const fs::path outDir = opt.out.empty()
+                              ? fs::path("out") / (left.value().name + "_vs_" + right.value().name)
+                              : fs::path(opt.out);
+  DemoSummary s;
+  for (const std::string* sceneFile : {&opt.scene, &opt.compare}) {
+    DemoOptions h = opt;
+    h.scene = *sceneFile;
+    h.compare.clear();
+    h.width = half;
+    h.out = (outDir / (s.halves.empty() ? "left" : "right")).string();
+    h.video = false;
+    h.sheetFrames = 0;
+    h.nameInOverlay = true;
+    Result<DemoSummary> r = runDemo(h);
+    if (!r) return r.error();
+    s.halves.push_back(std::move(r).value());
+  }
+
+  const fs::path frameDir = outDir / "frames";
+  if (Result<void> r = prepareFrameDir(frameDir); !r) return r.error();
+  s.scene = s.halves[0].scene + " | " + s.halves[1].scene;
+  s.renderer = s.halves[0].renderer;
+  s.backend = s.halves[0].backend;
+  s.outDir = outDir.string();
+  s.frames = std::min(s.halves[0].frames, s.halves[1].frames);
+  s.width = 2 * half + kSideGap;
+  s.height = opt.height;
+  s.dt = left.value().dt;
+  const std::vector<int> sheetAt = sheetFrames(opt.sheetFrames, s.frames);
+  std::vector<Image> sheetImages;
+  Image both;
+  both.width = s.width;
+  both.height = s.height;
+  both.rgba.assign(4 * size_t(both.width) * size_t(both.height), kGapGrey);
+  for (int frame = 1; frame <= s.frames; ++frame) {
+    for (size_t k = 0; k < 2; ++k) {
+      Result<Image> img =
+          readPng((fs::path(s.halves[k].outDir) / "frames" / frameName(frame)).string());
+      if (!img) return fail("graphfrac-demo: ", img.error().message);
+      const size_t x0 = k * size_t(half + kSideGap);
+      for (int y = 0; y < both.height; ++y)
+        std::memcpy(&both.rgba[4 * (size_t(y) * size_t(both.width) + x0)],
+                    &img.value().rgba[4 * size_t(y) * size_t(half)], 4 * size_t(half));
+    }
+    if (Result<void> w = writePng((frameDir / frameName(frame)).string(), both); !w)
+      return fail("graphfrac-demo: ", w.error().message);
+    if (std::find(sheetAt.begin(), sheetAt.end(), frame) != sheetAt.end())
+      sheetImages.push_back(both);
+  }
+  std::string text = "graphfrac-demo: side by side, " + s.scene + "\n";
+  char line[256];
+  std::snprintf(line, sizeof line, "  frames:     %s .. %s (%dx%d)\n",
+                (frameDir / frameName(1)).c_str(), frameName(s.frames).c_str(), s.width, s.height);
+  text += line;
+  text += "  halves:     " + s.halves[0].outDir + "/summary.txt, " + s.halves[1].outDir +
+          "/summary.txt\n";
+  if (opt.video) {
+    Result<std::string> v = encodeVideo(frameDir, outDir, s.dt, text);
+    if (!v) return v.error();
+    s.video = v.value();
+    if (!s.video.empty()) text += "  video:      " + s.video + "\n";
+  }
+  if (!sheetImages.empty()) {
+    Result<std::string> sheet = writeSheet(sheetImages, opt, outDir);
+    if (!sheet) return sheet.error();
+    s.sheet = sheet.value();
+    text += "  sheet:      " + s.sheet + "\n";
+  }
+  s.wallSeconds = std::chrono::duration<double>(Clock::now() - wallStart).count();
+  if (Result<void> w = writeSummary(outDir, text, opt.quiet); !w) return w.error();
+  return s;
+}
+
+}  // namespace
+
 Result<DemoSummary> runDemo(const DemoOptions& opt) {
+  if (!opt.compare.empty()) return runSideBySide(opt);
   const auto wallStart = Clock::now();
   Result<scene::Scene> loaded = scene::loadScene(opt.scene);
   if (!loaded) return loaded.error();
@@ -481,15 +677,7 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
   const fs::path outDir = opt.out.empty() ? fs::path("out") / sc.name : fs::path(opt.out);
   s.outDir = outDir.string();
   const fs::path frameDir = outDir / "frames";
-  std::error_code ec;
-  fs::create_directories(frameDir, ec);
-  if (ec) return fail("graphfrac-demo: cannot create ", frameDir.string(), ": ", ec.message());
-  // Frames of an earlier, longer run would continue this run's sequence in the video.
-  for (const fs::directory_entry& e : fs::directory_iterator(frameDir, ec)) {
-    const std::string name = e.path().filename().string();
-    if (name.size() == 14 && name.rfind("frame_", 0) == 0 && e.path().extension() == ".png")
-      fs::remove(e.path(), ec);
-  }
+  if (Result<void> r = prepareFrameDir(frameDir); !r) return r.error();
 
   if (!opt.quiet) {
     std::printf("graphfrac-demo: %s: %zu bod%s, %zu rigid bod%s; %d frames of %.6g s; %dx%d\n",
@@ -613,6 +801,7 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
     FrameOptions fo;
     fo.shadows = opt.shadows;
     if (opt.overlay) {
+      if (opt.nameInOverlay) fo.overlay.push_back(sc.name);
       char line[160];
       std::snprintf(line, sizeof line, "frame %d/%d  t %.2f s  sim %.0f ms", frame, frames,
                     frame * sc.dt, f.simMs);
@@ -627,10 +816,8 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
     f.renderMs = rs.value().renderMs;
     f.uploadedBytes = rs.value().uploadedBytes;
     f.surfaceBytes = rs.value().surfaceBytes;
-    char name[32];
-    std::snprintf(name, sizeof name, "frame_%04d.png", frame);
     const auto tp = Clock::now();
-    if (Result<void> w = writePng((frameDir / name).string(), image); !w)
+    if (Result<void> w = writePng((frameDir / frameName(frame)).string(), image); !w)
       return fail("graphfrac-demo: ", w.error().message);
     f.pngMs = cli::msSince(tp);
     if (std::find(sheetAt.begin(), sheetAt.end(), frame) != sheetAt.end())
@@ -675,69 +862,20 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
 
   std::string videoNote;
   if (opt.video) {
-    const std::string ffmpeg = findOnPath("ffmpeg");
-    if (ffmpeg.empty()) {
-      videoNote = "  video:      skipped: ffmpeg is not on PATH (install it for --video)\n";
-    } else {
-      // The scene's own rate, as an exact fraction where 1/dt is not a whole number (a frame
-      // of 1/24 s plays at 24 fps, one of 0.03 s at 100000/3000).
-      const double fps = 1.0 / sc.dt;
-      const std::string rate = std::abs(fps - std::round(fps)) < 1e-6 * fps
-                                   ? std::to_string(std::lround(fps))
-                                   : "1000000/" + std::to_string(std::lround(sc.dt * 1e6));
-      const std::string video = (outDir / "demo.mp4").string();
-      // What plays everywhere (browsers, phones, QuickTime): H.264 High profile, yuv420p,
-      // even sizes (odd ones padded by a pixel), the index at the front of the file.
-      Result<int> r = runProgram({ffmpeg,
-                                  "-y",
-                                  "-loglevel",
-                                  "error",
-                                  "-framerate",
-                                  rate,
-                                  "-start_number",
-                                  "1",
-                                  "-i",
-                                  (frameDir / "frame_%04d.png").string(),
-                                  "-vf",
-                                  "pad=ceil(iw/2)*2:ceil(ih/2)*2",
-                                  "-c:v",
-                                  "libx264",
-                                  "-profile:v",
-                                  "high",
-                                  "-crf",
-                                  "20",
-                                  "-pix_fmt",
-                                  "yuv420p",
-                                  "-movflags",
-                                  "+faststart",
-                                  video});
-      if (!r) return fail("graphfrac-demo: ", r.error().message);
-      if (r.value() != 0)
-        return fail("graphfrac-demo: ffmpeg failed (exit status ", std::to_string(r.value()),
-                    ") making ", video);
-      char note[64];
-      std::snprintf(note, sizeof note, " (H.264, yuv420p, %.6g fps)", fps);
-      s.video = video + note;
-    }
+    Result<std::string> v = encodeVideo(frameDir, outDir, sc.dt, videoNote);
+    if (!v) return v.error();
+    s.video = v.value();
   }
   if (!sheetImages.empty()) {
-    Result<Image> sheet = contactSheet(sheetImages, opt.sheetColumns, opt.sheetWidth);
-    if (!sheet) return fail("graphfrac-demo: ", sheet.error().message);
-    const std::string path = (outDir / "sheet.png").string();
-    if (Result<void> w = writePng(path, sheet.value()); !w)
-      return fail("graphfrac-demo: ", w.error().message);
-    s.sheet = path;
+    Result<std::string> sheet = writeSheet(sheetImages, opt, outDir);
+    if (!sheet) return sheet.error();
+    s.sheet = sheet.value();
   }
   if (opt.overlay && !overlayAvailable())
     videoNote += "  overlay:    skipped: built without stb_easy_font (libstb-dev)\n";
   s.wallSeconds = std::chrono::duration<double>(Clock::now() - wallStart).count();
-  const std::string text = formatSummary(s) + videoNote;
-  const fs::path summaryPath = outDir / "summary.txt";
-  std::ofstream file(summaryPath);
-  file << text;
-  file.close();
-  if (!file) return fail("graphfrac-demo: cannot write ", summaryPath.string());
-  if (!opt.quiet) std::fputs(text.c_str(), stdout);
+  if (Result<void> w = writeSummary(outDir, formatSummary(s) + videoNote, opt.quiet); !w)
+    return w.error();
   return s;
 }
 

@@ -36,6 +36,12 @@ struct DemoOptions {
   /// in rows of sheetColumns, each sheetWidth pixels wide.
   int sheetFrames = 0;
   int sheetColumns = 4, sheetWidth = 200;
+  /// Non-empty: a second scene, run with the same options and drawn to the right of the
+  /// first, each half (width - 2) / 2 pixels wide with its scene's name over it. Each half's
+  /// own frames and summary go to OUT/left and OUT/right, the composed frames (and the video
+  /// and sheet) to OUT. The two scenes must have the same dt, so side by side is same time.
+  std::string compare;
+  bool nameInOverlay = false;  ///< The scene's name as the overlay's first line.
 };
 
 /// One rendered frame.
@@ -84,6 +90,7 @@ struct DemoSummary {
   /// (fractionInside), and the largest swing of the line of sight between frames.
   double minInside = 1, maxSwingDegrees = 0;
   std::vector<DemoFrame> perFrame;
+  std::vector<DemoSummary> halves;  ///< With DemoOptions::compare: the left and right runs.
 };
 
 /// Cell of the grid drawn on ground planes [m] (a stronger line every 5 cells).

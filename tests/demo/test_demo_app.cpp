@@ -459,6 +459,70 @@ int callMain(std::vector<std::string> args) {
   return demoMain(int(argv.size()), argv.data());
 }
 
+// --compare: each half of a composed frame is that scene's own frame, pixel for pixel, and
+// scenes of different dt are refused before anything runs.
+TEST(DemoApp, CompareDrawsTwoScenesSideBySide) {
+  SKIP_WITHOUT_RENDERER();
+  const TempDir tmp("demo_compare");
+  const fs::path dir = tmp.path;
+  auto scene = [&](const std::string& name, const std::string& solver, double dt) {
+    const fs::path sub = dir / name;
+    char text[768];
+    std::snprintf(text, sizeof text, R"({"name": "%s", "dt": %g, "frames": 3,
+      "bodies": [{"mesh": {"generator": "box", "size": [0.4, 0.1, 0.1], "cells": [4, 1, 1]},
+                  "material": {"E": 1e5, "nu": 0.3, "rho": 1000}, "solver": {"linear": "%s"},
+                  "pins": [{"region": {"min": [0, 0, 0], "max": [0, 0.1, 0.1]}}]}],
+      "camera": {"eye": [0.2, 0.1, 1.0], "target": [0.2, 0, 0]}})",
+                  name.c_str(), dt, solver.c_str());
+    return writeScene(sub, text).string();
+  };
+  DemoOptions opt;
+  opt.scene = scene("direct", "direct", 0.04);
+  opt.compare = scene("pcg", "pcg", 0.04);
+  opt.width = 66;
+  opt.height = 24;
+  opt.out = (dir / "out").string();
+  opt.sheetFrames = 2;
+  opt.quiet = true;
+  Result<DemoSummary> run = runDemo(opt);
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  const DemoSummary& s = run.value();
+  ASSERT_EQ(s.halves.size(), 2u);
+  EXPECT_EQ(s.halves[0].scene, "direct");
+  EXPECT_EQ(s.halves[1].scene, "pcg");
+  EXPECT_EQ(s.frames, 3);
+  EXPECT_EQ(s.width, 66);  // two halves of 32 and the 2-pixel gap
+  EXPECT_TRUE(fs::exists(dir / "out" / "sheet.png"));
+  for (int frame = 1; frame <= 3; ++frame) {
+    SCOPED_TRACE(frame);
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%04d.png", frame);
+    Result<Image> both = readPng((dir / "out" / "frames" / name).string());
+    ASSERT_TRUE(both.ok()) << both.error().message;
+    ASSERT_EQ(both.value().width, 66);
+    ASSERT_EQ(both.value().height, 24);
+    for (int k = 0; k < 2; ++k) {
+      Result<Image> halfImage =
+          readPng((dir / "out" / (k == 0 ? "left" : "right") / "frames" / name).string());
+      ASSERT_TRUE(halfImage.ok()) << halfImage.error().message;
+      ASSERT_EQ(halfImage.value().width, 32);
+      size_t differing = 0;
+      for (int y = 0; y < 24; ++y)
+        for (int x = 0; x < 32 * 4; ++x)
+          differing += both.value().rgba[size_t(y) * 66 * 4 + size_t(k) * 34 * 4 + size_t(x)] !=
+                       halfImage.value().rgba[size_t(y) * 32 * 4 + size_t(x)];
+      EXPECT_EQ(differing, 0u) << (k == 0 ? "left" : "right");
+    }
+  }
+
+  opt.compare = scene("slow", "pcg", 0.02);
+  Result<DemoSummary> mismatch = runDemo(opt);
+  ASSERT_FALSE(mismatch.ok());
+  EXPECT_NE(mismatch.error().message.find("dt 0.02 differs from the first scene's 0.04"),
+            std::string::npos)
+      << mismatch.error().message;
+}
+
 TEST(DemoApp, CommandLineErrorsAndVideo) {
   EXPECT_EQ(callMain({"graphfrac-demo"}), 2);  // no scene
   EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--size", "0x10"}), 2);
@@ -467,6 +531,7 @@ TEST(DemoApp, CommandLineErrorsAndVideo) {
   EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--frames", "0"}), 2);
   EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--bogus"}), 2);
   EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--backend", "gpu"}), 2);
+  EXPECT_EQ(callMain({"graphfrac-demo", "x.json", "--compare"}), 2);
   EXPECT_EQ(callMain({"graphfrac-demo", "--help"}), 0);
   const TempDir tmp("demo_cli");
   const fs::path dir = tmp.path;
