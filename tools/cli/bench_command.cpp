@@ -19,6 +19,7 @@
 // falling side by side onto the ground, never touching, with BodyDef::contact on and off in
 // alternating rounds (the ratio is what a scene without contact pairs pays); then columns of boxes
 // stacked on each other, where the contact stage's ms over its pairs is the cost per pair.
+// `graphfrac bench xfem`: Is-XFEM against graph cuts on the same box and blades (bench_xfem.cpp).
 #include <dirent.h>
 
 #include <algorithm>
@@ -43,6 +44,9 @@
 #endif
 
 namespace gf::cli {
+
+int benchXfem(int argc, char** argv);  // bench_xfem.cpp
+
 namespace {
 
 // The backend every benchmark's worlds ask for (--backend; the CPU unless told).
@@ -802,6 +806,10 @@ int runBenchCommand(int argc, char** argv) {
         "  body-body contact: 16 boxes of N^3 cells (default 4) falling apart with contact on\n"
         "  and off (the ratio is the cost without pairs), then 16 stacks of two blocks at rest\n"
         "  (ms of the contact stage per pair)\n"
+        "       graphfrac bench xfem [--cells N] [--steps S]\n"
+        "  Is-XFEM against graph cuts (thesis ch 3 vs 6): a 2 x 1 x 1 box of N x N/2 x N/2 cells\n"
+        "  (default 40) cut by 1, 5, 10, 20 planar blades; cut and step ms, cut-face distance\n"
+        "  from the blades, piece volumes against the exact split\n"
         "Every mode takes --backend auto|cpu|cuda (default cpu) for its worlds.");
     return argc < 2 ? kExitUsage : kExitOk;
   }
@@ -832,6 +840,7 @@ int runBenchCommand(int argc, char** argv) {
   if (!std::strcmp(argv[1], "options")) return benchOptions(argc, argv);
   if (!std::strcmp(argv[1], "debris")) return benchDebris(argc, argv);
   if (!std::strcmp(argv[1], "contact")) return benchContact(argc, argv);
+  if (!std::strcmp(argv[1], "xfem")) return benchXfem(argc, argv);
   std::fprintf(stderr, "graphfrac bench: unknown benchmark '%s'\n", argv[1]);
   return kExitUsage;
 }

@@ -1,7 +1,12 @@
 #include "xfem/cut_body.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 #include <string>
+
+#include "kernels/xfem_enrichment.h"
 
 namespace gf::detail {
 
@@ -12,12 +17,68 @@ Vec3 nodePosition(const TetMesh& mesh, int32_t n) {
           mesh.positions[3 * size_t(n) + 2]};
 }
 
-// Side of a point against every body plane, on the positive side when on a plane.
-unsigned sideMask(const std::vector<CutPlane>& planes, Vec3 x) {
-  unsigned mask = 0;
-  for (size_t j = 0; j < planes.size(); ++j)
-    if (planeDistance(planes[j], x) >= 0) mask |= 1u << j;
-  return mask;
+// One cut through one tet: its local plane, and whether the cut crosses the tet fully.
+struct TetCut {
+  int32_t cut = 0;
+  CutPlane plane;
+  bool full = true;
+};
+
+int32_t findRoot(std::vector<int32_t>& parent, int32_t i) {
+  while (parent[size_t(i)] != i) {
+    parent[size_t(i)] = parent[size_t(parent[size_t(i)])];
+    i = parent[size_t(i)];
+  }
+  return i;
+}
+
+void unite(std::vector<int32_t>& parent, int32_t a, int32_t b) {
+  a = findRoot(parent, a);
+  b = findRoot(parent, b);
+  if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);
+}
+
+// Point p in the convex polygon g (in g's plane), up to tol times each edge's length outside it.
+bool polygonContains(const CutPolygon& g, Vec3 p, double tol) {
+  Vec3 n;
+  for (int i = 1; i + 1 < g.count; ++i) n += cross(g.v[i] - g.v[0], g.v[i + 1] - g.v[0]);
+  for (int i = 0; i < g.count; ++i) {
+    const Vec3 e = g.v[(i + 1) % g.count] - g.v[i];
+    if (dot(cross(e, p - g.v[i]), n) < -tol * dot(e, e) * norm(n)) return false;
+  }
+  return true;
+}
+
+Vec3 polygonCentre(const CutPolygon& g) {
+  Vec3 c;
+  for (int i = 0; i < g.count; ++i) c += g.v[i];
+  return (1.0 / g.count) * c;
+}
+
+// Two cells' polygons on a shared tet face overlap (with area): one's centre lies in the other.
+bool polygonsOverlap(const CutPolygon& a, const CutPolygon& b) {
+  return polygonContains(b, polygonCentre(a), 1e-9) || polygonContains(a, polygonCentre(b), 1e-9);
+}
+
+// Side of x against a cut that does not cross its tet: the plane's, or for a blade the sign of
+// eq 3.1 to its nearest triangle.
+bool positiveSide(const XfemBodyDef& def, int32_t cut, Vec3 x) {
+  const int32_t planes = int32_t(def.planes.size());
+  if (cut < planes) return planeDistance(def.planes[size_t(cut)], x) >= 0;
+  const XfemBlade& b = def.blades[size_t(cut - planes)];
+  double best = INFINITY, sign = 1;
+  for (size_t t = 0; 3 * t < b.blade.triangles.size(); ++t) {
+    Vec3 p[3];
+    for (int k = 0; k < 3; ++k) {
+      const size_t i = size_t(b.blade.triangles[3 * t + size_t(k)]);
+      p[k] = b.pose.rotation * Vec3{b.blade.vertices[3 * i], b.blade.vertices[3 * i + 1],
+                                    b.blade.vertices[3 * i + 2]} +
+             b.pose.translation;
+    }
+    const double d = signedDistanceToTriangle(x, p[0], p[1], p[2]);  // eq 3.1
+    if (std::abs(d) < best) best = std::abs(d), sign = d;
+  }
+  return sign >= 0;
 }
 
 }  // namespace
@@ -26,8 +87,10 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
   const TetMesh& mesh = def.mesh;
   const int32_t nodes = int32_t(mesh.nodeCount()), tets = int32_t(mesh.tetCount());
   const int32_t planeCount = int32_t(def.planes.size());
+  const int32_t cutCount = planeCount + int32_t(def.blades.size());
   if (tets == 0) return fail("XfemBody: mesh: no tets");
-  if (planeCount > 32) return fail("XfemBody: planes: ", std::to_string(planeCount), " > 32");
+  if (cutCount > 32)
+    return fail("XfemBody: planes and blades: ", std::to_string(cutCount), " > 32");
   for (int32_t j = 0; j < planeCount; ++j)
     if (std::abs(norm(def.planes[size_t(j)].normal) - 1.0) > 1e-12)
       return fail("XfemBody: planes[", std::to_string(j), "]: normal is not a unit vector");
@@ -38,10 +101,12 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
   std::unique_ptr<XfemBody> body(new XfemBody());
   XfemBody& b = *body;
   b.m_def = def;
+  b.m_cutReports.assign(size_t(cutCount), {});
 
-  // A tet is cut by plane j when its nodes lie strictly on both sides; a plane that only
-  // touches it (a node on the plane) leaves it whole, on the positive side.
-  std::vector<std::vector<int32_t>> tetCuts(static_cast<size_t>(tets));
+  // Every cut's crossings per tet. A plane cuts a tet when its nodes lie strictly on both
+  // sides (a plane that only touches it leaves it whole, on the positive side) and always
+  // crosses it fully; a blade's crossings come from its path.
+  std::vector<std::vector<TetCut>> crossings(static_cast<size_t>(tets));
   std::vector<Vec3> X(4 * static_cast<size_t>(tets));
   for (int32_t t = 0; t < tets; ++t) {
     for (int a = 0; a < 4; ++a)
@@ -53,48 +118,114 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
         pos = pos || d > 0;
         neg = neg || d < 0;
       }
-      if (pos && neg) tetCuts[size_t(t)].push_back(j);
+      if (pos && neg) {
+        crossings[size_t(t)].push_back({j, def.planes[size_t(j)], true});
+        ++b.m_cutReports[size_t(j)].fullTets;
+      }
+    }
+  }
+  for (size_t k = 0; k < def.blades.size(); ++k) {
+    const int32_t j = planeCount + int32_t(k);
+    auto path = traceBlade(mesh, def.blades[k]);
+    if (!path.ok())
+      return fail("XfemBody: blades[", std::to_string(k), "]: ", path.error().message);
+    XfemCutReport& r = b.m_cutReports[size_t(j)];
+    r.fullTets = path.value().fullCount;
+    r.partialTets = path.value().partialCount;
+    r.maxDeviation = path.value().maxDeviation;
+    for (const BladeTetCrossing& c : path.value().crossings)
+      crossings[size_t(c.tet)].push_back({j, c.plane, c.full});
+  }
+
+  // Eq 3.4, restricted where a blade ends: node i gets an enriched function for cut j when
+  // cut j crosses some tet around i fully and none partially (see the design note).
+  std::vector<uint8_t> nodeFull(size_t(nodes) * size_t(cutCount), 0);
+  std::vector<uint8_t> nodePartial(size_t(nodes) * size_t(cutCount), 0);
+  for (int32_t t = 0; t < tets; ++t)
+    for (const TetCut& c : crossings[size_t(t)])
+      for (int a = 0; a < 4; ++a) {
+        const size_t i = size_t(mesh.tets[4 * size_t(t) + a]) * size_t(cutCount) + size_t(c.cut);
+        (c.full ? nodeFull : nodePartial)[i] = 1;
+      }
+  const auto enrichable = [&](int32_t node, int32_t cut) {
+    const size_t i = size_t(node) * size_t(cutCount) + size_t(cut);
+    return nodeFull[i] && !nodePartial[i];
+  };
+  // The cuts each tet carries: fully crossed, with at least one enriched node.
+  std::vector<std::vector<TetCut>> tetCuts(static_cast<size_t>(tets));
+  for (int32_t t = 0; t < tets; ++t) {
+    for (const TetCut& c : crossings[size_t(t)]) {
+      if (!c.full) continue;
+      bool any = false;
+      for (int a = 0; a < 4; ++a) any = any || enrichable(mesh.tets[4 * size_t(t) + a], c.cut);
+      if (any) tetCuts[size_t(t)].push_back(c);
     }
     if (tetCuts[size_t(t)].size() > size_t(kMaxCutPlanes))
       return fail("XfemBody: tet ", std::to_string(t), ": more than ",
                   std::to_string(kMaxCutPlanes), " cuts");
     if (!tetCuts[size_t(t)].empty()) ++b.m_cutTets;
   }
-  // Eq 3.4: one enriched function per node of a cut tet and per cut through it.
-  b.m_enriched.assign(size_t(nodes) * size_t(planeCount), -1);
+  b.m_enriched.assign(size_t(nodes) * size_t(cutCount), -1);
   b.m_functionCount = nodes;
   for (int32_t t = 0; t < tets; ++t)
-    for (int32_t j : tetCuts[size_t(t)])
+    for (const TetCut& c : tetCuts[size_t(t)]) {
+      ++b.m_cutReports[size_t(c.cut)].enrichedTets;
       for (int a = 0; a < 4; ++a) {
-        int32_t& f =
-            b.m_enriched[size_t(mesh.tets[4 * size_t(t) + a]) * size_t(planeCount) + size_t(j)];
-        if (f < 0) f = b.m_functionCount++;
+        const int32_t node = mesh.tets[4 * size_t(t) + a];
+        int32_t& f = b.m_enriched[size_t(node) * size_t(cutCount) + size_t(c.cut)];
+        if (f < 0 && enrichable(node, c.cut)) f = b.m_functionCount++;
       }
+    }
   const int32_t F = b.m_functionCount;
 
-  // Elements, assembled; pieces and eq 3.16's volumes on the way.
+  // Cells of every tet, for the pieces: volume, load, and (cut tets) their polygons on the
+  // tet's faces; an uncut tet's face is its whole triangle, which overlaps any neighbour cell.
+  struct Cell {
+    int32_t tet = 0;
+    Vec3 centroid;
+    unsigned cutBits = 0, sides = 0;  // The tet's cuts (bit j: cut j) and the cell's sides.
+    double volume = 0;
+    std::vector<std::pair<int32_t, double>> load;
+  };
+  std::vector<Cell> cells;
+  std::vector<int32_t> firstCell(size_t(tets) + 1, 0);
+  std::vector<std::array<std::vector<std::pair<int32_t, CutPolygon>>, 4>> facePolygons(
+      static_cast<size_t>(tets));
+  std::vector<int32_t> parent;
+  std::vector<unsigned> openCuts(static_cast<size_t>(tets), 0);  // per tet: bit j, cut j opens
+
+  // Elements, assembled; eq 3.16's volumes on the way.
   std::vector<Eigen::Triplet<double>> mass, stiffness;
   b.m_force = Eigen::VectorXd::Zero(3 * F);
   std::vector<double> support(static_cast<size_t>(nodes), 0.0);
   std::vector<double> enrichedVolume(static_cast<size_t>(F - nodes), 0.0);
   for (int32_t t = 0; t < tets; ++t) {
-    const std::vector<int32_t>& cuts = tetCuts[size_t(t)];
+    firstCell[size_t(t)] = int32_t(cells.size());
+    const std::vector<TetCut>& cuts = tetCuts[size_t(t)];
     const int m = int(cuts.size());
     CutPlane local[kMaxCutPlanes];
-    for (int j = 0; j < m; ++j) local[j] = def.planes[size_t(cuts[size_t(j)])];
+    for (int j = 0; j < m; ++j) local[j] = cuts[size_t(j)].plane;
     const Vec3* x = &X[4 * size_t(t)];
     const CutElement e = buildCutElement(x, local, m, def.k, def.material);
     const int n = 4 * (1 + m);
+    // Functions of nodes without the cut's enrichment are dropped (-1).
     std::vector<int32_t> map(static_cast<size_t>(n));
+    unsigned opens = 0;  // bit j: cut j of this tet has all four nodes enriched
+    for (int j = 0; j < m; ++j) opens |= 1u << j;
     for (int a = 0; a < 4; ++a) {
       const int32_t node = mesh.tets[4 * size_t(t) + a];
       map[size_t(a)] = node;
-      for (int j = 0; j < m; ++j)
-        map[size_t(4 + 4 * j + a)] =
-            b.m_enriched[size_t(node) * size_t(planeCount) + size_t(cuts[size_t(j)])];
+      for (int j = 0; j < m; ++j) {
+        const int32_t f =
+            b.m_enriched[size_t(node) * size_t(cutCount) + size_t(cuts[size_t(j)].cut)];
+        map[size_t(4 + 4 * j + a)] = f;
+        if (f < 0) opens &= ~(1u << j);
+      }
     }
-    for (int A = 0; A < n; ++A)
+    for (int A = 0; A < n; ++A) {
+      if (map[size_t(A)] < 0) continue;
       for (int B = 0; B < n; ++B) {
+        if (map[size_t(B)] < 0) continue;
         for (int i = 0; i < 3; ++i) {
           if (e.mass(A, B) != 0)
             mass.emplace_back(3 * map[size_t(A)] + i, 3 * map[size_t(B)] + i, e.mass(A, B));
@@ -104,46 +235,133 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
                                      e.stiffness(3 * A + i, 3 * B + j));
         }
       }
-    // Eq 3.6 with b = rho g.
-    for (int A = 0; A < n; ++A)
+      // Eq 3.6 with b = rho g.
       for (int i = 0; i < 3; ++i) b.m_force[3 * map[size_t(A)] + i] += e.load[A] * def.gravity[i];
+    }
 
     double tetVolume = 0;
     for (const CutCell& c : e.cells) tetVolume += c.volume;
     for (int a = 0; a < 4; ++a) support[size_t(mesh.tets[4 * size_t(t) + a])] += tetVolume;
     for (const CutCell& c : e.cells) {
-      // Cell sides for its own cuts, and the side of every other plane from its centroid
-      // (it lies wholly on one side of a plane that does not cut its tet).
+      Cell cell;
+      cell.tet = t;
+      cell.volume = c.volume;
       Vec3 centroid;
       for (int q = 0; q < c.rule.count; ++q) centroid += c.rule.weights[q] * c.rule.points[q];
       centroid = (1.0 / c.volume) * centroid;
-      unsigned mask = sideMask(def.planes, centroid);
+      cell.centroid = centroid;
       for (int j = 0; j < m; ++j) {
-        mask &= ~(1u << cuts[size_t(j)]);
-        if ((c.sideMask >> j) & 1u) mask |= 1u << cuts[size_t(j)];
+        cell.cutBits |= 1u << cuts[size_t(j)].cut;
+        if ((c.sideMask >> j) & 1u) cell.sides |= 1u << cuts[size_t(j)].cut;
       }
-      XfemPiece& piece = b.m_pieces[mask];
-      if (piece.load.size() == 0) piece.load = Eigen::VectorXd::Zero(F);
-      piece.volume += c.volume;
-      for (int A = 0; A < n; ++A) piece.load[map[size_t(A)]] += c.load[A];
+      for (int A = 0; A < n; ++A)
+        if (map[size_t(A)] >= 0) cell.load.emplace_back(map[size_t(A)], c.load[A]);
+      // Cells of one tet stay joined across a cut that does not open there.
+      const int32_t id = int32_t(cells.size());
+      parent.push_back(id);
+      for (int32_t o = firstCell[size_t(t)]; o < id; ++o) {
+        unsigned differ = 0;
+        for (int j = 0; j < m; ++j)
+          if (((c.sideMask ^ e.cells[size_t(o - firstCell[size_t(t)])].sideMask) >> j) & 1u)
+            differ |= 1u << j;
+        if ((differ & opens) == 0) unite(parent, id, o);
+      }
+      if (m > 0)
+        for (int f = 0; f < c.polytope.faceCount; ++f)
+          if (c.polytope.faces[f].label < kCutFaceLabel)
+            facePolygons[size_t(t)][size_t(c.polytope.faces[f].label)].emplace_back(
+                id, c.polytope.faces[f]);
+      cells.push_back(std::move(cell));
       for (int j = 0; j < m; ++j) {
         const bool cellPositive = (c.sideMask >> j) & 1u;
         // Eq 3.16's enriched support: where classic XFEM's psi_i^j is non-zero, the cells
         // on the other side of cut j from node i.
         for (int a = 0; a < 4; ++a)
-          if ((e.sides.side[j][a] > 0.5) != cellPositive)
+          if ((e.sides.side[j][a] > 0.5) != cellPositive && map[size_t(4 + 4 * j + a)] >= 0)
             enrichedVolume[size_t(map[size_t(4 + 4 * j + a)] - nodes)] += c.volume;
         if (cellPositive)
           for (int f = 0; f < c.polytope.faceCount; ++f)
             if (c.polytope.faces[f].label == kCutFaceLabel + j)
-              b.m_cutFaces.push_back({t, cuts[size_t(j)], c.polytope.faces[f]});
+              b.m_cutFaces.push_back(
+                  {t, cuts[size_t(j)].cut, ((opens >> j) & 1u) != 0, c.polytope.faces[f]});
       }
     }
+    for (int j = 0; j < m; ++j)
+      if ((opens >> j) & 1u) {
+        ++b.m_cutReports[size_t(cuts[size_t(j)].cut)].openTets;
+        openCuts[size_t(t)] |= 1u << cuts[size_t(j)].cut;
+      }
   }
+  firstCell[size_t(tets)] = int32_t(cells.size());
+
+  // Pieces: join cells of neighbouring tets on the same side of every cut that opens in both
+  // (their enriched fields separate there even where a bent blade's local planes meet the
+  // shared face along different lines), and whose polygons on the face overlap unless those
+  // common cuts are all the two tets carry.
+  {
+    const int opposite[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
+    std::map<std::array<int32_t, 3>, std::pair<int32_t, int>> unmatched;  // face -> (tet, a)
+    for (int32_t t = 0; t < tets; ++t)
+      for (int a = 0; a < 4; ++a) {
+        std::array<int32_t, 3> f;
+        for (int k = 0; k < 3; ++k) f[size_t(k)] = mesh.tets[4 * size_t(t) + opposite[a][k]];
+        std::sort(f.begin(), f.end());
+        const auto it = unmatched.find(f);
+        if (it == unmatched.end()) {
+          unmatched.emplace(f, std::make_pair(t, a));
+          continue;
+        }
+        const int32_t u = it->second.first;
+        const auto& pu = facePolygons[size_t(u)][size_t(it->second.second)];
+        const auto& pt = facePolygons[size_t(t)][size_t(a)];
+        unmatched.erase(it);
+        if (pu.empty() && pt.empty()) {
+          unite(parent, firstCell[size_t(u)], firstCell[size_t(t)]);
+        } else if (pu.empty() || pt.empty()) {
+          // An uncut tet's face is its whole triangle: it overlaps every cell on the other side.
+          const int32_t whole = pu.empty() ? firstCell[size_t(u)] : firstCell[size_t(t)];
+          for (const auto& [cell, polygon] : pu.empty() ? pt : pu) unite(parent, whole, cell);
+        } else {
+          const unsigned common = openCuts[size_t(u)] & openCuts[size_t(t)];
+          const bool sidesDecide = cells[size_t(pu[0].first)].cutBits == common &&
+                                   cells[size_t(pt[0].first)].cutBits == common;
+          for (const auto& [cu, gu] : pu)
+            for (const auto& [ct, gt] : pt)
+              if (((cells[size_t(cu)].sides ^ cells[size_t(ct)].sides) & common) == 0 &&
+                  (sidesDecide || polygonsOverlap(gu, gt)))
+                unite(parent, cu, ct);
+        }
+      }
+  }
+  std::vector<int32_t> pieceOf(cells.size(), -1);
+  std::vector<int32_t> roots;
+  for (size_t c = 0; c < cells.size(); ++c) {
+    const int32_t r = findRoot(parent, int32_t(c));
+    if (pieceOf[size_t(r)] < 0) {
+      pieceOf[size_t(r)] = int32_t(roots.size());
+      roots.push_back(r);
+      // The mask: the cell's own sides of its tet's cuts, the sides of its centroid otherwise.
+      XfemPiece p;
+      p.mask = cells[c].sides;
+      for (int32_t j = 0; j < cutCount; ++j)
+        if (!((cells[c].cutBits >> j) & 1u) && positiveSide(def, j, cells[c].centroid))
+          p.mask |= 1u << j;
+      p.load = Eigen::VectorXd::Zero(F);
+      b.m_pieces.push_back(std::move(p));
+    }
+    XfemPiece& p = b.m_pieces[size_t(pieceOf[size_t(r)])];
+    p.volume += cells[c].volume;
+    ++p.cells;
+    for (const auto& [f, w] : cells[c].load) p.load[f] += w;
+  }
+  // Roots are first cells, so pieces come in order of their first tet; then by mask.
+  std::stable_sort(b.m_pieces.begin(), b.m_pieces.end(),
+                   [](const XfemPiece& l, const XfemPiece& r) { return l.mask < r.mask; });
+
   b.m_enrichedRatio.assign(size_t(F - nodes), 0.0);
   for (int32_t n = 0; n < nodes; ++n)
-    for (int32_t j = 0; j < planeCount; ++j) {
-      const int32_t f = b.m_enriched[size_t(n) * size_t(planeCount) + size_t(j)];
+    for (int32_t j = 0; j < cutCount; ++j) {
+      const int32_t f = b.m_enriched[size_t(n) * size_t(cutCount) + size_t(j)];
       if (f >= 0)
         b.m_enrichedRatio[size_t(f - nodes)] =
             enrichedVolume[size_t(f - nodes)] / support[size_t(n)];
@@ -158,8 +376,8 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
   std::vector<uint8_t> fixed(static_cast<size_t>(F), 0);
   for (int32_t n : def.fixedNodes) {
     fixed[size_t(n)] = 1;
-    for (int32_t j = 0; j < planeCount; ++j) {
-      const int32_t f = b.m_enriched[size_t(n) * size_t(planeCount) + size_t(j)];
+    for (int32_t j = 0; j < cutCount; ++j) {
+      const int32_t f = b.m_enriched[size_t(n) * size_t(cutCount) + size_t(j)];
       if (f >= 0) fixed[size_t(f)] = 1;
     }
   }
@@ -193,22 +411,27 @@ void XfemBody::step() {
   m_u += dt * m_v;
 }
 
-Vec3 XfemBody::pieceMeanDisplacement(unsigned mask) const {
-  const auto it = m_pieces.find(mask);
-  if (it == m_pieces.end()) return {};
-  const XfemPiece& p = it->second;
+int XfemBody::pieceWithMask(unsigned mask) const {
+  for (size_t p = 0; p < m_pieces.size(); ++p)
+    if (m_pieces[p].mask == mask) return int(p);
+  return -1;
+}
+
+Vec3 XfemBody::pieceMeanDisplacement(int piece) const {
+  if (piece < 0 || size_t(piece) >= m_pieces.size()) return {};
+  const XfemPiece& p = m_pieces[size_t(piece)];
   Vec3 s;
   for (int32_t f = 0; f < m_functionCount; ++f)
     for (int i = 0; i < 3; ++i) s[i] += p.load[f] * m_u[3 * f + i];
   return (1.0 / (m_def.material.density * p.volume)) * s;
 }
 
-Vec3 XfemBody::momentum(unsigned mask) const {
+Vec3 XfemBody::momentum(int piece) const {
   Vec3 s;
-  for (const auto& [key, p] : m_pieces) {
-    if (mask != ~0u && key != mask) continue;
+  for (size_t k = 0; k < m_pieces.size(); ++k) {
+    if (piece >= 0 && size_t(piece) != k) continue;
     for (int32_t f = 0; f < m_functionCount; ++f)
-      for (int i = 0; i < 3; ++i) s[i] += p.load[f] * m_v[3 * f + i];
+      for (int i = 0; i < 3; ++i) s[i] += m_pieces[k].load[f] * m_v[3 * f + i];
   }
   return s;
 }

@@ -6,9 +6,18 @@
 // multigrid hierarchy are fixed for a body's lifetime), so it is an Eigen sparse matrix solved
 // by a sparse LDL^T: a few hundred to a few thousand DOFs here, where a direct solve is both the
 // fastest and the exact reference. Linear elasticity keeps M and K constant, so the step matrix
-// is factorised once. Every cutting plane must cross the whole body (a closed cut): partial cuts
-// ending inside a tet, and blades that are not planar within a tet, come with the world
-// integration.
+// is factorised once. A body without cuts is a plain linear FEM body; the World's bodies never
+// see this class, so they pay nothing for it.
+// Cuts are infinite planes or blades (triangle meshes, blade_path.h); a blade cuts each tet along
+// its local plane. Blades that end inside the body: a node gets the enriched DOF of a cut only
+// when every tet around it that the cut meets is fully crossed (eq 3.4 restricted so that the
+// enriched field stays conforming across faces, since an enriched function then vanishes on every
+// face its node shares with an uncut tet). A tet the blade ends in is not enriched; a fully crossed
+// tet with some nodes not enriched has an opening that fades to zero toward them. So a crack
+// opens only in tets whose four nodes are all enriched, and stops up to one ring of tets short of
+// the blade's front; no crack-tip enrichment. Pieces are the connected components of the cells
+// (cells of one tet joined unless a cut opens between them, cells of neighbouring tets joined
+// when their polygons on the shared face overlap), which is also the check that a cut closes.
 #pragma once
 
 #include <graphfrac/mesh.h>
@@ -16,10 +25,10 @@
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
-#include <map>
 #include <memory>
 #include <vector>
 
+#include "xfem/blade_path.h"
 #include "xfem/cut_element.h"
 
 namespace gf::detail {
@@ -28,6 +37,7 @@ namespace gf::detail {
 struct XfemBodyDef {
   TetMesh mesh;                     ///< Rest shape, positively oriented tets.
   std::vector<CutPlane> planes;     ///< Cuts; unit normals (eq 3.1 is then n.x - offset).
+  std::vector<XfemBlade> blades;    ///< Cuts numbered after the planes (static blades).
   double k = 0.1;                   ///< Eq 3.2: 0.1 Is-XFEM, 0 classic XFEM.
   LinearElastic material;           ///< Elasticity and density.
   std::vector<int32_t> fixedNodes;  ///< Nodes whose DOFs (standard and enriched) stay at rest.
@@ -35,25 +45,40 @@ struct XfemBodyDef {
   double dt = 1.0 / 60;             ///< Time step [s].
 };
 
-/// A piece: the part of the body on one side of every plane (bit j: positive side of plane j).
+/// A piece: a connected part of the body between opened cuts.
 struct XfemPiece {
+  /// Sides of the piece's first cell: bit j set on the positive side of cut j (planes first,
+  /// then blades); a cut that does not separate the piece may have cells on both sides.
+  unsigned mask = 0;
   double volume = 0;
+  int32_t cells = 0;
   Eigen::VectorXd load;  ///< integral over the piece of rho phi_A, per scalar shape function.
 };
 
-/// A cut polygon: plane j's face inside one tet (seen from the positive side's cell).
+/// A cut polygon: cut j's face inside one tet (seen from the positive side's cell).
 struct XfemCutFace {
   int32_t tet = 0;
-  int32_t plane = 0;
+  int32_t plane = 0;  ///< The cut: planes first, then blades.
+  bool opens = true;  ///< All four nodes carry the cut's enrichment: the faces may separate.
   CutPolygon polygon;
+};
+
+/// How a cut crosses the body.
+struct XfemCutReport {
+  int32_t fullTets = 0;      ///< Fully crossed tets (blade_path.h).
+  int32_t partialTets = 0;   ///< Tets the blade ends in: not enriched.
+  int32_t enrichedTets = 0;  ///< Tets carrying the cut's enrichment.
+  int32_t openTets = 0;      ///< Of those, tets whose four nodes are enriched.
+  double maxDeviation = 0;   ///< Blade's distance from its local planes, fully crossed tets.
 };
 
 /// The cut body, its enriched system and its state.
 class XfemBody {
  public:
   /// Builds cells, rules, element matrices and the factorised step matrix. Fails, naming the
-  /// field, on an empty mesh, a plane with a non-unit normal, more than kMaxCutPlanes planes
-  /// through one tet, a fixed node out of range, or a singular step matrix.
+  /// field, on an empty mesh, a plane with a non-unit normal, a bad blade (traceBlade), more
+  /// than 32 cuts or kMaxCutPlanes through one tet, a fixed node out of range, or a singular
+  /// step matrix.
   static Result<std::unique_ptr<XfemBody>> create(const XfemBodyDef& def);
 
   int32_t functionCount() const { return m_functionCount; }  ///< Scalar shape functions.
@@ -67,13 +92,17 @@ class XfemBody {
   const Eigen::VectorXd& displacement() const { return m_u; }  ///< 3 per shape function.
   Eigen::VectorXd& velocity() { return m_v; }                  ///< 3 per shape function.
 
-  /// Pieces by side mask; the mask of a piece is the same in every tet it covers.
-  const std::map<unsigned, XfemPiece>& pieces() const { return m_pieces; }
+  /// Pieces ordered by mask, then by their first tet.
+  const std::vector<XfemPiece>& pieces() const { return m_pieces; }
+  /// The first piece with this mask, or -1.
+  int pieceWithMask(unsigned mask) const;
   /// Mass-weighted mean displacement of a piece (its centre-of-mass motion).
-  Vec3 pieceMeanDisplacement(unsigned mask) const;
-  /// Linear momentum of a piece, or of the whole body when mask is ~0u.
-  Vec3 momentum(unsigned mask = ~0u) const;
-  /// Cut polygons (each plane's face in each tet it cuts).
+  Vec3 pieceMeanDisplacement(int piece) const;
+  /// Linear momentum of a piece, or of the whole body when piece < 0.
+  Vec3 momentum(int piece = -1) const;
+  /// Per cut (planes first, then blades): how it crosses the body.
+  const std::vector<XfemCutReport>& cutReports() const { return m_cutReports; }
+  /// Cut polygons (each cut's face in each tet carrying its enrichment).
   const std::vector<XfemCutFace>& cutFaces() const { return m_cutFaces; }
 
   /// The sparse step matrix A = M + dt^2 K over the free DOFs.
@@ -89,13 +118,14 @@ class XfemBody {
   XfemBody() = default;
   XfemBodyDef m_def;
   int32_t m_functionCount = 0, m_cutTets = 0;
-  std::vector<int32_t> m_enriched;      // node * planes + j -> function, or -1
+  std::vector<int32_t> m_enriched;      // node * cuts + j -> function, or -1
   std::vector<double> m_enrichedRatio;  // per enriched function: v of eq 3.16
   std::vector<int32_t> m_freeDof;       // free DOF -> DOF
   Eigen::SparseMatrix<double> m_mass, m_stiffness, m_stepMatrix;
   Eigen::VectorXd m_force, m_u, m_v;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> m_solver;
-  std::map<unsigned, XfemPiece> m_pieces;
+  std::vector<XfemPiece> m_pieces;
+  std::vector<XfemCutReport> m_cutReports;
   std::vector<XfemCutFace> m_cutFaces;
 };
 

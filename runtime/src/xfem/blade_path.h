@@ -1,0 +1,59 @@
+// The path of a blade (a triangle mesh, as for graph cuts) through the tets of an Is-XFEM body
+// (thesis sec 3.1): which tets it crosses, the cut plane it makes in each, and whether it crosses
+// each one fully.
+//
+// Design: a tet meets the blade when one of its faces meets a blade triangle (Moeller's
+// triangle-triangle test, kernels/tri_tri.h) or a blade vertex lies in it (a triangle wholly
+// inside). Within one tet the cut is a plane (the enrichment of eq 3.2 and the cells of
+// cut_polytope.h need one): the area-weighted mean of the blade's pieces clipped to the tet,
+// through their area centroid. For a blade that is planar across the tet this is the blade's own
+// plane; for a blade folded or curved inside the tet it is the best plane in the mean, and the
+// largest distance of the blade's pieces from it is reported (`deviation`) so a caller can see
+// how far the cut face strays from the blade. A tet is fully crossed when the blade splits it in
+// two: no blade boundary edge meets it (the blade does not end inside it), and every tet edge is
+// crossed by the blade exactly as often as by the local plane (once or never), which also rejects
+// a blade that folds back or closes on itself inside the tet. A tet the blade only touches (its
+// pieces have no area, or the local plane leaves every node on one side) is not a crossing.
+// Static blades only: a swept blade would be its swept triangles (cutting.h), not done here.
+#pragma once
+
+#include <graphfrac/mesh.h>
+#include <graphfrac/status.h>
+
+#include <vector>
+
+#include "fracture/cutting.h"
+#include "kernels/cut_polytope.h"
+
+namespace gf::detail {
+
+/// A blade at rest in the body's rest frame: world = pose.rotation * local + pose.translation.
+struct XfemBlade {
+  Blade blade;
+  BladePose pose;
+};
+
+/// Where a blade crosses one tet.
+struct BladeTetCrossing {
+  int32_t tet = 0;
+  CutPlane plane;         ///< The local cut plane, unit normal along the blade's orientation.
+  double deviation = 0;   ///< Largest distance of the blade's pieces in the tet from `plane`.
+  double area = 0;        ///< Area of the blade inside the tet.
+  int32_t triangles = 0;  ///< Blade triangles that meet the tet.
+  bool full = false;      ///< Fully crossed (see the design note); otherwise the blade ends here.
+};
+
+/// A blade's path: the tets it crosses, ascending.
+struct BladePath {
+  std::vector<BladeTetCrossing> crossings;
+  int32_t fullCount = 0, partialCount = 0;
+  int32_t touched = 0;        ///< Tets the blade meets without crossing.
+  int64_t triangleTests = 0;  ///< Moeller tests run (after bounding-box culling).
+  double maxDeviation = 0;    ///< Over the fully crossed tets.
+};
+
+/// Traces `blade` through `mesh` (positively oriented tets). Fails, naming the field, on a
+/// triangle index out of range, a non-finite vertex or a degenerate (zero-area) blade.
+Result<BladePath> traceBlade(const TetMesh& mesh, const XfemBlade& blade);
+
+}  // namespace gf::detail

@@ -1,0 +1,36 @@
+// Blades for the Is-XFEM tests: planar rectangles meshed with jittered interior vertices, so
+// a blade's triangles do not line up with the tets while the blade stays exactly planar.
+#pragma once
+
+#include <cstdint>
+#include <random>
+
+#include "fracture/cutting.h"
+
+namespace gf::test {
+
+/// The plane x = a + b y + c z over y, z in [lo, hi]: n x n cells, two triangles each, with
+/// jittered interior vertices, counter-clockwise in (y, z) so the normal points along
+/// +x - b y - c z.
+inline detail::Blade planarBlade(double a, double b, double c, double lo, double hi, int n,
+                                 unsigned seed = 3) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> jitter(-0.3, 0.3);
+  detail::Blade blade;
+  const double h = (hi - lo) / n;
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= n; ++j) {
+      const bool interior = i > 0 && i < n && j > 0 && j < n;
+      const double y = lo + h * (i + (interior ? jitter(rng) : 0));
+      const double z = lo + h * (j + (interior ? jitter(rng) : 0));
+      blade.vertices.insert(blade.vertices.end(), {a + b * y + c * z, y, z});
+    }
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const int32_t v00 = i * (n + 1) + j, v10 = v00 + n + 1, v01 = v00 + 1, v11 = v10 + 1;
+      blade.triangles.insert(blade.triangles.end(), {v00, v10, v11, v00, v11, v01});
+    }
+  return blade;
+}
+
+}  // namespace gf::test
