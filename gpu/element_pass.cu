@@ -23,7 +23,7 @@ bool DeviceElementPass::upload(const detail::ElementStage& h, const detail::Gath
       !m_restInverse.upload(h.restInverse, nt) || !m_restVolume.upload(h.restVolume, nt) ||
       !m_fibreDir.upload(h.fibreDir, nt) || !m_tetMask.upload(h.tetMask, nt) ||
       !m_chi.upload(damaged ? h.chi : nullptr, nt) || !m_rigidTet.upload(h.rigidTet, nt) ||
-      !m_edgeMatrix.upload(h.edgeMatrix, nt) ||
+      !m_tetLame.upload(h.tetLame, 2 * nt) || !m_edgeMatrix.upload(h.edgeMatrix, nt) ||
       !m_edgeMatrixInverse.upload(h.edgeMatrixInverse, nt) ||
       !m_nodeRefStart.upload(gather.nodeRefStart, nn + 1) ||
       !m_nodeRef.upload(gather.nodeRef, 4 * nt) || !m_energy.resize(nt) ||
@@ -52,6 +52,7 @@ bool DeviceElementPass::run(bool withHessian, bool withStress) {
   s.edgeMatrixInverse = m_edgeMatrixInverse.data();
   s.chi = m_chi.data();
   s.rigidTet = m_rigidTet.data();
+  s.tetLame = m_tetLame.data();
   s.energy = m_energy.data();
   s.grad = m_grad.data();
   s.hess = withHessian ? m_hess.data() : nullptr;

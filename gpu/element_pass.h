@@ -38,7 +38,7 @@ class DeviceElementPass {
   detail::ElementStage m_host;  // options and coefficients of the uploaded body
   DeviceBuffer<int32_t> m_tets, m_nodeRefStart, m_nodeRef;
   DeviceBuffer<double> m_x, m_restVolume, m_chi, m_energy, m_grad, m_hess, m_stress, m_nodeGrad,
-      m_partials, m_sum;
+      m_partials, m_sum, m_tetLame;
   DeviceBuffer<Mat3> m_restInverse;
   DeviceBuffer<Vec3> m_fibreDir;
   DeviceBuffer<uint8_t> m_tetMask, m_rigidTet;

@@ -256,6 +256,28 @@ struct PlasticitySettings {
   Result<void> check() const;
 };
 
+/// Water in a porous body (thesis sec 7.2.1-7.2.2), used once a wet brush touches it
+/// (World::wet): until then the body holds no water data and pays nothing. A tet's saturation
+/// S_w in [0, 1] is its water mass over its capacity waterDensity * porosity * V_e; water
+/// diffuses between face-neighbouring tets along the saturation gradient, and a tet's
+/// elasticity is that of the body's material (the dry matrix) holding water inclusions of
+/// volume fraction porosity * S_w (eq 7.1-7.4), so a wet region is smoothly softer.
+struct WettingSettings {
+  /// Pore volume fraction, in (0, 0.95]: the water volume fraction of a saturated tet.
+  double porosity = 0.4;
+  double waterDensity = 1000;  ///< rho_w [kg/m^3], > 0.
+  /// Diffusivity D [m^2/s] (>= 0; 0 = water stays where the brush put it). A step of dt
+  /// takes ceil(dt * D * max_e sum_f A_f / (d_f V_e)) explicit diffusion substeps over the
+  /// tet's faces f (area A_f, centroid distance d_f), so fine meshes with a large D cost more.
+  double diffusivity = 1e-4;
+  /// Bulk modulus of the pore water [Pa] (>= 0). 0 (the default) is drained water, which
+  /// flows out under load and carries no pressure: the wet material softens in bulk and
+  /// shear. 2.2e9 is undrained water: shear softens, bulk stiffens.
+  double waterBulkModulus = 0;
+  /// Empty when valid; otherwise names the field ("porosity: ...") and the reason.
+  Result<void> check() const;
+};
+
 /// Nodes whose velocity is prescribed: a pin (velocity 0) or a grip that pulls.
 struct Grip {
   std::vector<int32_t> nodes;
@@ -291,11 +313,12 @@ struct BodyDef {
   bool contact = false;
   FractureSettings fracture;
   PlasticitySettings plasticity;
+  WettingSettings wetting;
   /// Optional per-tet rest-space fibre directions (one per tet) overriding
   /// material.fibreDirection; used only when material.fibreStiffness > 0.
   std::vector<glm::vec3> fibreField;
   /// Everything World::createBody checks before it allocates: the mesh (validate()), the
-  /// material, solver, fracture and plasticity settings, node indices of grips and forces,
+  /// material, solver, fracture, plasticity and wetting settings, node indices of grips and forces,
   /// finite vectors, the fibre field. Empty when valid; otherwise names the field
   /// ("grips[1].nodes: ...") and the reason.
   Result<void> check() const;

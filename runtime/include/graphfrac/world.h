@@ -13,6 +13,7 @@
 #include "defs.h"
 #include "events.h"
 #include "ids.h"
+#include "sculpt.h"
 #include "status.h"
 #include "surface.h"
 
@@ -72,14 +73,16 @@ struct StepTimings {
   /// Body-body and self contact: surfaces, broad and narrow phase, momentum exchange (0 when no
   /// body takes part, BodyDef::contact).
   double contactMs = 0;
+  /// Wet and dry brushes, water diffusion and the wet stiffness (0 for bodies never wetted).
+  double wettingMs = 0;
   double totalMs = 0;
   /// Vertex-triangle contact pairs the step's substeps found (summed over substeps).
   int64_t contactPairs = 0;
 };
 
 /// A copy of everything a step reads (positions, velocities, plastic state, damage, broken
-/// edges, fragments, strengths, material, grip velocities, pending forces and cuts, solver
-/// history, time) for rollback and replays; see World::snapshot. An opaque, immutable value:
+/// edges, fragments, strengths, material, grip velocities, pending forces and cuts, water,
+/// solver history, time) for rollback and replays; see World::snapshot. An opaque, immutable value:
 /// copies share one buffer.
 class WorldSnapshot {
  public:
@@ -234,6 +237,27 @@ class World {
   /// stay zero or non-zero as at creation). A new density changes the lumped masses.
   Result<void> setMaterial(BodyId id, const Material& material);
 
+  // Sculpting (thesis ch. 7).
+
+  /// Wets the tets the brush touches during the next step (see WetBrush and
+  /// BodyDef::wetting); the first call on a body sets up its water (O(tets log tets), once).
+  /// Error for a bad id, a centre that is not finite or farther than 1e9 m from the origin, a
+  /// radius or rate that is not positive and finite.
+  Result<void> wet(BodyId id, const WetBrush& brush);
+  /// Dries like wet() wets: the touched tets lose rate * dt of saturation, down to 0.
+  Result<void> dry(BodyId id, const WetBrush& brush);
+  /// Water mass [kg] per tet; empty for an invalid id or a body never wetted.
+  std::span<const double> waterMass(BodyId id) const;
+  /// Saturation S_w in [0, 1] per tet (water mass over the tet's capacity); computed on each
+  /// call, O(tets), valid until the next call, step or body destruction. Empty for an invalid
+  /// id, a body never wetted, or during step().
+  std::span<const double> saturation(BodyId id);
+  /// After every step, publishes to `probe` the force [N] that collider `collider` (a sphere
+  /// collider as the sculpting proxy) received from the bodies over that step, -impulse / dt,
+  /// with the world's time: a haptic thread polls it (HapticProbe). Null detaches. The probe
+  /// must outlive the attachment. Error for a collider index out of range of colliders().
+  Result<void> attachHapticProbe(HapticProbe* probe, int collider = 0);
+
   /// Replaces every collider (WorldDef::colliders included), e.g. with the game's rigid bodies
   /// at their current pose and velocity before each step (integration/bullet does this). The
   /// world treats them as kinematic: they push the bodies and report what they gave
@@ -263,8 +287,8 @@ class World {
   /// is unchanged since the snapshot. A body with fragments handed to rigid physics
   /// (detachFragment) cannot be restored yet: that is an error.
   Result<void> restore(const WorldSnapshot& snapshot);
-  /// FNV-1a over every live body's id, positions, velocities and broken-edge flags and the
-  /// time: equal hashes for equal states, for determinism checks across threads and runs.
+  /// FNV-1a over every live body's id, positions, velocities, broken-edge flags and water
+  /// and the time: equal hashes for equal states, for determinism checks across threads and runs.
   uint64_t stateHash() const;
 
  private:

@@ -22,17 +22,23 @@ GF_HD void tetCorners(const int32_t* tets, const double* x, int32_t t, Vec3 xe[4
 }
 
 /// The material coefficients of tet t: the body's, with the tet's own fibre direction when
-/// the body has a fibre field (fibreDir non-null).
-GF_HD MaterialCoeffs tetCoeffs(const MaterialCoeffs& body, const Vec3* fibreDir, int32_t t) {
+/// the body has a fibre field (fibreDir non-null) and its own (mu, lambda) when the body holds
+/// water (tetLame non-null, 2 per tet; FemState::tetLame).
+GF_HD MaterialCoeffs tetCoeffs(const MaterialCoeffs& body, const Vec3* fibreDir, int32_t t,
+                               const double* tetLame = nullptr) {
   MaterialCoeffs c = body;
   if (fibreDir) c.fibreDir = fibreDir[t];
+  if (tetLame) {
+    c.mu = tetLame[2 * int64_t(t)];
+    c.lambda = tetLame[2 * int64_t(t) + 1];
+  }
   return c;
 }
 
 /// Energy, gradient, PSD Hessian and criterion stress of every tet at x (SPEC §1; damaged
 /// tets eq 4.25-4.27 or 4.32-4.33). Nullable inputs: fibreDir (no fibre field), tetMask (no
 /// fracture), edgeMatrix/edgeMatrixInverse (no projection model: identity), rigidTet (no
-/// detached fragment). Nullable outputs: hess, stress.
+/// detached fragment), tetLame (no water). Nullable outputs: hess, stress.
 struct ElementStage {
   const int32_t* tets = nullptr;      ///< 4 per tet
   const double* x = nullptr;          ///< 3 per node
@@ -46,9 +52,10 @@ struct ElementStage {
   const Mat<6, 6>* edgeMatrixInverse = nullptr;
   const double* chi = nullptr;
   const uint8_t* rigidTet = nullptr;
-  double* energy = nullptr;  ///< per tet
-  double* grad = nullptr;    ///< 12 per tet
-  double* hess = nullptr;    ///< 144 per tet
+  const double* tetLame = nullptr;  ///< 2 per tet: (mu, lambda) of a wet body
+  double* energy = nullptr;         ///< per tet
+  double* grad = nullptr;           ///< 12 per tet
+  double* hess = nullptr;           ///< 144 per tet
   double* stress = nullptr;  ///< 6 per tet (Voigt), undamaged tets only: FractureBody does the rest
 
   GF_HD void operator()(int32_t t) const {
@@ -65,7 +72,7 @@ struct ElementStage {
     }
     Vec3 xe[4];
     tetCorners(tets, x, t, xe);
-    const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t);
+    const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t, tetLame);
     const uint8_t mask = tetMask ? tetMask[t] : 0;
     if (mask == 0) {
       Mat3 S;
@@ -116,7 +123,8 @@ struct PlasticityStage {
   const double* x = nullptr;
   const Mat3* restInverse = nullptr;  ///< Dm^-1
   MaterialCoeffs coeffs;
-  const Vec3* fibreDir = nullptr;  ///< per tet, or null
+  const Vec3* fibreDir = nullptr;   ///< per tet, or null
+  const double* tetLame = nullptr;  ///< 2 per tet, or null (see ElementStage)
   PlasticParams params;
   double h = 0;
   Mat3* Fp = nullptr;
@@ -127,7 +135,7 @@ struct PlasticityStage {
   GF_HD void operator()(int32_t t) const {
     Vec3 xe[4];
     tetCorners(tets, x, t, xe);
-    const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t);
+    const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t, tetLame);
     const Mat3 Fe = deformationGradient(xe, plasticInverse[t]);
     if (plasticUpdate(params, materialStress(c, Fe), Fe, h, Fp[t], FpInv[t], delta[t]))
       plasticInverse[t] = restInverse[t] * FpInv[t];

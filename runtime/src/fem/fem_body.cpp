@@ -47,6 +47,7 @@ FemModel buildFemModel(const BodyDef& def) {
                             (hi[2] - lo[2]) * (hi[2] - lo[2]));
   m.fracture = def.fracture;
   m.plasticity = def.plasticity;
+  m.wetting = def.wetting;
   if (def.material.fibreStiffness > 0 && !def.fibreField.empty()) {
     m.fibreDir.resize(m.tetCount);
     for (int32_t t = 0; t < m.tetCount; ++t) {

@@ -27,6 +27,7 @@ struct FemModel {
   bool contact = false;   ///< BodyDef::contact
   FractureSettings fracture;
   PlasticitySettings plasticity;
+  WettingSettings wetting;
   std::vector<Vec3> fibreDir;  ///< per tet, only with a fibre field (else empty)
 };
 
@@ -53,6 +54,11 @@ struct FemState {
   // pass and the fracture criterion use instead of Dm^-1.
   std::vector<Mat3> Fp, FpInv, plasticInverse;
   std::vector<double> plasticDelta;
+  // Water (sculpt/wetting.h), empty until the body's first wet brush: the water mass per tet
+  // and the kernel's (mu, lambda) per tet that it gives (eq 7.1-7.4), which replace
+  // coeffs.mu and coeffs.lambda in every element kernel.
+  std::vector<double> water;
+  std::vector<double> tetLame;
 };
 
 /// Builds the model from a validated definition (mesh already checked by the caller). Its

@@ -137,6 +137,7 @@ ElementStage Integrator::elementStage(const FemModel& model, const FemState& sta
     s.chi = m_fracture->chi();
   }
   s.rigidTet = state.rigidTet.empty() ? nullptr : state.rigidTet.data();
+  s.tetLame = state.tetLame.empty() ? nullptr : state.tetLame.data();
   s.energy = energy;
   s.grad = grad;
   s.hess = hess;

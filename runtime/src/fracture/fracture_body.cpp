@@ -107,6 +107,7 @@ CriterionStressStage FractureBody::stressStage(const FemModel& fem, const FemSta
   s.restInverse = data.plasticInverse.empty() ? fem.restInverse.data() : data.plasticInverse.data();
   s.coeffs = data.coeffs;
   s.fibreDir = fem.fibreDir.empty() ? nullptr : fem.fibreDir.data();
+  s.tetLame = data.tetLame.empty() ? nullptr : data.tetLame.data();
   s.tetMask = m_tetMask.data();
   s.chi = m_chi.data();
   s.degradation = m_damageModel == 1;

@@ -39,7 +39,8 @@ struct CriterionStressStage {
   const double* x = nullptr;
   const Mat3* restInverse = nullptr;  ///< Dm^-1, or Dm^-1 Fp^-1 when plastic (eq 2.3)
   MaterialCoeffs coeffs;
-  const Vec3* fibreDir = nullptr;  ///< per tet, or null
+  const Vec3* fibreDir = nullptr;   ///< per tet, or null
+  const double* tetLame = nullptr;  ///< 2 per tet, or null (see ElementStage)
   const uint8_t* tetMask = nullptr;
   const double* chi = nullptr;
   bool degradation = false;  ///< damage model of eq 4.32-4.33 (else projection)
@@ -49,7 +50,7 @@ struct CriterionStressStage {
   GF_HD Mat3 intactStress(int32_t t) const {
     Vec3 xe[4];
     tetCorners(tets, x, t, xe);
-    const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t);
+    const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t, tetLame);
     return materialStress(c, deformationGradient(xe, restInverse[t]));
   }
 

@@ -179,6 +179,18 @@ Result<void> PlasticitySettings::check() const {
   return {};
 }
 
+Result<void> WettingSettings::check() const {
+  if (!(porosity > 0 && porosity <= 0.95))
+    return fail("porosity: must lie in (0, 0.95], got ", num(porosity));
+  if (!(positiveFinite(waterDensity) && waterDensity <= 1e6))
+    return fail("waterDensity: must be positive, at most 1e6 kg/m^3, got ", num(waterDensity));
+  if (!(std::isfinite(diffusivity) && diffusivity >= 0 && diffusivity <= 1e3))
+    return fail("diffusivity: must lie in [0, 1e3] m^2/s, got ", num(diffusivity));
+  if (!(std::isfinite(waterBulkModulus) && waterBulkModulus >= 0 && waterBulkModulus <= 1e15))
+    return fail("waterBulkModulus: must lie in [0, 1e15] Pa, got ", num(waterBulkModulus));
+  return {};
+}
+
 Result<void> Collider::check() const {
   if (kind != Kind::Plane && kind != Kind::Box && kind != Kind::Sphere)
     return fail("kind: ", std::to_string(static_cast<int>(kind)), " is not a Collider::Kind");
@@ -241,6 +253,7 @@ Result<void> checkBodySettings(const BodyDef& def) {
     return fail("fracture.fibreStrengthRatio: ", num(def.fracture.fibreStrengthRatio),
                 " needs fibres (material.fibreStiffness > 0); use 1 for an isotropic strength");
   if (auto r = def.plasticity.check(); !r) return fail("plasticity.", r.error().message);
+  if (auto r = def.wetting.check(); !r) return fail("wetting.", r.error().message);
   const int64_t nn = int64_t(def.mesh.nodeCount());
   for (size_t g = 0; g < def.grips.size(); ++g) {
     if (!bounded3(def.grips[g].velocity))

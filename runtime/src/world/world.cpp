@@ -123,6 +123,7 @@ void World::Impl::plasticUpdate(BodyRecord& b, double h, JobSystem& js) {
   stage.restInverse = m.restInverse.data();
   stage.coeffs = s.coeffs;
   stage.fibreDir = m.fibreDir.empty() ? nullptr : m.fibreDir.data();
+  stage.tetLame = s.tetLame.empty() ? nullptr : s.tetLame.data();
   stage.params = {m.plasticity.yieldStress, m.plasticity.flowRate, m.plasticity.hardening};
   stage.h = h;
   stage.Fp = s.Fp.data();
@@ -281,6 +282,7 @@ StepStatus World::step(double dt) {
   }
   const auto t0 = detail::Clock::now();
   w.timings = {};
+  w.advanceWater(dt);
   w.fractureEvents.clear();
   w.fragmentEvents.clear();
   w.handoffEvents.clear();
@@ -383,6 +385,7 @@ StepStatus World::step(double dt) {
   for (Slot& s : w.slots)
     if (s.body && s.body->surface) s.body->surfaceStale = true;
   w.time += dt;
+  w.publishProbe(dt);
   w.timings.totalMs = detail::msSince(t0);
   if (st.message.empty()) {
     if (st.has(kStepNotConverged))

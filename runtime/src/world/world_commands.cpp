@@ -247,6 +247,8 @@ Result<void> World::setMaterial(BodyId id, const Material& material) {
   s.material = material;
   s.coeffs = detail::toCoeffs(material);
   if (newDensity) detail::lumpMasses(b->model, material.density, s.nodeMass);
+  if (b->wetting && !s.water.empty())
+    detail::refreshWetStiffness(b->model, *b->wetting, s, *m_impl->jobs);
   return {};
 }
 

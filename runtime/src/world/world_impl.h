@@ -16,6 +16,7 @@
 #include "fem/integrator.h"
 #include "fracture/fracture_body.h"
 #include "graphfrac/world.h"
+#include "sculpt/wetting.h"
 #include "surface/crack_surface.h"
 #include "world/backend.h"
 #include "world/validation.h"
@@ -69,6 +70,12 @@ struct BodyRecord {
   // uses it, and its scratch of excluded (detached) fragments.
   std::unique_ptr<detail::ContactSurface> contactSurface;
   std::vector<uint8_t> contactExcluded;
+  // Water (World::wet): the transport model, made at the first brush (null: never wetted; the
+  // water itself is state, FemState::water), the strokes of the next step, and
+  // World::saturation's output.
+  std::unique_ptr<detail::WettingModel> wetting;
+  std::vector<detail::WaterStroke> strokes;
+  std::vector<double> saturation;
 };
 
 /// Kernel form of a collider; the stiffness is filled in per step (World::Impl::context).
@@ -115,6 +122,14 @@ struct World::Impl {
   std::vector<HandoffEvent> handoffEvents;
   double time = 0;
   double lastSubstep = 1.0 / 60;  // contact stiffness of stats() follows the last step
+  // World::attachHapticProbe: where each step's proxy force goes (null: nowhere).
+  HapticProbe* probe = nullptr;
+  int probeCollider = 0;
+  // Brush strokes and diffusion of every wetted body over a step of dt, before its substeps,
+  // and the per-tet stiffness that follows (world_sculpt.cpp).
+  void advanceWater(double dt);
+  // Publishes the proxy force of the step of dt that just ended to the attached probe.
+  void publishProbe(double dt);
   // Set while step() runs: calls that change the world are refused then (a job callback
   // re-entering the world would race the step).
   std::atomic<bool> stepping{false};

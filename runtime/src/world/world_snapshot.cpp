@@ -14,6 +14,7 @@ struct BodySnapshot {
   int32_t nodeCount = 0, tetCount = 0;
   detail::FemState state;
   std::vector<double> pendingForce;
+  std::vector<detail::WaterStroke> strokes;  // wet and dry brushes queued for the next step
   bool hasFracture = false;
   detail::FractureBody::State fracture;
   std::vector<int32_t> rebindHistory;
@@ -54,6 +55,7 @@ WorldSnapshot World::snapshot() const {
     s.tetCount = b->model.tetCount;
     s.state = b->state;
     s.pendingForce = b->pendingForce;
+    s.strokes = b->strokes;
     s.hasFracture = b->fracture != nullptr;
     if (b->fracture) s.fracture = b->fracture->saveState();
     s.rebindHistory = b->integrator->rebindHistory();
@@ -97,6 +99,7 @@ Result<void> World::restore(const WorldSnapshot& snapshot) {
     BodyRecord& b = *w.slots[s.slot].body;
     b.state = s.state;
     b.pendingForce = s.pendingForce;
+    b.strokes = s.strokes;
     if (b.fracture) b.fracture->restoreState(s.fracture);
     b.stepEndValid = false;
     // Cannot fail: the same set-up succeeded when the body was created.
@@ -134,6 +137,7 @@ uint64_t World::stateHash() const {
     mix(b->state.x.data(), b->state.x.size() * sizeof(double));
     mix(b->state.v.data(), b->state.v.size() * sizeof(double));
     if (b->fracture) mix(b->fracture->broken().data(), b->fracture->broken().size());
+    mix(b->state.water.data(), b->state.water.size() * sizeof(double));  // empty: never wetted
   }
   mix(&w.time, sizeof w.time);
   return h;

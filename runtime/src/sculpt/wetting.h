@@ -1,0 +1,159 @@
+// Water in a porous body (thesis sec 7.2.1-7.2.2): per-tet water mass m_w, saturation
+// S_w = m_w / C_e (C_e = rho_w * porosity * V_e, the tet's capacity: the thesis's m_w / V_e with
+// water measured in capacity units), brushes that add or remove water where they touch, and
+// diffusion between face neighbours along the saturation gradient (Patkar and Chaudhuri 2013,
+// without dripping).
+//
+// Design. Diffusion is a finite-volume two-point flux on the rest mesh (water lives in the
+// material): through the face f shared by tets a and b flows
+//   q_f = G_f (S_a - S_b) h,   G_f = rho_w porosity D A_f / |c_a - c_b|
+// (A_f the rest face area, c the rest centroids, D the diffusivity). The flux stage computes
+// q_f once per face and the gather stage subtracts it from a and adds it to b, in a fixed CSR
+// order, so the total water mass changes only by round-off and the result does not depend on
+// the thread count. Explicit Euler is a convex combination of the old saturations, hence
+// monotone (S stays in [0, 1], no negative water) when h sum_f G_f / C_e <= 1 for every tet;
+// a step of dt takes ceil(dt * rateBound) equal substeps so that holds.
+// A body gets this model at its first wet brush: a body that never gets wet pays nothing (no
+// buffers, one null check per step, and a null per-tet stiffness in the element pass).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "fem/fem_body.h"
+#include "graphfrac/defs.h"
+#include "graphfrac/jobs.h"
+#include "kernels/contact.h"
+#include "kernels/materials.h"
+#include "kernels/wetting.h"
+
+namespace gf::detail {
+
+/// Rest-mesh data of a body's water transport; fixed for its lifetime.
+struct WettingModel {
+  WettingSettings settings;
+  std::vector<int32_t> faceTets;      ///< 2 per interior face: the tets a < b sharing it
+  std::vector<double> conductance;    ///< G_f per face [kg/s per unit saturation]
+  std::vector<int32_t> tetFaceStart;  ///< tetCount + 1 (CSR)
+  std::vector<int32_t> tetFace;       ///< 2 f + 0 where the tet is a (loses q_f), 2 f + 1 if b
+  std::vector<double> capacity;       ///< C_e = rho_w porosity V_e [kg]
+  double rateBound = 0;               ///< max_e sum_f G_f / C_e [1/s]
+  std::vector<double> flux;           ///< scratch, one per face
+};
+
+/// The model of a body's rest mesh with these settings.
+WettingModel buildWettingModel(const FemModel& model, const WettingSettings& settings);
+
+/// Diffusion substeps a step of dt takes (>= 1): the stability bound of the file comment.
+int32_t diffusionSubsteps(const WettingModel& w, double dt);
+
+/// A wet (+) or dry (-) brush stroke queued for the next step.
+struct WaterStroke {
+  Vec3 centre;
+  double radius = 0;
+  double rate = 0;  ///< saturation per second, negative for drying
+};
+
+/// Distance from p to tet t at positions x (0 inside).
+GF_HD double distanceToTet(const int32_t* tets, const double* x, int32_t t, Vec3 p) {
+  Vec3 c[4];
+  for (int a = 0; a < 4; ++a) {
+    const int64_t n = tets[4 * int64_t(t) + a];
+    c[a] = {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
+  }
+  // Inside when p lies on the inner side of all four faces (either orientation of the tet).
+  const int faces[4][4] = {{1, 2, 3, 0}, {0, 3, 2, 1}, {0, 1, 3, 2}, {0, 2, 1, 3}};
+  bool inside = true;
+  double best = 1e300;
+  for (const auto& f : faces) {
+    const Vec3 a = c[f[0]], b = c[f[1]], d = c[f[2]], opposite = c[f[3]];
+    const Vec3 n = cross(b - a, d - a);
+    if (dot(n, p - a) * dot(n, opposite - a) < 0) inside = false;
+    const Vec3 w = closestOnTriangle(p, a, b, d);
+    const Vec3 q = w.x * a + w.y * b + w.z * d;
+    const double dist = norm(p - q);
+    best = dist < best ? dist : best;
+  }
+  return inside ? 0.0 : best;
+}
+
+/// Adds rate * h of saturation to every tet within `radius` of `centre` (at positions x),
+/// clamped to [0, 1].
+struct WaterBrushStage {
+  const int32_t* tets = nullptr;
+  const double* x = nullptr;
+  const double* capacity = nullptr;
+  Vec3 centre;
+  double radius = 0;
+  double delta = 0;  ///< saturation change
+  double* water = nullptr;
+
+  GF_HD void operator()(int32_t t) const {
+    if (distanceToTet(tets, x, t, centre) > radius) return;
+    double s = water[t] / capacity[t] + delta;
+    s = s < 0 ? 0 : (s > 1 ? 1 : s);
+    water[t] = s * capacity[t];
+  }
+};
+
+/// q_f = G_f (S_a - S_b) h for every face (mass from a to b).
+struct WaterFluxStage {
+  const int32_t* faceTets = nullptr;
+  const double* conductance = nullptr;
+  const double* capacity = nullptr;
+  const double* water = nullptr;
+  double h = 0;
+  double* flux = nullptr;
+
+  GF_HD void operator()(int32_t f) const {
+    const int32_t a = faceTets[2 * int64_t(f)], b = faceTets[2 * int64_t(f) + 1];
+    flux[f] = conductance[f] * (water[a] / capacity[a] - water[b] / capacity[b]) * h;
+  }
+};
+
+/// m_e -= outgoing fluxes, += incoming ones, in CSR order (see the file comment).
+struct WaterGatherStage {
+  const int32_t* tetFaceStart = nullptr;
+  const int32_t* tetFace = nullptr;
+  const double* flux = nullptr;
+  double* water = nullptr;
+
+  GF_HD void operator()(int32_t t) const {
+    double dm = 0;
+    for (int32_t k = tetFaceStart[t]; k < tetFaceStart[t + 1]; ++k) {
+      const int32_t ref = tetFace[k];
+      dm += (ref & 1) ? flux[ref >> 1] : -flux[ref >> 1];
+    }
+    water[t] += dm;
+  }
+};
+
+/// The kernel coefficients (mu, lambda) of each tet from its saturation (eq 7.1-7.4): the
+/// body's material as the dry matrix, water as spherical inclusions of volume fraction
+/// porosity * S_w.
+struct WetStiffnessStage {
+  const double* water = nullptr;
+  const double* capacity = nullptr;
+  double porosity = 0;
+  IsoModuli solid, fluid;
+  int model = kStableNeoHookean;
+  double* tetLame = nullptr;  ///< 2 per tet
+
+  GF_HD void operator()(int32_t t) const {
+    const double s = water[t] / capacity[t];
+    const IsoModuli m = eshelbyEffective(solid, fluid, porosity * s);
+    const MaterialCoeffs c = makeMaterialCoeffs(model, youngOf(m), poissonOf(m), 0, Vec3{});
+    tetLame[2 * int64_t(t)] = c.mu;
+    tetLame[2 * int64_t(t) + 1] = c.lambda;
+  }
+};
+
+/// Applies the strokes, then diffuses over dt (diffusionSubsteps), through `jobs`.
+void advanceWater(const FemModel& model, WettingModel& w, std::vector<double>& water,
+                  const double* x, const std::vector<WaterStroke>& strokes, double dt,
+                  JobSystem& jobs);
+/// Per-tet (mu, lambda) of `state` from its water (state.water non-empty).
+void refreshWetStiffness(const FemModel& model, const WettingModel& w, FemState& state,
+                         JobSystem& jobs);
+
+}  // namespace gf::detail

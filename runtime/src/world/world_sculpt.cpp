@@ -1,0 +1,93 @@
+// World: sculpting commands (thesis ch. 7): wet and dry brushes, the water queries, and the
+// haptic probe the step publishes to.
+#include <cmath>
+#include <string>
+
+#include "step/timing.h"
+#include "world/world_impl.h"
+
+namespace gf {
+
+namespace {
+// The checks of wet and dry, then the stroke queued for the next step. `busy` is
+// World::Impl::busy's message, `b` the body or null.
+Result<void> queueStroke(const std::string& busy, BodyRecord* b, const WetBrush& brush,
+                         const char* call, double sign) {
+  if (!busy.empty()) return fail(busy);
+  if (!b) return fail(call, ": stale or null BodyId");
+  if (!bounded3(brush.centre))
+    return fail(call, ": brush.centre must be finite, within 1e9 m of the origin");
+  if (!(std::isfinite(brush.radius) && brush.radius > 0 && brush.radius <= detail::kMaxMagnitude))
+    return fail(call, ": brush.radius must be positive and at most 1e9 m, got ",
+                std::to_string(brush.radius));
+  if (!(std::isfinite(brush.rate) && brush.rate > 0))
+    return fail(call, ": brush.rate must be a positive finite saturation per second, got ",
+                std::to_string(brush.rate));
+  if (!b->wetting) {
+    b->wetting = std::make_unique<detail::WettingModel>(
+        detail::buildWettingModel(b->model, b->model.wetting));
+  }
+  if (b->state.water.empty()) b->state.water.assign(size_t(b->model.tetCount), 0.0);
+  detail::WaterStroke s;
+  s.centre = {brush.centre.x, brush.centre.y, brush.centre.z};
+  s.radius = brush.radius;
+  s.rate = sign * brush.rate;
+  b->strokes.push_back(s);
+  return {};
+}
+}  // namespace
+
+Result<void> World::wet(BodyId id, const WetBrush& brush) {
+  return queueStroke(m_impl->busy("wet"), m_impl->get(id), brush, "wet", 1.0);
+}
+
+Result<void> World::dry(BodyId id, const WetBrush& brush) {
+  return queueStroke(m_impl->busy("dry"), m_impl->get(id), brush, "dry", -1.0);
+}
+
+std::span<const double> World::waterMass(BodyId id) const {
+  const BodyRecord* b = m_impl->get(id);
+  return b ? std::span<const double>(b->state.water) : std::span<const double>();
+}
+
+std::span<const double> World::saturation(BodyId id) {
+  BodyRecord* b = m_impl->get(id);
+  if (!b || !b->wetting || b->state.water.empty() || m_impl->stepping.load()) return {};
+  const std::vector<double>& cap = b->wetting->capacity;
+  b->saturation.resize(cap.size());
+  for (size_t t = 0; t < cap.size(); ++t) b->saturation[t] = b->state.water[t] / cap[t];
+  return b->saturation;
+}
+
+Result<void> World::attachHapticProbe(HapticProbe* probe, int collider) {
+  if (std::string e = m_impl->busy("attachHapticProbe"); !e.empty()) return fail(e);
+  if (probe && (collider < 0 || size_t(collider) >= m_impl->colliders.size()))
+    return fail("attachHapticProbe: collider ", std::to_string(collider), " out of range [0, ",
+                std::to_string(m_impl->colliders.size()), ")");
+  m_impl->probe = probe;
+  m_impl->probeCollider = collider;
+  return {};
+}
+
+void World::Impl::advanceWater(double dt) {
+  const auto t0 = detail::Clock::now();
+  bool any = false;
+  for (Slot& s : slots) {
+    BodyRecord* b = s.body.get();
+    if (!b || !b->wetting || b->state.water.empty()) continue;
+    any = true;
+    detail::advanceWater(b->model, *b->wetting, b->state.water, b->state.x.data(), b->strokes, dt,
+                         *jobs);
+    b->strokes.clear();
+    detail::refreshWetStiffness(b->model, *b->wetting, b->state, *jobs);
+  }
+  if (any) timings.wettingMs = detail::msSince(t0);
+}
+
+void World::Impl::publishProbe(double dt) {
+  // The colliders may have been replaced by fewer since the probe was attached: then nothing.
+  if (!probe || size_t(probeCollider) >= impulses.size()) return;
+  probe->publish(-impulses[size_t(probeCollider)] / dt, time);
+}
+
+}  // namespace gf
