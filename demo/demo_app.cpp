@@ -1,8 +1,5 @@
-// graphfrac-demo: one World/bridge frame per scene frame (BulletScene), then one render of every
-// body's surface stream and every rigid body, written as a PNG. Mesh slots are fixed for the
-// whole run (the scene's bodies, then its rigid bodies), so the renderer keeps each buffer and
-// uploads only what changed: a body's dirty vertex range, or everything after a fracture
-// changed its topology; the rigid shapes upload once and move by their model matrix.
+// graphfrac-demo: one World/bridge frame per scene frame (BulletScene), then one render of what
+// SceneDrawing makes of it (every body's surface stream and every rigid body), written as a PNG.
 #include "demo_app.h"
 
 #include <spawn.h>
@@ -139,23 +136,6 @@ std::string parseArgs(int argc, char** argv, DemoOptions& o, bool& help) {
   return {};
 }
 
-void pushVec(std::vector<float>& v, const glm::dvec3& p) {
-  v.push_back(float(p.x));
-  v.push_back(float(p.y));
-  v.push_back(float(p.z));
-}
-
-/// A square as 4 vertices and 2 triangles: corners c +- a +- b, facing n = a x b / |a x b|.
-void addQuad(ShapeMesh& m, const glm::dvec3& c, const glm::dvec3& a, const glm::dvec3& b,
-             const glm::dvec3& n) {
-  const auto base = uint32_t(m.positions.size() / 3);
-  for (const glm::dvec3& p : {c - a - b, c + a - b, c + a + b, c - a + b}) {
-    pushVec(m.positions, p);
-    pushVec(m.normals, n);
-  }
-  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) m.indices.push_back(base + i);
-}
-
 /// Every point the camera should see of a rigid body (its bounding box corners; the square of
 /// a plane) in world space.
 std::vector<glm::dvec3> rigidBoundPoints(const scene::SceneRigidBody& r) {
@@ -173,30 +153,6 @@ std::vector<glm::dvec3> rigidBoundPoints(const scene::SceneRigidBody& r) {
     pts.push_back(r.position + extent * glm::dvec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1));
   }
   return pts;
-}
-
-/// A static collider of the scene ("colliders") as the shape it is drawn with.
-scene::SceneRigidBody colliderShape(const Collider& c) {
-  scene::SceneRigidBody r;
-  r.position = glm::dvec3(c.point);
-  r.colour = glm::vec3(0.5f, 0.5f, 0.53f);
-  switch (c.kind) {
-    case Collider::Kind::Sphere:
-      r.shape = scene::SceneRigidBody::Shape::Sphere;
-      r.radius = c.radius;
-      break;
-    case Collider::Kind::Box:
-      r.shape = scene::SceneRigidBody::Shape::Box;
-      r.halfExtents = glm::dvec3(c.halfExtents);
-      r.orientation = glm::normalize(glm::dquat(c.rotation));
-      break;
-    case Collider::Kind::Plane:
-      r.shape = scene::SceneRigidBody::Shape::Plane;
-      r.normal = glm::normalize(glm::dvec3(c.normal));
-      r.offset = glm::dot(r.normal, r.position);
-      break;
-  }
-  return r;
 }
 
 /// Near and far planes for everything in `pts` (and the target) seen from the eye.
@@ -386,50 +342,6 @@ std::string frameName(int frame) {
 }
 
 }  // namespace
-
-ShapeMesh rigidMesh(const scene::SceneRigidBody& r) {
-  using Shape = scene::SceneRigidBody::Shape;
-  ShapeMesh m;
-  if (r.shape == Shape::Sphere) {
-    // Latitude theta from the +y pole, longitude phi; d/dphi x d/dtheta points outwards, so
-    // (a, a+1, b) and (a+1, b+1, b) are counter-clockwise seen from outside.
-    constexpr uint32_t kRings = 16, kSegments = 32;
-    for (uint32_t i = 0; i <= kRings; ++i) {
-      const double theta = std::numbers::pi * i / kRings;
-      for (uint32_t j = 0; j <= kSegments; ++j) {
-        const double phi = 2 * std::numbers::pi * j / kSegments;
-        const glm::dvec3 n(std::sin(theta) * std::cos(phi), std::cos(theta),
-                           std::sin(theta) * std::sin(phi));
-        pushVec(m.positions, r.radius * n);
-        pushVec(m.normals, n);
-      }
-    }
-    for (uint32_t i = 0; i < kRings; ++i) {
-      for (uint32_t j = 0; j < kSegments; ++j) {
-        const uint32_t a = i * (kSegments + 1) + j, b = a + kSegments + 1;
-        if (i != 0) m.indices.insert(m.indices.end(), {a, a + 1, b});  // not at the poles
-        if (i + 1 != kRings) m.indices.insert(m.indices.end(), {a + 1, b + 1, b});
-      }
-    }
-  } else if (r.shape == Shape::Box) {
-    // Per face: its normal n and axes u, v with u x v = n, so the quad faces outwards.
-    const glm::dvec3 h = r.halfExtents;
-    const glm::dvec3 x(1, 0, 0), y(0, 1, 0), z(0, 0, 1);
-    const std::array<std::array<glm::dvec3, 3>, 6> faces = {{{x, y * h.y, z * h.z},
-                                                             {-x, z * h.z, y * h.y},
-                                                             {y, z * h.z, x * h.x},
-                                                             {-y, x * h.x, z * h.z},
-                                                             {z, x * h.x, y * h.y},
-                                                             {-z, y * h.y, x * h.x}}};
-    for (const auto& f : faces) addQuad(m, f[0] * glm::dot(glm::abs(f[0]), h), f[1], f[2], f[0]);
-  } else {
-    const glm::dvec3 n = r.normal;
-    const glm::dvec3 u = scene::anyPerpendicular(n), w = glm::cross(n, u);  // u x w = n
-    const double half = 0.5 * r.renderSize;
-    addQuad(m, r.offset * n, half * u, half * w, n);
-  }
-  return m;
-}
 
 std::vector<Bounds> bodyBounds(const World& world, std::span<const BodyId> bodies) {
   std::vector<Bounds> out(bodies.size());
@@ -688,35 +600,7 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
     std::fflush(stdout);
   }
 
-  // Mesh slots: the bodies' surface streams, then the rigid bodies and the static colliders
-  // (uploaded once, moved by their model matrix).
-  std::vector<scene::SceneRigidBody> drawn = sc.rigidBodies;
-  for (const Collider& c : sc.world.colliders) drawn.push_back(colliderShape(c));
-  std::vector<ShapeMesh> shapes;
-  for (const scene::SceneRigidBody& r : drawn) shapes.push_back(rigidMesh(r));
-  const size_t slots = sc.bodies.size() + shapes.size();
-  std::vector<MeshFrame> meshes(slots);
-  std::vector<uint64_t> lastVersion(slots, 0), lastVertices(slots, 0), lastTriangles(slots, 0);
-  for (size_t i = 0; i < sc.bodies.size(); ++i) {
-    meshes[i].colour = sc.bodies[i].colour;
-    meshes[i].crackColour = sc.bodies[i].crackColour;
-    meshes[i].crackLook = crackLook(sc.bodies[i].interior);
-  }
-  for (size_t k = 0; k < shapes.size(); ++k) {
-    MeshFrame& m = meshes[sc.bodies.size() + k];
-    m.positions = shapes[k].positions;
-    m.normals = shapes[k].normals;
-    m.indices = shapes[k].indices;
-    m.topologyVersion = 1;
-    m.colour = drawn[k].colour;
-    // A plane is the ground: it shows its scale and receives shadows without casting any.
-    if (drawn[k].shape == scene::SceneRigidBody::Shape::Plane) {
-      m.gridSpacing = kGroundCell;
-      m.castsShadow = false;
-    }
-  }
-
-  std::vector<std::vector<float>> strain(sc.bodies.size());  // --strain: per vertex, 0..1
+  SceneDrawing drawing(sc);
   cli::Progress progress(frames, cli::Progress::detect(stderr, opt.quiet));
   Image image;
   double simSum = 0, bulletSum = 0, renderSum = 0, pngSum = 0, upSum = 0, fullSum = 0;
@@ -730,56 +614,9 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
     f.simMs = sim.timings().totalMs;
     f.bulletMs = sim.timings().bulletMs;
 
-    for (size_t i = 0; i < sc.bodies.size(); ++i) {
-      const SurfaceView v = world.surface(sim.body(i));
-      MeshFrame& m = meshes[i];
-      m.positions = v.positions;
-      m.normals = v.normals;
-      m.indices = v.indices;
-      m.crackMask = v.crackMask;
-      m.topologyVersion = v.topologyVersion;
-      m.dirtyBegin = v.dirtyBegin;
-      m.dirtyEnd = v.dirtyEnd;
-      if (opt.strainMax > 0) {
-        // Strain changes everywhere, so every vertex is dirty in this mode.
-        const std::span<const double> e = world.nodeStrain(sim.body(i));
-        strain[i].resize(v.vertexNode.size());
-        for (size_t k = 0; k < v.vertexNode.size(); ++k)
-          strain[i][k] = float(std::clamp(e[size_t(v.vertexNode[k])] / opt.strainMax, 0.0, 1.0));
-        m.scalar = strain[i];
-        m.dirtyBegin = 0;
-        m.dirtyEnd = uint32_t(v.vertexNode.size());
-      }
-    }
-    for (size_t k = 0; k < shapes.size(); ++k) {
-      MeshFrame& m = meshes[sc.bodies.size() + k];
-      if (k < sc.rigidBodies.size()) {
-        m.model = sim.rigidTransform(k);
-      } else {
-        // The scene's colliders come first in World::colliders(); a moving one has moved.
-        const Collider& now = world.colliders()[k - sc.rigidBodies.size()];
-        const glm::vec3 start(drawn[k].position);
-        m.model = drawn[k].shape == scene::SceneRigidBody::Shape::Plane
-                      ? glm::translate(glm::mat4(1.0f), now.point - start)
-                      : glm::translate(glm::mat4(1.0f), now.point) *
-                            glm::mat4_cast(glm::normalize(now.rotation));
-      }
-      m.dirtyBegin = 0;
-      m.dirtyEnd = frame == 1 ? uint32_t(shapes[k].positions.size() / 3) : 0;
-    }
-    for (size_t i = 0; i < slots; ++i) {
-      const MeshFrame& m = meshes[i];
-      const bool changed = frame == 1 || m.topologyVersion != lastVersion[i] ||
-                           m.positions.size() != lastVertices[i] ||
-                           m.indices.size() != lastTriangles[i];
-      if (changed)
-        ++f.topologyChanges;
-      else
-        f.dirtyVertices += m.dirtyEnd - m.dirtyBegin;
-      lastVersion[i] = m.topologyVersion;
-      lastVertices[i] = m.positions.size();
-      lastTriangles[i] = m.indices.size();
-    }
+    const DrawingChanges changes = drawing.update(sim, opt.strainMax);
+    f.topologyChanges = changes.topologyChanges;
+    f.dirtyVertices = changes.dirtyVertices;
 
     f.bodyBounds = bodyBounds(world, ids);
     if (rig) {
@@ -811,7 +648,7 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
                     static_cast<long long>(t.fragments));
       fo.overlay.emplace_back(line);
     }
-    Result<FrameStats> rs = renderer.render(meshes, f.camera, fo, image);
+    Result<FrameStats> rs = renderer.render(drawing.meshes(), f.camera, fo, image);
     if (!rs) return fail("graphfrac-demo: frame ", std::to_string(frame), ": ", rs.error().message);
     f.renderMs = rs.value().renderMs;
     f.uploadedBytes = rs.value().uploadedBytes;

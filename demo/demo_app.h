@@ -15,6 +15,7 @@
 #include "camera_rig.h"
 #include "renderer.h"
 #include "scene/scene.h"
+#include "scene_drawing.h"
 
 namespace gf::demo {
 
@@ -93,9 +94,6 @@ struct DemoSummary {
   std::vector<DemoSummary> halves;  ///< With DemoOptions::compare: the left and right runs.
 };
 
-/// Cell of the grid drawn on ground planes [m] (a stronger line every 5 cells).
-inline constexpr float kGroundCell = 0.1f;
-
 /// Runs the demo. Errors (scene, renderer, output, ffmpeg failing) come back as the message to
 /// print; a missing ffmpeg is not one (the summary says so and `video` stays empty).
 Result<DemoSummary> runDemo(const DemoOptions& options);
@@ -106,15 +104,6 @@ std::string formatSummary(const DemoSummary& summary);
 /// The executable: parses argv, runs, prints. Exit codes: 0 ok, 1 failure (including
 /// validation messages with --validation), 2 usage.
 int demoMain(int argc, char** argv);
-
-/// A rigid body's render mesh in its own frame (a plane's in world space): a UV sphere, a box
-/// with flat faces, or a square of side renderSize on the plane, centred at its point nearest
-/// the origin. Counter-clockwise from outside, unit normals.
-struct ShapeMesh {
-  std::vector<float> positions, normals;
-  std::vector<uint32_t> indices;
-};
-ShapeMesh rigidMesh(const scene::SceneRigidBody& body);
 
 /// The bounds of each body's nodes now (its surface's vertices sit on them).
 std::vector<Bounds> bodyBounds(const World& world, std::span<const BodyId> bodies);

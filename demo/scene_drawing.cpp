@@ -1,0 +1,193 @@
+// The slots' layout is fixed for the scene's lifetime (see the header); what changes per frame
+// is where each span points and which vertices are dirty.
+#include "scene_drawing.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <numbers>
+
+#include "scene/bullet_scene.h"
+
+namespace gf::demo {
+namespace {
+
+void pushVec(std::vector<float>& v, const glm::dvec3& p) {
+  v.push_back(float(p.x));
+  v.push_back(float(p.y));
+  v.push_back(float(p.z));
+}
+
+/// A square as 4 vertices and 2 triangles: corners c +- a +- b, facing n = a x b / |a x b|.
+void addQuad(ShapeMesh& m, const glm::dvec3& c, const glm::dvec3& a, const glm::dvec3& b,
+             const glm::dvec3& n) {
+  const auto base = uint32_t(m.positions.size() / 3);
+  for (const glm::dvec3& p : {c - a - b, c + a - b, c + a + b, c - a + b}) {
+    pushVec(m.positions, p);
+    pushVec(m.normals, n);
+  }
+  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) m.indices.push_back(base + i);
+}
+
+}  // namespace
+
+scene::SceneRigidBody colliderShape(const Collider& c) {
+  scene::SceneRigidBody r;
+  r.position = glm::dvec3(c.point);
+  r.colour = glm::vec3(0.5f, 0.5f, 0.53f);
+  switch (c.kind) {
+    case Collider::Kind::Sphere:
+      r.shape = scene::SceneRigidBody::Shape::Sphere;
+      r.radius = c.radius;
+      break;
+    case Collider::Kind::Box:
+      r.shape = scene::SceneRigidBody::Shape::Box;
+      r.halfExtents = glm::dvec3(c.halfExtents);
+      r.orientation = glm::normalize(glm::dquat(c.rotation));
+      break;
+    case Collider::Kind::Plane:
+      r.shape = scene::SceneRigidBody::Shape::Plane;
+      r.normal = glm::normalize(glm::dvec3(c.normal));
+      r.offset = glm::dot(r.normal, r.position);
+      break;
+  }
+  return r;
+}
+
+ShapeMesh rigidMesh(const scene::SceneRigidBody& r) {
+  using Shape = scene::SceneRigidBody::Shape;
+  ShapeMesh m;
+  if (r.shape == Shape::Sphere) {
+    // Latitude theta from the +y pole, longitude phi; d/dphi x d/dtheta points outwards, so
+    // (a, a+1, b) and (a+1, b+1, b) are counter-clockwise seen from outside.
+    constexpr uint32_t kRings = 16, kSegments = 32;
+    for (uint32_t i = 0; i <= kRings; ++i) {
+      const double theta = std::numbers::pi * i / kRings;
+      for (uint32_t j = 0; j <= kSegments; ++j) {
+        const double phi = 2 * std::numbers::pi * j / kSegments;
+        const glm::dvec3 n(std::sin(theta) * std::cos(phi), std::cos(theta),
+                           std::sin(theta) * std::sin(phi));
+        pushVec(m.positions, r.radius * n);
+        pushVec(m.normals, n);
+      }
+    }
+    for (uint32_t i = 0; i < kRings; ++i) {
+      for (uint32_t j = 0; j < kSegments; ++j) {
+        const uint32_t a = i * (kSegments + 1) + j, b = a + kSegments + 1;
+        if (i != 0) m.indices.insert(m.indices.end(), {a, a + 1, b});  // not at the poles
+        if (i + 1 != kRings) m.indices.insert(m.indices.end(), {a + 1, b + 1, b});
+      }
+    }
+  } else if (r.shape == Shape::Box) {
+    // Per face: its normal n and axes u, v with u x v = n, so the quad faces outwards.
+    const glm::dvec3 h = r.halfExtents;
+    const glm::dvec3 x(1, 0, 0), y(0, 1, 0), z(0, 0, 1);
+    const std::array<std::array<glm::dvec3, 3>, 6> faces = {{{x, y * h.y, z * h.z},
+                                                             {-x, z * h.z, y * h.y},
+                                                             {y, z * h.z, x * h.x},
+                                                             {-y, x * h.x, z * h.z},
+                                                             {z, x * h.x, y * h.y},
+                                                             {-z, y * h.y, x * h.x}}};
+    for (const auto& f : faces) addQuad(m, f[0] * glm::dot(glm::abs(f[0]), h), f[1], f[2], f[0]);
+  } else {
+    const glm::dvec3 n = r.normal;
+    const glm::dvec3 u = scene::anyPerpendicular(n), w = glm::cross(n, u);  // u x w = n
+    const double half = 0.5 * r.renderSize;
+    addQuad(m, r.offset * n, half * u, half * w, n);
+  }
+  return m;
+}
+
+SceneDrawing::SceneDrawing(const scene::Scene& sc)
+    : m_bodyCount(sc.bodies.size()), m_rigidCount(sc.rigidBodies.size()), m_drawn(sc.rigidBodies) {
+  for (const Collider& c : sc.world.colliders) m_drawn.push_back(colliderShape(c));
+  for (const scene::SceneRigidBody& r : m_drawn) m_shapes.push_back(rigidMesh(r));
+  const size_t slots = m_bodyCount + m_shapes.size();
+  m_meshes.resize(slots);
+  m_lastVersion.assign(slots, 0);
+  m_lastVertices.assign(slots, 0);
+  m_lastTriangles.assign(slots, 0);
+  m_strain.resize(m_bodyCount);
+  for (size_t i = 0; i < m_bodyCount; ++i) {
+    m_meshes[i].colour = sc.bodies[i].colour;
+    m_meshes[i].crackColour = sc.bodies[i].crackColour;
+    m_meshes[i].crackLook = crackLook(sc.bodies[i].interior);
+  }
+  for (size_t k = 0; k < m_shapes.size(); ++k) {
+    MeshFrame& m = m_meshes[m_bodyCount + k];
+    m.positions = m_shapes[k].positions;
+    m.normals = m_shapes[k].normals;
+    m.indices = m_shapes[k].indices;
+    m.topologyVersion = 1;
+    m.colour = m_drawn[k].colour;
+    // A plane is the ground: it shows its scale and receives shadows without casting any.
+    if (m_drawn[k].shape == scene::SceneRigidBody::Shape::Plane) {
+      m.gridSpacing = kGroundCell;
+      m.castsShadow = false;
+    }
+  }
+}
+
+DrawingChanges SceneDrawing::update(scene::BulletScene& sim, double strainMax) {
+  World& world = sim.world();
+  for (size_t i = 0; i < m_bodyCount; ++i) {
+    const SurfaceView v = world.surface(sim.body(i));
+    MeshFrame& m = m_meshes[i];
+    m.positions = v.positions;
+    m.normals = v.normals;
+    m.indices = v.indices;
+    m.crackMask = v.crackMask;
+    m.topologyVersion = v.topologyVersion;
+    m.dirtyBegin = v.dirtyBegin;
+    m.dirtyEnd = v.dirtyEnd;
+    if (strainMax > 0) {
+      // Strain changes everywhere, so every vertex is dirty in this mode.
+      const std::span<const double> e = world.nodeStrain(sim.body(i));
+      m_strain[i].resize(v.vertexNode.size());
+      for (size_t k = 0; k < v.vertexNode.size(); ++k)
+        m_strain[i][k] = float(std::clamp(e[size_t(v.vertexNode[k])] / strainMax, 0.0, 1.0));
+      m.scalar = m_strain[i];
+      m.dirtyBegin = 0;
+      m.dirtyEnd = uint32_t(v.vertexNode.size());
+    } else {
+      m.scalar = {};
+    }
+  }
+  for (size_t k = 0; k < m_shapes.size(); ++k) {
+    MeshFrame& m = m_meshes[m_bodyCount + k];
+    if (k < m_rigidCount) {
+      m.model = sim.rigidTransform(k);
+    } else {
+      // The scene's colliders come first in World::colliders(); a moving one has moved.
+      const Collider& now = world.colliders()[k - m_rigidCount];
+      const glm::vec3 start(m_drawn[k].position);
+      m.model = m_drawn[k].shape == scene::SceneRigidBody::Shape::Plane
+                    ? glm::translate(glm::mat4(1.0f), now.point - start)
+                    : glm::translate(glm::mat4(1.0f), now.point) *
+                          glm::mat4_cast(glm::normalize(now.rotation));
+    }
+    m.dirtyBegin = 0;
+    m.dirtyEnd = m_first ? uint32_t(m_shapes[k].positions.size() / 3) : 0;
+  }
+  DrawingChanges c;
+  for (size_t i = 0; i < m_meshes.size(); ++i) {
+    const MeshFrame& m = m_meshes[i];
+    const bool changed = m_first || m.topologyVersion != m_lastVersion[i] ||
+                         m.positions.size() != m_lastVertices[i] ||
+                         m.indices.size() != m_lastTriangles[i];
+    if (changed)
+      ++c.topologyChanges;
+    else
+      c.dirtyVertices += m.dirtyEnd - m.dirtyBegin;
+    m_lastVersion[i] = m.topologyVersion;
+    m_lastVertices[i] = m.positions.size();
+    m_lastTriangles[i] = m.indices.size();
+  }
+  m_first = false;
+  return c;
+}
+
+}  // namespace gf::demo

@@ -1,0 +1,72 @@
+// What the demo and the viewer draw of a running scene: one MeshFrame slot per scene body (its
+// surface stream), per rigid body and per static collider (shapes uploaded once, moved by their
+// model matrix). The slots stay fixed for the scene's lifetime, so a renderer keeps each buffer
+// and uploads only what changed: a body's dirty vertex range, or everything after a fracture
+// changed its topology.
+#pragma once
+
+#include <graphfrac/world.h>
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "renderer.h"
+#include "scene/scene.h"
+
+namespace gf::scene {
+class BulletScene;
+}
+
+namespace gf::demo {
+
+/// A rigid body's render mesh in its own frame (a plane's in world space): a UV sphere, a box
+/// with flat faces, or a square of side renderSize on the plane, centred at its point nearest
+/// the origin. Counter-clockwise from outside, unit normals.
+struct ShapeMesh {
+  std::vector<float> positions, normals;
+  std::vector<uint32_t> indices;
+};
+ShapeMesh rigidMesh(const scene::SceneRigidBody& body);
+
+/// A static collider of the scene ("colliders") as the shape it is drawn with.
+scene::SceneRigidBody colliderShape(const Collider& collider);
+
+/// Cell of the grid drawn on ground planes [m] (a stronger line every 5 cells).
+inline constexpr float kGroundCell = 0.1f;
+
+/// What one SceneDrawing::update changed, as the demo's summary counts it.
+struct DrawingChanges {
+  /// Meshes whose topology (version or size) changed since the previous update, the first
+  /// update counting every mesh as changed.
+  int topologyChanges = 0;
+  uint64_t dirtyVertices = 0;  ///< Dirty vertices of the unchanged meshes.
+};
+
+class SceneDrawing {
+ public:
+  /// The slots of `scene`'s bodies, then its rigid bodies, then its static colliders.
+  explicit SceneDrawing(const scene::Scene& scene);
+  SceneDrawing(const SceneDrawing&) = delete;
+  SceneDrawing& operator=(const SceneDrawing&) = delete;
+
+  /// Fills the slots from the simulation now (the BulletScene made from the same scene).
+  /// strainMax > 0 colours the bodies by World::nodeStrain, saturating (red) at that strain.
+  DrawingChanges update(scene::BulletScene& sim, double strainMax);
+
+  /// The slots as update() left them; their spans point into the world's surfaces and this
+  /// object, valid until the next step or update.
+  std::span<const MeshFrame> meshes() const { return m_meshes; }
+  size_t bodyCount() const { return m_bodyCount; }
+
+ private:
+  size_t m_bodyCount = 0, m_rigidCount = 0;
+  std::vector<scene::SceneRigidBody> m_drawn;  ///< Rigid bodies, then colliders.
+  std::vector<ShapeMesh> m_shapes;             ///< Parallel to m_drawn.
+  std::vector<MeshFrame> m_meshes;
+  std::vector<uint64_t> m_lastVersion, m_lastVertices, m_lastTriangles;
+  std::vector<std::vector<float>> m_strain;  ///< Per body, per vertex, 0..1.
+  bool m_first = true;
+};
+
+}  // namespace gf::demo

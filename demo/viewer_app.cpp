@@ -1,0 +1,938 @@
+// graphfrac-viewer (viewer_app.h). Every input, from GLFW or from a --script line, goes through
+// the same Viewer::on* handlers, so what CI scripts is what a user does. The simulation runs on
+// a clock: the wall clock interactively, a fixed one frame = one scene dt with --script or
+// --frames, so scripted runs step the same frames every time and screenshots compare.
+#include "viewer_app.h"
+
+#include <btBulletDynamicsCommon.h>
+#include <graphfrac/bullet/bridge.h>
+
+#define GLFW_INCLUDE_NONE
+#include <GL/gl.h>
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+#include <imgui_impl_glfw.h>
+#include <imgui_impl_opengl2.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <glm/geometric.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <memory>
+#include <numbers>
+#include <sstream>
+
+#include "cli/args.h"
+#include "demo_app.h"
+#include "scene/bullet_scene.h"
+#include "scene_drawing.h"
+
+namespace gf::demo {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+constexpr const char* kUsage =
+    "usage: graphfrac-viewer SCENE [options]\n"
+    "\n"
+    "Opens a window on a JSON scene (docs/scene_format.md) running with its Bullet rigid bodies.\n"
+    "\n"
+    "mouse: left-drag a body to pull it (a spring through World::applyForce); right-drag to\n"
+    "       orbit; wheel to zoom; middle-drag (or X + left-drag) to draw a blade that cuts\n"
+    "       every body it crosses when released\n"
+    "keys:  space pause, S single step, R reset, 1-4 slow motion (1x, 2x, 4x, 8x slower),\n"
+    "       O overlay, C strain colours, B throw a ball, arrows orbit, Esc quit\n"
+    "\n"
+    "options:\n"
+    "  --script FILE              scripted input, one command a line: frame N drag X Y X2 Y2\n"
+    "                             [FRAMES], frame N cut X1 Y1 X2 Y2, frame N key K, frame N\n"
+    "                             screenshot PATH, frame N quit (pixels of the picture)\n"
+    "  --frames N                 exit after N frames\n"
+    "  --size WxH                 window size (default 960x540)\n"
+    "  --renderer auto|vulkan|gl  back end of the off-screen renderer (default auto)\n"
+    "  --validation               Vulkan validation layers on; exit 1 if they report anything\n"
+    "  --strain MAX               the strain shown red by the colour map (default 0.05)\n"
+    "  -h, --help                 this text\n"
+    "\n"
+    "exit codes: 0 ok, 1 failure, 2 usage, 77 no display\n";
+
+std::string parseArgs(int argc, char** argv, ViewerOptions& o, bool& help) {
+  cli::ArgParser a(argc, argv);
+  while (a.next()) {
+    const std::string& arg = a.name();
+    if (arg == "-h" || arg == "--help") {
+      help = true;
+    } else if (arg == "--validation") {
+      o.validation = true;
+    } else if (arg == "--script") {
+      if (!a.nonEmptyValue(o.script)) return "--script needs a file";
+    } else if (arg == "--frames") {
+      int n = 0;
+      if (!a.intValue(1, 100'000'000, n)) return "--frames needs an integer >= 1";
+      o.frames = n;
+    } else if (arg == "--size") {
+      std::string value;
+      const size_t x = a.value(value) ? value.find('x') : std::string::npos;
+      if (x == std::string::npos ||
+          !cli::parseInt(std::string_view(value).substr(0, x), 16, 8192, o.width) ||
+          !cli::parseInt(std::string_view(value).substr(x + 1), 16, 8192, o.height))
+        return "--size needs WxH with 16 <= W, H <= 8192 (e.g. 960x540)";
+    } else if (arg == "--strain") {
+      if (!a.positiveValue(o.strainMax)) return "--strain needs a number > 0 (e.g. 0.05)";
+    } else if (arg == "--renderer") {
+      std::string value;
+      if (!a.value(value) || (value != "auto" && value != "vulkan" && value != "gl"))
+        return "--renderer needs auto, vulkan or gl";
+      o.renderer = value == "vulkan" ? RendererKind::Vulkan
+                   : value == "gl"   ? RendererKind::Gl
+                                     : RendererKind::Auto;
+    } else if (a.isOption()) {
+      return "unknown option '" + arg + "'";
+    } else if (o.scene.empty()) {
+      o.scene = arg;
+    } else {
+      return "more than one scene given ('" + o.scene + "' and '" + arg + "')";
+    }
+  }
+  if (!help && o.scene.empty()) return "no scene given";
+  return {};
+}
+
+/// The scene files next to `scene` (its directory's *.json), sorted, for the scene picker.
+std::vector<std::string> siblingScenes(const std::string& scene) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  const fs::path dir = fs::path(scene).parent_path();
+  for (const fs::directory_entry& e :
+       fs::directory_iterator(dir.empty() ? fs::path(".") : dir, ec)) {
+    if (e.path().extension() == ".json") out.push_back(e.path().string());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+const char* modelName(MaterialModel m) {
+  switch (m) {
+    case MaterialModel::Corotated:
+      return "corotated";
+    case MaterialModel::StVK:
+      return "StVK";
+    case MaterialModel::NeoHookean:
+      return "Neo-Hookean";
+    case MaterialModel::StableNeoHookean:
+      return "stable Neo-Hookean";
+  }
+  return "?";
+}
+
+/// Orbit camera: the eye on a sphere about the target, so dragging never rolls the picture.
+struct Orbit {
+  glm::dvec3 target{0};
+  double distance = 1, yaw = 0, pitch = 0;
+  float fov = 45, nearShare = 0.02f, farPlane = 50;
+
+  static Orbit from(const Camera& c) {
+    Orbit o;
+    o.target = glm::dvec3(c.target);
+    const glm::dvec3 back = glm::dvec3(c.eye) - o.target;
+    o.distance = std::max(glm::length(back), 1e-3);
+    o.yaw = std::atan2(back.x, back.z);
+    o.pitch = std::asin(std::clamp(back.y / o.distance, -1.0, 1.0));
+    o.fov = c.fovYDegrees;
+    o.nearShare = c.nearPlane / float(o.distance);
+    o.farPlane = c.farPlane;
+    return o;
+  }
+  Camera camera() const {
+    Camera c;
+    const glm::dvec3 back(std::cos(pitch) * std::sin(yaw), std::sin(pitch),
+                          std::cos(pitch) * std::cos(yaw));
+    c.target = glm::vec3(target);
+    c.eye = glm::vec3(target + distance * back);
+    c.fovYDegrees = fov;
+    // The far plane must keep what the scene camera saw once zoomed out.
+    c.nearPlane = std::max(nearShare * float(distance), 1e-4f);
+    c.farPlane = std::max(farPlane, float(4 * distance));
+    return c;
+  }
+  void turn(double dYaw, double dPitch) {
+    yaw += dYaw;
+    pitch = std::clamp(pitch + dPitch, -1.5, 1.5);  // short of the poles, where up flips
+  }
+};
+
+/// Sum over the bodies as `graphfrac run` counts them (demo_app.cpp's Totals).
+struct Totals {
+  int64_t brokenEdges = 0, edgeCount = 0, fragments = 0;
+};
+Totals totals(const scene::BulletScene& sim) {
+  Totals t;
+  for (size_t i = 0; i < sim.bodyCount(); ++i) {
+    const FractureStats f = sim.world().fractureStats(sim.body(i));
+    if (f.edgeCount > 0) {
+      t.brokenEdges += f.brokenEdges;
+      t.edgeCount += f.edgeCount;
+      t.fragments += f.fragments;
+    } else {
+      t.fragments += 1;
+    }
+  }
+  return t;
+}
+
+/// A thrown ball: a Bullet rigid sphere registered with the bridge, so it pushes the bodies
+/// and they push back.
+struct Ball {
+  std::unique_ptr<btSphereShape> shape;
+  std::unique_ptr<btRigidBody> body;
+  ShapeMesh mesh;
+};
+
+class Viewer {
+ public:
+  explicit Viewer(const ViewerOptions& opt)
+      : m_opt(opt),
+        m_width(opt.width),
+        m_height(opt.height),
+        m_cursorX(0.5 * opt.width),
+        m_cursorY(0.5 * opt.height) {}
+  ~Viewer() { unload(); }
+
+  /// Loads a scene and a fresh renderer (its slots belong to the scene it drew).
+  Result<void> load(const std::string& path);
+  /// The renderer that load() creates, before any scene (the window's context depends on it).
+  Result<void> createRenderer();
+
+  // Input, from GLFW and from the script alike. Coordinates are picture pixels.
+  void onKey(int key);
+  void onMouseButton(int button, bool pressed, double x, double y);
+  void onMouseMove(double x, double y);
+  void onScroll(double dy);
+  bool xHeld = false;  ///< X + left button draws a blade, for mice without a middle button.
+
+  /// Steps the scene for `wallSeconds` of the clock, or one scene dt without (the fixed
+  /// clock of scripted runs), slowed down, or not at all when paused.
+  Result<void> advance(std::optional<double> wallSeconds);
+  Result<void> render();
+  void panel();
+
+  const Image& image() const { return m_image; }
+  bool hasScene() const { return m_sim != nullptr; }
+  /// Validation messages of this and of the renderers of earlier scenes.
+  std::vector<std::string> validationMessages() const {
+    std::vector<std::string> all = m_oldMessages;
+    if (m_renderer)
+      for (std::string& m : m_renderer->validationMessages()) all.push_back(std::move(m));
+    return all;
+  }
+  bool usesGlRenderer() const { return m_renderer->description().rfind("OpenGL", 0) == 0; }
+  std::string summary() const;
+  /// A scene picked in the panel, loaded between frames.
+  std::optional<std::string> pendingScene;
+  bool quit = false;
+
+ private:
+  void unload();
+  void pick(double x, double y);
+  void cutStroke();
+  void throwBall();
+  Result<void> stepOnce();
+
+  ViewerOptions m_opt;
+  int m_width, m_height;
+  std::string m_scenePath;
+  std::vector<std::string> m_sceneFiles;
+  scene::Scene m_scene;
+  std::unique_ptr<scene::BulletScene> m_sim;
+  std::unique_ptr<SceneDrawing> m_drawing;
+  std::unique_ptr<Renderer> m_renderer;
+  std::vector<std::string> m_oldMessages;
+  std::vector<Ball> m_balls;
+  std::vector<MeshFrame> m_meshes;
+  Image m_image;
+  Orbit m_orbit;
+
+  // Clock and controls.
+  bool m_paused = false, m_stepOnce = false, m_overlay = true, m_strain = false;
+  int m_slowPower = 0;  ///< Slow motion 2^power.
+  double m_clock = 0;   ///< Clock time not yet stepped [s].
+  StepStatus m_lastStatus;
+  double m_simMs = 0;
+
+  // Gestures.
+  struct Drag {
+    size_t body = 0;
+    int32_t node = 0;
+    glm::dvec3 planePoint{0}, planeNormal{0};
+    double mass = 0;
+  };
+  std::optional<Drag> m_drag;
+  std::optional<size_t> m_picked;  ///< Body whose material the panel shows.
+  bool m_orbiting = false, m_stroking = false;
+  // The cursor starts mid-picture, where a ball thrown before any mouse motion goes.
+  double m_cursorX, m_cursorY, m_strokeX = 0, m_strokeY = 0;
+
+  // Counts for the summary.
+  int m_steps = 0, m_cuts = 0, m_drags = 0, m_thrown = 0;
+};
+
+Result<void> Viewer::createRenderer() {
+  RendererOptions ro;
+  ro.kind = m_opt.renderer;
+  ro.width = m_width;
+  ro.height = m_height;
+  ro.validation = m_opt.validation;
+  Result<std::unique_ptr<Renderer>> r = demo::createRenderer(ro);
+  if (!r) return fail("graphfrac-viewer: ", r.error().message);
+  m_renderer = std::move(r).value();
+  return {};
+}
+
+void Viewer::unload() {
+  // The balls are ours: out of the bridge and Bullet before the scene that holds them goes.
+  for (Ball& b : m_balls) {
+    (void)m_sim->bridge().removeCollider(b.body.get());
+    m_sim->dynamics().removeRigidBody(b.body.get());
+  }
+  m_balls.clear();
+  m_drag.reset();
+  m_picked.reset();
+  m_drawing.reset();
+  m_sim.reset();
+}
+
+Result<void> Viewer::load(const std::string& path) {
+  Result<scene::Scene> loaded = scene::loadScene(path);
+  if (!loaded) return loaded.error();
+  Result<std::unique_ptr<scene::BulletScene>> sim = scene::BulletScene::create(loaded.value());
+  if (!sim) return sim.error();
+  // A renderer keeps its buffers per slot, and a new scene's slot i is another mesh whose
+  // topology version may well equal the old one's: so a new renderer, not stale buffers.
+  const bool reload = m_sim != nullptr;
+  unload();
+  if (reload) {
+    for (std::string& m : m_renderer->validationMessages()) m_oldMessages.push_back(std::move(m));
+    m_renderer.reset();
+    if (Result<void> r = createRenderer(); !r) return r;
+  }
+  m_scene = std::move(loaded).value();
+  m_sim = std::move(sim).value();
+  m_drawing = std::make_unique<SceneDrawing>(m_scene);
+  if (path != m_scenePath) m_sceneFiles = siblingScenes(path);
+  m_scenePath = path;
+  m_orbit = Orbit::from(sceneCamera(m_scene));
+  m_clock = 0;
+  m_lastStatus = {};
+  m_simMs = 0;
+  return {};
+}
+
+void Viewer::onKey(int key) {
+  switch (key) {
+    case GLFW_KEY_SPACE:
+      m_paused = !m_paused;
+      break;
+    case GLFW_KEY_S:
+      m_paused = true;
+      m_stepOnce = true;
+      break;
+    case GLFW_KEY_R:
+      pendingScene = m_scenePath;
+      break;
+    case GLFW_KEY_1:
+    case GLFW_KEY_2:
+    case GLFW_KEY_3:
+    case GLFW_KEY_4:
+      m_slowPower = key - GLFW_KEY_1;
+      break;
+    case GLFW_KEY_O:
+      m_overlay = !m_overlay;
+      break;
+    case GLFW_KEY_C:
+      m_strain = !m_strain;
+      break;
+    case GLFW_KEY_B:
+      throwBall();
+      break;
+    case GLFW_KEY_LEFT:
+      m_orbit.turn(-0.1, 0);
+      break;
+    case GLFW_KEY_RIGHT:
+      m_orbit.turn(0.1, 0);
+      break;
+    case GLFW_KEY_UP:
+      m_orbit.turn(0, 0.1);
+      break;
+    case GLFW_KEY_DOWN:
+      m_orbit.turn(0, -0.1);
+      break;
+    case GLFW_KEY_ESCAPE:
+      quit = true;
+      break;
+    default:
+      break;
+  }
+}
+
+void Viewer::onMouseButton(int button, bool pressed, double x, double y) {
+  m_cursorX = x;
+  m_cursorY = y;
+  const bool blade =
+      button == GLFW_MOUSE_BUTTON_MIDDLE || (button == GLFW_MOUSE_BUTTON_LEFT && xHeld);
+  if (blade) {
+    if (pressed) {
+      m_stroking = true;
+      m_strokeX = x;
+      m_strokeY = y;
+    } else if (m_stroking) {
+      m_stroking = false;
+      cutStroke();
+    }
+  } else if (button == GLFW_MOUSE_BUTTON_LEFT) {
+    if (pressed)
+      pick(x, y);
+    else
+      m_drag.reset();
+  } else if (button == GLFW_MOUSE_BUTTON_RIGHT) {
+    m_orbiting = pressed;
+  }
+}
+
+void Viewer::onMouseMove(double x, double y) {
+  if (m_orbiting) m_orbit.turn(-0.008 * (x - m_cursorX), 0.008 * (y - m_cursorY));
+  m_cursorX = x;
+  m_cursorY = y;
+}
+
+void Viewer::onScroll(double dy) { m_orbit.distance *= std::pow(0.9, dy); }
+
+// The nearest surface triangle the cursor's ray hits (Moller-Trumbore), then the vertex of it
+// nearest the hit: its node is what the spring pulls, which stays the same node when a
+// fracture renumbers the surface.
+void Viewer::pick(double x, double y) {
+  const Camera cam = m_orbit.camera();
+  const Ray ray = cameraRay(cam, m_width, m_height, x, y);
+  double best = 1e300;
+  World& world = m_sim->world();
+  for (size_t b = 0; b < m_sim->bodyCount(); ++b) {
+    const SurfaceView v = world.surface(m_sim->body(b));
+    for (size_t t = 0; t + 2 < v.indices.size(); t += 3) {
+      glm::dvec3 p[3];
+      for (int k = 0; k < 3; ++k) {
+        const size_t i = 3 * size_t(v.indices[t + size_t(k)]);
+        p[k] = {v.positions[i], v.positions[i + 1], v.positions[i + 2]};
+      }
+      const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+      const glm::dvec3 h = glm::cross(ray.direction, e2);
+      const double det = glm::dot(e1, h);
+      if (std::abs(det) < 1e-14) continue;
+      const glm::dvec3 s = ray.origin - p[0];
+      const double u = glm::dot(s, h) / det;
+      const glm::dvec3 q = glm::cross(s, e1);
+      const double w = glm::dot(ray.direction, q) / det;
+      const double dist = glm::dot(e2, q) / det;
+      if (u < 0 || w < 0 || u + w > 1 || dist <= 0 || dist >= best) continue;
+      best = dist;
+      const glm::dvec3 hit = ray.origin + dist * ray.direction;
+      int nearest = 0;
+      for (int k = 1; k < 3; ++k)
+        if (glm::length(p[k] - hit) < glm::length(p[nearest] - hit)) nearest = k;
+      Drag d;
+      d.body = b;
+      d.node = v.vertexNode[v.indices[t + size_t(nearest)]];
+      d.planePoint = hit;
+      d.planeNormal = glm::normalize(glm::dvec3(cam.eye) - glm::dvec3(cam.target));
+      d.mass = world.stats(m_sim->body(b)).mass;
+      m_drag = d;
+    }
+  }
+  if (m_drag) {
+    m_picked = m_drag->body;
+    ++m_drags;
+  }
+}
+
+void Viewer::cutStroke() {
+  if (std::hypot(m_cursorX - m_strokeX, m_cursorY - m_strokeY) < 2) return;  // a click
+  const StrokeBlade s =
+      strokeBlade(m_orbit.camera(), m_width, m_height, m_strokeX, m_strokeY, m_cursorX, m_cursorY);
+  Blade blade;
+  blade.vertices = s.vertices;
+  blade.triangles = s.triangles;
+  World& world = m_sim->world();
+  for (size_t b = 0; b < m_sim->bodyCount(); ++b) {
+    // Bodies without fracture cannot be cut; the blade passes through them.
+    if (world.fractureStats(m_sim->body(b)).edgeCount == 0) continue;
+    if (world.cut(m_sim->body(b), blade)) ++m_cuts;
+  }
+}
+
+void Viewer::throwBall() {
+  const Camera cam = m_orbit.camera();
+  const Ray ray = cameraRay(cam, m_width, m_height, m_cursorX, m_cursorY);
+  // Sized and thrown relative to the view, so it reads the same on a 10 cm and a 2 m scene;
+  // dense, because a rigid body much lighter than the nodes it hits bounces off too hard
+  // (integration/bullet/bridge.h).
+  const double radius = 0.05 * m_orbit.distance, speed = 3.0 * m_orbit.distance + 2.0;
+  const double mass = 3000 * 4.0 / 3.0 * std::numbers::pi * radius * radius * radius;
+  const glm::dvec3 start = ray.origin + 4 * radius * ray.direction;
+  Ball ball;
+  ball.shape = std::make_unique<btSphereShape>(btScalar(radius));
+  btVector3 inertia(0, 0, 0);
+  ball.shape->calculateLocalInertia(btScalar(mass), inertia);
+  btRigidBody::btRigidBodyConstructionInfo ci(btScalar(mass), nullptr, ball.shape.get(), inertia);
+  ci.m_startWorldTransform.setIdentity();
+  ci.m_startWorldTransform.setOrigin(
+      btVector3(btScalar(start.x), btScalar(start.y), btScalar(start.z)));
+  ci.m_friction = 0.5f;
+  ci.m_restitution = 0.3f;
+  ball.body = std::make_unique<btRigidBody>(ci);
+  const glm::dvec3 v = speed * ray.direction;
+  ball.body->setLinearVelocity(btVector3(btScalar(v.x), btScalar(v.y), btScalar(v.z)));
+  m_sim->dynamics().addRigidBody(ball.body.get());
+  if (!m_sim->bridge().addCollider(ball.body.get())) {
+    m_sim->dynamics().removeRigidBody(ball.body.get());
+    return;
+  }
+  scene::SceneRigidBody shape;
+  shape.shape = scene::SceneRigidBody::Shape::Sphere;
+  shape.radius = radius;
+  ball.mesh = rigidMesh(shape);
+  m_balls.push_back(std::move(ball));
+  ++m_thrown;
+}
+
+Result<void> Viewer::stepOnce() {
+  if (m_drag) {
+    // A critically damped spring from the node to the cursor's point on the plane through the
+    // grab point facing the camera. Mass and damping are those of the node's piece (its share
+    // of the body's nodes and their mean velocity), so a piece follows in about 1/omega
+    // whatever its size; damping the node's own velocity with the piece's mass would overshoot
+    // within one step. World::applyForce acts during the next World step only, one of the
+    // frame's substeps, so the force is scaled up to give the frame's impulse.
+    World& world = m_sim->world();
+    const BodyId id = m_sim->body(m_drag->body);
+    const std::span<const double> x = world.positions(id), v = world.velocities(id);
+    const std::span<const int32_t> pieces = world.nodeFragments(id);
+    const size_t nodes = x.size() / 3, n = size_t(m_drag->node);
+    glm::dvec3 mean(0);
+    size_t count = 0;
+    for (size_t i = 0; i < nodes; ++i) {
+      if (!pieces.empty() && pieces[i] != pieces[n]) continue;
+      mean += glm::dvec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+      ++count;
+    }
+    mean /= double(std::max<size_t>(count, 1));
+    const double mass = m_drag->mass * double(count) / double(std::max<size_t>(nodes, 1));
+    const glm::dvec3 p(x[3 * n], x[3 * n + 1], x[3 * n + 2]);
+    const Ray ray = cameraRay(m_orbit.camera(), m_width, m_height, m_cursorX, m_cursorY);
+    const double denom = glm::dot(ray.direction, m_drag->planeNormal);
+    glm::dvec3 target = p;
+    if (std::abs(denom) > 1e-9)
+      target = ray.origin + glm::dot(m_drag->planePoint - ray.origin, m_drag->planeNormal) / denom *
+                                ray.direction;
+    constexpr double kOmega = 12;  // [rad/s]
+    const double substeps = std::max(m_scene.world.substeps, 1);
+    const glm::dvec3 f = substeps * mass * (kOmega * kOmega * (target - p) - 2 * kOmega * mean);
+    (void)world.applyForce(id, glm::vec3(p), glm::vec3(f));
+  }
+  const auto t0 = Clock::now();
+  m_lastStatus = m_sim->step();
+  m_simMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  if (m_lastStatus.has(kStepInvalidInput))
+    return fail(m_scene.source, ": frame ", std::to_string(m_sim->frame()), ": ",
+                m_lastStatus.message);
+  ++m_steps;
+  return {};
+}
+
+Result<void> Viewer::advance(std::optional<double> wallSeconds) {
+  const double seconds = wallSeconds.value_or(m_scene.dt);
+  if (m_stepOnce) {
+    m_stepOnce = false;
+    return stepOnce();
+  }
+  if (m_paused) return {};
+  m_clock += seconds / double(1 << m_slowPower);
+  // At most two steps a frame: a slow frame must not make the next one slower still.
+  for (int k = 0; k < 2 && m_clock >= m_scene.dt * (1 - 1e-9); ++k) {
+    m_clock -= m_scene.dt;
+    if (Result<void> r = stepOnce(); !r) return r;
+  }
+  m_clock = std::min(m_clock, m_scene.dt);
+  return {};
+}
+
+Result<void> Viewer::render() {
+  m_drawing->update(*m_sim, m_strain ? m_opt.strainMax : 0);
+  m_meshes.assign(m_drawing->meshes().begin(), m_drawing->meshes().end());
+  for (const Ball& b : m_balls) {
+    MeshFrame m;
+    m.positions = b.mesh.positions;
+    m.normals = b.mesh.normals;
+    m.indices = b.mesh.indices;
+    m.topologyVersion = 1;
+    m.dirtyEnd = uint32_t(b.mesh.positions.size() / 3);  // small; a new slot needs it all
+    m.colour = {0.85f, 0.2f, 0.15f};
+    btScalar mat[16];
+    b.body->getWorldTransform().getOpenGLMatrix(mat);
+    m.model = glm::make_mat4(mat);
+    m_meshes.push_back(m);
+  }
+  FrameOptions fo;
+  fo.shadows = true;
+  if (m_overlay) {
+    const Totals t = totals(*m_sim);
+    char line[160];
+    std::snprintf(line, sizeof line, "%s  frame %d  t %.2f s  sim %.0f ms%s", m_scene.name.c_str(),
+                  m_sim->frame(), m_sim->frame() * m_scene.dt, m_simMs, m_paused ? "  paused" : "");
+    fo.overlay.emplace_back(line);
+    std::snprintf(line, sizeof line, "broken edges %lld  fragments %lld",
+                  static_cast<long long>(t.brokenEdges), static_cast<long long>(t.fragments));
+    fo.overlay.emplace_back(line);
+  }
+  Result<FrameStats> r = m_renderer->render(m_meshes, m_orbit.camera(), fo, m_image);
+  if (!r) return fail("graphfrac-viewer: ", r.error().message);
+  return {};
+}
+
+void Viewer::panel() {
+  ImGui::SetNextWindowPos(ImVec2(8, float(m_height) - 8), ImGuiCond_FirstUseEver, ImVec2(0, 1));
+  ImGui::SetNextWindowBgAlpha(0.75f);
+  ImGui::Begin("graphfrac", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+  const fs::path current(m_scenePath);
+  if (ImGui::BeginCombo("scene", current.filename().string().c_str())) {
+    for (const std::string& f : m_sceneFiles) {
+      const bool selected = f == m_scenePath;
+      if (ImGui::Selectable(fs::path(f).filename().string().c_str(), selected)) pendingScene = f;
+    }
+    ImGui::EndCombo();
+  }
+  if (ImGui::Button(m_paused ? "run" : "pause")) onKey(GLFW_KEY_SPACE);
+  ImGui::SameLine();
+  if (ImGui::Button("step")) onKey(GLFW_KEY_S);
+  ImGui::SameLine();
+  if (ImGui::Button("reset")) onKey(GLFW_KEY_R);
+  ImGui::SameLine();
+  if (ImGui::Button("ball")) onKey(GLFW_KEY_B);
+  ImGui::SliderInt("slow 2^n", &m_slowPower, 0, 3);
+  ImGui::Checkbox("overlay", &m_overlay);
+  ImGui::SameLine();
+  ImGui::Checkbox("strain", &m_strain);
+  ImGui::Separator();
+  ImGui::Text("frame %d  t %.3f s  dt %.4g s", m_sim->frame(), m_sim->frame() * m_scene.dt,
+              m_scene.dt);
+  const scene::FrameTimings& t = m_sim->timings();
+  ImGui::Text("frame %.1f ms: world %.1f, Bullet %.1f", t.totalMs, t.world.totalMs, t.bulletMs);
+  ImGui::Text("  elements %.1f  assembly %.1f  solve %.1f", t.world.elementsMs, t.world.assemblyMs,
+              t.world.solveMs);
+  ImGui::Text("  fracture %.1f  contact %.1f  surface %.1f", t.world.fractureMs, t.world.contactMs,
+              t.world.surfaceMs);
+  ImGui::Text("solver: %d Newton, %d linear iterations, residual %.2e",
+              m_lastStatus.newtonIterations, m_lastStatus.linearIterations, m_lastStatus.residual);
+  if (!m_lastStatus.ok()) ImGui::TextWrapped("step: %s", m_lastStatus.message.c_str());
+  const Totals tot = totals(*m_sim);
+  ImGui::Text("fragments %lld, broken edges %lld of %lld, handed to Bullet %zu",
+              static_cast<long long>(tot.fragments), static_cast<long long>(tot.brokenEdges),
+              static_cast<long long>(tot.edgeCount), m_sim->handedOff());
+  ImGui::Separator();
+  if (m_picked && *m_picked < m_scene.bodies.size()) {
+    const scene::SceneBody& b = m_scene.bodies[*m_picked];
+    const Material& m = b.def.material;
+    ImGui::Text("picked: %s (%s)", b.name.c_str(), modelName(m.model));
+    ImGui::Text("  E %.3g Pa  nu %.3g  rho %.4g kg/m^3", m.youngsModulus, m.poissonRatio,
+                m.density);
+    if (b.def.fracture.enabled)
+      ImGui::Text("  strength %.3g Pa  R_d %.3g", b.def.fracture.strength, b.def.fracture.radius);
+    else
+      ImGui::Text("  no fracture");
+  } else {
+    ImGui::TextDisabled("left-drag a body to pull it and see its material");
+  }
+  ImGui::TextDisabled("%s", m_renderer->description().c_str());
+  ImGui::End();
+}
+
+std::string Viewer::summary() const {
+  if (!m_sim || !m_renderer) return "graphfrac-viewer: no scene running\n";
+  const Totals t = totals(*m_sim);
+  char text[768];
+  std::snprintf(text, sizeof text,
+                "graphfrac-viewer: %s: %d steps, %d drags, %d cuts, %d balls\n"
+                "  renderer:   %s\n"
+                "  fracture:   fragments %lld, broken edges %lld of %lld\n",
+                m_scene.name.c_str(), m_steps, m_drags, m_cuts, m_thrown,
+                m_renderer->description().c_str(), static_cast<long long>(t.fragments),
+                static_cast<long long>(t.brokenEdges), static_cast<long long>(t.edgeCount));
+  std::string out = text;
+  if (m_opt.validation) {
+    std::snprintf(text, sizeof text,
+                  "  validation: %zu messages from the Vulkan validation layers\n",
+                  validationMessages().size());
+    out += text;
+  }
+  return out;
+}
+
+/// The window, ImGui and the texture the picture is shown with, torn down in reverse.
+class Window {
+ public:
+  ~Window() {
+    if (m_imgui) {
+      ImGui_ImplOpenGL2_Shutdown();
+      ImGui_ImplGlfw_Shutdown();
+      ImGui::DestroyContext();
+    }
+    if (m_window) {
+      glfwMakeContextCurrent(m_window);
+      if (m_texture) glDeleteTextures(1, &m_texture);
+      glfwDestroyWindow(m_window);
+    }
+    if (m_glfw) glfwTerminate();
+  }
+  bool open(int width, int height, bool eglContext, Viewer& viewer);
+  GLFWwindow* handle() const { return m_window; }
+  /// Shows the picture full-window behind the panel.
+  void present(const Image& image, Viewer& viewer);
+
+ private:
+  bool m_glfw = false, m_imgui = false;
+  GLFWwindow* m_window = nullptr;
+  GLuint m_texture = 0;
+  int m_texWidth = 0, m_texHeight = 0;
+};
+
+Viewer* viewerOf(GLFWwindow* w) { return static_cast<Viewer*>(glfwGetWindowUserPointer(w)); }
+
+bool Window::open(int width, int height, bool eglContext, Viewer& viewer) {
+  glfwSetErrorCallback(
+      [](int code, const char* text) { std::fprintf(stderr, "GLFW error %d: %s\n", code, text); });
+  if (!glfwInit()) return false;
+  m_glfw = true;
+  glfwWindowHint(GLFW_RESIZABLE, GLFW_FALSE);  // the renderer's size is fixed at creation
+  // The GL renderer makes its EGL context current in each render; glvnd lets one thread switch
+  // between EGL contexts but not between an EGL and a GLX one, so the window's is EGL too then.
+  if (eglContext) glfwWindowHint(GLFW_CONTEXT_CREATION_API, GLFW_EGL_CONTEXT_API);
+  m_window = glfwCreateWindow(width, height, "graphfrac-viewer", nullptr, nullptr);
+  if (!m_window) return false;
+  glfwMakeContextCurrent(m_window);
+  glfwSwapInterval(1);
+  glfwSetWindowUserPointer(m_window, &viewer);
+  // Ours first: ImGui's backend chains to the callbacks installed before it.
+  glfwSetKeyCallback(m_window, [](GLFWwindow* w, int key, int, int action, int) {
+    Viewer& v = *viewerOf(w);
+    if (key == GLFW_KEY_X) v.xHeld = action != GLFW_RELEASE;
+    if (action != GLFW_PRESS &&
+        !(action == GLFW_REPEAT && key >= GLFW_KEY_RIGHT && key <= GLFW_KEY_UP))
+      return;
+    if (ImGui::GetCurrentContext() && ImGui::GetIO().WantCaptureKeyboard) return;
+    v.onKey(key);
+  });
+  glfwSetMouseButtonCallback(m_window, [](GLFWwindow* w, int button, int action, int) {
+    if (action == GLFW_PRESS && ImGui::GetCurrentContext() && ImGui::GetIO().WantCaptureMouse)
+      return;
+    double x = 0, y = 0;
+    glfwGetCursorPos(w, &x, &y);
+    viewerOf(w)->onMouseButton(button, action == GLFW_PRESS, x, y);
+  });
+  glfwSetCursorPosCallback(
+      m_window, [](GLFWwindow* w, double x, double y) { viewerOf(w)->onMouseMove(x, y); });
+  glfwSetScrollCallback(m_window, [](GLFWwindow* w, double, double dy) {
+    if (ImGui::GetCurrentContext() && ImGui::GetIO().WantCaptureMouse) return;
+    viewerOf(w)->onScroll(dy);
+  });
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini next to wherever it was started
+  ImGui::StyleColorsDark();
+  ImGui_ImplGlfw_InitForOpenGL(m_window, true);
+  ImGui_ImplOpenGL2_Init();
+  m_imgui = true;
+  return true;
+}
+
+void Window::present(const Image& image, Viewer& viewer) {
+  // The renderer may have made its own context current.
+  glfwMakeContextCurrent(m_window);
+  if (!m_texture) {
+    glGenTextures(1, &m_texture);
+    glBindTexture(GL_TEXTURE_2D, m_texture);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  }
+  glBindTexture(GL_TEXTURE_2D, m_texture);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  if (image.width != m_texWidth || image.height != m_texHeight) {
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, image.width, image.height, 0, GL_RGBA,
+                 GL_UNSIGNED_BYTE, image.rgba.data());
+    m_texWidth = image.width;
+    m_texHeight = image.height;
+  } else {
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, image.width, image.height, GL_RGBA, GL_UNSIGNED_BYTE,
+                    image.rgba.data());
+  }
+  ImGui_ImplOpenGL2_NewFrame();
+  ImGui_ImplGlfw_NewFrame();
+  ImGui::NewFrame();
+  // The picture's rows are top to bottom, as ImGui's texture coordinates are.
+  const ImVec2 size = ImGui::GetIO().DisplaySize;
+  ImGui::GetBackgroundDrawList()->AddImage(
+      reinterpret_cast<ImTextureID>(static_cast<uintptr_t>(m_texture)), ImVec2(0, 0), size);
+  viewer.panel();
+  ImGui::Render();
+  int fbw = 0, fbh = 0;
+  glfwGetFramebufferSize(m_window, &fbw, &fbh);
+  glViewport(0, 0, fbw, fbh);
+  glClearColor(0, 0, 0, 1);
+  glClear(GL_COLOR_BUFFER_BIT);
+  ImGui_ImplOpenGL2_RenderDrawData(ImGui::GetDrawData());
+  glfwSwapBuffers(m_window);
+}
+
+Result<std::vector<ScriptCommand>> readScript(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return fail(path, ": cannot read the script");
+  std::stringstream text;
+  text << in.rdbuf();
+  return parseScript(text.str(), path);
+}
+
+/// Runs the script's commands of `frame` that come before the step (input), through the
+/// viewer's handlers; a drag spans frames, so it stays in `active` until released.
+void scriptInput(std::span<const ScriptCommand> script, int frame, Viewer& viewer,
+                 std::vector<const ScriptCommand*>& active) {
+  for (const ScriptCommand& c : script) {
+    if (c.frame != frame) continue;
+    if (c.kind == ScriptCommand::Kind::Key) viewer.onKey(c.key);
+    if (c.kind == ScriptCommand::Kind::Cut) {
+      viewer.onMouseButton(GLFW_MOUSE_BUTTON_MIDDLE, true, c.x1, c.y1);
+      viewer.onMouseMove(c.x2, c.y2);
+      viewer.onMouseButton(GLFW_MOUSE_BUTTON_MIDDLE, false, c.x2, c.y2);
+    }
+    if (c.kind == ScriptCommand::Kind::Drag) {
+      viewer.onMouseMove(c.x1, c.y1);
+      viewer.onMouseButton(GLFW_MOUSE_BUTTON_LEFT, true, c.x1, c.y1);
+      active.push_back(&c);
+    }
+  }
+  for (size_t i = 0; i < active.size();) {
+    const ScriptCommand& c = *active[i];
+    const int held = frame - c.frame;
+    if (held >= c.frames) {
+      viewer.onMouseButton(GLFW_MOUSE_BUTTON_LEFT, false, c.x2, c.y2);
+      active.erase(active.begin() + std::ptrdiff_t(i));
+      continue;
+    }
+    const double s = c.frames > 1 ? double(held) / double(c.frames - 1) : 1.0;
+    viewer.onMouseMove(c.x1 + s * (c.x2 - c.x1), c.y1 + s * (c.y2 - c.y1));
+    ++i;
+  }
+}
+
+int run(const ViewerOptions& opt) {
+  std::vector<ScriptCommand> script;
+  if (!opt.script.empty()) {
+    Result<std::vector<ScriptCommand>> s = readScript(opt.script);
+    if (!s) {
+      std::fprintf(stderr, "graphfrac-viewer: %s\n", s.error().message.c_str());
+      return 2;
+    }
+    script = std::move(s).value();
+  }
+  Viewer viewer(opt);
+  // The renderer before the window: which context the window needs depends on it.
+  if (Result<void> r = viewer.createRenderer(); !r) {
+    std::fprintf(stderr, "%s\n", r.error().message.c_str());
+    return 1;
+  }
+  if (Result<void> r = viewer.load(opt.scene); !r) {
+    std::fprintf(stderr, "%s\n", r.error().message.c_str());
+    return 1;
+  }
+  Window window;
+  if (!window.open(opt.width, opt.height, viewer.usesGlRenderer(), viewer)) {
+    std::fprintf(stderr, "graphfrac-viewer: no display: cannot open a window (DISPLAY=%s)\n",
+                 std::getenv("DISPLAY") ? std::getenv("DISPLAY") : "");
+    return kViewerNoDisplay;
+  }
+  const bool fixedClock = !opt.script.empty() || opt.frames.has_value();
+  std::vector<const ScriptCommand*> activeDrags;
+  auto last = Clock::now();
+  int status = 0;
+  for (int frame = 1; !viewer.quit; ++frame) {
+    glfwPollEvents();
+    if (glfwWindowShouldClose(window.handle())) break;
+    if (viewer.pendingScene) {
+      const std::string path = *viewer.pendingScene;
+      viewer.pendingScene.reset();
+      activeDrags.clear();
+      // A scene that does not load leaves the current one running (load changes nothing
+      // then), unless the renderer could not be made again.
+      if (Result<void> r = viewer.load(path); !r) {
+        std::fprintf(stderr, "%s\n", r.error().message.c_str());
+        if (!viewer.hasScene()) {
+          status = 1;
+          break;
+        }
+      }
+    }
+    scriptInput(script, frame, viewer, activeDrags);
+    const auto now = Clock::now();
+    const double wall = std::chrono::duration<double>(now - last).count();
+    last = now;
+    if (Result<void> r = viewer.advance(fixedClock ? std::nullopt : std::optional<double>(wall));
+        !r) {
+      std::fprintf(stderr, "%s\n", r.error().message.c_str());
+      status = 1;
+      break;
+    }
+    if (Result<void> r = viewer.render(); !r) {
+      std::fprintf(stderr, "%s\n", r.error().message.c_str());
+      status = 1;
+      break;
+    }
+    for (const ScriptCommand& c : script) {
+      if (c.frame != frame) continue;
+      if (c.kind == ScriptCommand::Kind::Screenshot) {
+        if (Result<void> w = writePng(c.path, viewer.image()); !w) {
+          std::fprintf(stderr, "graphfrac-viewer: %s\n", w.error().message.c_str());
+          status = 1;
+        }
+      }
+      if (c.kind == ScriptCommand::Kind::Quit) viewer.quit = true;
+    }
+    window.present(viewer.image(), viewer);
+    if (opt.frames && frame >= *opt.frames) break;
+  }
+  std::fputs(viewer.summary().c_str(), stdout);
+  if (opt.validation) {
+    const std::vector<std::string> msgs = viewer.validationMessages();
+    for (size_t i = 0; i < msgs.size() && i < 10; ++i)
+      std::fprintf(stderr, "  validation: %s\n", msgs[i].c_str());
+    if (!msgs.empty()) status = 1;
+  }
+  return status;
+}
+
+}  // namespace
+
+int viewerMain(int argc, char** argv) {
+  ViewerOptions opt;
+  bool help = false;
+  if (const std::string err = parseArgs(argc, argv, opt, help); !err.empty()) {
+    std::fprintf(stderr, "graphfrac-viewer: %s\n(see graphfrac-viewer --help)\n", err.c_str());
+    return 2;
+  }
+  if (help) {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
+  return run(opt);
+}
+
+}  // namespace gf::demo

@@ -1,0 +1,74 @@
+// graphfrac-viewer: a scene in a window to play with. Each frame the off-screen renderer of the
+// demo (renderer.h, whichever back end createRenderer gives) draws the scene into an image that
+// is shown as a texture behind a Dear ImGui panel, in a GLFW window with an OpenGL context; the
+// same path works under Xvfb with Mesa, which is how CI drives it with scripted input.
+#pragma once
+
+#include <graphfrac/status.h>
+
+#include <glm/vec3.hpp>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "renderer.h"
+
+namespace gf::demo {
+
+/// One line of a --script file: `frame N drag X Y X2 Y2 [FRAMES]`, `frame N cut X1 Y1 X2 Y2`,
+/// `frame N key K`, `frame N screenshot PATH`, `frame N quit` (pixel coordinates of the
+/// picture, frames counted from 1; '#' starts a comment).
+struct ScriptCommand {
+  enum class Kind { Drag, Cut, Key, Screenshot, Quit };
+  int frame = 1;
+  Kind kind = Kind::Quit;
+  double x1 = 0, y1 = 0, x2 = 0, y2 = 0;
+  int frames = 10;   ///< Drag: frames the button is held, moving from (x1, y1) to (x2, y2).
+  int key = 0;       ///< Key: the GLFW key code.
+  std::string path;  ///< Screenshot.
+};
+
+/// Parses a script; errors name `source`, the line and the reason. Sorted by frame (stable).
+Result<std::vector<ScriptCommand>> parseScript(std::string_view text, const std::string& source);
+
+/// The GLFW key code of a script key name: a letter or digit, "space", "left", "right", "up",
+/// "down"; 0 for anything else.
+int scriptKey(std::string_view name);
+
+/// A ray from the camera's eye through the centre of pixel (x, y) of a width x height picture
+/// (rows top to bottom), as the renderers project (glm::perspective of the camera).
+struct Ray {
+  glm::dvec3 origin{0}, direction{0, 0, -1};  ///< direction: unit
+};
+Ray cameraRay(const Camera& camera, int width, int height, double x, double y);
+
+/// The planar blade of a mouse stroke: the quad between the rays through its two end points,
+/// from the near to the far plane (the slice a knife drawn over the picture makes). Vertices
+/// and triangles as World::cut's Blade takes them (world space, a static cut).
+struct StrokeBlade {
+  std::vector<glm::vec3> vertices;
+  std::vector<uint32_t> triangles;
+};
+StrokeBlade strokeBlade(const Camera& camera, int width, int height, double x1, double y1,
+                        double x2, double y2);
+
+struct ViewerOptions {
+  std::string scene;
+  std::string script;         ///< --script FILE
+  std::optional<int> frames;  ///< --frames N: exit after N frames.
+  int width = 960, height = 540;
+  RendererKind renderer = RendererKind::Auto;
+  bool validation = false;
+  double strainMax = 0.05;  ///< The strain shown red when the colour map is on (C).
+};
+
+/// The executable: parses argv, opens the window, runs, prints a summary on exit. Exit codes:
+/// 0 ok, 1 failure (including validation messages with --validation), 2 usage, 77 no display
+/// (GLFW could not open a window: the tests skip on it).
+int viewerMain(int argc, char** argv);
+
+/// viewerMain's exit code when no window can be opened.
+inline constexpr int kViewerNoDisplay = 77;
+
+}  // namespace gf::demo
