@@ -412,6 +412,41 @@ TEST(Scene, SurfaceMeshesAreTetrahedralisedWithTheirUnitAndUpAxis) {
   fs::remove_all(dir);
 }
 
+// The shipped bunny drawn with its own surface: the OBJ's triangles, scaled like the tets and
+// bound to them, are what World::surface returns; a missing file is an error under the key.
+TEST(Scene, RenderMeshIsReadScaledAndDrawn) {
+  const Scene s = load(fs::path(GF_SOURCE_DIR) / "scenes" / "bunny_render.json");
+  ASSERT_EQ(s.bodies.size(), 1u);
+  const BodyDef& def = s.bodies[0].def;
+  ASSERT_TRUE(def.renderMesh.has_value());
+  EXPECT_EQ(def.renderMesh->vertexCount(), 1839u);
+  EXPECT_EQ(def.renderMesh->triangleCount(), 3674u);
+  glm::dvec3 lo(1e30), hi(-1e30);
+  for (size_t i = 0; i < def.renderMesh->vertexCount(); ++i) {
+    const glm::dvec3 p(def.renderMesh->positions[3 * i], def.renderMesh->positions[3 * i + 1],
+                       def.renderMesh->positions[3 * i + 2]);
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  const auto [tlo, thi] = bounds(def.mesh);
+  expectNear(lo, tlo, 0.02, "render mesh min against the tets'");
+  expectNear(hi, thi, 0.02, "render mesh max against the tets'");
+
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  const Result<BodyId> id = world.createBody(def);
+  ASSERT_TRUE(id.ok()) << id.error().message;
+  EXPECT_EQ(world.surface(id.value()).indices.size(), 3 * 3674u);
+
+  const Result<Scene> bad = parseScene(
+      R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1], "cells": 2},
+          "render_mesh": {"surface": "missing.obj"}, "material": {"E": 1, "nu": 0, "rho": 1}}]})",
+      "inline", "");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("bodies[0].render_mesh.surface: no such file"),
+            std::string::npos)
+      << bad.error().message;
+}
+
 TEST(Scene, FrictionKeysLoadAndAreChecked) {
   const std::string text = R"({"colliders": [{"type": "plane", "friction": 0.4}],
       "bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1], "cells": [1, 1, 1]},

@@ -290,6 +290,38 @@ TetMesh readSurfaceMesh(ObjReader& o, const std::string& baseDir) {
   return std::move(meshed.value().mesh);
 }
 
+// "render_mesh": the artist's surface drawn instead of the tet boundary (BodyDef::renderMesh),
+// read like "mesh": {"surface": ...}, scaled about the origin by "scale" and moved by the
+// body's "translate" like the tets, so the two stay in register. Normals come from the triangles.
+RenderMesh readRenderMesh(const json& v, const std::string& path, const std::string& baseDir,
+                          const glm::dvec3& translate) {
+  ObjReader o(v, path);
+  o.keys({"surface", "unit", "up", "scale"});
+  const std::string file = readString(o.require("surface"), o.at("surface"));
+  const std::string resolved = resolvePath(file, baseDir);
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(resolved, ec)) {
+    throw SceneError{o.at("surface"), "no such file \"" + resolved + "\""};
+  }
+  meshing::SurfaceReadOptions read;
+  if (const json* unit = o.find("unit")) read.scale = readPositive(*unit, o.at("unit"));
+  if (const json* up = o.find("up")) read.up = readChoice(*up, o.at("up"), {"x", "y", "z"})[0];
+  glm::dvec3 k(1);
+  if (const json* scale = o.find("scale")) k = readScale(*scale, o.at("scale"));
+  Result<meshing::SurfaceFile> loaded = meshing::readSurfaceFile(resolved, read);
+  if (!loaded.ok()) throw SceneError{o.at("surface"), loaded.error().message};
+  const meshing::SurfaceFile& surface = loaded.value();
+  RenderMesh m;
+  m.positions = surface.positions;
+  for (size_t i = 0; i < surface.vertexCount(); ++i) {
+    for (int a = 0; a < 3; ++a)
+      m.positions[3 * i + a] = m.positions[3 * i + a] * k[a] + translate[a];
+  }
+  m.indices.assign(surface.triangles.begin(), surface.triangles.end());
+  if (Result<void> r = m.check(); !r.ok()) throw SceneError{o.at("surface"), r.error().message};
+  return m;
+}
+
 TetMesh readMesh(const json& v, const std::string& path, const std::string& baseDir) {
   ObjReader o(v, path);
   TetMesh mesh;
@@ -1047,7 +1079,8 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
           "friction",
           "contact",
           "impurities",
-          "impurity_maps"});
+          "impurity_maps",
+          "render_mesh"});
   SceneBody body;
   body.name = "body" + std::to_string(index);
   body.colour = kBodyPalette[index % kBodyPalette.size()];
@@ -1068,6 +1101,9 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
     for (size_t i = 0; i < body.def.mesh.nodeCount(); ++i) {
       for (int k = 0; k < 3; ++k) body.def.mesh.positions[3 * i + k] += d[k];
     }
+  }
+  if (const json* rm = o.find("render_mesh")) {
+    body.def.renderMesh = readRenderMesh(*rm, o.at("render_mesh"), baseDir, translate);
   }
   body.def.material = readMaterial(o.require("material"), o.at("material"));
   if (const json* s = o.find("solver")) body.def.solver = readSolver(*s, o.at("solver"));

@@ -6,6 +6,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <optional>
 #include <vector>
 
 #include "mesh.h"
@@ -317,10 +318,16 @@ struct BodyDef {
   /// Optional per-tet rest-space fibre directions (one per tet) overriding
   /// material.fibreDirection; used only when material.fibreStiffness > 0.
   std::vector<glm::vec3> fibreField;
+  /// Optional detailed mesh that World::surface returns instead of the tet boundary (see
+  /// RenderMesh). World::createBody binds its vertices to the tets; a vertex farther from every
+  /// tet than twice the longest tet edge is an error (wrong units or placement). Cost: nothing
+  /// until World::surface is called, then O(render vertices) per rendered frame.
+  std::optional<RenderMesh> renderMesh;
   /// Everything World::createBody checks before it allocates: the mesh (validate()), the
-  /// material, solver, fracture, plasticity and wetting settings, node indices of grips and forces,
-  /// finite vectors, the fibre field. Empty when valid; otherwise names the field
-  /// ("grips[1].nodes: ...") and the reason.
+  /// material, solver, fracture, plasticity and wetting settings, node indices of grips and
+  /// forces, finite vectors, the fibre field, the render mesh's own fields (RenderMesh::check;
+  /// where it lies against the tets is checked by createBody). Empty when valid; otherwise names
+  /// the field ("grips[1].nodes: ...") and the reason.
   Result<void> check() const;
 };
 

@@ -50,6 +50,23 @@ struct TetMesh {
   double volume() const;
 };
 
+/// An artist's triangle mesh drawn in place of a body's tet boundary (BodyDef::renderMesh;
+/// thesis sec 7.3.2, the multi-resolution framework): each vertex is bound at body creation to
+/// the tet that contains it (or the nearest one, for vertices slightly outside) by barycentric
+/// coordinates and follows it every frame. Given in the same rest frame as the tet mesh.
+struct RenderMesh {
+  std::vector<double> positions;  ///< 3 per vertex, rest frame of BodyDef::mesh
+  std::vector<float> normals;     ///< 3 per vertex, or empty: area-weighted from the triangles
+  std::vector<float> uvs;         ///< 2 per vertex, or empty
+  std::vector<uint32_t> indices;  ///< 3 per triangle, counter-clockwise seen from outside
+
+  size_t vertexCount() const { return positions.size() / 3; }
+  size_t triangleCount() const { return indices.size() / 3; }
+  /// Sizes, finite values, non-zero normals and indices in range. Empty when valid; otherwise
+  /// names the field ("normals[4]: ...") and the reason.
+  Result<void> check() const;
+};
+
 /// Checks a mesh and repairs what is safe to repair. Errors name `source` (a file name or a
 /// description), the element or node, and the reason: non-finite coordinates, out-of-range
 /// indices, repeated node in a tet, zero volume (|6V| < 1e-12 L^3, L the bounding-box

@@ -17,7 +17,10 @@ struct SurfaceView {
   std::span<const uint8_t> crackMask;       ///< per triangle: 1 = crack face, 0 = original boundary
   std::span<const int32_t> vertexFragment;  ///< per vertex: the fragment it belongs to
   std::span<const int32_t> vertexNode;      ///< per vertex: the node whose data it shows
-  uint64_t topologyVersion = 0;             ///< changes only when fractures change the triangles
+  /// 2 per vertex when the body's render mesh has UVs (crack-face vertices get 0, 0), else
+  /// empty.
+  std::span<const float> uvs;
+  uint64_t topologyVersion = 0;  ///< changes only when fractures change the triangles
   /// The vertices whose position or normal changed since the previous World::surface call for
   /// this body lie in [dirtyBegin, dirtyEnd); empty (begin == end) when none did. Every vertex
   /// is dirty when topologyVersion changed.

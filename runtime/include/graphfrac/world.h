@@ -198,7 +198,10 @@ class World {
   /// The render surface of a body, built on the first call and brought up to date by each
   /// later call after the body moved (a body nobody renders pays nothing, and one rendered once
   /// per frame pays once per frame, however many steps or substeps the frame took). The dirty
-  /// range covers the vertices moved since the previous call. Empty for an invalid id or when
+  /// range covers the vertices moved since the previous call. A body with a
+  /// BodyDef::renderMesh shows that mesh, deformed with its tets, split by fragment and with the
+  /// crack faces added (uvs filled when it has UVs; every vertex is dirty after an update);
+  /// other bodies show their tet boundary with crack faces. Empty for an invalid id or when
   /// called while step() runs.
   SurfaceView surface(BodyId id);
   /// Timings of the last step.

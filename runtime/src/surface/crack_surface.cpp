@@ -309,6 +309,12 @@ void CrackSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment, c
     }
   }
 
+  for (int32_t a : m_extraFrameNodes) {
+    if (m_nodeFrame[static_cast<size_t>(a)] >= 0) continue;
+    m_nodeFrame[static_cast<size_t>(a)] = static_cast<int32_t>(m_frameNode.size());
+    m_frameNode.push_back(a);
+  }
+
   // Neighbourhoods of the nodes that need a frame: the unbroken 1-ring, grown level by level
   // (over unbroken edges, so within the node's fragment) until it spans a volume, since a
   // flat or collinear set of neighbours cannot tell the affine map (or, if collinear, the twist

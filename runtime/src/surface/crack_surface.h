@@ -106,6 +106,19 @@ class CrackSurface {
   /// `jobs` (null: the calling thread) runs the per-vertex work (surface/surface_stages.h).
   void rebuild(const uint8_t* broken, const int32_t* nodeFragment, const double* x,
                JobSystem* jobs = nullptr);
+  /// Nodes that get a local map (design note: Motion) at every rebuild() besides the surface's
+  /// own, for other vertices that follow partial groups (the embedded render mesh). Copied;
+  /// used from the next rebuild(). Their maps come after the surface's own, so a surface
+  /// without extra nodes is the same bit for bit.
+  void setExtraFrameNodes(std::span<const int32_t> nodes) {
+    m_extraFrameNodes.assign(nodes.begin(), nodes.end());
+  }
+  /// Per node: the index of its local map in frameMaps(), or -1 when it has none.
+  std::span<const int32_t> nodeFrame() const { return m_nodeFrame; }
+  /// The current local maps, 9 per map (row-major), as of the last updatePositions().
+  std::span<const double> frameMaps() const { return m_frameR; }
+  /// Unit normals in double, 3 per vertex.
+  std::span<const double> normalsDouble() const { return m_normals; }
   /// Recomputes positions and normals for node positions `x` (3 per node); topology unchanged.
   /// Widens the dirty range to cover the vertices whose position or normal changed.
   void updatePositions(const double* x, JobSystem* jobs = nullptr);
@@ -178,6 +191,7 @@ class CrackSurface {
   // Local maps for nodes in partial groups: their neighbourhoods (CSR), whether the affine
   // fit is usable with its inverse rest covariance, and the current map.
   std::vector<int32_t> m_nodeFrame;  // node -> frame or -1
+  std::vector<int32_t> m_extraFrameNodes;
   std::vector<int32_t> m_frameNode;
   std::vector<int32_t> m_frameRingStart, m_frameRing;
   std::vector<uint8_t> m_frameAffine;

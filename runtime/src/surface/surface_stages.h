@@ -190,6 +190,84 @@ struct ChangedVertexTerm {
   }
 };
 
+/// cof(F) v = det(F) F^-T v, from the columns f_j of F: cof(F) = [f1 x f2, f2 x f0, f0 x f1].
+/// It maps a rest normal to the current one (Nanson's formula) without inverting F, so it
+/// stays defined, and keeps its direction, for flattened tets.
+GF_HD Vec3 cofactorTimes(const Mat3& F, Vec3 v) {
+  const Vec3 f0 = column(F, 0), f1 = column(F, 1), f2 = column(F, 2);
+  return v.x * cross(f1, f2) + v.y * cross(f2, f0) + v.z * cross(f0, f1);
+}
+
+/// One vertex of the embedded render mesh (surface/embedded_mesh.h): where its group holds all
+/// four nodes of its tet, the tet's own affine interpolation sum_k w_k x_k, and its normal
+/// mapped by the cofactor of the tet's deformation gradient; otherwise, like a partial
+/// CrackSurface vertex, the mean of the group nodes' predictions x_a + M_a (P - X_a) through
+/// their local maps, and the normal through the mean of their cofactors.
+struct EmbeddedVertexStage {
+  const double* x = nullptr;
+  const double* X = nullptr;
+  const int32_t* tets = nullptr;       ///< 4 per tet
+  const Mat3* restInverse = nullptr;   ///< Dm^-1 per tet
+  const int32_t* tet = nullptr;        ///< per vertex
+  const double* weight = nullptr;      ///< 4 per vertex
+  const uint8_t* group = nullptr;      ///< mask over the tet's local nodes
+  const int32_t* source = nullptr;     ///< per vertex: its render-mesh vertex
+  const double* rest = nullptr;        ///< 3 per render-mesh vertex
+  const double* restNormal = nullptr;  ///< 3 per render-mesh vertex, unit
+  const int32_t* nodeFrame = nullptr;
+  const double* frameR = nullptr;  ///< 9 per frame
+  double* positions = nullptr;     ///< 3 per vertex
+  double* normals = nullptr;       ///< 3 per vertex
+
+  GF_HD void operator()(int32_t v) const {
+    const int32_t t = tet[v];
+    const int32_t* n = tets + 4 * int64_t(t);
+    const double* w = weight + 4 * int64_t(v);
+    const unsigned g = group[v];
+    const Vec3 N = loadVec3(restNormal, source[v]);
+    Vec3 p{}, nn{};
+    if (g == 15u) {
+      Vec3 xe[4];
+      for (int k = 0; k < 4; ++k) {
+        xe[k] = loadVec3(x, n[k]);
+        p += w[k] * xe[k];
+      }
+      const Mat3 F = fromColumns(xe[1] - xe[0], xe[2] - xe[0], xe[3] - xe[0]) * restInverse[t];
+      nn = cofactorTimes(F, N);
+    } else {
+      const Vec3 P = loadVec3(rest, source[v]);
+      int members = 0;
+      for (int k = 0; k < 4; ++k) {
+        if (!(g >> k & 1u)) continue;
+        Mat3 R;
+        for (int j = 0; j < 9; ++j) R.m[j] = frameR[9 * int64_t(nodeFrame[n[k]]) + j];
+        p += loadVec3(x, n[k]) + R * (P - loadVec3(X, n[k]));
+        nn += cofactorTimes(R, N);
+        ++members;
+      }
+      p = (1.0 / members) * p;
+    }
+    // A tet flattened to nothing has no normal map; the rest normal is the best guess left.
+    const double len = norm(nn);
+    nn = len > 0 ? (1.0 / len) * nn : N;
+    for (int c = 0; c < 3; ++c) {
+      positions[3 * int64_t(v) + c] = p[c];
+      normals[3 * int64_t(v) + c] = nn[c];
+    }
+  }
+};
+
+/// out[3 i + c] = in[3 from[i] + c]: the crack-face vertices the embedded surface borrows.
+struct GatherVec3Stage {
+  const double* in = nullptr;
+  const int32_t* from = nullptr;
+  double* out = nullptr;
+
+  GF_HD void operator()(int32_t i) const {
+    for (int c = 0; c < 3; ++c) out[3 * int64_t(i) + c] = in[3 * int64_t(from[i]) + c];
+  }
+};
+
 /// out[i] = float(in[i]).
 struct ToFloatStage {
   const double* in = nullptr;

@@ -4,6 +4,7 @@
 #include "world/validation.h"
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <glm/common.hpp>
 #include <glm/vector_relational.hpp>
@@ -285,9 +286,49 @@ Result<void> checkBodySettings(const BodyDef& def) {
         return fail("fibreField[", std::to_string(t), "]: must be finite and non-zero");
     }
   }
+  if (def.renderMesh) {
+    if (auto r = def.renderMesh->check(); !r) return fail("renderMesh.", r.error().message);
+  }
   return {};
 }
 }  // namespace detail
+
+Result<void> RenderMesh::check() const {
+  const size_t nv = positions.size() / 3;
+  if (positions.empty()) return fail("positions: empty");
+  if (positions.size() % 3 != 0)
+    return fail("positions: ", std::to_string(positions.size()), " values, not 3 per vertex");
+  // Vertex ids become int32 in the surface's per-vertex tables.
+  if (nv > size_t(INT32_MAX / 2))
+    return fail("positions: ", std::to_string(nv), " vertices, more than ",
+                std::to_string(INT32_MAX / 2));
+  if (indices.empty()) return fail("indices: empty (no triangles)");
+  if (indices.size() % 3 != 0)
+    return fail("indices: ", std::to_string(indices.size()), " values, not 3 per triangle");
+  if (!normals.empty() && normals.size() != positions.size())
+    return fail("normals: ", std::to_string(normals.size()), " values for ", std::to_string(nv),
+                " vertices (3 per vertex, or empty)");
+  if (!uvs.empty() && uvs.size() != 2 * nv)
+    return fail("uvs: ", std::to_string(uvs.size()), " values for ", std::to_string(nv),
+                " vertices (2 per vertex, or empty)");
+  for (size_t i = 0; i < positions.size(); ++i)
+    if (!std::isfinite(positions[i]) || std::fabs(positions[i]) > 1e9)
+      return fail("positions[", std::to_string(i / 3), "]: not finite or beyond 1e9 m");
+  for (size_t i = 0; i < nv && !normals.empty(); ++i) {
+    const float* n = &normals[3 * i];
+    if (!std::isfinite(n[0]) || !std::isfinite(n[1]) || !std::isfinite(n[2]))
+      return fail("normals[", std::to_string(i), "]: not finite");
+    if (double(n[0]) * n[0] + double(n[1]) * n[1] + double(n[2]) * n[2] < 1e-12)
+      return fail("normals[", std::to_string(i), "]: zero length");
+  }
+  for (size_t i = 0; i < uvs.size(); ++i)
+    if (!std::isfinite(uvs[i])) return fail("uvs[", std::to_string(i / 2), "]: not finite");
+  for (size_t k = 0; k < indices.size(); ++k)
+    if (indices[k] >= nv)
+      return fail("indices[", std::to_string(k), "]: vertex ", std::to_string(indices[k]),
+                  " out of range [0, ", std::to_string(nv), ")");
+  return {};
+}
 
 Result<void> BodyDef::check() const {
   if (mesh.tetCount() == 0) return fail("mesh: has no tetrahedra");

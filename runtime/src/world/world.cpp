@@ -228,8 +228,16 @@ Result<BodyId> World::createBody(BodyDef def) {
     int flipped = 0;
     if (auto r = validate(def.mesh, "BodyDef.mesh", &flipped); !r) return r.error();
     if (auto r = detail::checkBodySettings(def); !r) return fail("BodyDef.", r.error().message);
+    std::unique_ptr<detail::EmbeddedBinding> binding;
+    if (def.renderMesh) {
+      Result<detail::EmbeddedBinding> bound =
+          detail::EmbeddedBinding::bind(def.mesh, *def.renderMesh, "BodyDef.renderMesh");
+      if (!bound) return bound.error();
+      binding = std::make_unique<detail::EmbeddedBinding>(std::move(bound.value()));
+    }
     Result<std::unique_ptr<BodyRecord>> built = buildBody(std::move(def), *w.jobs);
     if (!built) return built.error();
+    built.value()->renderBinding = std::move(binding);
     size_t slot = 0;
     while (slot < w.slots.size() && w.slots[slot].body) ++slot;
     if (slot == w.slots.size()) w.slots.emplace_back();

@@ -18,6 +18,7 @@
 #include "graphfrac/world.h"
 #include "sculpt/wetting.h"
 #include "surface/crack_surface.h"
+#include "surface/embedded_mesh.h"
 #include "world/backend.h"
 #include "world/validation.h"
 
@@ -39,6 +40,9 @@ struct SurfaceRecord {
   std::vector<uint8_t> noBreaks;     // idem
   std::vector<int32_t> oneFragment;  // idem
   detail::CrackSurface surface;
+  // The body's render mesh deformed with it (null without BodyDef::renderMesh); it borrows
+  // the crack faces and local maps of `surface`.
+  std::unique_ptr<detail::EmbeddedSurface> embedded;
   uint64_t brokenCount = 0;
 };
 
@@ -46,10 +50,11 @@ struct BodyRecord {
   detail::FemModel model;
   detail::FemState state;
   std::unique_ptr<detail::Integrator> integrator;
-  std::unique_ptr<detail::FractureBody> fracture;  // null: no fracture, no edge stresses
-  std::unique_ptr<SurfaceRecord> surface;          // null until somebody asks for it
-  std::vector<Grip> grips;                         // node lists for setGripVelocity
-  std::vector<double> pendingForce;                // applyForce, next step only; empty: none
+  std::unique_ptr<detail::FractureBody> fracture;          // null: no fracture, no edge stresses
+  std::unique_ptr<SurfaceRecord> surface;                  // null until somebody asks for it
+  std::unique_ptr<detail::EmbeddedBinding> renderBinding;  // BodyDef::renderMesh, bound
+  std::vector<Grip> grips;                                 // node lists for setGripVelocity
+  std::vector<double> pendingForce;  // applyForce, next step only; empty: none
   // Fragments handed to rigid physics (detachFragment): id and rest centre of mass, in
   // detach order.
   std::vector<std::pair<int32_t, Vec3>> rigid;
@@ -163,11 +168,17 @@ struct World::Impl {
     // Partial cracks are rendered too, so every newly broken edge changes the topology.
     if (b.fracture && uint64_t(b.fracture->brokenCount()) != r.brokenCount) {
       r.brokenCount = uint64_t(b.fracture->brokenCount());
+      if (r.embedded) {
+        r.embedded->rebuild(b.fracture->broken().data(),
+                            b.fracture->fragments().nodeFragment().data());
+        r.surface.setExtraFrameNodes(r.embedded->frameNodes());
+      }
       r.surface.rebuild(b.fracture->broken().data(), b.fracture->fragments().nodeFragment().data(),
                         b.state.x.data(), jobs);
     } else {
       r.surface.updatePositions(b.state.x.data(), jobs);
     }
+    if (r.embedded) r.embedded->update(b.state.x.data(), r.surface, jobs);
   }
 
   // The colliders with their stiffness for substep dt filled in.

@@ -37,10 +37,12 @@ SurfaceView World::surface(BodyId id) {
   if (!b || m_impl->stepping.load()) return {};
   // The view's dirty range covers what changed since the previous call.
   if (b->surface) b->surface->surface.clearDirty();
+  bool updated = false;
   if (b->surface && b->surfaceStale) {
     const auto t0 = detail::Clock::now();
     m_impl->updateSurface(*b);
     m_impl->timings.surfaceMs += detail::msSince(t0);
+    updated = true;
   }
   b->surfaceStale = false;
   if (!b->surface) {
@@ -58,16 +60,38 @@ SurfaceView World::surface(BodyId id) {
       graph = &r->ownGraph;
     }
     r->surface.init(r->rest, *graph);
+    const uint8_t* broken = r->noBreaks.data();
+    const int32_t* fragments = r->oneFragment.data();
     if (b->fracture) {
       r->brokenCount = uint64_t(b->fracture->brokenCount());
-      r->surface.rebuild(b->fracture->broken().data(),
-                         b->fracture->fragments().nodeFragment().data(), b->state.x.data(),
-                         m_impl->jobs);
-    } else {
-      r->surface.rebuild(r->noBreaks.data(), r->oneFragment.data(), b->state.x.data(),
-                         m_impl->jobs);
+      broken = b->fracture->broken().data();
+      fragments = b->fracture->fragments().nodeFragment().data();
     }
+    if (b->renderBinding) {
+      r->embedded = std::make_unique<detail::EmbeddedSurface>();
+      r->embedded->init(*b->renderBinding, r->rest, *graph, b->model.restInverse.data());
+      r->embedded->rebuild(broken, fragments);
+      r->surface.setExtraFrameNodes(r->embedded->frameNodes());
+    }
+    r->surface.rebuild(broken, fragments, b->state.x.data(), m_impl->jobs);
+    if (r->embedded) r->embedded->update(b->state.x.data(), r->surface, m_impl->jobs);
     b->surface = std::move(r);
+    updated = true;
+  }
+  if (const detail::EmbeddedSurface* e = b->surface->embedded.get()) {
+    // Every vertex of a render mesh moves with its tet, so an update dirties them all.
+    SurfaceView v;
+    v.positions = e->positions();
+    v.normals = e->normals();
+    v.uvs = e->uvs();
+    v.indices = e->indices();
+    v.crackMask = e->crackFlags();
+    v.vertexFragment = e->vertexFragment();
+    v.vertexNode = e->vertexNode();
+    v.topologyVersion = e->topologyVersion();
+    v.dirtyBegin = 0;
+    v.dirtyEnd = updated ? uint32_t(e->vertexNode().size()) : 0;
+    return v;
   }
   const detail::CrackSurface& s = b->surface->surface;
   SurfaceView v;
