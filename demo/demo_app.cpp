@@ -119,11 +119,8 @@ std::string parseArgs(int argc, char** argv, DemoOptions& o, bool& help) {
         return "--strain needs the strain shown as red, a number > 0 (e.g. 0.05)";
     } else if (arg == "--renderer") {
       std::string value;
-      if (!a.value(value) || (value != "auto" && value != "vulkan" && value != "gl"))
+      if (!a.value(value) || !parseRendererKind(value, o.renderer))
         return "--renderer needs auto, vulkan or gl";
-      o.renderer = value == "vulkan" ? RendererKind::Vulkan
-                   : value == "gl"   ? RendererKind::Gl
-                                     : RendererKind::Auto;
     } else if (a.isOption()) {
       return "unknown option '" + arg + "'";
     } else if (o.scene.empty()) {

@@ -51,6 +51,18 @@ Result<std::unique_ptr<Renderer>> createGlRenderer(const RendererOptions&) {
 }
 #endif
 
+bool parseRendererKind(std::string_view name, RendererKind& kind) {
+  if (name == "auto")
+    kind = RendererKind::Auto;
+  else if (name == "vulkan")
+    kind = RendererKind::Vulkan;
+  else if (name == "gl")
+    kind = RendererKind::Gl;
+  else
+    return false;
+  return true;
+}
+
 Result<std::unique_ptr<Renderer>> createRenderer(const RendererOptions& options) {
   if (options.width <= 0 || options.height <= 0 || options.width > 8192 || options.height > 8192)
     return fail("renderer: size ", std::to_string(options.width), "x",

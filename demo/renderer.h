@@ -13,6 +13,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace gf::demo {
@@ -24,6 +25,8 @@ struct Image {
 };
 
 enum class RendererKind { Auto, Vulkan, Gl };
+/// "auto", "vulkan" or "gl" (the command lines' --renderer); false for anything else.
+bool parseRendererKind(std::string_view name, RendererKind& kind);
 
 struct RendererOptions {
   RendererKind kind = RendererKind::Auto;  ///< Auto: Vulkan if a device exists, else GL (EGL)

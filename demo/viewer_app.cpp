@@ -86,11 +86,8 @@ std::string parseArgs(int argc, char** argv, ViewerOptions& o, bool& help) {
       if (!a.positiveValue(o.strainMax)) return "--strain needs a number > 0 (e.g. 0.05)";
     } else if (arg == "--renderer") {
       std::string value;
-      if (!a.value(value) || (value != "auto" && value != "vulkan" && value != "gl"))
+      if (!a.value(value) || !parseRendererKind(value, o.renderer))
         return "--renderer needs auto, vulkan or gl";
-      o.renderer = value == "vulkan" ? RendererKind::Vulkan
-                   : value == "gl"   ? RendererKind::Gl
-                                     : RendererKind::Auto;
     } else if (a.isOption()) {
       return "unknown option '" + arg + "'";
     } else if (o.scene.empty()) {

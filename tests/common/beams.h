@@ -17,6 +17,17 @@ inline SolverSettings staticSolver() {
   return s;
 }
 
+/// A 1 x 0.1 x 0.1 m beam of nx x nh x nh cells, clamped (held still) at x = 0.
+inline BodyDef clampedBeam(const Material& m, int nx, int nh) {
+  BodyDef def;
+  def.mesh = gen::box(1.0, 0.1, 0.1, nx, nh, nh);
+  def.material = m;
+  Grip clamp;
+  clamp.nodes = selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
+  def.grips.push_back(clamp);
+  return def;
+}
+
 struct BeamResult {
   double tip = 0, analytic = 0;
 };

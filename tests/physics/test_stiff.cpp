@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "common/beams.h"
 #include "common/sim_helpers.h"
 
 namespace gf {
@@ -30,15 +31,7 @@ RunResult runSteps(World& world, BodyId id, int n, double dt) {
   return r;
 }
 
-BodyDef clampedBeam(const Material& m, int nx, int nh) {
-  BodyDef def;
-  def.mesh = gen::box(1.0, 0.1, 0.1, nx, nh, nh);
-  def.material = m;
-  Grip clamp;
-  clamp.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
-  def.grips.push_back(clamp);
-  return def;
-}
+using test::clampedBeam;
 
 TEST(Stiff, SteelBeamAtGameTimeSteps) {
   for (double dt : {5e-3, 5e-2}) {

@@ -33,6 +33,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/beams.h"
 #include "common/sim_helpers.h"
 
 namespace gf {
@@ -230,15 +231,7 @@ bool strict() {
   return v && std::strcmp(v, "1") == 0;
 }
 
-BodyDef clampedBeam(const Material& m, int nx, int nh) {
-  BodyDef def;
-  def.mesh = gen::box(1.0, 0.1, 0.1, nx, nh, nh);
-  def.material = m;
-  Grip clamp;
-  clamp.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
-  def.grips.push_back(clamp);
-  return def;
-}
+using test::clampedBeam;
 
 class Stability : public ::testing::TestWithParam<Param> {
  protected:

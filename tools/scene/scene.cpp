@@ -251,12 +251,9 @@ glm::dvec3 readScale(const json& v, const std::string& path) {
   return readPositiveVec3(v, path);
 }
 
-// A triangle surface in any format graphfrac_meshing reads, tetrahedralised by the lattice
-// mesher (open, multi-part and self-intersecting surfaces too): "cells" along the longest
-// axis or about "target_tets" tets; "unit" (metres per file unit) and "up" override what the
-// file declares.
-TetMesh readSurfaceMesh(ObjReader& o, const std::string& baseDir) {
-  o.keys({"surface", "cells", "target_tets", "unit", "up", "scale"});
+// The "surface", "unit" and "up" keys of "mesh" and "render_mesh": the file, read with the
+// units and up axis they give (or the file's own).
+meshing::SurfaceFile readSurfaceKeys(ObjReader& o, const std::string& baseDir) {
   const std::string file = readString(o.require("surface"), o.at("surface"));
   const std::string resolved = resolvePath(file, baseDir);
   std::error_code ec;
@@ -266,6 +263,20 @@ TetMesh readSurfaceMesh(ObjReader& o, const std::string& baseDir) {
   meshing::SurfaceReadOptions read;
   if (const json* unit = o.find("unit")) read.scale = readPositive(*unit, o.at("unit"));
   if (const json* up = o.find("up")) read.up = readChoice(*up, o.at("up"), {"x", "y", "z"})[0];
+  Result<meshing::SurfaceFile> loaded = meshing::readSurfaceFile(resolved, read);
+  if (!loaded.ok()) throw SceneError{o.at("surface"), loaded.error().message};
+  if (loaded.value().vertexCount() > size_t(std::numeric_limits<int32_t>::max())) {
+    throw SceneError{o.at("surface"), resolved + ": too many vertices"};
+  }
+  return std::move(loaded).value();
+}
+
+// A triangle surface in any format graphfrac_meshing reads, tetrahedralised by the lattice
+// mesher (open, multi-part and self-intersecting surfaces too): "cells" along the longest
+// axis or about "target_tets" tets; "unit" (metres per file unit) and "up" override what the
+// file declares.
+TetMesh readSurfaceMesh(ObjReader& o, const std::string& baseDir) {
+  o.keys({"surface", "cells", "target_tets", "unit", "up", "scale"});
   meshing::LatticeOptions lattice;
   if (o.has("cells") && o.has("target_tets")) {
     throw SceneError{o.at("cells"), "give \"cells\" or \"target_tets\", not both"};
@@ -277,12 +288,7 @@ TetMesh readSurfaceMesh(ObjReader& o, const std::string& baseDir) {
     lattice.targetTets = readPositive(*target, o.at("target_tets"));
     requireAtMost(lattice.targetTets, kMaxSurfaceTets, o.at("target_tets"), *target);
   }
-  Result<meshing::SurfaceFile> loaded = meshing::readSurfaceFile(resolved, read);
-  if (!loaded.ok()) throw SceneError{o.at("surface"), loaded.error().message};
-  const meshing::SurfaceFile& surface = loaded.value();
-  if (surface.vertexCount() > size_t(std::numeric_limits<int32_t>::max())) {
-    throw SceneError{o.at("surface"), resolved + ": too many vertices"};
-  }
+  const meshing::SurfaceFile surface = readSurfaceKeys(o, baseDir);
   const std::vector<int32_t> triangles(surface.triangles.begin(), surface.triangles.end());
   Result<meshing::LatticeResult> meshed =
       meshing::latticeMesh(meshing::TriangleSoup(surface.positions, triangles), lattice);
@@ -297,20 +303,9 @@ RenderMesh readRenderMesh(const json& v, const std::string& path, const std::str
                           const glm::dvec3& translate) {
   ObjReader o(v, path);
   o.keys({"surface", "unit", "up", "scale"});
-  const std::string file = readString(o.require("surface"), o.at("surface"));
-  const std::string resolved = resolvePath(file, baseDir);
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(resolved, ec)) {
-    throw SceneError{o.at("surface"), "no such file \"" + resolved + "\""};
-  }
-  meshing::SurfaceReadOptions read;
-  if (const json* unit = o.find("unit")) read.scale = readPositive(*unit, o.at("unit"));
-  if (const json* up = o.find("up")) read.up = readChoice(*up, o.at("up"), {"x", "y", "z"})[0];
   glm::dvec3 k(1);
   if (const json* scale = o.find("scale")) k = readScale(*scale, o.at("scale"));
-  Result<meshing::SurfaceFile> loaded = meshing::readSurfaceFile(resolved, read);
-  if (!loaded.ok()) throw SceneError{o.at("surface"), loaded.error().message};
-  const meshing::SurfaceFile& surface = loaded.value();
+  const meshing::SurfaceFile surface = readSurfaceKeys(o, baseDir);
   RenderMesh m;
   m.positions = surface.positions;
   for (size_t i = 0; i < surface.vertexCount(); ++i) {

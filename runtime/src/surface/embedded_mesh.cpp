@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "kernels/contact.h"
 #include "mesh/mesh_internal.h"
 #include "step/executor.h"
 #include "surface/surface_stages.h"
@@ -30,28 +31,6 @@ void barycentric(const Mat3& dmInv, Vec3 X0, Vec3 P, double* w) {
   w[2] = l.y;
   w[3] = l.z;
   w[0] = 1 - l.x - l.y - l.z;
-}
-
-// Closest point of triangle abc to p (Ericson, Real-Time Collision Detection, sec 5.1.5).
-Vec3 closestOnTriangle(Vec3 p, Vec3 a, Vec3 b, Vec3 c) {
-  const Vec3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = dot(ab, ap), d2 = dot(ac, ap);
-  if (d1 <= 0 && d2 <= 0) return a;
-  const Vec3 bp = p - b;
-  const double d3 = dot(ab, bp), d4 = dot(ac, bp);
-  if (d3 >= 0 && d4 <= d3) return b;
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + (d1 / (d1 - d3)) * ab;
-  const Vec3 cp = p - c;
-  const double d5 = dot(ab, cp), d6 = dot(ac, cp);
-  if (d6 >= 0 && d5 <= d6) return c;
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + (d2 / (d2 - d6)) * ac;
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
-    return b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b);
-  const double denom = 1 / (va + vb + vc);
-  return a + (vb * denom) * ab + (vc * denom) * ac;
 }
 
 // The connected component of local node k among a tet's nodes over the joined local edges
@@ -208,10 +187,10 @@ Result<EmbeddedBinding> EmbeddedBinding::bind(const TetMesh& rest, const RenderM
                 const int32_t* n = &rest.tets[4 * size_t(t)];
                 double d = HUGE_VAL;
                 for (const auto& f : kTetFaces) {
-                  const Vec3 q =
-                      closestOnTriangle(P, load(X, size_t(n[f[0]])), load(X, size_t(n[f[1]])),
-                                        load(X, size_t(n[f[2]])));
-                  d = std::min(d, norm(P - q));
+                  const Vec3 a = load(X, size_t(n[f[0]])), b = load(X, size_t(n[f[1]])),
+                             c = load(X, size_t(n[f[2]]));
+                  const Vec3 w = closestOnTriangle(P, a, b, c);
+                  d = std::min(d, norm(P - (w.x * a + w.y * b + w.z * c)));
                 }
                 if (d < bestDist) {
                   bestDist = d;
