@@ -88,8 +88,8 @@ TEST(Brittle, OneRegionSplitsABarInTwoNormalToTheLoad) {
   const auto stress = uniaxial(b, {1, 0, 0}, peakNear21);
   std::vector<uint8_t> broken(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> events;
-  auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), stress.data(), broken, events,
-                              serialJobs());
+  auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), b.model.strength.data(),
+                              stress.data(), broken, events, serialJobs());
   ASSERT_TRUE(r.ok()) << r.error().message;
   const std::vector<BrittleSeed>& seeds = r.value();
   ASSERT_EQ(seeds.size(), 1u);
@@ -115,8 +115,8 @@ TEST(Brittle, TiltedPrincipalDirectionGivesATiltedPlane) {
       b, n, [](double x) { return 1e6 * (1 + 0.2 * std::exp(-(x - 1.9) * (x - 1.9) / 0.25)); });
   std::vector<uint8_t> broken(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> events;
-  auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), stress.data(), broken, events,
-                              serialJobs());
+  auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), b.model.strength.data(),
+                              stress.data(), broken, events, serialJobs());
   ASSERT_TRUE(r.ok());
   ASSERT_EQ(r.value().size(), 1u);
   const BrittleSeed& seed = r.value()[0];
@@ -136,8 +136,8 @@ TEST(Brittle, MoreRegionsGiveMorePieces) {
     const auto stress = uniaxial(b, {1, 0, 0}, profile);
     std::vector<uint8_t> broken(b.graph.edgeCount, 0);
     std::vector<EdgeBreak> events;
-    auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), stress.data(), broken, events,
-                                serialJobs());
+    auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), b.model.strength.data(),
+                                stress.data(), broken, events, serialJobs());
     ASSERT_TRUE(r.ok());
     ASSERT_EQ(r.value().size(), size_t(regions));
     std::vector<int> label;
@@ -155,14 +155,14 @@ TEST(Brittle, FailsWithoutFaceAdjacencyAndIgnoresCompression) {
   std::vector<double> stress(6 * b.mesh.tetCount(), 0.0);
   std::vector<uint8_t> broken(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> events;
-  auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), stress.data(), broken, events,
-                              serialJobs());
+  auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), b.model.strength.data(),
+                              stress.data(), broken, events, serialJobs());
   EXPECT_FALSE(r.ok());
   b.model.buildFaceAdjacency(restView(b.mesh));
   // Pure compression: no tensile principal stress, no seed, nothing breaks.
   for (size_t t = 0; t < b.mesh.tetCount(); ++t) stress[6 * t] = -1e7;
-  r = startBrittleCracks(b.model, b.graph, restView(b.mesh), stress.data(), broken, events,
-                         serialJobs());
+  r = startBrittleCracks(b.model, b.graph, restView(b.mesh), b.model.strength.data(), stress.data(),
+                         broken, events, serialJobs());
   ASSERT_TRUE(r.ok());
   EXPECT_TRUE(r.value().empty());
   EXPECT_TRUE(events.empty());
@@ -191,8 +191,8 @@ TEST(Brittle, EdgesStrongerThanThePlaneStressHold) {
   // Without strong edges: which edges the plane crosses.
   std::vector<uint8_t> reference(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> referenceEvents;
-  auto ref = startBrittleCracks(b.model, b.graph, restView(b.mesh), stress.data(), reference,
-                                referenceEvents, serialJobs());
+  auto ref = startBrittleCracks(b.model, b.graph, restView(b.mesh), b.model.strength.data(),
+                                stress.data(), reference, referenceEvents, serialJobs());
   ASSERT_TRUE(ref.ok());
   // Reinforce every crossed edge in the half of the bar (y above or below 0.5) away from the
   // seed: a band the crack cannot pass.
@@ -209,8 +209,8 @@ TEST(Brittle, EdgesStrongerThanThePlaneStressHold) {
   ASSERT_GT(reinforced, 0);
   std::vector<uint8_t> broken(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> events;
-  auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), stress.data(), broken, events,
-                              serialJobs());
+  auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), b.model.strength.data(),
+                              stress.data(), broken, events, serialJobs());
   ASSERT_TRUE(r.ok());
   int held = 0;
   for (int32_t e = 0; e < b.graph.edgeCount; ++e) {

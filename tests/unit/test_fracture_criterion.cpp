@@ -93,8 +93,8 @@ TEST(FractureCriterion, SingleTetBreaksExactlyTheEdgesAtStrength) {
   std::vector<uint8_t> broken(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> events;
   CriterionWorkspace ws;
-  const int32_t n =
-      evaluateCriterion(b.model, b.graph, stress.data(), broken, events, ws, serialJobs());
+  const int32_t n = evaluateCriterion(b.model, b.graph, b.model.strength.data(), stress.data(),
+                                      broken, events, ws, serialJobs());
   int expected = 0;
   for (int32_t e = 0; e < b.graph.edgeCount; ++e) {
     const double sig = sigmaN(b, e, stress.data());
@@ -124,7 +124,8 @@ TEST(FractureCriterion, BarUnderUniformStressAndCompression) {
   std::vector<uint8_t> broken(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> events;
   CriterionWorkspace ws;
-  evaluateCriterion(b.model, b.graph, stress.data(), broken, events, ws, serialJobs());
+  evaluateCriterion(b.model, b.graph, b.model.strength.data(), stress.data(), broken, events, ws,
+                    serialJobs());
   int breaks = 0, holds = 0;
   for (int32_t e = 0; e < b.graph.edgeCount; ++e) {
     const double sig = sigmaN(b, e, stress.data());
@@ -144,7 +145,8 @@ TEST(FractureCriterion, BarUnderUniformStressAndCompression) {
   std::vector<double> comp = uniformStress(weak.mesh.tetCount(), C);
   std::vector<uint8_t> flags(weak.graph.edgeCount, 0);
   events.clear();
-  EXPECT_EQ(evaluateCriterion(weak.model, weak.graph, comp.data(), flags, events, ws, serialJobs()),
+  EXPECT_EQ(evaluateCriterion(weak.model, weak.graph, weak.model.strength.data(), comp.data(),
+                              flags, events, ws, serialJobs()),
             0);
   EXPECT_TRUE(events.empty());
 }
@@ -158,15 +160,19 @@ TEST(FractureCriterion, DamageNeverHeals) {
   std::vector<uint8_t> broken(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> events;
   CriterionWorkspace ws;
-  const int32_t first =
-      evaluateCriterion(b.model, b.graph, pull.data(), broken, events, ws, serialJobs());
+  const int32_t first = evaluateCriterion(b.model, b.graph, b.model.strength.data(), pull.data(),
+                                          broken, events, ws, serialJobs());
   ASSERT_GT(first, 0);
   const std::vector<uint8_t> after = broken;
   events.clear();
-  EXPECT_EQ(evaluateCriterion(b.model, b.graph, rest.data(), broken, events, ws, serialJobs()), 0);
+  EXPECT_EQ(evaluateCriterion(b.model, b.graph, b.model.strength.data(), rest.data(), broken,
+                              events, ws, serialJobs()),
+            0);
   EXPECT_EQ(broken, after);
   // The same load again: everything it could break is already broken.
-  EXPECT_EQ(evaluateCriterion(b.model, b.graph, pull.data(), broken, events, ws, serialJobs()), 0);
+  EXPECT_EQ(evaluateCriterion(b.model, b.graph, b.model.strength.data(), pull.data(), broken,
+                              events, ws, serialJobs()),
+            0);
   EXPECT_EQ(broken, after);
   EXPECT_TRUE(events.empty());
 }
@@ -190,8 +196,10 @@ TEST(FractureCriterion, LocalCriterionMatchesIndependentMaxOverIncidentTets) {
   std::vector<uint8_t> broken(local.graph.edgeCount, 0), broken2 = broken;
   std::vector<EdgeBreak> events, events2;
   CriterionWorkspace ws, ws2;
-  evaluateCriterion(local.model, local.graph, stress.data(), broken, events, ws, serialJobs());
-  evaluateCriterion(tiny.model, tiny.graph, stress.data(), broken2, events2, ws2, serialJobs());
+  evaluateCriterion(local.model, local.graph, local.model.strength.data(), stress.data(), broken,
+                    events, ws, serialJobs());
+  evaluateCriterion(tiny.model, tiny.graph, tiny.model.strength.data(), stress.data(), broken2,
+                    events2, ws2, serialJobs());
   EXPECT_EQ(broken, broken2);
   ASSERT_EQ(events.size(), events2.size());
 
@@ -285,10 +293,13 @@ TEST(FractureCriterion, NonLocalAveragingDampsASingleStressedTet) {
   std::vector<EdgeBreak> ev;
   CriterionWorkspace ws1, ws2;
   // Local: all 6 edges of the hot tet break (sigma_n = 3 sigma_th along any direction).
-  EXPECT_EQ(evaluateCriterion(local.model, local.graph, stress.data(), b1, ev, ws1, serialJobs()),
+  EXPECT_EQ(evaluateCriterion(local.model, local.graph, local.model.strength.data(), stress.data(),
+                              b1, ev, ws1, serialJobs()),
             6);
   // Averaged: the hot tet's weight 1 is divided by the sum over its many neighbours.
-  EXPECT_EQ(evaluateCriterion(avg.model, avg.graph, stress.data(), b2, ev, ws2, serialJobs()), 0);
+  EXPECT_EQ(evaluateCriterion(avg.model, avg.graph, avg.model.strength.data(), stress.data(), b2,
+                              ev, ws2, serialJobs()),
+            0);
   const int32_t nb = avg.model.neighbourStart[hot + 1] - avg.model.neighbourStart[hot];
   EXPECT_GT(nb, 20);
   double wsum = 0;
@@ -320,8 +331,8 @@ TEST(FractureCriterion, BoundedNonLocalCriterionMatchesFullAverage) {
   std::vector<uint8_t> broken(b.graph.edgeCount, 0);
   std::vector<EdgeBreak> events;
   CriterionWorkspace ws;
-  const int32_t n =
-      evaluateCriterion(b.model, b.graph, stress.data(), broken, events, ws, serialJobs());
+  const int32_t n = evaluateCriterion(b.model, b.graph, b.model.strength.data(), stress.data(),
+                                      broken, events, ws, serialJobs());
   size_t averaged = 0;
   for (size_t t = 0; t < T; ++t) averaged += (ws.candidates[t] & 0x80) != 0;
   EXPECT_GT(averaged, 0u);
@@ -351,7 +362,8 @@ TEST(FractureCriterion, BoundedNonLocalCriterionMatchesFullAverage) {
   std::vector<double> calm(6 * T);
   for (double& v : calm) v = 0.1 * strength * rng.next();
   std::vector<uint8_t> untouched(b.graph.edgeCount, 0);
-  EXPECT_EQ(evaluateCriterion(b.model, b.graph, calm.data(), untouched, events, ws, serialJobs()),
+  EXPECT_EQ(evaluateCriterion(b.model, b.graph, b.model.strength.data(), calm.data(), untouched,
+                              events, ws, serialJobs()),
             0);
 }
 
@@ -467,8 +479,10 @@ TEST(FractureCriterion, SameResultForOneAndFourThreads) {
   std::vector<uint8_t> f1(b1.graph.edgeCount, 0), f4 = f1;
   std::vector<EdgeBreak> e1, e4;
   CriterionWorkspace w1, w4;
-  const int32_t n1 = evaluateCriterion(b1.model, b1.graph, stress.data(), f1, e1, w1, serial);
-  const int32_t n4 = evaluateCriterion(b4.model, b4.graph, stress.data(), f4, e4, w4, pool);
+  const int32_t n1 = evaluateCriterion(b1.model, b1.graph, b1.model.strength.data(), stress.data(),
+                                       f1, e1, w1, serial);
+  const int32_t n4 = evaluateCriterion(b4.model, b4.graph, b4.model.strength.data(), stress.data(),
+                                       f4, e4, w4, pool);
   EXPECT_GT(n1, 0);
   EXPECT_LT(n1, b1.graph.edgeCount / 2);
   EXPECT_EQ(n1, n4);

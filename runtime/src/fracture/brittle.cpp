@@ -22,8 +22,9 @@ struct PlaneCut {
 
 Result<std::vector<BrittleSeed>> startBrittleCracks(
     const FractureModel& model, const EdgeGraph& graph, const RestMeshView& rest,
-    const double* tetStress, std::vector<uint8_t>& broken, std::vector<EdgeBreak>& events,
-    JobSystem& jobs, const double* positions, const BrittleOptions& options) {
+    const double* strength, const double* tetStress, std::vector<uint8_t>& broken,
+    std::vector<EdgeBreak>& events, JobSystem& jobs, const double* positions,
+    const BrittleOptions& options) {
   const int32_t T = model.tetCount;
   if (model.faceNeighbours.size() != 4 * size_t(T))
     return fail("startBrittleCracks: the fracture model has no face adjacency (brittle off)");
@@ -120,7 +121,7 @@ Result<std::vector<BrittleSeed>> startBrittleCracks(
         if (positive[i] == positive[j]) continue;
         const int32_t edge = graph.tetEdges[6 * size_t(t) + k];
         // An edge stronger than the stress the plane carries holds, and arrests the crack.
-        if (model.strength[size_t(edge)] > seed.principal) {
+        if (strength[edge] > seed.principal) {
           held = true;
           continue;
         }

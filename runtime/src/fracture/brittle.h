@@ -49,13 +49,15 @@ struct BrittleSeed {
 
 /// Starts up to model.settings.regions crack planes from the tets of highest maximum
 /// principal stress of `tetStress` (6 per tet, Voigt, material frame; pass the criterion's
-/// averaged stress when R_d > 0). Only tensile tets (principal > 0) seed. Sets broken flags,
-/// appends events sorted by edge id (position from `positions` when given, else rest), and
-/// returns the seeds in the order chosen. Fails when the model has no face adjacency (build
-/// it with settings.brittle or FractureModel::buildFaceAdjacency) or the sizes disagree.
+/// averaged stress when R_d > 0); `strength` holds the current per-edge strengths. Only tensile
+/// tets (principal > 0) seed. Sets broken flags, appends events sorted by edge id (position from
+/// `positions` when given, else rest), and returns the seeds in the order chosen. Fails when the
+/// model has no face adjacency (build it with settings.brittle or
+/// FractureModel::buildFaceAdjacency) or the sizes disagree.
 Result<std::vector<BrittleSeed>> startBrittleCracks(
     const FractureModel& model, const EdgeGraph& graph, const RestMeshView& rest,
-    const double* tetStress, std::vector<uint8_t>& broken, std::vector<EdgeBreak>& events,
-    JobSystem& jobs, const double* positions = nullptr, const BrittleOptions& options = {});
+    const double* strength, const double* tetStress, std::vector<uint8_t>& broken,
+    std::vector<EdgeBreak>& events, JobSystem& jobs, const double* positions = nullptr,
+    const BrittleOptions& options = {});
 
 }  // namespace gf::detail

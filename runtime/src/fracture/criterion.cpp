@@ -10,8 +10,9 @@ namespace {
 
 constexpr uint32_t kTetGrain = 256;
 
-CriterionEdges edgesOf(const FractureModel& model, const EdgeGraph& graph, const uint8_t* broken) {
-  return {graph.tetEdges.data(), model.edgeDirections.data(), model.strength.data(), broken};
+CriterionEdges edgesOf(const FractureModel& model, const EdgeGraph& graph, const double* strength,
+                       const uint8_t* broken) {
+  return {graph.tetEdges.data(), model.edgeDirections.data(), strength, broken};
 }
 
 NonlocalAverage averageOf(const FractureModel& model) {
@@ -34,9 +35,9 @@ void averageStress(const FractureModel& model, const double* tetStress, double* 
 }
 
 int32_t evaluateCriterion(const FractureModel& model, const EdgeGraph& graph,
-                          const double* tetStress, std::vector<uint8_t>& broken,
-                          std::vector<EdgeBreak>& events, CriterionWorkspace& ws, JobSystem& jobs,
-                          const double* positions) {
+                          const double* strength, const double* tetStress,
+                          std::vector<uint8_t>& broken, std::vector<EdgeBreak>& events,
+                          CriterionWorkspace& ws, JobSystem& jobs, const double* positions) {
   GF_ASSERT(broken.size() == size_t(model.edgeCount) && graph.edgeCount == model.edgeCount,
             "evaluateCriterion: broken flags, graph and model disagree on the edge count");
   if (broken.size() != size_t(model.edgeCount) || graph.edgeCount != model.edgeCount) return 0;
@@ -45,8 +46,8 @@ int32_t evaluateCriterion(const FractureModel& model, const EdgeGraph& graph,
   ws.candidates.resize(T);
 
   const CpuExecutor exec(jobs);
-  const CriterionEdges edges = edgesOf(model, graph, flags);
-  const double weakest = exec.min(model.strength.data(), model.edgeCount);
+  const CriterionEdges edges = edgesOf(model, graph, strength, flags);
+  const double weakest = exec.min(strength, model.edgeCount);
   if (!model.nonLocal()) {
     exec.run(model.tetCount, 512,
              LocalCandidateStage{edges, tetStress, weakest, ws.candidates.data()});

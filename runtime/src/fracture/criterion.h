@@ -50,13 +50,15 @@ struct CriterionWorkspace {
 void averageStress(const FractureModel& model, const double* tetStress, double* out,
                    JobSystem& jobs);
 
-/// Runs the criterion (eq 4.11-4.12) on per-tet material-frame stresses (6 per tet, Voigt).
+/// Runs the criterion (eq 4.11-4.12) on per-tet material-frame stresses (6 per tet, Voigt)
+/// against the per-edge strengths `strength` (the body's current ones, FractureData).
 /// Sets broken[e] = 1 for every newly broken edge and appends one EdgeBreak per such edge to
 /// `events`, sorted by edge id. `positions` (current, 3 per node) is optional and only used
 /// for the events' split points (left at 0 when null). Returns the number of edges broken.
 int32_t evaluateCriterion(const FractureModel& model, const EdgeGraph& graph,
-                          const double* tetStress, std::vector<uint8_t>& broken,
-                          std::vector<EdgeBreak>& events, CriterionWorkspace& ws, JobSystem& jobs,
+                          const double* strength, const double* tetStress,
+                          std::vector<uint8_t>& broken, std::vector<EdgeBreak>& events,
+                          CriterionWorkspace& ws, JobSystem& jobs,
                           const double* positions = nullptr);
 
 /// Per-tet 6-bit mask of broken local edges (bit k = kTetEdgeNodes[k]); `masks` holds one

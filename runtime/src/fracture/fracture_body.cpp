@@ -32,6 +32,7 @@ Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem,
   auto model = FractureModel::build(rest, fb->m_graph, fem.fracture, &jobs, fibres);
   if (!model) return fail("BodyDef.fracture: ", model.error().message);
   fb->m_model = std::move(model.value());
+  fb->m_data.strength = fb->m_model.strength;
   fb->m_damageModel = fem.fracture.model == DamageModel::Projection ? 0 : 1;
 
   fb->m_restDir.resize(6 * nt);
@@ -51,20 +52,20 @@ Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem,
                     ": too flat for the projection damage model (its edge matrix T is singular)");
     }
   }
-  fb->m_broken.assign(fb->m_graph.edgeCount, 0);
-  fb->m_tetMask.assign(nt, 0);
-  fb->m_chi.assign(nt, 1.0);
+  fb->m_data.broken.assign(fb->m_graph.edgeCount, 0);
+  fb->m_data.tetMask.assign(nt, 0);
+  fb->m_data.chi.assign(nt, 1.0);
   fb->m_stress.assign(6 * nt, 0.0);
   fb->m_nodeVolume = Fragments::nodeVolumes(fem.tets.data(), nt, fem.restPositions.data(), nn);
-  fb->m_fragments.build(fb->m_graph, fb->m_broken.data());
+  fb->m_data.fragments.build(fb->m_graph, fb->m_data.broken.data());
   const FractureSettings& fs = fem.fracture;
   if (fs.impurities.enabled || !fs.impurityMaps.empty()) {
-    fb->m_hasImpurity = true;
-    fb->m_impurity.init(fb->m_graph, fs.impurities, fb->m_model.strength);
+    fb->m_data.hasImpurity = true;
+    fb->m_data.impurity.init(fb->m_graph, fs.impurities, fb->m_data.strength);
     for (size_t i = 0; i < fs.impurityMaps.size(); ++i)
       if (auto r = fb->applyImpurityMap(fem, fs.impurityMaps[i]); !r)
         return fail("BodyDef.fracture.impurityMaps[", std::to_string(i), "].", r.error().message);
-    fb->m_impurity.refreshAll(fb->m_graph, fb->m_broken.data(), fb->m_model.strength);
+    fb->m_data.impurity.refreshAll(fb->m_graph, fb->m_data.broken.data(), fb->m_data.strength);
   }
   return fb;
 }
@@ -74,28 +75,28 @@ Result<void> FractureBody::applyImpurityMap(const FemModel& fem, const ImpurityM
                           m_model.meanEdgeLength};
   auto edges = ImpurityField::mapEdges(m_graph, rest, map);
   if (!edges) return edges.error();
-  if (!m_hasImpurity) {
+  if (!m_data.hasImpurity) {
     // Pure nodes everywhere: only the map's nodes will carry an impurity.
     ImpuritySettings pure = fem.fracture.impurities;
     pure.enabled = false;
-    m_impurity.init(m_graph, pure, m_model.strength);
+    m_data.impurity.init(m_graph, pure, m_data.strength);
     for (int32_t e = 0; e < m_graph.edgeCount; ++e)
-      if (m_broken[size_t(e)]) {
-        --m_impurity.degree[size_t(m_graph.edgeNodes[2 * e])];
-        --m_impurity.degree[size_t(m_graph.edgeNodes[2 * e + 1])];
+      if (m_data.broken[size_t(e)]) {
+        --m_data.impurity.degree[size_t(m_graph.edgeNodes[2 * e])];
+        --m_data.impurity.degree[size_t(m_graph.edgeNodes[2 * e + 1])];
       }
-    m_hasImpurity = true;
+    m_data.hasImpurity = true;
   }
-  m_impurity.applyMap(m_graph, edges.value(), map.potency);
-  m_impurity.refreshAll(m_graph, m_broken.data(), m_model.strength);
+  m_data.impurity.applyMap(m_graph, edges.value(), map.potency);
+  m_data.impurity.refreshAll(m_graph, m_data.broken.data(), m_data.strength);
   return {};
 }
 
 void FractureBody::setStrengths(std::vector<double> strength) {
-  m_model.strength = std::move(strength);
-  if (!m_hasImpurity) return;
-  m_impurity.baseStrength = m_model.strength;
-  m_impurity.refreshAll(m_graph, m_broken.data(), m_model.strength);
+  m_data.strength = std::move(strength);
+  if (!m_data.hasImpurity) return;
+  m_data.impurity.baseStrength = m_data.strength;
+  m_data.impurity.refreshAll(m_graph, m_data.broken.data(), m_data.strength);
 }
 
 CriterionStressStage FractureBody::stressStage(const FemModel& fem, const FemState& data,
@@ -108,8 +109,8 @@ CriterionStressStage FractureBody::stressStage(const FemModel& fem, const FemSta
   s.coeffs = data.coeffs;
   s.fibreDir = fem.fibreDir.empty() ? nullptr : fem.fibreDir.data();
   s.tetLame = data.tetLame.empty() ? nullptr : data.tetLame.data();
-  s.tetMask = m_tetMask.data();
-  s.chi = m_chi.data();
+  s.tetMask = m_data.tetMask.data();
+  s.chi = m_data.chi.data();
   s.degradation = m_damageModel == 1;
   s.undamagedToo = undamagedToo;
   s.stress = m_stress.data();
@@ -123,136 +124,102 @@ void FractureBody::computeStresses(const FemModel& fem, const FemState& data, co
 
 void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState& data,
                                const double* x) {
-  if (first == m_breaks.size()) return;
-  std::sort(m_breaks.begin() + long(first), m_breaks.end(),
+  if (first == m_data.breaks.size()) return;
+  std::sort(m_data.breaks.begin() + long(first), m_data.breaks.end(),
             [](const EdgeBreak& a, const EdgeBreak& b) { return a.edge < b.edge; });
-  applyBreaksToMasks(m_graph, m_breaks.data() + first, m_breaks.size() - first, m_tetMask.data());
+  applyBreaksToMasks(m_graph, m_data.breaks.data() + first, m_data.breaks.size() - first,
+                     m_data.tetMask.data());
   m_newEdges.clear();
-  for (size_t i = first; i < m_breaks.size(); ++i) {
-    m_newEdges.push_back(m_breaks[i].edge);
+  for (size_t i = first; i < m_data.breaks.size(); ++i) {
+    m_newEdges.push_back(m_data.breaks[i].edge);
     // The lagged chi of every tet around the edge follows its new mask (eq 4.33).
-    const int32_t e = m_breaks[i].edge;
+    const int32_t e = m_data.breaks[i].edge;
     for (int32_t q = m_graph.edgeTetStart[e]; q < m_graph.edgeTetStart[e + 1]; ++q) {
       const int32_t t = m_graph.edgeTets[q] / 6;
       uint8_t brokenLocal[6];
-      for (int k = 0; k < 6; ++k) brokenLocal[k] = (m_tetMask[t] >> k) & 1;
+      for (int k = 0; k < 6; ++k) brokenLocal[k] = (m_data.tetMask[t] >> k) & 1;
       double sigmaN[6];
       edgeNormalStresses(stressStage(fem, data, x, false).intactStress(t), &m_restDir[6 * t],
                          sigmaN);
-      m_chi[t] = degradationFactor(sigmaN, brokenLocal);
+      m_data.chi[t] = degradationFactor(sigmaN, brokenLocal);
     }
   }
-  if (m_hasImpurity)
-    m_impurity.onBreaks(m_graph, m_newEdges.data(), m_newEdges.size(), m_broken.data(),
-                        m_model.strength);
-  m_brokenCount += int32_t(m_breaks.size() - first);
-  m_breakOrder.insert(m_breakOrder.end(), m_newEdges.begin(), m_newEdges.end());
-  if (m_fragments.update(m_graph, m_broken.data(), m_newEdges)) {
-    const auto s = m_fragments.splits();
-    m_splits.insert(m_splits.end(), s.begin(), s.end());
-    m_fragments.compute(m_nodeVolume, data.nodeMass, x, data.v.data(), m_props);
+  if (m_data.hasImpurity)
+    m_data.impurity.onBreaks(m_graph, m_newEdges.data(), m_newEdges.size(), m_data.broken.data(),
+                             m_data.strength);
+  m_data.brokenCount += int32_t(m_data.breaks.size() - first);
+  m_data.breakOrder.insert(m_data.breakOrder.end(), m_newEdges.begin(), m_newEdges.end());
+  if (m_data.fragments.update(m_graph, m_data.broken.data(), m_newEdges)) {
+    const auto s = m_data.fragments.splits();
+    m_data.splits.insert(m_data.splits.end(), s.begin(), s.end());
+    m_data.fragments.compute(m_nodeVolume, data.nodeMass, x, data.v.data(), m_data.props);
   }
-}
-
-FractureBody::State FractureBody::saveState() const {
-  State s;
-  s.broken = m_broken;
-  s.tetMask = m_tetMask;
-  s.breakCause = m_breakCause;
-  s.chi = m_chi;
-  s.strength = m_model.strength;
-  s.breaks = m_breaks;
-  s.splits = m_splits;
-  s.props = m_props;
-  s.fragments = m_fragments;
-  s.pendingCuts = m_pendingCuts;
-  s.breakOrder = m_breakOrder;
-  s.brokenCount = m_brokenCount;
-  s.brittleFired = m_brittleFired;
-  s.hasImpurity = m_hasImpurity;
-  if (m_hasImpurity) s.impurity = m_impurity;
-  return s;
-}
-
-void FractureBody::restoreState(const State& s) {
-  m_broken = s.broken;
-  m_tetMask = s.tetMask;
-  m_breakCause = s.breakCause;
-  m_chi = s.chi;
-  m_model.strength = s.strength;
-  m_breaks = s.breaks;
-  m_splits = s.splits;
-  m_props = s.props;
-  m_fragments = s.fragments;
-  m_pendingCuts = s.pendingCuts;
-  m_breakOrder = s.breakOrder;
-  m_brokenCount = s.brokenCount;
-  m_brittleFired = s.brittleFired;
-  m_hasImpurity = s.hasImpurity;
-  m_impurity = s.impurity;
 }
 
 int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const double* x,
                              JobSystem& jobs, bool stressesReady) {
-  m_breaks.clear();
-  m_breakCause.clear();
-  m_splits.clear();
-  for (PendingCut& cut : m_pendingCuts) {
-    const size_t first = m_breaks.size();
+  m_data.breaks.clear();
+  m_data.breakCause.clear();
+  m_data.splits.clear();
+  for (PendingCut& cut : m_data.pendingCuts) {
+    const size_t first = m_data.breaks.size();
     // Validated by World::cut, so the result cannot fail here.
-    (void)cutEdges(m_graph, x, cut.blade, cut.from, cut.to, m_broken, m_breaks, m_cutWs, jobs);
-    m_breakCause.resize(m_breaks.size(), cause(FractureEvent::Cause::Cut));
+    (void)cutEdges(m_graph, x, cut.blade, cut.from, cut.to, m_data.broken, m_data.breaks, m_cutWs,
+                   jobs);
+    m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Cut));
     applyBreaks(first, fem, data, x);
   }
-  m_pendingCuts.clear();
-  if (m_hasImpurity && !m_impurity.pendingPrecut.empty()) {
+  m_data.pendingCuts.clear();
+  if (m_data.hasImpurity && !m_data.impurity.pendingPrecut.empty()) {
     // Potency-0 maps are sharp pre-cuts (sec 5.4): their edges open like a blade's.
-    const size_t first = m_breaks.size();
-    for (int32_t e : m_impurity.pendingPrecut) {
-      if (m_broken[size_t(e)]) continue;
-      m_broken[size_t(e)] = 1;
+    const size_t first = m_data.breaks.size();
+    for (int32_t e : m_data.impurity.pendingPrecut) {
+      if (m_data.broken[size_t(e)]) continue;
+      m_data.broken[size_t(e)] = 1;
       EdgeBreak b;
       b.edge = e;
       b.position =
           0.5 * (load3(x, m_graph.edgeNodes[2 * e]) + load3(x, m_graph.edgeNodes[2 * e + 1]));
-      m_breaks.push_back(b);
+      m_data.breaks.push_back(b);
     }
-    m_impurity.pendingPrecut.clear();
-    m_breakCause.resize(m_breaks.size(), cause(FractureEvent::Cause::Cut));
+    m_data.impurity.pendingPrecut.clear();
+    m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Cut));
     applyBreaks(first, fem, data, x);
   }
 
   computeStresses(fem, data, x, !stressesReady, jobs);
-  size_t first = m_breaks.size();
-  const int32_t n =
-      evaluateCriterion(m_model, m_graph, m_stress.data(), m_broken, m_breaks, m_ws, jobs, x);
-  m_breakCause.resize(m_breaks.size(), cause(FractureEvent::Cause::Stress));
-  if (n > 0 && fem.fracture.brittle && !m_brittleFired) {
+  size_t first = m_data.breaks.size();
+  const int32_t n = evaluateCriterion(m_model, m_graph, m_data.strength.data(), m_stress.data(),
+                                      m_data.broken, m_data.breaks, m_ws, jobs, x);
+  m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Stress));
+  if (n > 0 && fem.fracture.brittle && !m_data.brittleFired) {
     // Brittle mode: the first time the criterion fires, the most stressed regions start
     // crack planes through the whole body (sec 4.5.1.2).
-    m_brittleFired = true;
+    m_data.brittleFired = true;
     const RestMeshView rest{fem.restPositions.data(), fem.tets.data(), fem.nodeCount, fem.tetCount};
     const double* seedStress = m_stress.data();
     if (m_model.nonLocal()) {
       std::vector<double> averaged(m_stress.size());  // once per body: no need to keep it
       averageStress(m_model, m_stress.data(), averaged.data(), jobs);
-      (void)startBrittleCracks(m_model, m_graph, rest, averaged.data(), m_broken, m_breaks, jobs,
-                               x);
+      (void)startBrittleCracks(m_model, m_graph, rest, m_data.strength.data(), averaged.data(),
+                               m_data.broken, m_data.breaks, jobs, x);
     } else {
-      (void)startBrittleCracks(m_model, m_graph, rest, seedStress, m_broken, m_breaks, jobs, x);
+      (void)startBrittleCracks(m_model, m_graph, rest, m_data.strength.data(), seedStress,
+                               m_data.broken, m_data.breaks, jobs, x);
     }
-    m_breakCause.resize(m_breaks.size(), cause(FractureEvent::Cause::BrittlePlane));
+    m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::BrittlePlane));
   }
   // Keep each cause with its break through the sort in applyBreaks.
-  if (m_breaks.size() > first) {
+  if (m_data.breaks.size() > first) {
     std::vector<std::pair<int32_t, uint8_t>> causes;
-    for (size_t i = first; i < m_breaks.size(); ++i)
-      causes.push_back({m_breaks[i].edge, m_breakCause[i]});
+    for (size_t i = first; i < m_data.breaks.size(); ++i)
+      causes.push_back({m_data.breaks[i].edge, m_data.breakCause[i]});
     std::sort(causes.begin(), causes.end());
     applyBreaks(first, fem, data, x);
-    for (size_t i = first; i < m_breaks.size(); ++i) m_breakCause[i] = causes[i - first].second;
+    for (size_t i = first; i < m_data.breaks.size(); ++i)
+      m_data.breakCause[i] = causes[i - first].second;
   }
-  return int32_t(m_breaks.size());
+  return int32_t(m_data.breaks.size());
 }
 
 }  // namespace gf::detail

@@ -27,6 +27,28 @@ struct PendingCut {
   BladePose from, to;
 };
 
+/// What a run changes of a body's fracture, in one struct: a snapshot is a copy of it and a
+/// device mirror copies its buffers. Everything else of a FractureBody is fixed at creation
+/// (the model, the graph, the edge matrices) or scratch.
+struct FractureData {
+  std::vector<uint8_t> broken;   ///< Per edge: 1 = broken; never reset (damage does not heal).
+  std::vector<uint8_t> tetMask;  ///< Per tet: bit k set when local edge k is broken.
+  std::vector<double> chi;       ///< Per tet: the lagged degradation factor (eq 4.33).
+  /// Per edge sigma_th now: the model's, scaled by impurities or set by setEdgeStrengths.
+  std::vector<double> strength;
+  std::vector<EdgeBreak> breaks;      ///< Broken by the last detect(), sorted by edge id.
+  std::vector<uint8_t> breakCause;    ///< FractureEvent::Cause of each of `breaks`.
+  std::vector<FragmentSplit> splits;  ///< Fragments created by the last detect().
+  FragmentProperties props;           ///< of the fragments when they were created
+  Fragments fragments;
+  std::vector<PendingCut> pendingCuts;
+  std::vector<int32_t> breakOrder;  ///< Every broken edge in the order it broke.
+  int32_t brokenCount = 0;
+  bool brittleFired = false;  ///< Brittle crack planes start once per body.
+  bool hasImpurity = false;
+  ImpurityField impurity;  ///< Meaningful only with hasImpurity.
+};
+
 class FractureBody {
  public:
   /// Builds the graph, the fracture model and the per-tet edge matrices. Errors name the
@@ -46,57 +68,45 @@ class FractureBody {
 
   /// Kernel inputs of the element pass.
   int damageModel() const { return m_damageModel; }
-  const uint8_t* tetMask() const { return m_tetMask.data(); }
-  const double* chi() const { return m_chi.data(); }
+  const uint8_t* tetMask() const { return m_data.tetMask.data(); }
+  const double* chi() const { return m_data.chi.data(); }
   /// Per-tet edge matrices T and T^-1 of the projection model (e_d = T e, eq 4.25); null for the
   /// degradation model, which does not use them.
   const Mat<6, 6>* edgeMatrices() const { return m_T.empty() ? nullptr : m_T.data(); }
   const Mat<6, 6>* edgeMatrixInverses() const { return m_Tinv.empty() ? nullptr : m_Tinv.data(); }
 
-  void queueCut(PendingCut cut) { m_pendingCuts.push_back(std::move(cut)); }
+  void queueCut(PendingCut cut) { m_data.pendingCuts.push_back(std::move(cut)); }
 
   const EdgeGraph& graph() const { return m_graph; }
-  const std::vector<uint8_t>& broken() const { return m_broken; }
-  const Fragments& fragments() const { return m_fragments; }
+  const std::vector<uint8_t>& broken() const { return m_data.broken; }
+  const Fragments& fragments() const { return m_data.fragments; }
   /// Edges broken by the last detect(), sorted by edge id, with what broke them.
-  const std::vector<EdgeBreak>& breaks() const { return m_breaks; }
-  const std::vector<uint8_t>& breakCause() const { return m_breakCause; }  // FractureEvent::Cause
+  const std::vector<EdgeBreak>& breaks() const { return m_data.breaks; }
+  const std::vector<uint8_t>& breakCause() const { return m_data.breakCause; }
   /// Fragments created by the last detect() and their properties at that moment.
-  const std::vector<FragmentSplit>& splits() const { return m_splits; }
-  const FragmentProperties& splitProperties() const { return m_props; }
-  int32_t brokenCount() const { return m_brokenCount; }
+  const std::vector<FragmentSplit>& splits() const { return m_data.splits; }
+  const FragmentProperties& splitProperties() const { return m_data.props; }
+  int32_t brokenCount() const { return m_data.brokenCount; }
   /// Every broken edge in the order it broke (the first k are the broken set after k breaks).
-  const std::vector<int32_t>& breakOrder() const { return m_breakOrder; }
+  const std::vector<int32_t>& breakOrder() const { return m_data.breakOrder; }
 
-  /// Per-edge strengths sigma_th (FractureModel::strength); World validates replacements.
-  const std::vector<double>& strengths() const { return m_model.strength; }
+  /// Current per-edge strengths sigma_th; World validates replacements.
+  const std::vector<double>& strengths() const { return m_data.strength; }
   /// With impurities the given strengths become the base the impurities scale.
   void setStrengths(std::vector<double> strength);
 
   /// The body's impurities (thesis sec 5.2), or null when it has none.
-  const ImpurityField* impurities() const { return m_hasImpurity ? &m_impurity : nullptr; }
+  const ImpurityField* impurities() const {
+    return m_data.hasImpurity ? &m_data.impurity : nullptr;
+  }
   /// Applies an impurity map (checked with ImpurityMap::check) to the rest mesh; an error
   /// naming the field (a polyline point off the surface) changes nothing. A body without
   /// impurities gets a field of pure nodes first.
   Result<void> applyImpurityMap(const FemModel& fem, const ImpurityMap& map);
 
-  /// What changes during a run (World::snapshot); the rest is fixed at creation or scratch.
-  struct State {
-    std::vector<uint8_t> broken, tetMask, breakCause;
-    std::vector<double> chi, strength;
-    std::vector<EdgeBreak> breaks;
-    std::vector<FragmentSplit> splits;
-    FragmentProperties props;
-    Fragments fragments;
-    std::vector<PendingCut> pendingCuts;
-    std::vector<int32_t> breakOrder;
-    int32_t brokenCount = 0;
-    bool brittleFired = false;
-    bool hasImpurity = false;
-    ImpurityField impurity;
-  };
-  State saveState() const;
-  void restoreState(const State& s);
+  /// Everything a run changes (World::snapshot copies it, restore puts it back).
+  const FractureData& data() const { return m_data; }
+  void restore(const FractureData& data) { m_data = data; }
 
  private:
   // Completes m_stress at x: damaged tets (scaled or zero), and undamaged ones when asked.
@@ -105,30 +115,22 @@ class FractureBody {
   // The stage that does it, writing into m_stress.
   CriterionStressStage stressStage(const FemModel& fem, const FemState& data, const double* x,
                                    bool undamagedToo);
-  // Masks, chi and fragments after edges in m_breaks[first..] broke.
+  // Masks, chi and fragments after edges in m_data.breaks[first..] broke.
   void applyBreaks(size_t first, const FemModel& fem, const FemState& data, const double* x);
 
+  // Fixed at creation.
   EdgeGraph m_graph;
   FractureModel m_model;
   int m_damageModel = 1;
   std::vector<Vec3> m_restDir;         // 6 per tet, unit rest edge directions
   std::vector<Mat<6, 6>> m_T, m_Tinv;  // projection model only
-  std::vector<uint8_t> m_broken, m_tetMask, m_breakCause;
-  std::vector<double> m_chi, m_stress;
   std::vector<double> m_nodeVolume;
-  std::vector<EdgeBreak> m_breaks;
+  FractureData m_data;
+  // Scratch: rewritten before every read.
+  std::vector<double> m_stress;
   std::vector<int32_t> m_newEdges;
-  std::vector<FragmentSplit> m_splits;
-  FragmentProperties m_props;
   CriterionWorkspace m_ws;
   CutWorkspace m_cutWs;
-  Fragments m_fragments;
-  std::vector<PendingCut> m_pendingCuts;
-  int32_t m_brokenCount = 0;
-  std::vector<int32_t> m_breakOrder;
-  bool m_brittleFired = false;
-  bool m_hasImpurity = false;
-  ImpurityField m_impurity;
 };
 
 }  // namespace gf::detail

@@ -114,8 +114,9 @@ struct FractureModel {
   /// Unit rest direction of local edge k of tet t (from node kTetEdgeNodes[k][0] to [1]) at
   /// [18 t + 3 k]; the sign is irrelevant to N^T S N.
   std::vector<double> edgeDirections;
-  /// sigma_th per edge [Pa]: settings.strength, or fibreEdgeStrength of the mean cos^2 over
-  /// the edge's tets when fibreStrengthRatio != 1; overridable (impurities, maps).
+  /// sigma_th per edge [Pa] a body starts with: settings.strength, or fibreEdgeStrength of the
+  /// mean cos^2 over the edge's tets when fibreStrengthRatio != 1. Commands and impurities
+  /// change a copy in the body's data (FractureData::strength), never this.
   std::vector<double> strength;
   std::vector<double> centroids;  ///< Rest centroid, 3 per tet.
   double meanEdgeLength = 0;      ///< Mean rest length over unique edges.

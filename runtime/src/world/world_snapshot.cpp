@@ -16,7 +16,7 @@ struct BodySnapshot {
   std::vector<double> pendingForce;
   std::vector<detail::WaterStroke> strokes;  // wet and dry brushes queued for the next step
   bool hasFracture = false;
-  detail::FractureBody::State fracture;
+  detail::FractureData fracture;
   std::vector<int32_t> rebindHistory;
 };
 
@@ -57,7 +57,7 @@ WorldSnapshot World::snapshot() const {
     s.pendingForce = b->pendingForce;
     s.strokes = b->strokes;
     s.hasFracture = b->fracture != nullptr;
-    if (b->fracture) s.fracture = b->fracture->saveState();
+    if (b->fracture) s.fracture = b->fracture->data();
     s.rebindHistory = b->integrator->rebindHistory();
     d->bodies.push_back(std::move(s));
   }
@@ -100,7 +100,7 @@ Result<void> World::restore(const WorldSnapshot& snapshot) {
     b.state = s.state;
     b.pendingForce = s.pendingForce;
     b.strokes = s.strokes;
-    if (b.fracture) b.fracture->restoreState(s.fracture);
+    if (b.fracture) b.fracture->restore(s.fracture);
     b.stepEndValid = false;
     // Cannot fail: the same set-up succeeded when the body was created.
     if (Result<void> r = b.integrator->restoreSolver(b.model, b.state, s.rebindHistory); !r)
