@@ -90,9 +90,12 @@ GF_HD Vec3 planeCrossing(const CutPlane& plane, Vec3 a, Vec3 b) {
 }  // namespace detail
 
 /// Keeps the part of `p` where planeDistance(plane, x) * side >= 0 (side = +1 or -1) and closes
-/// it with a cap polygon labelled `capLabel`. Returns false (and leaves `p` unusable) when a
-/// capacity would be exceeded, which cannot happen for a tet and at most kMaxCutPlanes planes.
-GF_HD bool clipPolytope(CutPolytope& p, const CutPlane& plane, double side, int capLabel) {
+/// it with a cap polygon labelled `capLabel`. A vertex within `onPlane` of the plane counts as on
+/// it (0: exactly on it only); a cut through a node to rounding then leaves no sliver cell of
+/// rounding noise either. Returns false (and leaves `p` unusable) when a capacity would be
+/// exceeded, which cannot happen for a tet and at most kMaxCutPlanes planes.
+GF_HD bool clipPolytope(CutPolytope& p, const CutPlane& plane, double side, int capLabel,
+                        double onPlane = 0) {
   const CutPlane h{side * plane.normal, side * plane.offset};
   CutPolytope out;
   Vec3 cap[2 * kCutPolygonMaxVertices * kCutPolytopeMaxFaces];
@@ -104,7 +107,8 @@ GF_HD bool clipPolytope(CutPolytope& p, const CutPlane& plane, double side, int 
     g.label = in.label;
     // A face lying in the plane already is the cap (same outward normal): relabel it.
     bool inPlane = true;
-    for (int i = 0; i < in.count && inPlane; ++i) inPlane = planeDistance(h, in.v[i]) == 0;
+    for (int i = 0; i < in.count && inPlane; ++i)
+      inPlane = fabs(planeDistance(h, in.v[i])) <= onPlane;
     if (inPlane) {
       g = in;
       g.label = capLabel;
@@ -114,7 +118,9 @@ GF_HD bool clipPolytope(CutPolytope& p, const CutPlane& plane, double side, int 
     }
     for (int i = 0; i < in.count; ++i) {
       const Vec3 a = in.v[i], b = in.v[(i + 1) % in.count];
-      const double da = planeDistance(h, a), db = planeDistance(h, b);
+      double da = planeDistance(h, a), db = planeDistance(h, b);
+      if (fabs(da) <= onPlane) da = 0;
+      if (fabs(db) <= onPlane) db = 0;
       if (da >= 0) {
         if (g.count == kCutPolygonMaxVertices) return false;
         g.v[g.count++] = a;
@@ -170,17 +176,17 @@ GF_HD bool clipPolytope(CutPolytope& p, const CutPlane& plane, double side, int 
 }
 
 /// The cell of tet X on the sides of `planes` given by `sideMask` (bit j set: planeDistance >= 0
-/// for plane j; clear: <= 0). Empty (faceCount 0) when that cell has no volume or planeCount is
-/// outside [0, kMaxCutPlanes].
+/// for plane j; clear: <= 0), `onPlane` as in clipPolytope. Empty (faceCount 0) when that cell
+/// has no volume or planeCount is outside [0, kMaxCutPlanes].
 GF_HD CutPolytope clipTet(const Vec3 X[4], const CutPlane* planes, int planeCount,
-                          unsigned sideMask) {
+                          unsigned sideMask, double onPlane = 0) {
   CutPolytope p = tetPolytope(X);
   if (planeCount < 0 || planeCount > kMaxCutPlanes) {
     p.faceCount = 0;
     return p;
   }
   for (int j = 0; j < planeCount && p.faceCount > 0; ++j)
-    if (!clipPolytope(p, planes[j], (sideMask >> j) & 1u ? 1.0 : -1.0, kCutFaceLabel + j))
+    if (!clipPolytope(p, planes[j], (sideMask >> j) & 1u ? 1.0 : -1.0, kCutFaceLabel + j, onPlane))
       p.faceCount = 0;
   return p;
 }

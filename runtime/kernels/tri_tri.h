@@ -175,4 +175,26 @@ GF_HD bool segmentCrossesTriangle(Vec3 a, Vec3 b, Vec3 p0, Vec3 p1, Vec3 p2, dou
   return w1 >= -relTol && w2 >= -relTol && w1 + w2 <= 1 + relTol;
 }
 
+/// As segmentCrossesTriangle, for the sides of tet nodes against a blade: an endpoint within
+/// snapA (snapB) of the triangle's plane counts as on it, and a point on the plane counts as the
+/// positive side (normal (p1 - p0) x (p2 - p0)), as xfemHeaviside does. An endpoint on the plane
+/// is its own crossing (s exactly 0 or 1). So a blade through a node (to rounding) crosses
+/// exactly that node's edges towards the negative side, the same way in every tet around the
+/// node, instead of crossing each edge or not by the sign of rounding noise.
+GF_HD bool segmentCrossesTriangleSnapped(Vec3 a, Vec3 b, double snapA, double snapB, Vec3 p0,
+                                         Vec3 p1, Vec3 p2, double& s, double relTol = 1e-12) {
+  const Vec3 n = cross(p1 - p0, p2 - p0);
+  const double nn = dot(n, n);
+  if (nn == 0) return false;
+  const double len = sqrt(nn);
+  const double da = dot(n, a - p0) / len, db = dot(n, b - p0) / len;
+  const bool onA = fabs(da) <= snapA, onB = fabs(db) <= snapB;
+  if ((onA || da > 0) == (onB || db > 0)) return false;
+  s = onA ? 0.0 : (onB ? 1.0 : da / (da - db));
+  const Vec3 x = onA ? a : (onB ? b : a + s * (b - a));
+  const double w1 = dot(cross(x - p0, p2 - p0), n) / nn;  // barycentric of p1
+  const double w2 = dot(cross(p1 - p0, x - p0), n) / nn;  // of p2
+  return w1 >= -relTol && w2 >= -relTol && w1 + w2 <= 1 + relTol;
+}
+
 }  // namespace gf

@@ -93,6 +93,45 @@ TEST(XfemBlade, SegmentMeetsTetAgreesWithSampling) {
   EXPECT_GT(hits, 300);
 }
 
+// A node on the blade's plane to rounding (a few ulps either side): the snapped test gives the
+// same answer whichever side rounding puts it, and the edges of a tet around it that lead to the
+// negative side are crossed exactly at the node (s = 0), those to the positive side not at all;
+// the strict test instead flips with the sign of the noise. Independent truth: the node's side is
+// decided by construction (on the plane = positive), the other endpoints are 0.3 off it.
+TEST(XfemBlade, SnappedCrossingsAreTheSameWhicheverSideRoundingFalls) {
+  const Vec3 p0{-2, -2, 0.7}, p1{3, -2, 0.7}, p2{0, 3, 0.7};  // z = 0.7, normal +z
+  const Vec3 below{0.1, 0.2, 0.4}, above{-0.2, 0.1, 1.0};
+  int strictFlips = 0;
+  for (double noise : {-4e-16, -1e-16, 0.0, 1e-16, 4e-16}) {
+    const Vec3 node{0.3, 0.4, 0.7 + noise};
+    double s = -1;
+    EXPECT_TRUE(segmentCrossesTriangleSnapped(node, below, 1e-13, 0, p0, p1, p2, s)) << noise;
+    EXPECT_EQ(s, 0.0) << noise;
+    EXPECT_TRUE(segmentCrossesTriangleSnapped(below, node, 0, 1e-13, p0, p1, p2, s)) << noise;
+    EXPECT_EQ(s, 1.0) << noise;
+    EXPECT_FALSE(segmentCrossesTriangleSnapped(node, above, 1e-13, 0, p0, p1, p2, s)) << noise;
+    // Off the snap distance, the crossing is the ordinary one.
+    EXPECT_TRUE(segmentCrossesTriangleSnapped(below, above, 1e-13, 1e-13, p0, p1, p2, s));
+    EXPECT_NEAR(s, 0.3 / 0.6, 1e-15);
+    strictFlips += segmentCrossesTriangle(node, below, p0, p1, p2, s) !=
+                   segmentCrossesTriangle(node, above, p0, p1, p2, s);
+  }
+  EXPECT_GT(strictFlips, 0);  // unsnapped, the answer follows the sign of the noise
+}
+
+// A tet with its apex 2e-16 on the positive side of a plane z = const: exact clipping leaves a
+// positive corner cell of rounding noise (volume ~1e-48); with the apex counted as on the plane
+// (onPlane 1e-12) the positive side is empty and the negative cell is the whole tet (1/6).
+TEST(XfemBlade, OnPlaneToleranceLeavesNoSliverCell) {
+  const Vec3 X[4] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.2, 0.3, 1}};
+  const CutPlane plane{{0, 0, 1}, 1 - 2e-16};  // positive side z >= 1 - 2e-16
+  const double sliver = polytopeVolume(clipTet(X, &plane, 1, 1u));
+  EXPECT_GT(sliver, 0);
+  EXPECT_LT(sliver, 1e-40);
+  EXPECT_EQ(clipTet(X, &plane, 1, 1u, 1e-12).faceCount, 0);
+  EXPECT_NEAR(polytopeVolume(clipTet(X, &plane, 1, 0u, 1e-12)), 1.0 / 6, 1e-15);
+}
+
 using test::planarBlade;
 
 TEST(XfemBlade, PlanarBladeGivesItsPlaneInEveryTet) {

@@ -43,17 +43,28 @@ void bladeCorners(double at, double out[4][3]) {
   }
 }
 
-// Exact pieces in order of x: slabs between consecutive planes (the same slant keeps each
-// slab's volume its x-thickness times the 1 x 1 section).
+// Volume of {x < a + kB y + kC z} inside the box's 1 x 1 section for x >= 0 and any a:
+// integral over y, z in [0, 1] of max(0, a + kB y + kC z), by inclusion-exclusion of
+// R(t) = max(t, 0)^3 / 6 at the section's corners (d^2 R / dy dz = kB kC max(t, 0)). A plane
+// wholly at x >= 0 gives the mean-x formula without the formula's cancellation.
+double beyondZero(double a) {
+  if (a >= 0) return a + kB / 2 + kC / 2;
+  if (a + kB + kC <= 0) return 0;
+  const auto R = [](double t) { return t > 0 ? t * t * t / 6 : 0.0; };
+  return (R(a + kB + kC) - R(a + kB) - R(a + kC) + R(a)) / (kB * kC);
+}
+
+// Exact pieces in order of x: slabs between consecutive planes, clipped to the box's x in
+// [0, 2] (with 20 cuts the last plane leaves the box through its x = 2 face).
 std::vector<double> exactPieces(int count) {
   std::vector<double> v;
   double prev = 0;
-  for (int k = 0; k < count; ++k) {
-    const double at = bladeAt(k, count) + kB / 2 + kC / 2;  // mean x of the plane over y, z
-    v.push_back(at - prev);
-    prev = at;
+  for (int k = 0; k <= count; ++k) {
+    const double a = bladeAt(k, count);
+    const double below = k == count ? 2.0 : beyondZero(a) - beyondZero(a - 2);
+    v.push_back(below - prev);
+    prev = below;
   }
-  v.push_back(2 - prev);
   return v;
 }
 
@@ -61,7 +72,7 @@ double worstRelative(std::vector<double> got, const std::vector<double>& exact) 
   if (got.size() != exact.size()) return INFINITY;
   double worst = 0;
   for (size_t i = 0; i < got.size(); ++i)
-    worst = std::max(worst, std::abs(got[i] - exact[i]) / exact[i]);
+    worst = std::max(worst, std::abs(got[i] - exact[i]) / std::abs(exact[i]));
   return worst;
 }
 

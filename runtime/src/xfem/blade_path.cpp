@@ -1,6 +1,7 @@
 #include "xfem/blade_path.h"
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <map>
 #include <string>
@@ -53,6 +54,31 @@ int clipTriangleToTet(const Vec3 X[4], const Vec3 t[3], Vec3 out[8]) {
 
 }  // namespace
 
+std::vector<double> nodeSnapDistances(const TetMesh& mesh) {
+  std::vector<double> shortest(mesh.nodeCount(), INFINITY);
+  for (size_t t = 0; t < mesh.tetCount(); ++t)
+    for (int a = 0; a < 4; ++a)
+      for (int b = a + 1; b < 4; ++b) {
+        const int32_t i = mesh.tets[4 * t + size_t(a)], j = mesh.tets[4 * t + size_t(b)];
+        double l2 = 0;
+        for (int k = 0; k < 3; ++k) {
+          const double d =
+              mesh.positions[3 * size_t(i) + size_t(k)] - mesh.positions[3 * size_t(j) + size_t(k)];
+          l2 += d * d;
+        }
+        const double l = std::sqrt(l2);
+        shortest[size_t(i)] = std::min(shortest[size_t(i)], l);
+        shortest[size_t(j)] = std::min(shortest[size_t(j)], l);
+      }
+  for (size_t n = 0; n < shortest.size(); ++n) {
+    double far = 0;
+    for (int k = 0; k < 3; ++k) far = std::max(far, std::abs(mesh.positions[3 * n + size_t(k)]));
+    shortest[n] =
+        std::isfinite(shortest[n]) ? kXfemNodeSnap * shortest[n] + 64 * DBL_EPSILON * far : 0.0;
+  }
+  return shortest;
+}
+
 Result<BladePath> traceBlade(const TetMesh& mesh, const XfemBlade& xb) {
   const Blade& blade = xb.blade;
   const int32_t vertexCount = int32_t(blade.vertices.size() / 3);
@@ -103,17 +129,20 @@ Result<BladePath> traceBlade(const TetMesh& mesh, const XfemBlade& xb) {
 
   BladePath path;
   const int32_t tets = int32_t(mesh.tetCount());
+  const std::vector<double> snap = nodeSnapDistances(mesh);
   const int faces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
   const int edges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
   std::vector<int32_t> hits;
   for (int32_t t = 0; t < tets; ++t) {
     Vec3 X[4];
+    double snapX[4];
     Box box;
     double size = 0;
     for (int a = 0; a < 4; ++a) {
       const int32_t n = mesh.tets[4 * size_t(t) + a];
       X[a] = {mesh.positions[3 * size_t(n)], mesh.positions[3 * size_t(n) + 1],
               mesh.positions[3 * size_t(n) + 2]};
+      snapX[a] = snap[size_t(n)];
       box.add(X[a]);
     }
     for (int i = 0; i < 3; ++i) size = std::max(size, box.hi[i] - box.lo[i]);
@@ -125,7 +154,8 @@ Result<BladePath> traceBlade(const TetMesh& mesh, const XfemBlade& xb) {
       bool meets = pointInTet(X, tri.p[0]);
       for (int f = 0; f < 4 && !meets; ++f) {
         const Vec3 face[3] = {X[faces[f][0]], X[faces[f][1]], X[faces[f][2]]};
-        meets = trianglesIntersect(face, tri.p);
+        // Touching within the snap distance counts: a node snapped onto the blade must find it.
+        meets = trianglesIntersect(face, tri.p, kXfemNodeSnap);
       }
       if (meets) hits.push_back(int32_t(k));
     }
@@ -153,8 +183,9 @@ Result<BladePath> traceBlade(const TetMesh& mesh, const XfemBlade& xb) {
     for (int e = 0; e < 6; ++e)
       for (int32_t k : hits) {
         double s;
-        if (!segmentCrossesTriangle(X[edges[e][0]], X[edges[e][1]], tris[size_t(k)].p[0],
-                                    tris[size_t(k)].p[1], tris[size_t(k)].p[2], s))
+        const int e0 = edges[e][0], e1 = edges[e][1];
+        if (!segmentCrossesTriangleSnapped(X[e0], X[e1], snapX[e0], snapX[e1], tris[size_t(k)].p[0],
+                                           tris[size_t(k)].p[1], tris[size_t(k)].p[2], s))
           continue;
         if (count[e] > 0 && std::abs(at[e] - s) <= 1e-9) continue;
         at[e] = s;
@@ -192,7 +223,9 @@ Result<BladePath> traceBlade(const TetMesh& mesh, const XfemBlade& xb) {
       for (int e = 0; e < 6; ++e)
         if (count[e]) {
           order[np] = e;
-          p[np++] = X[edges[e][0]] + at[e] * (X[edges[e][1]] - X[edges[e][0]]);
+          // A crossing at a node is the node, bit for bit (the plane is anchored on it below).
+          p[np++] = at[e] == 1 ? X[edges[e][1]]
+                               : X[edges[e][0]] + at[e] * (X[edges[e][1]] - X[edges[e][0]]);
         }
       Vec3 n, centre;
       if (np == 3) {
@@ -213,14 +246,35 @@ Result<BladePath> traceBlade(const TetMesh& mesh, const XfemBlade& xb) {
       }
       for (int k = 0; k < np; ++k) centre += p[k];
       centre = (1.0 / np) * centre;
+      // Crossing points that (nearly) coincide or line up, as where the blade passes through
+      // or next to a node, define no plane: take the blade's own normal there (its pieces'
+      // area-weighted normal, or its triangles' where it only touches the tet).
+      if (!(norm(n) > 1e-8 * size * size)) {
+        n = normalSum;
+        if (!(norm(n) > 0))
+          for (int32_t k : hits) n += tris[size_t(k)].n;
+      }
       if (dot(n, normalSum) < 0) n = -n;  // along the blade's orientation
-      c.plane.normal = (1.0 / norm(n)) * n;
-      c.plane.offset = dot(c.plane.normal, centre);
-      // The plane must reproduce the crossing's node sides strictly.
-      double d0 = planeDistance(c.plane, X[0]);
-      for (int a = 0; a < 4 && full; ++a) {
-        const double d = planeDistance(c.plane, X[a]);
-        full = d != 0 && ((d > 0) == (d0 > 0)) == (side[a] == 0);
+      full = norm(n) > 0;
+      if (full) {
+        c.plane.normal = (1.0 / norm(n)) * n;
+        c.plane.offset = dot(c.plane.normal, centre);
+        // The positive group holds the node farthest along the normal. A positive node
+        // within its snap distance below the plane (on the blade, to rounding) gets the plane
+        // lowered onto it, so it is exactly on the plane's positive side as in its other tets.
+        int top = 0;
+        for (int a = 1; a < 4; ++a)
+          if (planeDistance(c.plane, X[a]) > planeDistance(c.plane, X[top])) top = a;
+        for (int a = 0; a < 4; ++a) {
+          const double d = planeDistance(c.plane, X[a]);
+          if (side[a] == side[top] && d < 0 && d >= -snapX[a])
+            c.plane.offset = std::min(c.plane.offset, dot(c.plane.normal, X[a]));
+        }
+        // The plane must reproduce the crossing's node sides (zero counts as positive).
+        for (int a = 0; a < 4 && full; ++a) {
+          const double d = planeDistance(c.plane, X[a]);
+          full = side[a] == side[top] ? d >= 0 : d < 0;
+        }
       }
     }
     if (!full) {

@@ -14,6 +14,13 @@
 // crossed by the blade exactly as often as by the local plane (once or never), which also rejects
 // a blade that folds back or closes on itself inside the tet. A tet the blade only touches (its
 // pieces have no area, or the local plane leaves every node on one side) is not a crossing.
+// A node within kXfemNodeSnap of its shortest edge from the blade counts as on it, and a node on
+// the blade counts as the positive side (xfemHeaviside of 0): its edges towards the negative side
+// are crossed at the node itself, in every tet around it, so a blade through a node (to rounding,
+// as parallel cuts on a regular mesh do) gives the same node sides in all those tets. A tet
+// whose only positive node lies on the blade is then crossed with an empty positive cell (its
+// nodes' enriched functions stay conforming there), and one whose other nodes are all positive
+// is only touched. The local plane keeps such a node exactly on its positive side.
 // Static blades only: a swept blade would be its swept triangles (cutting.h), not done here.
 #pragma once
 
@@ -32,6 +39,16 @@ struct XfemBlade {
   Blade blade;
   BladePose pose;
 };
+
+/// Distance, relative to a node's shortest edge, below which the node counts as on a cut
+/// (blade or plane): far above the rounding of a distance for coordinates up to 1e3 edges from
+/// the origin, far below any volume tolerance (a cut moved onto a node by this changes the
+/// volumes of the tets around it by about this fraction at most).
+constexpr double kXfemNodeSnap = 1e-12;
+
+/// Per node: kXfemNodeSnap times its shortest edge, plus 64 ulps of its largest coordinate
+/// (rounding of a distance for a body far from the origin); 0 for a node in no tet.
+std::vector<double> nodeSnapDistances(const TetMesh& mesh);
 
 /// Where a blade crosses one tet.
 struct BladeTetCrossing {

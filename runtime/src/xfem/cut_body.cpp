@@ -60,6 +60,19 @@ bool polygonsOverlap(const CutPolygon& a, const CutPolygon& b) {
   return polygonContains(b, polygonCentre(a), 1e-9) || polygonContains(a, polygonCentre(b), 1e-9);
 }
 
+// The face of tet X (0..3, opposite that node) a polygon lies in, to `tol`; -1 if none.
+int tetFaceHolding(const Vec3 X[4], const CutPolygon& g, double tol) {
+  for (int a = 0; a < 4; ++a) {
+    const Vec3 p = X[(a + 1) % 4], q = X[(a + 2) % 4], r = X[(a + 3) % 4];
+    Vec3 n = cross(q - p, r - p);
+    n = (1.0 / norm(n)) * n;
+    bool on = true;
+    for (int i = 0; i < g.count && on; ++i) on = std::abs(dot(n, g.v[i] - p)) <= tol;
+    if (on) return a;
+  }
+  return -1;
+}
+
 // Side of x against a cut that does not cross its tet: the plane's, or for a blade the sign of
 // eq 3.1 to its nearest triangle.
 bool positiveSide(const XfemBodyDef& def, int32_t cut, Vec3 x) {
@@ -103,23 +116,44 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
   b.m_def = def;
   b.m_cutReports.assign(size_t(cutCount), {});
 
-  // Every cut's crossings per tet. A plane cuts a tet when its nodes lie strictly on both
-  // sides (a plane that only touches it leaves it whole, on the positive side) and always
-  // crosses it fully; a blade's crossings come from its path.
+  // Every cut's crossings per tet. Node sides against a plane as for blades (blade_path.h): a
+  // node within its snap distance counts as on the plane, and on it as positive. A plane cuts a
+  // tet when its nodes have both sides (a tet whose only positive nodes are on the plane is cut
+  // with an empty positive cell, so those nodes' enriched functions stay conforming; one with
+  // no negative node is whole, on the positive side) and always crosses it fully. In the tet,
+  // the plane is lowered onto a positive node that rounding leaves just below it. A blade's
+  // crossings come from its path.
   std::vector<std::vector<TetCut>> crossings(static_cast<size_t>(tets));
   std::vector<Vec3> X(4 * static_cast<size_t>(tets));
+  const std::vector<double> snap = nodeSnapDistances(mesh);
   for (int32_t t = 0; t < tets; ++t) {
     for (int a = 0; a < 4; ++a)
       X[4 * size_t(t) + a] = nodePosition(mesh, mesh.tets[4 * size_t(t) + a]);
     for (int32_t j = 0; j < planeCount; ++j) {
+      CutPlane local = def.planes[size_t(j)];
       bool pos = false, neg = false;
       for (int a = 0; a < 4; ++a) {
-        const double d = planeDistance(def.planes[size_t(j)], X[4 * size_t(t) + a]);
-        pos = pos || d > 0;
-        neg = neg || d < 0;
+        const Vec3 x = X[4 * size_t(t) + a];
+        const double d = planeDistance(def.planes[size_t(j)], x);
+        if (d >= -snap[size_t(mesh.tets[4 * size_t(t) + a])]) {
+          pos = true;
+          if (d < 0) local.offset = std::min(local.offset, dot(local.normal, x));
+        } else {
+          neg = true;
+        }
+      }
+      // Lowering the plane must not lift a negative node onto it (two nodes of one tet within
+      // rounding of the plane on opposite sides: their sides are not decidable).
+      for (int a = 0; a < 4 && pos && neg; ++a) {
+        const Vec3 x = X[4 * size_t(t) + a];
+        const bool wasNegative =
+            planeDistance(def.planes[size_t(j)], x) < -snap[size_t(mesh.tets[4 * size_t(t) + a])];
+        if (wasNegative && planeDistance(local, x) >= 0)
+          return fail("XfemBody: planes[", std::to_string(j), "]: tet ", std::to_string(t),
+                      " has nodes on both sides within rounding of the plane");
       }
       if (pos && neg) {
-        crossings[size_t(t)].push_back({j, def.planes[size_t(j)], true});
+        crossings[size_t(t)].push_back({j, local, true});
         ++b.m_cutReports[size_t(j)].fullTets;
       }
     }
@@ -160,9 +194,17 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
       for (int a = 0; a < 4; ++a) any = any || enrichable(mesh.tets[4 * size_t(t) + a], c.cut);
       if (any) tetCuts[size_t(t)].push_back(c);
     }
-    if (tetCuts[size_t(t)].size() > size_t(kMaxCutPlanes))
-      return fail("XfemBody: tet ", std::to_string(t), ": more than ",
-                  std::to_string(kMaxCutPlanes), " cuts");
+    // More cuts than a cell's fixed capacity: refused, rather than dropping a cut (a wrong
+    // volume and a piece that does not separate).
+    if (tetCuts[size_t(t)].size() > size_t(kMaxCutPlanes)) {
+      std::string list;
+      for (const TetCut& c : tetCuts[size_t(t)])
+        list += (list.empty() ? "" : ", ") + std::to_string(c.cut);
+      return fail("XfemBody: planes and blades: tet ", std::to_string(t), " is crossed by ",
+                  std::to_string(tetCuts[size_t(t)].size()), " cuts (", list, "; planes first),",
+                  " at most ", std::to_string(kMaxCutPlanes),
+                  " per tet: space the cuts further apart or refine the mesh");
+    }
     if (!tetCuts[size_t(t)].empty()) ++b.m_cutTets;
   }
   b.m_enriched.assign(size_t(nodes) * size_t(cutCount), -1);
@@ -193,6 +235,10 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
       static_cast<size_t>(tets));
   std::vector<int32_t> parent;
   std::vector<unsigned> openCuts(static_cast<size_t>(tets), 0);  // per tet: bit j, cut j opens
+  // Per tet and face (opposite node a): bit j set when the face's three nodes lie on one side of
+  // the tet's cut j (faceFixed), and that side is positive (facePositive).
+  std::vector<std::array<unsigned, 4>> faceFixed(static_cast<size_t>(tets), {0, 0, 0, 0});
+  std::vector<std::array<unsigned, 4>> facePositive(static_cast<size_t>(tets), {0, 0, 0, 0});
 
   // Elements, assembled; eq 3.16's volumes on the way.
   std::vector<Eigen::Triplet<double>> mass, stiffness;
@@ -206,7 +252,12 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
     CutPlane local[kMaxCutPlanes];
     for (int j = 0; j < m; ++j) local[j] = cuts[size_t(j)].plane;
     const Vec3* x = &X[4 * size_t(t)];
-    const CutElement e = buildCutElement(x, local, m, def.k, def.material);
+    // Nodes on a cut (to their snap distance) lie within twice the largest snap of the tet's
+    // local plane: the cells treat them as on it, so no sliver of rounding noise is made.
+    double onPlane = 0;
+    for (int a = 0; a < 4; ++a)
+      onPlane = std::max(onPlane, 4 * snap[size_t(mesh.tets[4 * size_t(t) + a])]);
+    const CutElement e = buildCutElement(x, local, m, def.k, def.material, onPlane);
     const int n = 4 * (1 + m);
     // Functions of nodes without the cut's enrichment are dropped (-1).
     std::vector<int32_t> map(static_cast<size_t>(n));
@@ -266,11 +317,15 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
             differ |= 1u << j;
         if ((differ & opens) == 0) unite(parent, id, o);
       }
-      if (m > 0)
-        for (int f = 0; f < c.polytope.faceCount; ++f)
-          if (c.polytope.faces[f].label < kCutFaceLabel)
-            facePolygons[size_t(t)][size_t(c.polytope.faces[f].label)].emplace_back(
-                id, c.polytope.faces[f]);
+      // A cut through a node layer makes a tet face the cap of the cells below it (clipTet
+      // relabels a face lying in the plane): it is still that tet face for the pieces.
+      int capOnFace[kCutPolytopeMaxFaces];
+      for (int f = 0; f < c.polytope.faceCount; ++f) {
+        const CutPolygon& g = c.polytope.faces[f];
+        capOnFace[f] = g.label < kCutFaceLabel ? g.label : tetFaceHolding(x, g, onPlane);
+        if (m > 0 && capOnFace[f] >= 0)
+          facePolygons[size_t(t)][size_t(capOnFace[f])].emplace_back(id, g);
+      }
       cells.push_back(std::move(cell));
       for (int j = 0; j < m; ++j) {
         const bool cellPositive = (c.sideMask >> j) & 1u;
@@ -279,6 +334,15 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
         for (int a = 0; a < 4; ++a)
           if ((e.sides.side[j][a] > 0.5) != cellPositive && map[size_t(4 + 4 * j + a)] >= 0)
             enrichedVolume[size_t(map[size_t(4 + 4 * j + a)] - nodes)] += c.volume;
+        // The cut face along a tet face (node layer) has only the negative cell: record it
+        // from there, turned to face the positive side.
+        if (!cellPositive)
+          for (int f = 0; f < c.polytope.faceCount; ++f)
+            if (c.polytope.faces[f].label == kCutFaceLabel + j && capOnFace[f] >= 0) {
+              CutPolygon g = c.polytope.faces[f];
+              for (int i = 0; i < g.count / 2; ++i) std::swap(g.v[i], g.v[g.count - 1 - i]);
+              b.m_cutFaces.push_back({t, cuts[size_t(j)].cut, ((opens >> j) & 1u) != 0, g});
+            }
         if (cellPositive)
           for (int f = 0; f < c.polytope.faceCount; ++f)
             if (c.polytope.faces[f].label == kCutFaceLabel + j)
@@ -286,6 +350,15 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
                   {t, cuts[size_t(j)].cut, ((opens >> j) & 1u) != 0, c.polytope.faces[f]});
       }
     }
+    for (int j = 0; j < m; ++j)
+      for (int a = 0; a < 4; ++a) {
+        const double s0 = e.sides.side[j][(a + 1) % 4];
+        bool same = true;
+        for (int k = 2; k < 4; ++k) same = same && e.sides.side[j][(a + k) % 4] == s0;
+        if (!same) continue;
+        faceFixed[size_t(t)][size_t(a)] |= 1u << cuts[size_t(j)].cut;
+        if (s0 > 0.5) facePositive[size_t(t)][size_t(a)] |= 1u << cuts[size_t(j)].cut;
+      }
     for (int j = 0; j < m; ++j)
       if ((opens >> j) & 1u) {
         ++b.m_cutReports[size_t(cuts[size_t(j)].cut)].openTets;
@@ -297,7 +370,9 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
   // Pieces: join cells of neighbouring tets on the same side of every cut that opens in both
   // (their enriched fields separate there even where a bent blade's local planes meet the
   // shared face along different lines), and whose polygons on the face overlap unless those
-  // common cuts are all the two tets carry.
+  // common cuts are all the two tets carry. A cut that opens in one tet only, with the shared
+  // face's nodes all on one side of it, lets only that side's cells through the face: the face
+  // lies on the cut (a cut through a node layer) and the other tet is wholly beyond it.
   {
     const int opposite[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
     std::map<std::array<int32_t, 3>, std::pair<int32_t, int>> unmatched;  // face -> (tet, a)
@@ -312,22 +387,33 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
           continue;
         }
         const int32_t u = it->second.first;
-        const auto& pu = facePolygons[size_t(u)][size_t(it->second.second)];
+        const int au = it->second.second;
+        const auto& pu = facePolygons[size_t(u)][size_t(au)];
         const auto& pt = facePolygons[size_t(t)][size_t(a)];
         unmatched.erase(it);
+        const unsigned common = openCuts[size_t(u)] & openCuts[size_t(t)];
+        const unsigned onlyU = openCuts[size_t(u)] & ~common & faceFixed[size_t(u)][size_t(au)];
+        const unsigned onlyT = openCuts[size_t(t)] & ~common & faceFixed[size_t(t)][size_t(a)];
+        const auto through = [&](int32_t cell, unsigned only, unsigned positive) {
+          return ((cells[size_t(cell)].sides ^ positive) & only) == 0;
+        };
+        const unsigned posU = facePositive[size_t(u)][size_t(au)];
+        const unsigned posT = facePositive[size_t(t)][size_t(a)];
         if (pu.empty() && pt.empty()) {
           unite(parent, firstCell[size_t(u)], firstCell[size_t(t)]);
         } else if (pu.empty() || pt.empty()) {
           // An uncut tet's face is its whole triangle: it overlaps every cell on the other side.
           const int32_t whole = pu.empty() ? firstCell[size_t(u)] : firstCell[size_t(t)];
-          for (const auto& [cell, polygon] : pu.empty() ? pt : pu) unite(parent, whole, cell);
+          const unsigned only = pu.empty() ? onlyT : onlyU, positive = pu.empty() ? posT : posU;
+          for (const auto& [cell, polygon] : pu.empty() ? pt : pu)
+            if (through(cell, only, positive)) unite(parent, whole, cell);
         } else {
-          const unsigned common = openCuts[size_t(u)] & openCuts[size_t(t)];
           const bool sidesDecide = cells[size_t(pu[0].first)].cutBits == common &&
                                    cells[size_t(pt[0].first)].cutBits == common;
           for (const auto& [cu, gu] : pu)
             for (const auto& [ct, gt] : pt)
               if (((cells[size_t(cu)].sides ^ cells[size_t(ct)].sides) & common) == 0 &&
+                  through(cu, onlyU, posU) && through(ct, onlyT, posT) &&
                   (sidesDecide || polygonsOverlap(gu, gt)))
                 unite(parent, cu, ct);
         }

@@ -77,8 +77,8 @@ class XfemBody {
  public:
   /// Builds cells, rules, element matrices and the factorised step matrix. Fails, naming the
   /// field, on an empty mesh, a plane with a non-unit normal, a bad blade (traceBlade), more
-  /// than 32 cuts or kMaxCutPlanes through one tet, a fixed node out of range, or a singular
-  /// step matrix.
+  /// than 32 cuts or more than kMaxCutPlanes through one tet (named, with its cuts), a fixed node
+  /// out of range, or a singular step matrix.
   static Result<std::unique_ptr<XfemBody>> create(const XfemBodyDef& def);
 
   int32_t functionCount() const { return m_functionCount; }  ///< Scalar shape functions.

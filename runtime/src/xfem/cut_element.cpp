@@ -5,7 +5,7 @@
 namespace gf::detail {
 
 CutElement buildCutElement(const Vec3 X[4], const CutPlane* planes, int count, double k,
-                           const LinearElastic& material) {
+                           const LinearElastic& material, double onPlane) {
   CutElement e;
   e.sides.cutCount = count;
   for (int j = 0; j < count; ++j)
@@ -22,7 +22,7 @@ CutElement buildCutElement(const Vec3 X[4], const CutPlane* planes, int count, d
   for (unsigned mask = 0; mask < (1u << count); ++mask) {
     CutCell cell;
     cell.sideMask = mask;
-    cell.polytope = clipTet(X, planes, count, mask);
+    cell.polytope = clipTet(X, planes, count, mask, onPlane);
     if (cell.polytope.faceCount == 0) continue;
     cell.rule = fitVolumeRule(cell.polytope);
     if (cell.rule.count == 0) continue;

@@ -43,8 +43,9 @@ struct CutElement {
 };
 
 /// Cells, rules and matrices of tet X (positively oriented) cut by `planes` (count in
-/// [0, kMaxCutPlanes]; zero gives the plain linear tet). k is eq 3.2's parameter.
+/// [0, kMaxCutPlanes]; zero gives the plain linear tet). k is eq 3.2's parameter; onPlane is
+/// clipTet's: vertices that close to a plane count as on it.
 CutElement buildCutElement(const Vec3 X[4], const CutPlane* planes, int count, double k,
-                           const LinearElastic& material);
+                           const LinearElastic& material, double onPlane = 0);
 
 }  // namespace gf::detail
