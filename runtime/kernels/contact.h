@@ -215,6 +215,28 @@ GF_HD Vec3 closestOnTriangle(Vec3 p, Vec3 a, Vec3 b, Vec3 c) {
   return {1 - v - w, v, w};
 }
 
+/// Closest points of segments p0-p1 and q0-q1 as parameters s, t in [0, 1] (p0 + s (p1 - p0),
+/// q0 + t (q1 - q0)) (Ericson, Real-Time Collision Detection, sec 5.1.9). False when a segment
+/// has no length or the two are parallel (no single pair of closest points).
+GF_HD bool closestOnSegments(Vec3 p0, Vec3 p1, Vec3 q0, Vec3 q1, double& s, double& t) {
+  const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
+  const double a = dot(d1, d1), e = dot(d2, d2), f = dot(d2, r), c = dot(d1, r), b = dot(d1, d2);
+  const double denom = a * e - b * b;
+  if (!(a > 0 && e > 0) || !(denom > 1e-12 * a * e)) return false;
+  s = (b * f - c * e) / denom;
+  s = s < 0 ? 0 : (s > 1 ? 1 : s);
+  t = (b * s + f) / e;
+  if (t < 0) {
+    t = 0;
+    s = -c / a;
+  } else if (t > 1) {
+    t = 1;
+    s = (b - c) / a;
+  }
+  s = s < 0 ? 0 : (s > 1 ? 1 : s);
+  return true;
+}
+
 /// Body-body and self contacts of one body for one step (contact/body_contact.h): per node a
 /// run of half-spaces, each a point and an outward unit normal that the node must stay in
 /// front of, with the one-sided penalty of a collider (energy k d^2 / 2, gradient, PSD Hessian

@@ -25,6 +25,16 @@ constexpr double kBehind = 2.0;
 // the grid over a coarser box of cells only once per this many along each axis; it cannot be
 // missed, only tested against more vertices.
 constexpr int64_t kMaxCellsPerFace = 4096;
+// Edge-edge proximity (design note): only feature edges, whose two faces' normals meet at more
+// than about 25 degrees (cos below this), crossing at more than about 6 degrees (the sine of
+// their angle above this), closest at least this fraction of either edge away from its ends.
+constexpr double kSharpEdge = 0.9;
+constexpr double kEdgeCrossing = 0.1;
+constexpr double kEdgeEnd = 0.05;
+// Edge pairs are kept while the predicted edges come within this much of a cell plus the
+// thickness: one point may have to stop a whole body, so its plane is set up a step before it
+// is met (a plane not reached costs nothing: the penalty is one-sided).
+constexpr double kEdgeReach = 0.25;
 
 Vec3 load3(const double* p, int32_t i) {
   return {p[3 * int64_t(i)], p[3 * int64_t(i) + 1], p[3 * int64_t(i) + 2]};
@@ -136,6 +146,28 @@ void ContactSurface::update(const FemModel& model, const int32_t* nodeFragment,
       if (in0 != in1) add(f, in1);
     }
   }
+  // Face adjacency across edges, for the edges' sharpness and outward normals (edge-edge).
+  const int32_t count = int32_t(m_faces.size() / 3);
+  m_edgeKeys.clear();
+  for (int32_t f = 0; f < count; ++f)
+    for (int32_t k = 0; k < 3; ++k) {
+      const int32_t a = m_faces[3 * size_t(f) + size_t(k)];
+      const int32_t b = m_faces[3 * size_t(f) + size_t((k + 1) % 3)];
+      m_edgeKeys.push_back({std::min(a, b), std::max(a, b), 3 * f + k});
+    }
+  std::sort(m_edgeKeys.begin(), m_edgeKeys.end());
+  m_neighbours.assign(m_faces.size(), -1);
+  for (size_t i = 0; i < m_edgeKeys.size();) {
+    size_t j = i + 1;
+    while (j < m_edgeKeys.size() && m_edgeKeys[j][0] == m_edgeKeys[i][0] &&
+           m_edgeKeys[j][1] == m_edgeKeys[i][1])
+      ++j;
+    if (j == i + 2) {
+      m_neighbours[size_t(m_edgeKeys[i][2])] = m_edgeKeys[i + 1][2] / 3;
+      m_neighbours[size_t(m_edgeKeys[i + 1][2])] = m_edgeKeys[i][2] / 3;
+    }
+    i = j;
+  }
   m_vertices.assign(m_faces.begin(), m_faces.end());
   std::sort(m_vertices.begin(), m_vertices.end());
   m_vertices.erase(std::unique(m_vertices.begin(), m_vertices.end()), m_vertices.end());
@@ -186,15 +218,19 @@ int64_t BodyContact::find(std::span<const ContactBodyView> bodies, double dt, do
   for (size_t g = 0; g < groups; ++g) pad(&m_box[6 * g], m_groupThickness[g]);
   m_near.assign(groups, 0);
   bool anyNear = false;
+  m_nearLinks.clear();
   for (size_t a = 0; a < groups; ++a) {
     if (!(m_box[6 * a] <= m_box[6 * a + 3])) continue;  // no surface vertex
     for (size_t b = a + 1; b < groups; ++b) {
       if (!overlap(&m_box[6 * a], &m_box[6 * b])) continue;
       m_near[a] = m_near[b] = 1;
+      m_nearLinks.push_back({int32_t(a), int32_t(b)});
+      m_nearLinks.push_back({int32_t(b), int32_t(a)});
       anyNear = true;
     }
   }
   if (!anyNear) return 0;
+  std::sort(m_nearLinks.begin(), m_nearLinks.end());
 
   // The faces of near groups, boxed over both positions, in a sorted grid.
   m_faceSlot.clear();
@@ -251,6 +287,13 @@ int64_t BodyContact::find(std::span<const ContactBodyView> bodies, double dt, do
   }
   std::sort(m_grid.begin(), m_grid.end());
 
+  // Masses of the groups, for the edge-edge penalty.
+  m_groupMass.assign(groups, 0.0);
+  for (size_t si = 0; si < slots; ++si)
+    if (bodies[si].model)
+      for (int32_t n = 0; n < bodies[si].model->nodeCount; ++n)
+        m_groupMass[size_t(m_groupBase[si] + fragmentOf(bodies[si], n))] +=
+            bodies[si].state->nodeMass[size_t(n)];
   // Outward normals of the near groups' surface vertices (area-weighted), at x_n.
   for (size_t si = 0; si < slots; ++si) {
     const ContactBodyView& b = bodies[si];
@@ -286,23 +329,7 @@ int64_t BodyContact::find(std::span<const ContactBodyView> bodies, double dt, do
       grow(vbox, xv);
       grow(vbox, pv);
       pad(vbox, m_groupThickness[size_t(g)]);
-      m_candidates.clear();
-      int64_t lo[3], hi[3];
-      for (int i = 0; i < 3; ++i) {
-        lo[i] = cellOf(vbox[i], h);
-        hi[i] = cellOf(vbox[3 + i], h);
-      }
-      for (int64_t i = lo[0]; i <= hi[0]; ++i)
-        for (int64_t j = lo[1]; j <= hi[1]; ++j)
-          for (int64_t k = lo[2]; k <= hi[2]; ++k) {
-            const uint64_t key = cellKey(i, j, k);
-            auto it = std::lower_bound(m_grid.begin(), m_grid.end(),
-                                       std::pair<uint64_t, int32_t>{key, INT32_MIN});
-            for (; it != m_grid.end() && it->first == key; ++it) m_candidates.push_back(it->second);
-          }
-      m_candidates.insert(m_candidates.end(), m_hugeFaces.begin(), m_hugeFaces.end());
-      std::sort(m_candidates.begin(), m_candidates.end());
-      m_candidates.erase(std::unique(m_candidates.begin(), m_candidates.end()), m_candidates.end());
+      gatherFaces(vbox, h);
       for (int32_t cf : m_candidates) {
         if (!overlap(vbox, &m_faceBox[6 * size_t(cf)])) continue;
         const size_t so = size_t(m_faceSlot[size_t(cf)]);
@@ -365,6 +392,10 @@ int64_t BodyContact::find(std::span<const ContactBodyView> bodies, double dt, do
         m_pairs.push_back({n, cf, og, point, nq, cq - cp, muLambda, k});
       }
     }
+    edgePairs(bodies, si, dt, stiffness, h);
+    // Half-spaces run per node in node order; edge-edge ones came after the vertices'.
+    std::stable_sort(m_pairs.begin(), m_pairs.end(),
+                     [](const Pair& a, const Pair& c) { return a.node < c.node; });
     Slot& out = m_bodies[si];
     const int32_t nodeCount = b.model->nodeCount;
     if (m_pairs.empty()) continue;
@@ -391,6 +422,142 @@ int64_t BodyContact::find(std::span<const ContactBodyView> bodies, double dt, do
     m_pairCount += int64_t(m_pairs.size());
   }
   return m_pairCount;
+}
+
+void BodyContact::gatherFaces(const double* box, double h) {
+  m_candidates.clear();
+  int64_t lo[3], hi[3];
+  for (int i = 0; i < 3; ++i) {
+    lo[i] = cellOf(box[i], h);
+    hi[i] = cellOf(box[3 + i], h);
+  }
+  for (int64_t i = lo[0]; i <= hi[0]; ++i)
+    for (int64_t j = lo[1]; j <= hi[1]; ++j)
+      for (int64_t k = lo[2]; k <= hi[2]; ++k) {
+        const uint64_t key = cellKey(i, j, k);
+        auto it = std::lower_bound(m_grid.begin(), m_grid.end(),
+                                   std::pair<uint64_t, int32_t>{key, INT32_MIN});
+        for (; it != m_grid.end() && it->first == key; ++it) m_candidates.push_back(it->second);
+      }
+  m_candidates.insert(m_candidates.end(), m_hugeFaces.begin(), m_hugeFaces.end());
+  std::sort(m_candidates.begin(), m_candidates.end());
+  m_candidates.erase(std::unique(m_candidates.begin(), m_candidates.end()), m_candidates.end());
+}
+
+void BodyContact::edgePairs(std::span<const ContactBodyView> bodies, size_t si, double dt,
+                            double stiffness, double h) {
+  const ContactBodyView& b = bodies[si];
+  const FemState& st = *b.state;
+  auto fragmentOf = [](const ContactBodyView& v, int32_t n) {
+    return v.nodeFragment.empty() ? 0 : v.nodeFragment[size_t(n)];
+  };
+  // A surface edge at x_n: the sum of its two faces' unit normals (its outward direction) and
+  // whether the faces meet at an angle (a flat face's inner edges are no features).
+  auto edgeNormal = [](const ContactBodyView& v, int32_t f, int32_t nb, Vec3& out) {
+    const std::span<const int32_t> faces = v.surface->faces();
+    Vec3 n[2];
+    for (int i = 0; i < 2; ++i) {
+      const int32_t* k = &faces[3 * size_t(i == 0 ? f : nb)];
+      const Vec3 p0 = load3(v.state->x.data(), k[0]);
+      n[i] = cross(load3(v.state->x.data(), k[1]) - p0, load3(v.state->x.data(), k[2]) - p0);
+      const double len = norm(n[i]);
+      if (!(len > 0)) return false;
+      n[i] = (1.0 / len) * n[i];
+    }
+    out = n[0] + n[1];
+    return dot(n[0], n[1]) < kSharpEdge;
+  };
+  const std::span<const int32_t> ownFaces = b.surface->faces();
+  const std::span<const int32_t> ownNb = b.surface->neighbours();
+  const double* x = st.x.data();
+  const double* v = st.v.data();
+  for (int32_t f = 0; f < int32_t(ownFaces.size() / 3); ++f)
+    for (int ke = 0; ke < 3; ++ke) {
+      const int32_t nb = ownNb[3 * size_t(f) + size_t(ke)];
+      if (nb < f) continue;  // each edge once, from its lower face; -1: no feature
+      const int32_t a0 = ownFaces[3 * size_t(f) + size_t(ke)];
+      const int32_t a1 = ownFaces[3 * size_t(f) + size_t((ke + 1) % 3)];
+      const int32_t g = m_groupBase[si] + fragmentOf(b, a0);
+      if (!m_near[size_t(g)] || (st.fixedNode[size_t(a0)] && st.fixedNode[size_t(a1)])) continue;
+      Vec3 nA;
+      if (!edgeNormal(b, f, nb, nA)) continue;
+      const double th = m_groupThickness[size_t(g)];
+      const Vec3 xa0 = load3(x, a0), xa1 = load3(x, a1);
+      const Vec3 pa0 = xa0 + dt * load3(v, a0), pa1 = xa1 + dt * load3(v, a1);
+      double box[6];
+      emptyBox(box);
+      for (Vec3 p : {xa0, xa1, pa0, pa1}) grow(box, p);
+      pad(box, th + kEdgeReach * b.surface->cellSize());
+      // Most feature edges of a near group are nowhere near the other group's box.
+      bool reaches = false;
+      for (auto it = std::lower_bound(m_nearLinks.begin(), m_nearLinks.end(),
+                                      std::pair<int32_t, int32_t>{g, INT32_MIN});
+           it != m_nearLinks.end() && it->first == g && !reaches; ++it)
+        reaches = overlap(box, &m_box[6 * size_t(it->second)]);
+      if (!reaches) continue;
+      gatherFaces(box, h);
+      for (int32_t cf : m_candidates) {
+        if (!overlap(box, &m_faceBox[6 * size_t(cf)])) continue;
+        const size_t so = size_t(m_faceSlot[size_t(cf)]);
+        const ContactBodyView& o = bodies[so];
+        const int32_t fb = m_faceIndex[size_t(cf)];
+        const int32_t* face = &o.surface->faces()[3 * size_t(fb)];
+        const int32_t og = m_groupBase[so] + fragmentOf(o, face[0]);
+        if (og == g) continue;
+        const FemState& os = *o.state;
+        for (int kb = 0; kb < 3; ++kb) {
+          const int32_t nbB = o.surface->neighbours()[3 * size_t(fb) + size_t(kb)];
+          if (nbB < fb) continue;
+          const int32_t b0 = face[kb], b1 = face[(kb + 1) % 3];
+          Vec3 nB;
+          if (!edgeNormal(o, fb, nbB, nB)) continue;
+          const Vec3 xb0 = load3(os.x.data(), b0), xb1 = load3(os.x.data(), b1);
+          const Vec3 qb0 = xb0 + dt * load3(os.v.data(), b0);
+          const Vec3 qb1 = xb1 + dt * load3(os.v.data(), b1);
+          double sA = 0, tB = 0;
+          if (!closestOnSegments(pa0, pa1, qb0, qb1, sA, tB)) continue;
+          // Near an end the vertex-face test already holds it.
+          if (sA <= kEdgeEnd || sA >= 1 - kEdgeEnd || tB <= kEdgeEnd || tB >= 1 - kEdgeEnd)
+            continue;
+          const Vec3 ea = pa1 - pa0, eb = qb1 - qb0;
+          Vec3 n = cross(ea, eb);
+          const double len = norm(n);
+          if (!(len > kEdgeCrossing * norm(ea) * norm(eb))) continue;  // nearly parallel
+          n = (1.0 / len) * n;
+          // Pushing A away from B: along B's outward direction, against A's.
+          if (dot(n, nB - nA) < 0) n = -1.0 * n;
+          if (!(dot(n, nB) > 0 && dot(n, nA) < 0)) continue;
+          const Vec3 pA = (1 - sA) * pa0 + sA * pa1, pB = (1 - tB) * qb0 + tB * qb1;
+          const Vec3 xA = (1 - sA) * xa0 + sA * xa1, xB = (1 - tB) * xb0 + tB * xb1;
+          const double gap = dot(pA - pB, n);
+          if (gap > th + kEdgeReach * b.surface->cellSize() || dot(xA - xB, n) < -kBehind * th)
+            continue;
+          // The meeting plane of the two edge points, as for a vertex and a face.
+          const double mA = (1 - sA) * st.nodeMass[size_t(a0)] + sA * st.nodeMass[size_t(a1)];
+          const double mB = (1 - tB) * os.nodeMass[size_t(b0)] + tB * os.nodeMass[size_t(b1)];
+          const bool kinematic = os.fixedNode[size_t(b0)] || os.fixedNode[size_t(b1)];
+          const double share = kinematic || !(mA + mB > 0) ? 0.0 : mA / (mA + mB);
+          const double giveWay =
+              std::min((gap < 0 ? -gap : 0.0) * share, m_groupThickness[size_t(og)]);
+          const double onward = dot(pB - xB, n);
+          const Vec3 plane = (onward > 0 ? pB : pB - onward * n) - giveWay * n;
+          // Two crossing edges may carry a whole body at one point, so the penalty is a
+          // collider's for the lighter of the two bodies or fragments (stiffness is per unit
+          // mass).
+          const double k = stiffness * std::min(m_groupMass[size_t(g)], m_groupMass[size_t(og)]);
+          // Each edge node keeps its offset from the edge point: the edge moved as a whole
+          // meets the plane with energy k d^2 / 2 split (1 - s, s) over its nodes.
+          const int32_t nodes[2] = {a0, a1};
+          const double weights[2] = {1 - sA, sA};
+          const Vec3 predicted[2] = {pa0, pa1};
+          for (int i = 0; i < 2; ++i) {
+            if (st.fixedNode[size_t(nodes[i])]) continue;
+            m_pairs.push_back(
+                {nodes[i], -1, og, plane + (predicted[i] - pA), n, pB - xB, 0.0, k * weights[i]});
+          }
+        }
+      }
+    }
 }
 
 HalfSpaceContacts BodyContact::halfSpaces(size_t si) const {

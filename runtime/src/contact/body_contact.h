@@ -23,9 +23,19 @@
 //   within a tenth of the face), x~ comes within the thickness of it, the vertex was not more
 //   than two thicknesses behind its plane at x_n (it came in through another face, or this is
 //   the far side of the other body), and the vertex's own surface faces the face (a rim resting
-//   on another body's top face is not pushed out through its side). Edge-edge proximity is not
-//   tested: two volumetric surfaces that touch put a vertex of one over a face of the other
-//   both ways (BodyContact.CrossedEdgesDoNotPassThrough crosses two blocks' edges).
+//   on another body's top face is not pushed out through its side).
+// - Edge-edge, per pair of feature edges (the two faces of each meet at an angle; a flat
+//   face's inner edges are left out) that cross (not near parallel) with their closest points
+//   inside both edges (near an end the vertex-face test holds them): two ridges crossed midway
+//   between nodes meet no vertex at all (BodyContact.EdgeOnEdgeMidwayBetweenNodes; the upper
+//   block fell through). The normal is the edges' cross product, turned along the other
+//   body's outward edge normal and against the own one; the plane is the meeting plane of the
+//   two edge points as for a vertex and a face. Each edge node gets a half-space through that
+//   plane shifted by its offset from the edge point (the edge moving as a whole meets it with
+//   energy k d^2 / 2, split (1 - s, s) over its nodes), so the kernel and sparse pattern are
+//   unchanged. One point may carry a whole body: k is a collider's for the lighter body's
+//   mass, and the pair is kept from a quarter cell away so its plane is in place a step before
+//   it is met. No friction on these pairs yet.
 // - Half-space. The vertex must stay in front of a plane with the face's predicted normal,
 //   through the face where it will be when it comes towards the vertex (so it pushes in time)
 //   and where it is when it recedes (a plane that ran ahead of a receding face let the two
@@ -55,6 +65,7 @@
 //   node) is left as it is.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -77,6 +88,9 @@ class ContactSurface {
               uint64_t key);
   /// 3 nodes per face, counter-clockwise seen from outside.
   std::span<const int32_t> faces() const { return m_faces; }
+  /// Per contact face, per edge k (nodes k and k + 1): the contact face across it, -1 where
+  /// the edge does not join exactly two faces.
+  std::span<const int32_t> neighbours() const { return m_neighbours; }
   /// Nodes on some contact face, ascending.
   std::span<const int32_t> vertices() const { return m_vertices; }
   /// Edge of a regular tet of the mesh's mean volume: the contact thickness's scale.
@@ -86,7 +100,8 @@ class ContactSurface {
   std::vector<int32_t> m_faceNodes;     // 3 per mesh face, oriented away from m_faceOpposite[0]
   std::vector<int32_t> m_faceOpposite;  // 2 per face: the node opposite on each side, -1 none
   std::vector<int32_t> m_boundary;      // faces with one tet
-  std::vector<int32_t> m_faces, m_vertices;
+  std::vector<int32_t> m_faces, m_vertices, m_neighbours;
+  std::vector<std::array<int32_t, 3>> m_edgeKeys;  // (lower node, higher node, face * 3 + k)
   uint64_t m_key = ~uint64_t(0);
   double m_cellSize = 0;
 };
@@ -142,15 +157,22 @@ class BodyContact {
     double muLambda = 0, stiffness = 0;
   };
 
+  // The faces of the grid (cell size h) whose cells meet box, into m_candidates.
+  void gatherFaces(const double* box, double h);
+  // The edge-edge half-spaces of slot si's feature edges, appended to m_pairs.
+  void edgePairs(std::span<const ContactBodyView> bodies, size_t si, double dt, double stiffness,
+                 double h);
+
   std::vector<Slot> m_bodies;
   std::vector<int32_t> m_groupBase;  // per slot: its fragment 0's group
   std::vector<int32_t> m_groupSlot;  // per group
   std::vector<double> m_box;         // 6 per group
   std::vector<double> m_groupThickness;
-  std::vector<uint8_t> m_near;                       // per group: its box overlaps another's
-  std::vector<std::pair<uint64_t, int32_t>> m_grid;  // (cell, global face)
-  std::vector<int32_t> m_faceSlot, m_faceIndex;      // global face -> slot, index in its surface
-  std::vector<double> m_faceBox;                     // 6 per global face
+  std::vector<uint8_t> m_near;                           // per group: its box overlaps another's
+  std::vector<std::pair<int32_t, int32_t>> m_nearLinks;  // (group, group whose box it meets)
+  std::vector<std::pair<uint64_t, int32_t>> m_grid;      // (cell, global face)
+  std::vector<int32_t> m_faceSlot, m_faceIndex;  // global face -> slot, index in its surface
+  std::vector<double> m_faceBox;                 // 6 per global face
   std::vector<int32_t> m_hugeFaces;
   std::vector<int32_t> m_candidates;
   std::vector<Pair> m_pairs;
@@ -160,6 +182,7 @@ class BodyContact {
   std::vector<uint8_t> m_clusterOk, m_clusterExternal;
   std::vector<double> m_freeMass;  // per group
   std::vector<Vec3> m_groupVelocity;
+  std::vector<double> m_groupMass;  // per group, for the edge-edge penalty
   double m_slipEps = 0;
   int64_t m_pairCount = 0;
 };
