@@ -412,6 +412,22 @@ TEST(BodyContact, HeadOnCollisionConservesMomentumAndLosesEnergy) {
   EXPECT_LT(deepestInside(world, left.mesh, pa, right.mesh, pb), 1e-3);
 }
 
+// A cube of `size` and `cells` a side, turned 45 degrees about `axis`, centred at `centre`.
+TetMesh turnedCube(double size, int cells, int axis, glm::dvec3 centre) {
+  TetMesh m = gen::box(size, size, size, cells, cells, cells);
+  const double c = std::cos(M_PI / 4), s = std::sin(M_PI / 4);
+  for (size_t n = 0; n < m.nodeCount(); ++n) {
+    double* p = &m.positions[3 * n];
+    glm::dvec3 r(p[0] - size / 2, p[1] - size / 2, p[2] - size / 2);
+    const int i = (axis + 1) % 3, j = (axis + 2) % 3;
+    const double a = c * r[i] - s * r[j], b = s * r[i] + c * r[j];
+    r[i] = a;
+    r[j] = b;
+    for (int k = 0; k < 3; ++k) p[k] = centre[k] + r[k];
+  }
+  return m;
+}
+
 // Blocks whose edges cross: the lower one turned 45 degrees about x (an edge on top, along x),
 // the upper one turned 45 degrees about z (an edge below, along z), dropped edge on edge. No
 // edge-edge test runs: the nodes along each edge meet the faces beside the other's edge.
@@ -421,23 +437,10 @@ TEST(BodyContact, CrossedEdgesDoNotPassThrough) {
   ground.friction = 0.5;
   wd.colliders.push_back(ground);
   World world(wd);
-  auto turned = [](TetMesh m, int axis, glm::dvec3 centre) {
-    const double c = std::cos(M_PI / 4), s = std::sin(M_PI / 4);
-    for (size_t n = 0; n < m.nodeCount(); ++n) {
-      double* p = &m.positions[3 * n];
-      glm::dvec3 r(p[0] - 0.1, p[1] - 0.1, p[2] - 0.1);
-      const int i = (axis + 1) % 3, j = (axis + 2) % 3;
-      const double a = c * r[i] - s * r[j], b = s * r[i] + c * r[j];
-      r[i] = a;
-      r[j] = b;
-      for (int k = 0; k < 3; ++k) p[k] = centre[k] + r[k];
-    }
-    return m;
-  };
   BodyDef lower, upper;
   const double half = 0.1 * std::sqrt(2.0);
-  lower.mesh = turned(gen::box(0.2, 0.2, 0.2, 4, 4, 4), 0, {0, half, 0});
-  upper.mesh = turned(gen::box(0.2, 0.2, 0.2, 4, 4, 4), 2, {0, 2 * half + half + 0.02, 0});
+  lower.mesh = turnedCube(0.2, 4, 0, {0, half, 0});
+  upper.mesh = turnedCube(0.2, 4, 2, {0, 2 * half + half + 0.02, 0});
   for (BodyDef* d : {&lower, &upper}) {
     d->material = Material::stableNeoHookean(1e6, 0.3, 1000);
     d->material.stiffnessDamping = 0.02;
@@ -488,23 +491,9 @@ EdgeResult edgeOnEdge(double dt) {
   wd.colliders.push_back(ground);
   World world(wd);
   const double size = 0.2, half = 0.5 * size * std::sqrt(2.0);
-  auto turned = [&](int axis, glm::dvec3 centre) {
-    TetMesh m = gen::box(size, size, size, 5, 5, 5);
-    const double c = std::cos(M_PI / 4), s = std::sin(M_PI / 4);
-    for (size_t n = 0; n < m.nodeCount(); ++n) {
-      double* p = &m.positions[3 * n];
-      glm::dvec3 r(p[0] - size / 2, p[1] - size / 2, p[2] - size / 2);
-      const int i = (axis + 1) % 3, j = (axis + 2) % 3;
-      const double a = c * r[i] - s * r[j], b = s * r[i] + c * r[j];
-      r[i] = a;
-      r[j] = b;
-      for (int k = 0; k < 3; ++k) p[k] = centre[k] + r[k];
-    }
-    return m;
-  };
   BodyDef lower, upper;
-  lower.mesh = turned(0, {0, half, 0});             // ridge on top along x
-  upper.mesh = turned(2, {0, 3 * half + 0.01, 0});  // ridge below along z
+  lower.mesh = turnedCube(size, 5, 0, {0, half, 0});             // ridge on top along x
+  upper.mesh = turnedCube(size, 5, 2, {0, 3 * half + 0.01, 0});  // ridge below along z
   for (BodyDef* d : {&lower, &upper}) {
     d->material = Material::stableNeoHookean(1e6, 0.3, 1000);
     d->material.stiffnessDamping = 0.02;
