@@ -5,24 +5,40 @@
 //
 // Projection (eq 4.25-4.27), built on the Green strain E = (F^T F - I)/2 instead of the
 // thesis' linear strain, so it depends on F only through F^T F and is exactly rotation
-// invariant. With e = Voigt(E) (tensor shear) the edge strains are e_d = T e, and
-// (e_d)_k = N_k^T E N_k = ((l_k/L_k)^2 - 1)/2 (appendix E). A broken edge keeps only its
-// compressive part, (e_d)_k <- min((e_d)_k, 0), so a closed crack still resists being pushed
-// together while an open one carries nothing; back in Cartesian form E_frac = T^-1 e_d and
-//   psi = 1/2 E_frac : C : E_frac = mu E_frac:E_frac + lambda/2 tr(E_frac)^2 (+ fibre),
-// the StVK form (eq 4.31) in the Lamé parameters (eq 4.29), which is exactly StVK when no edge
-// is broken. In Voigt this is psi = 1/2 e_f^T M e_f with M = 2 mu W + lambda m m^T,
-// W = diag(1,1,1,2,2,2) (the shear entries count twice in E:E), m = [1 1 1 0 0 0]. An
-// anisotropic material adds mu_f t t^T with t the T-row of the fibre direction a: that is
-// mu_f/2 (a^T E a)^2, the small-strain form of the fibre energy (eq 4.36), so fibres also lose
-// their tension across a broken edge.
-//   Within a region where the signs of the broken edges' strains are fixed, the min() is
-// linear, e_f = A e with A = I - sum_{k masked} Tinv(:,k) T(k,:), and
-//   sigma_v = dpsi/de = A^T M A e,  S = Voigt^-1(sigma_v) with halved shear,  P = F S,
-//   dP/dF = J^T (A^T M A) J + I (x) S,  J = de/dvec(F), J(ab, kl) = (d_al F_kb + F_ka d_bl)/2,
-// where (I (x) S)(3k+l, 3m+n) = d_km S_ln. The Hessian is exact away from the kinks
-// (e_d)_k = 0 of broken edges; projectPsd clamps it with projectPSD<9>. J^T A^T M A J is PSD
-// for valid Lamé parameters, so only the I (x) S term (compression) can make it indefinite.
+// invariant. With e = Voigt(E) (tensor shear) the edge strains are d = T e, and
+// d_k = N_k^T E N_k = ((l_k/L_k)^2 - 1)/2 (appendix E). Eq 4.25 keeps the edge strains of the
+// unbroken edges and changes those of the broken ones: e_frac = T^-1 (d - w) with w nonzero
+// only on broken edges. w is the crack opening: b_k = T^-1 u_k (u_k the k-th unit vector) is
+// the strain that lengthens edge k alone, and w_k >= 0 says a crack only opens. The energy
+//   psi = min_{w >= 0} 1/2 e_f^T M e_f,  e_f = e - sum_{k broken} w_k b_k
+// is the StVK form (eq 4.31) in the Lamé parameters (eq 4.29): M = 2 mu W + lambda m m^T,
+// W = diag(1,1,1,2,2,2) (the shear entries count twice in E:E), m = [1 1 1 0 0 0], plus
+// mu_f t t^T for a fibre along a (t the T-row of a: mu_f/2 (a^T E a)^2, the small-strain form
+// of eq 4.36). tau_k = b_k^T M e_f is the force the broken edge carries (V tau_k / L_k is its
+// axial force when the tet's stress is resolved into its six edges as a truss), and the
+// minimum is the unilateral contact of the crack faces: an open crack (w_k > 0) carries no
+// force, a closed one (w_k = 0) only compression (tau_k <= 0). So a broken edge loses its
+// tensile part and a closed crack still resists being pushed together (SPEC §2).
+//   Why not w_k = max(d_k, 0) (mask the tensile edge strain, the previous version): at d_k = 0
+// the other strains still load edge k (Poisson coupling), so that energy had a ridge there,
+// its gradient jumping by tau_k b_k, and it could exceed the intact energy (at nu = 0.4999 the
+// removed strain changed tr E, which lambda = 5000 mu weighs). An implicit step across such a
+// ridge gains energy. The minimum has neither defect: w = 0 is admissible, so psi never
+// exceeds the intact StVK energy; it is a partial minimum of a convex quadratic, so convex and
+// C1 in e (w is continuous in e); it equals the edge-strain mask wherever that mask releases
+// everything (all broken edge strains tensile and the rest of the strain carried by them,
+// e.g. a corner cut off and pulled away); and nothing broken is exactly StVK.
+//   The QP has at most six unknowns. For each subset S of the broken edges the stationary
+// point of the face is G_SS w_S = g_S, G = T^-T M T^-1, g = T^-T M e; the minimum is the
+// admissible one (w_S >= 0) that lowers the energy most, by 1/2 w_S . g_S (the true minimum
+// is stationary on its own support, and every admissible point is at least the minimum).
+// Within a region of fixed S (B_S the columns b_k, k in S):
+//   sigma_v = dpsi/de = M e_f (envelope theorem),  S = Voigt^-1(sigma_v) with halved shear,
+//   P = F S,  dP/dF = J^T Hv J + I (x) S,  Hv = M - M B_S G_SS^-1 B_S^T M,
+// J = de/dvec(F), J(ab, kl) = (d_al F_kb + F_ka d_bl)/2, (I (x) S)(3k+l, 3m+n) = d_km S_ln.
+// Hv is PSD (M^1/2 times an orthogonal projector times M^1/2), so only the I (x) S term
+// (compression) can make dP/dF indefinite; projectPsd clamps it with projectPSD<9>. The
+// Hessian is exact away from the region boundaries, where only it (not P) jumps.
 //   Known limit, inherited from StVK: the Green strain of an edge is bounded below by -1/2,
 // so the closed-crack resistance weakens as an element is crushed towards zero volume.
 //
@@ -93,6 +109,10 @@ GF_HD Mat<6, 6> projectionStiffness(const MaterialCoeffs& c) {
   return projectionStiffness(mu, lambda, c.fibreMu, c.fibreDir);
 }
 
+/// Crack openings below this fraction of the largest Green strain component are round-off
+/// of a closed crack (see detail::crackOpening).
+constexpr double kCrackOpeningRoundOff = 1e-8;
+
 namespace detail {
 
 /// Tensor Voigt of the Green strain E = (F^T F - I)/2.
@@ -106,64 +126,168 @@ GF_HD void greenStrainVoigt(const Mat3& F, double e[6]) {
   e[5] = 0.5 * C(1, 2);
 }
 
-/// The linear map A = I - sum_{k masked} Tinv(:,k) T(k,:) of the current sign region, where
-/// edge k is masked when it is broken and in tension ((T e)_k > 0). Returns false (A = I)
-/// when nothing is masked, so the undamaged case is exact, not I up to round-off.
-GF_HD bool projectionOperator(const Mat<6, 6>& Tinv, const Mat<6, 6>& T, const uint8_t broken[6],
-                              const double e[6], Mat<6, 6>& A) {
-  A = Mat<6, 6>::identity();
-  bool any = false;
-  for (int k = 0; k < 6; ++k) {
-    if (broken[k] == 0) continue;
-    double ed = 0;
-    for (int j = 0; j < 6; ++j) ed += T(k, j) * e[j];
-    if (!(ed > 0)) continue;  // compressive: the closed crack keeps this edge
-    any = true;
-    for (int i = 0; i < 6; ++i)
-      for (int j = 0; j < 6; ++j) A(i, j) -= Tinv(i, k) * T(k, j);
+/// Cholesky factor L (lower triangle, row stride 6) of the n x n SPD matrix in a, in place.
+/// False when a pivot is not positive relative to its diagonal: a singular face of the
+/// crack-opening problem (a degenerate edge frame), which the caller skips.
+GF_HD bool choleskyFactor6(double a[36], int n) {
+  for (int j = 0; j < n; ++j) {
+    double d = a[6 * j + j];
+    const double diag = d;
+    for (int k = 0; k < j; ++k) d -= a[6 * j + k] * a[6 * j + k];
+    if (!(d > 1e-13 * diag)) return false;  // also catches NaN
+    d = sqrt(d);
+    a[6 * j + j] = d;
+    for (int i = j + 1; i < n; ++i) {
+      double s = a[6 * i + j];
+      for (int k = 0; k < j; ++k) s -= a[6 * i + k] * a[6 * j + k];
+      a[6 * i + j] = s / d;
+    }
   }
-  return any;
+  return true;
+}
+
+/// Solves L L^T x = b in place for the factor of choleskyFactor6.
+GF_HD void choleskySolve6(const double l[36], int n, double b[6]) {
+  for (int i = 0; i < n; ++i) {
+    double s = b[i];
+    for (int k = 0; k < i; ++k) s -= l[6 * i + k] * b[k];
+    b[i] = s / l[6 * i + i];
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    double s = b[i];
+    for (int k = i + 1; k < n; ++k) s -= l[6 * k + i] * b[k];
+    b[i] = s / l[6 * i + i];
+  }
+}
+
+/// The crack opening of the broken edges at tensor-Voigt Green strain e (see the file
+/// comment): e_f = e - sum_k w_k T^-1(:,k), the w >= 0 on broken edges that minimises
+/// 1/2 e_f^T M e_f. Returns the number of open edges (0: e_f = e, exactly). When hv is non-null
+/// it receives d2psi/de2 = M - M B_S G_SS^-1 B_S^T M of the open set S.
+GF_HD int crackOpening(const Mat<6, 6>& M, const Mat<6, 6>& Tinv, const uint8_t broken[6],
+                       const double e[6], double ef[6], Mat<6, 6>* hv) {
+  for (int i = 0; i < 6; ++i) ef[i] = e[i];
+  if (hv != nullptr) *hv = M;
+  int brokenMask = 0;
+  for (int k = 0; k < 6; ++k)
+    if (broken[k] != 0) brokenMask |= 1 << k;
+  if (brokenMask == 0) return 0;
+  // mb(:,k) = M b_k; g_k = b_k . M e (the force edge k carries at w = 0);
+  // G_kl = b_k . M b_l.
+  double me[6];
+  apply6(M, e, me);
+  double mb[6][6] = {}, g[6] = {}, G[6][6] = {};
+  for (int k = 0; k < 6; ++k) {
+    if (!((brokenMask >> k) & 1)) continue;
+    for (int i = 0; i < 6; ++i) {
+      double s = 0;
+      for (int j = 0; j < 6; ++j) s += M(i, j) * Tinv(j, k);
+      mb[k][i] = s;
+      g[k] += Tinv(i, k) * me[i];
+    }
+  }
+  for (int k = 0; k < 6; ++k)
+    for (int l = 0; l < 6; ++l) {
+      if (!((brokenMask >> k) & 1) || !((brokenMask >> l) & 1)) continue;
+      double s = 0;
+      for (int i = 0; i < 6; ++i) s += Tinv(i, k) * mb[l][i];
+      G[k][l] = s;
+    }
+  // Every face of the orthant w >= 0 spanned by a subset of the broken edges: the admissible
+  // stationary point that lowers psi most. An opening within round-off of zero counts as
+  // closed, so a crack exactly at the switch (w_k = tau_k = 0, which symmetric loads give)
+  // takes the same face, and the same Hessian, whatever the order of the tet's corners.
+  double eScale = 0;
+  for (int i = 0; i < 6; ++i) eScale = fmax(eScale, fabs(e[i]));
+  const double wMin = kCrackOpeningRoundOff * eScale;
+  int bestSet = 0, bestN = 0, bestIdx[6] = {};
+  double bestGain = 0, bestW[6] = {}, bestL[36] = {};
+  for (int set = brokenMask; set > 0; set = (set - 1) & brokenMask) {
+    int idx[6], n = 0;
+    for (int k = 0; k < 6; ++k)
+      if ((set >> k) & 1) idx[n++] = k;
+    double l[36], w[6];
+    for (int i = 0; i < n; ++i) {
+      w[i] = g[idx[i]];
+      for (int j = 0; j < n; ++j) l[6 * i + j] = G[idx[i]][idx[j]];
+    }
+    if (!choleskyFactor6(l, n)) continue;
+    choleskySolve6(l, n, w);
+    bool admissible = true;
+    double gain = 0;
+    for (int i = 0; i < n; ++i) {
+      admissible = admissible && w[i] > wMin;
+      gain += w[i] * g[idx[i]];
+    }
+    if (!admissible || !(gain > bestGain)) continue;
+    bestSet = set;
+    bestN = n;
+    bestGain = gain;
+    for (int i = 0; i < n; ++i) {
+      bestIdx[i] = idx[i];
+      bestW[i] = w[i];
+    }
+    for (int i = 0; i < 36; ++i) bestL[i] = l[i];
+  }
+  if (bestSet == 0) return 0;
+  for (int a = 0; a < bestN; ++a)
+    for (int i = 0; i < 6; ++i) ef[i] -= bestW[a] * Tinv(i, bestIdx[a]);
+  if (hv != nullptr) {
+    // Hv = M - (M B_S) G_SS^-1 (M B_S)^T, one column of (M B_S)^T at a time.
+    for (int j = 0; j < 6; ++j) {
+      double y[6];
+      for (int a = 0; a < bestN; ++a) y[a] = mb[bestIdx[a]][j];
+      choleskySolve6(bestL, bestN, y);
+      for (int i = 0; i < 6; ++i) {
+        double s = 0;
+        for (int a = 0; a < bestN; ++a) s += mb[bestIdx[a]][i] * y[a];
+        (*hv)(i, j) -= s;
+      }
+    }
+    // Exactly symmetric, as the PSD projection and the assembly expect.
+    for (int i = 0; i < 6; ++i)
+      for (int j = i + 1; j < 6; ++j) {
+        const double s = 0.5 * ((*hv)(i, j) + (*hv)(j, i));
+        (*hv)(i, j) = s;
+        (*hv)(j, i) = s;
+      }
+  }
+  return bestN;
 }
 
 }  // namespace detail
 
 /// Projection-model energy density psi (returned), P = dpsi/dF and, when dPdF is non-null,
-/// dP/dF (9x9, vec index 3*i+j), for the Voigt stiffness M (see the file comment). dPdF is the
-/// exact Hessian within the current sign region of the broken edges; with projectPsd it is
-/// replaced by its nearest PSD matrix.
+/// dP/dF (9x9, vec index 3*i+j), for the Voigt stiffness M (see the file comment). With
+/// closedHessian, dPdF takes every crack as closed (Hv = M): a majorant, not the Hessian. T is not
+/// needed by the minimum (only T^-1, whose columns are the opening strains); it stays in the
+/// signature so every caller passes the same edge frame. dPdF is the exact Hessian within the
+/// current set of open cracks; with projectPsd it is replaced by its nearest PSD matrix.
 GF_HD double projectionEvaluate(const Mat<6, 6>& M, const Mat<6, 6>& Tinv, const Mat<6, 6>& T,
                                 const uint8_t broken[6], const Mat3& F, Mat3& P, Mat9* dPdF,
-                                bool projectPsd) {
+                                bool projectPsd, bool closedHessian = false) {
+  (void)T;
   double e[6];
   detail::greenStrainVoigt(F, e);
-  Mat<6, 6> A;
-  const bool masked = detail::projectionOperator(Tinv, T, broken, e, A);
   double ef[6];
-  if (masked) {
-    apply6(A, e, ef);
-  } else {
-    for (int i = 0; i < 6; ++i) ef[i] = e[i];
-  }
+  Mat<6, 6> hv;
+  detail::crackOpening(M, Tinv, broken, e, ef, dPdF != nullptr && !closedHessian ? &hv : nullptr);
+  // The closed-crack Hessian M bounds the curvature of psi in e from above (psi(e + d) <=
+  // psi(e) + sigma_v . d + 1/2 d^T M d with the openings held), so a step built on it cannot
+  // overshoot a crack that closes within it (Integrator::solve's retry).
+  if (closedHessian) hv = M;
   // eq 4.25 on the Green strain: psi = 1/2 e_f^T M e_f.
-  double mef[6];
-  apply6(M, ef, mef);
-  double psi = 0;
-  for (int i = 0; i < 6; ++i) psi += 0.5 * ef[i] * mef[i];
-  // sigma_v = A^T M e_f; S halves the shear entries because each appears twice in S:dE.
   double sv[6];
-  for (int j = 0; j < 6; ++j) {
-    double s = 0;
-    for (int i = 0; i < 6; ++i) s += (masked ? A(i, j) : (i == j ? 1.0 : 0.0)) * mef[i];
-    sv[j] = s;
-  }
+  apply6(M, ef, sv);
+  double psi = 0;
+  for (int i = 0; i < 6; ++i) psi += 0.5 * ef[i] * sv[i];
+  // sigma_v = M e_f (envelope theorem: w is optimal); S halves the shear entries because each
+  // appears twice in S:dE.
   const double sHalf[6] = {sv[0], sv[1], sv[2], 0.5 * sv[3], 0.5 * sv[4], 0.5 * sv[5]};
   const Mat3 S = fromVoigt(sHalf);
   P = F * S;
   if (dPdF == nullptr) return psi;
 
-  // Hv = A^T M A.
-  Mat<6, 6> hv = M;
-  if (masked) hv = transpose(A) * (M * A);
   // J = de/dvec(F): row p = (a, b), column 3k + l: (d_al F_kb + F_ka d_bl) / 2.
   const int va[6] = {0, 1, 2, 0, 0, 1};
   const int vb[6] = {0, 1, 2, 1, 2, 2};
@@ -202,7 +326,7 @@ GF_HD Mat3 projectionPiola(double mu, double lambda, const Mat<6, 6>& Tinv, cons
 }
 
 /// dP/dF of projectionEnergy (eq 4.27 in F; 9x9, vec index 3*i+j), exact within the current
-/// sign region of the broken edges, PSD-projected when projectPsd.
+/// set of open cracks, PSD-projected when projectPsd.
 GF_HD Mat9 projectionHessian(double mu, double lambda, const Mat<6, 6>& Tinv, const Mat<6, 6>& T,
                              const uint8_t broken[6], const Mat3& F, bool projectPsd) {
   Mat3 P;
@@ -261,10 +385,12 @@ GF_HD double degradationFactor(const double sigmaN[6], const uint8_t broken[6]) 
 /// DamageKernel. Projection uses T, Tinv and broken and ignores chi; degradation uses the lagged
 /// chi (held constant during the step, so grad and Hessian are chi times the undamaged ones)
 /// and ignores T, Tinv and broken. With plasticity pass the effective DmInv * FpInv.
+/// closedHessian (projection only): the Hessian with every crack closed (projectionEvaluate).
 GF_HD double damagedElementForces(int damageModel, const MaterialCoeffs& c, const Mat<6, 6>& T,
                                   const Mat<6, 6>& Tinv, double chi, const uint8_t broken[6],
                                   const Vec3 x[4], const Mat3& DmInv, double volume,
-                                  double grad[12], Mat12* hessian, bool projectPsd) {
+                                  double grad[12], Mat12* hessian, bool projectPsd,
+                                  bool closedHessian = false) {
   const Mat<4, 3> B = shapeGradients(DmInv);
   Mat3 P;
   Mat9 dPdF;
@@ -272,7 +398,8 @@ GF_HD double damagedElementForces(int damageModel, const MaterialCoeffs& c, cons
   double psi = 0;
   if (damageModel == kDamageProjection) {
     const Mat3 F = deformationGradient(x, DmInv);
-    psi = projectionEvaluate(projectionStiffness(c), Tinv, T, broken, F, P, h, projectPsd);
+    psi = projectionEvaluate(projectionStiffness(c), Tinv, T, broken, F, P, h, projectPsd,
+                             closedHessian);
   } else if (chi > 0) {
     const Mat3 F = deformationGradient(x, DmInv);
     // eq 4.32 with chi lagged: every derivative scales by the same constant.

@@ -1,7 +1,10 @@
 // The laboratory tests of `graphfrac report lab` in the reduced form CI's slow stage can afford
-// (the coarse meshes of the report, about a minute): the Brazilian disc's failure load does not
-// depend on the jaws' rate (quasi-static), the brittle Charpy bar splits in two, the ductile one
-// bends, stays joined and absorbs more energy (issue 19's acceptance; thesis figs 4.20-4.21).
+// (about a minute): the Brazilian disc's failure load does not depend on the jaws' rate
+// (quasi-static), the brittle Charpy bar splits in two, the ductile one bends, stays joined and
+// absorbs more energy (issue 19's acceptance; thesis figs 4.20-4.21). The brittle bar runs on the
+// report's fine mesh (39k tets, the thesis used 27.8k): on the coarse one the last row of
+// ligament edges lies on the halves' hinge line, and whether it breaks depends on the strength
+// to within 5 % (docs/RESULTS.md, Charpy), so the coarse bar cannot tell a good model from luck.
 // Built only with the tools (the experiments live in the CLI library).
 #ifdef GF_SLOW_HAS_CLI
 #include <gtest/gtest.h>
@@ -37,7 +40,8 @@ TEST(LabExperiments, CharpyBrittleBarSplitsDuctileBarBendsAndAbsorbsMore) {
   ImpactResult result[2];
   const char* names[2] = {"charpy_brittle.json", "charpy_ductile.json"};
   for (int i = 0; i < 2; ++i) {
-    const Result<scene::Scene> sc = loadLabScene(kLab + names[i], "{}");
+    const char* overrides = i == 0 ? R"({"cells": [68, 12, 8]})" : "{}";
+    const Result<scene::Scene> sc = loadLabScene(kLab + names[i], overrides);
     ASSERT_TRUE(sc.ok()) << sc.error().message;
     const Result<ImpactResult> run = runImpact(sc.value(), ImpactSetup{});
     ASSERT_TRUE(run.ok()) << run.error().message;

@@ -203,27 +203,21 @@ struct Scene {
 // ground), measured with this file (docs/RESULTS.md, "Stability suite"). They run and are
 // checked like the others: a violation of those rules is reported as a skip that says
 // "KNOWN FAILURE" and why (GF_STABILITY_STRICT=1 makes it a failure), and every other rule
-// (finite state, no rollback, truthful status) still fails them. Found by the check in
-// runChecked that re-evaluates the elastic energy at a step's starting positions with the
-// damage after it:
-//  - projection damage (eq 4.25-4.27) at nu = 0.4999: breaking edges alone raises the elastic
-//    energy at fixed positions (by about 4.7 kJ against E0 = 109 J): removing the tensile part
-//    of the Green strain along broken edges changes its trace, which the huge lambda of nearly
-//    incompressible material weighs heavily, so a crack adds energy instead of releasing it;
-//  - projection damage on the steel beam: the damage change lowers the energy at fixed
-//    positions, but the steps on the cracked beam gain energy (up to 1.7 E0 at dt 50 ms and
-//    11 E0 at dt 5 ms by the end of the run; at 5 ms in some material and solver
-//    combinations and not in others: the crack patterns differ);
-//  - projection damage in the 100 m/s impact: the shattered block gains energy (up to 3.5e4
-//    E0) in steps that break nothing, and some sink up to 18 cm into the ground;
-//  - StVK at nu = 0.49 (both damage models, some solvers): the shattered block gains energy
-//    (up to 5e5 E0) although the damage change lowers it at fixed positions.
-// The causes of the last three are not found yet.
+// (finite state, no rollback, truthful status) still fails them. Both are StVK bodies that
+// shatter and gain energy in steps that break nothing (the damage change itself lowers the
+// energy at fixed positions):
+//  - nu = 0.49, degradation damage, direct solver: up to 21 E0;
+//  - nu = 0.4999, projection damage, multigrid: up to 7.8 E0.
+// Both pass with SolverSettings::corotatedInertia off and with 3 Newton iterations. Suspected,
+// not shown: the turning frame of a free piece gives it the end spin I'^-1 L, and a shattered
+// StVK piece (no resistance to inversion) changes its inertia I' a lot within one linearised
+// step.
+// The projection damage failures of the steel beam, the nearly incompressible blocks and the
+// 100 m/s impact are fixed (kernels/damage.h; Integrator::groupPieces and solve).
 bool knownFailure(Case c, MaterialModel m, DamageModel d) {
-  if (d == DamageModel::Projection && (c == Case::SteelDt5ms || c == Case::SteelDt50ms ||
-                                       c == Case::Nu04999 || c == Case::Impact100))
-    return true;
-  return c == Case::Nu049 && m == MaterialModel::StVK;
+  if (m != MaterialModel::StVK) return false;
+  return (c == Case::Nu049 && d == DamageModel::Degradation) ||
+         (c == Case::Nu04999 && d == DamageModel::Projection);
 }
 
 bool strict() {
@@ -406,6 +400,11 @@ TEST_P(Stability, Case) {
       // is listed inverted must run as the correctly ordered beam does.
       reference.body = clampedBeam(Material{}, 10, 2);
       apply(reference.body, 1e7, 0.3, 1000, 5e4);
+      // The two bodies differ in round-off only, which PCG stopping at its default relative
+      // residual of 1e-6 turns into micrometres once a crack sits at its open/closed switch
+      // (projection damage: 5e-6 m); both solve to a residual the comparison can resolve.
+      reference.body.solver.linearTolerance = 1e-10;
+      reference.body.solver.maxLinearIterations = 2000;
       reference.steps = 60;
       s = reference;
       for (size_t e = 0; e < s.body.mesh.tetCount(); e += 2)

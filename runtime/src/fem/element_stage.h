@@ -57,6 +57,8 @@ struct ElementStage {
   double* grad = nullptr;           ///< 12 per tet
   double* hess = nullptr;           ///< 144 per tet
   double* stress = nullptr;  ///< 6 per tet (Voigt), undamaged tets only: FractureBody does the rest
+  /// Projection damage: Hessians with every crack closed, a majorant (damagedElementForces).
+  bool closedCrackHessian = false;
 
   GF_HD void operator()(int32_t t) const {
     double* g = grad + 12 * int64_t(t);
@@ -87,7 +89,7 @@ struct ElementStage {
     energy[t] = damagedElementForces(damageModel, c, edgeMatrix ? edgeMatrix[t] : identity,
                                      edgeMatrixInverse ? edgeMatrixInverse[t] : identity, chi[t],
                                      brokenLocal, xe, restInverse[t], restVolume[t], g, h,
-                                     /*projectPsd=*/true);
+                                     /*projectPsd=*/true, closedCrackHessian);
   }
 };
 

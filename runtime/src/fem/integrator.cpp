@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstring>
 #include <span>
+#include <utility>
 
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
@@ -147,8 +148,9 @@ ElementStage Integrator::elementStage(const FemModel& model, const FemState& sta
 
 double Integrator::elementPass(const FemModel& model, const FemState& state, const double* x,
                                bool withHessian, JobSystem& jobs) {
-  const ElementStage stage = elementStage(model, state, x, m_elemEnergy.data(), m_elemGrad.data(),
-                                          withHessian ? m_elemHess.data() : nullptr, m_stressOut);
+  ElementStage stage = elementStage(model, state, x, m_elemEnergy.data(), m_elemGrad.data(),
+                                    withHessian ? m_elemHess.data() : nullptr, m_stressOut);
+  stage.closedCrackHessian = m_closedCrackHessian;
   const CpuExecutor exec(jobs);
   exec.run(model.tetCount, kElementGrain, stage);
   return exec.sum(m_elemEnergy.data(), model.tetCount);
@@ -231,6 +233,30 @@ bool Integrator::enteredUnseenContact(const FemModel& model, const FemState& sta
   return chunkedReduce<MaxOp>(unseen, model.nodeCount) > 0;
 }
 
+int32_t Integrator::mergePiecesSharingTets(const FemModel& model, std::vector<int32_t>& pieceOf,
+                                           int32_t count) {
+  // Union-find over the pieces, each root the smallest id of its set, then the roots numbered
+  // in increasing order: the result depends on the partition only.
+  std::vector<int32_t> root(static_cast<size_t>(count));
+  for (int32_t p = 0; p < count; ++p) root[size_t(p)] = p;
+  auto find = [&root](int32_t p) {
+    while (root[size_t(p)] != p) p = root[size_t(p)] = root[size_t(root[size_t(p)])];
+    return p;
+  };
+  for (int32_t t = 0; t < model.tetCount; ++t)
+    for (int a = 1; a < 4; ++a) {
+      const int32_t p = find(pieceOf[size_t(model.tets[4 * size_t(t)])]);
+      const int32_t q = find(pieceOf[size_t(model.tets[4 * size_t(t) + a])]);
+      if (p != q) root[size_t(std::max(p, q))] = std::min(p, q);
+    }
+  std::vector<int32_t> number(static_cast<size_t>(count), -1);
+  int32_t merged = 0;
+  for (int32_t p = 0; p < count; ++p)
+    if (find(p) == p) number[size_t(p)] = merged++;
+  for (int32_t& p : pieceOf) p = number[size_t(find(p))];
+  return merged;
+}
+
 void Integrator::groupPieces(const FemModel& model) {
   const size_t nn = size_t(model.nodeCount);
   const Fragments* fragments = m_fracture ? &m_fracture->fragments() : nullptr;
@@ -238,10 +264,16 @@ void Integrator::groupPieces(const FemModel& model) {
   const uint64_t key = fragments ? fragments->version() : kNoPieces - 1;
   if (key == m_piecesKey && m_pieceOfNode.size() == nn) return;
   m_piecesKey = key;
-  const int32_t count = fragments ? fragments->count() : 1;
+  int32_t count = fragments ? fragments->count() : 1;
   if (fragments) {
     const std::span<const int32_t> of = fragments->nodeFragment();
     m_pieceOfNode.assign(of.begin(), of.end());
+    // The projection model's damaged tets still push fragments apart (a closed crack resists
+    // compression), so fragments that share a tet are one mechanical system: their forces on
+    // each other have moments, and a frame per fragment whose angular momentum ignored them
+    // gave them energy (up to 1e4 E0 in the stability suite). Such fragments turn as one piece.
+    if (m_fracture->damageModel() == kDamageProjection)
+      count = mergePiecesSharingTets(model, m_pieceOfNode, count);
     m_pieceLists.build(m_pieceOfNode.data(), model.nodeCount, count);
   } else {
     m_pieceOfNode.assign(nn, 0);
@@ -505,8 +537,16 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   const double* start = m_xStart.data();  // x_n
   const bool fullNewton = maxNewton > 1;
   const bool swept = !fullNewton && (rep.flags & kStepContactSwept);
-  const int iterationCap =
+  int iterationCap =
       fullNewton ? maxNewton : 1 + (swept ? kMaxSweptIterations : kMaxContactIterations);
+  // Projection damage: a crack that the linearisation saw open can close within the step, and
+  // the step built on the open crack's softness then overshoots into the closed crack's
+  // stiffness (on steel at dt 50 ms no trial down to kMinLineSearchStep lowered E, and taking
+  // that trial gained up to 0.5 E0 per run). Such an iteration is repeated once from the same
+  // point with the closed-crack Hessian, a majorant of psi's curvature.
+  bool closedRetryLeft = true;
+  m_closedCrackHessian = false;
+  bool retry = false;
   double firstStepNorm = 0;
   bool converged = !fullNewton;
   // Whether the elastic energy at the final positions is known (the accepted line-search
@@ -622,6 +662,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     if (search) {
       // Backtracking (Armijo) on the incremental potential: the step never raises it.
       t0 = Clock::now();
+      bool searchFailed = false;
       for (;;) {
         exec.run(n3i, kNodeGrain, AxpyStage{m_x.data(), m_dx.data(), alpha, m_tmp.data()});
         const double Et =
@@ -632,15 +673,29 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
             (Et <= E + kArmijo * alpha * slope || Et <= E + kEnergyRoundOff * m_energyMagnitude))
           break;
         if (alpha <= kMinLineSearchStep) {
-          rep.flags |= kStepLineSearchFailed;
+          searchFailed = true;
           break;
         }
         alpha *= 0.5;
       }
       rep.elementsMs += msSince(t0);
+      const bool cracked = m_fracture && m_fracture->damageModel() == kDamageProjection &&
+                           m_fracture->brokenCount() > 0;
+      if (searchFailed && cracked && closedRetryLeft) {
+        // The retry of the comment above, from where this iteration started.
+        alpha = 0;
+        finalPsiKnown = false;
+        closedRetryLeft = false;
+        retry = true;
+        m_closedCrackHessian = true;
+        ++iterationCap;
+      } else if (searchFailed) {
+        rep.flags |= kStepLineSearchFailed;
+      }
     }
     if (ctx.colliderCount > 0 || ctx.bodyContacts.start) m_xLin = m_x;
     exec.run(n3i, kNodeGrain, AxpyStage{m_x.data(), m_dx.data(), alpha, m_x.data()});
+    if (std::exchange(retry, false)) continue;
     const double relStep = firstStepNorm > 0 ? alpha * stepNorm / firstStepNorm : 0.0;
     if (fullNewton || swept) {
       if (relStep <= (fullNewton ? model.solver.newtonTolerance : kSweptTolerance) ||

@@ -150,6 +150,10 @@ class Integrator {
                           double fullDt, JobSystem& jobs);
   // Groups the nodes by the pieces of the step's start when the fragments changed.
   void groupPieces(const FemModel& model);
+  // Joins the pieces (pieceOf: per node, ids below count) that share a tet; returns the new
+  // count, ids numbered by their smallest old id.
+  static int32_t mergePiecesSharingTets(const FemModel& model, std::vector<int32_t>& pieceOf,
+                                        int32_t count);
   // m_pieceSums = the first `components` arrays of m_pieceTerms summed per piece.
   void sumPerPiece(const FemModel& model, const CpuExecutor& exec, int components);
   // The end-of-step velocities of free pieces in that frame.
@@ -214,7 +218,8 @@ class Integrator {
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
   double m_theta = 1;  // of the last step; below 1, m_x keeps the solved point the forces act at
   FractureBody* m_fracture = nullptr;
-  double* m_stressOut = nullptr;  // 6 per tet: the element pass also writes Biot stresses
+  double* m_stressOut = nullptr;      // 6 per tet: the element pass also writes Biot stresses
+  bool m_closedCrackHessian = false;  // the element pass's Hessians take every crack as closed
   PcgSolver m_pcg;
   std::unique_ptr<CholeskySolver> m_cholesky;
   std::unique_ptr<MultigridSolver> m_multigrid;
