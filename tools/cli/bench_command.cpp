@@ -20,6 +20,8 @@
 // alternating rounds (the ratio is what a scene without contact pairs pays); then columns of boxes
 // stacked on each other, where the contact stage's ms over its pairs is the cost per pair.
 // `graphfrac bench xfem`: Is-XFEM against graph cuts on the same box and blades (bench_xfem.cpp).
+// `graphfrac bench haptic`: the cost of a haptic sample against the surface size
+// (bench_haptic.cpp).
 #include <dirent.h>
 
 #include <algorithm>
@@ -45,7 +47,8 @@
 
 namespace gf::cli {
 
-int benchXfem(int argc, char** argv);  // bench_xfem.cpp
+int benchXfem(int argc, char** argv);    // bench_xfem.cpp
+int benchHaptic(int argc, char** argv);  // bench_haptic.cpp
 
 namespace {
 
@@ -810,6 +813,9 @@ int runBenchCommand(int argc, char** argv) {
         "  Is-XFEM against graph cuts (thesis ch 3 vs 6): a 2 x 1 x 1 box of N x N/2 x N/2 cells\n"
         "  (default 40) cut by 1, 5, 10, 20 planar blades; cut and step ms, cut-face distance\n"
         "  from the blades, piece volumes against the exact split\n"
+        "       graphfrac bench haptic [--cells N] [--steps S]\n"
+        "  microseconds per 1 kHz haptic sample (continuous and discrete penalty) of a cube\n"
+        "  pressed into a block of N x N/2 x N cells (default 6, 12 and 24) stepping at 62.5 Hz\n"
         "Every mode takes --backend auto|cpu|cuda (default cpu) for its worlds.");
     return argc < 2 ? kExitUsage : kExitOk;
   }
@@ -841,6 +847,7 @@ int runBenchCommand(int argc, char** argv) {
   if (!std::strcmp(argv[1], "debris")) return benchDebris(argc, argv);
   if (!std::strcmp(argv[1], "contact")) return benchContact(argc, argv);
   if (!std::strcmp(argv[1], "xfem")) return benchXfem(argc, argv);
+  if (!std::strcmp(argv[1], "haptic")) return benchHaptic(argc, argv);
   std::fprintf(stderr, "graphfrac bench: unknown benchmark '%s'\n", argv[1]);
   return kExitUsage;
 }

@@ -5,6 +5,11 @@
 #include <atomic>
 #include <cstdint>
 #include <glm/vec3.hpp>
+#include <span>
+#include <vector>
+
+#include "graphfrac/status.h"
+#include "graphfrac/surface.h"
 
 namespace gf {
 
@@ -58,6 +63,93 @@ class HapticProbe {
   alignas(64) uint8_t m_back = 0;   // publisher only
   uint64_t m_published = 0;         // publisher only
   alignas(64) uint8_t m_front = 2;  // poller only
+};
+
+/// How HapticContact renders the proxy's contact with a body (thesis sec 7.2.3).
+struct HapticContactSettings {
+  /// k_vf = k_ee of eq 7.5-7.6 [N/m]: force per metre of depth and per contact, > 0.
+  double stiffness = 1000;
+  /// True: continuous collision and the penalty integrated over the penetration intervals
+  /// (eq 7.5-7.6). False: the discrete penalty at the sample's end (each proxy vertex against
+  /// the nearest surface triangle it lies behind), for comparison.
+  bool continuous = true;
+};
+
+/// The body's share of one haptic sample: a force [N] to apply at a point (World::applyForce),
+/// the opposite of what the proxy feels.
+struct HapticPush {
+  glm::dvec3 point{0, 0, 0};
+  glm::dvec3 force{0, 0, 0};
+};
+
+/// The penalty force between a haptic proxy (a closed triangle mesh the device moves) and a
+/// body's render surface, sampled at the device's rate (1 kHz or more) between the world's
+/// steps (60 Hz; thesis fig 7.4). Contacts are proxy vertices behind body triangles, body
+/// vertices behind proxy triangles, and proxy edges crossed with body edges (fig 7.3), found by
+/// continuous collision over each sample's motion and kept while the point stays behind the
+/// feature it entered through, so a proxy pressed deep into a thin part is pushed back the way
+/// it came, never through. A vertex that slides off its triangle while behind it moves to the
+/// nearest triangle it is behind; an edge contact ends when the edges no longer cross.
+/// The surface the proxy feels moves from the previous world surface to the newest one over
+/// `blend` seconds (one world step: the device feels the body one step late, but never jump);
+/// a surface with other triangles (a crack opened) replaces it at once, and contacts on the
+/// old triangles move to the nearest new triangle behind which their vertex lies.
+/// Not thread-safe: the haptic thread owns it and is handed the surfaces (copies) by the
+/// application.
+class HapticContact {
+ public:
+  /// `vertices` (world frame, the proxy's pose now) and `indices` (3 per triangle,
+  /// counter-clockwise seen from outside) of the proxy. Error for an empty or non-finite
+  /// proxy, an index out of range, or settings out of range (the message names the field).
+  static Result<HapticContact> create(std::span<const glm::dvec3> vertices,
+                                      std::span<const uint32_t> indices,
+                                      const HapticContactSettings& settings = {});
+  /// The body's surface after a world step, reached by the surface the proxy feels after
+  /// `blend` seconds of sampling (>= 0; the world's step for a force without jumps; 0 moves
+  /// to it within the next sample, still swept so no contact is missed). Error for an empty
+  /// or non-finite surface or a bad blend; nothing changes then.
+  Result<void> setSurface(const SurfaceView& surface, double blend);
+  /// One sample: the proxy moves (linearly, vertex by vertex) from its last pose to
+  /// `vertices` over `dt` seconds. Returns the force on the proxy [N]: continuous, the
+  /// impulse of eq 7.5-7.6 over the sample divided by dt; discrete, the penalty at the end.
+  /// Error (nothing changes) for a wrong vertex count, a non-finite vertex or dt <= 0.
+  Result<glm::dvec3> sample(std::span<const glm::dvec3> vertices, double dt);
+  /// The reaction on the body from the last sample (forces summing to minus its result).
+  std::span<const HapticPush> pushes() const { return m_pushes; }
+  /// Contacts alive after the last sample.
+  int contactCount() const { return int(m_contacts.size()); }
+
+ private:
+  struct Contact {
+    int kind = 0;   // 0 proxy vertex behind a body triangle, 1 body vertex behind a proxy
+                    // triangle, 2 proxy edge crossed with a body edge
+    int32_t a = 0;  // proxy vertex, body vertex, or proxy edge
+    int32_t b = 0;  // body triangle, proxy triangle, or body edge
+    double sign = 1;
+    glm::dvec3 normal{0, 0, 0};  // the feature's unit normal at the last sample's end
+  };
+  HapticContact() = default;
+
+  HapticContactSettings m_settings;
+  std::vector<glm::dvec3> m_proxy;  // the proxy's vertices now
+  std::vector<uint32_t> m_proxyTriangles;
+  std::vector<uint32_t> m_proxyEdges;    // 2 per edge
+  std::vector<glm::dvec3> m_from, m_to;  // the body surface: blend start and target
+  double m_blend = 0, m_elapsed = 0;
+  std::vector<uint32_t> m_triangles;
+  std::vector<uint32_t> m_edges;  // 2 per edge
+  uint64_t m_topology = 0;
+  bool m_hasSurface = false;
+  std::vector<Contact> m_contacts;
+  std::vector<HapticPush> m_pushes;
+  // The body features near the proxy (sample's broad phase), valid while the proxy stays in
+  // the region, and the blended positions of the vertices a sample uses.
+  glm::dvec3 m_regionLo{0, 0, 0}, m_regionHi{0, 0, 0};
+  bool m_regionValid = false;
+  std::vector<int32_t> m_nearTriangles, m_nearEdges, m_nearVertices;
+  std::vector<glm::dvec3> m_at0, m_at1;
+  std::vector<uint32_t> m_placed;  // the sample that last placed each vertex
+  uint32_t m_sampleId = 0;
 };
 
 }  // namespace gf
