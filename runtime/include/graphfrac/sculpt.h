@@ -22,6 +22,20 @@ struct WetBrush {
   double rate = 1;            ///< Saturation per second, > 0 (1: dry to saturated in 1 s).
 };
 
+/// Makes a body clay-like around a tool for the next step (World::deform; thesis sec 7.2.3.4):
+/// every free node is held by a drag that scales its velocity over the step by G_d of eq 7.7
+/// at its distance r from `centre` (at the step's start), 1 / (1 + k1 r) within `radius` and
+/// 1 / (1 + k1 r + exp(k2 r)) beyond, exactly so for a node nothing else moves. The drag is
+/// part of the implicit step, so the body gives way near the tool and hardly moves elsewhere.
+/// The push itself comes from the tool (a collider, or HapticContact's pushes); a material with
+/// plasticity keeps the dent.
+struct DeformBrush {
+  glm::vec3 centre{0, 0, 0};  ///< The tool's position [m], world frame.
+  float radius = 0.05f;       ///< R_D [m], > 0.
+  double k1 = 10;             ///< [1/m], > 0 (the thesis uses 1 to 100).
+  double k2 = 10;             ///< [1/m], > 0.
+};
+
 /// One force sample for a haptic device.
 struct HapticSample {
   glm::dvec3 force{0, 0, 0};  ///< [N], what the device renders.

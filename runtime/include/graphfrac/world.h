@@ -249,6 +249,11 @@ class World {
   Result<void> wet(BodyId id, const WetBrush& brush);
   /// Dries like wet() wets: the touched tets lose rate * dt of saturation, down to 0.
   Result<void> dry(BodyId id, const WetBrush& brush);
+  /// Holds the body's nodes by the brush's kernel during the next step (see DeformBrush).
+  /// Several brushes in one step multiply. Error for a bad id, a centre that is
+  /// not finite or farther than 1e9 m from the origin, a radius, k1 or k2 that is not positive
+  /// and finite.
+  Result<void> deform(BodyId id, const DeformBrush& brush);
   /// Water mass [kg] per tet; empty for an invalid id or a body never wetted.
   std::span<const double> waterMass(BodyId id) const;
   /// Saturation S_w in [0, 1] per tet (water mass over the tet's capacity); computed on each

@@ -49,6 +49,10 @@ struct FemState {
   /// and the element pass skips it. Empty until a fragment is detached.
   std::vector<uint8_t> rigidTet;
   std::vector<double> externalForce;  ///< 3 per node, constant point forces
+  /// Per node, the drag w of a deform brush for the coming step (World::deform): the energy
+  /// 1/2 m w |x - x_n|^2 (in the h^2-scaled units of the incremental potential), so a free node
+  /// with nothing else acting leaves the step with v_n / (1 + w). Empty: none.
+  std::vector<double> drag;
   // Plasticity (eq 2.3-2.5), only when enabled (else empty): per tet Fp, its inverse, the
   // hardening accumulator delta and the effective rest inverse Dm^-1 Fp^-1 that the element
   // pass and the fracture criterion use instead of Dm^-1.

@@ -185,6 +185,7 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
   nodes.friction = m_friction;
   nodes.dt = dt;
   nodes.massDamping = r1;
+  nodes.drag = state.drag.empty() ? nullptr : state.drag.data();
   nodes.lengthScale = model.lengthScale;
   nodes.nodeCount = model.nodeCount;
   nodes.terms = m_nodeTerms.data();
@@ -350,6 +351,7 @@ ExternalImpulse Integrator::externalImpulse(const FemState& state, const StepCon
   e.xStart = m_xStart.data();
   e.xLin = m_xLin.data();
   e.massDamping = state.material.massDamping;
+  e.drag = state.drag.empty() ? nullptr : state.drag.data();
   e.dt = ctx.dt;
   e.colliders = ctx.colliders;
   e.colliderCount = ctx.colliderCount;
@@ -496,7 +498,7 @@ BodyContactBalance Integrator::bodyContactImpulses(const FemState& state, const 
     const Vec3 x = load3(state.x.data(), n), x0 = load3(m_xStart.data(), n);
     change += m * (load3(state.v.data(), n) - load3(m_vStart.data(), n));
     change -= ctx.dt * (load3(state.externalForce.data(), n) + m * ctx.gravity);
-    change += (r1 * m) * (x - x0);
+    change += ((r1 + (state.drag.empty() ? 0.0 : state.drag[size_t(n)] / ctx.dt)) * m) * (x - x0);
   }
   if (ctx.colliderImpulse)
     for (int k = 0; k < 6 * ctx.colliderCount; ++k) out3.external |= ctx.colliderImpulse[k] != 0;
@@ -590,7 +592,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
                AxpyStage{m_A.values.data(), m_dampK.values.data(), dt * r2, m_A.values.data()});
     exec.run(model.nodeCount, kNodeGrain,
              NodeBlockStage{m_A.values.data(), m_diagonalBlock.data(), state.nodeMass.data(),
-                            m_contactHess.data(), 1 + dt * r1, dt2});
+                            m_contactHess.data(), 1 + dt * r1, dt2,
+                            state.drag.empty() ? nullptr : state.drag.data()});
     applyDirichlet(m_A, state.fixedNode.data());
     exec.run(n3i, kNodeGrain,
              FreeDifferenceStage{nullptr, m_grad.data(), state.fixedNode.data(), m_rhs.data()});

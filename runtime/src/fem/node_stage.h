@@ -34,6 +34,7 @@ struct NodePotentialStage {
   HalfSpaceContacts bodies;  ///< body-body and self contact
   ColliderFriction friction;
   double dt = 0, massDamping = 0, lengthScale = 1;
+  const double* drag = nullptr;  ///< FemState::drag, null: none
   int32_t nodeCount = 0;
   double* terms = nullptr;  ///< kNodeTerms * nodeCount
   // Gradient pass only (null otherwise).
@@ -56,20 +57,21 @@ struct NodePotentialStage {
       contact += swept.contact(colliders[c], c, n, xi, m, cg, ch);
     contact += bodies.contact(n, xi, cg, ch) + bodies.friction(n, xi, xni, cg, ch);
     const Vec3 dy = xi - yi, dn = xi - xni;
-    const double inertia = 0.5 * m * dot(dy, dy) + 0.5 * dt * r1 * m * dot(dn, dn);
+    const double w = drag ? drag[n] : 0.0;
+    const double inertia = 0.5 * m * dot(dy, dy) + 0.5 * (dt * r1 + w) * m * dot(dn, dn);
     const double work = dt2 * dot(fext, xi);
     terms[kNodeEnergy * int64_t(nodeCount) + n] = inertia - work;
     terms[kNodeContact * int64_t(nodeCount) + n] = contact;
     terms[kNodeMagnitude * int64_t(nodeCount) + n] = inertia + (work < 0 ? -work : work);
     double gradMagnitude = 0;
     if (grad) {
-      const Vec3 g = m * dy + (dt * r1 * m) * dn + dt2 * (cg - fext);
+      const Vec3 g = m * dy + ((dt * r1 + w) * m) * dn + dt2 * (cg - fext);
       const Vec3 ge{elasticGrad[i3], elasticGrad[i3 + 1], elasticGrad[i3 + 2]};
       // Round-off of E from rounding x: |dE/dx| |x| eps, summed over the parts before they
       // cancel (inertia against gravity against elasticity).
-      gradMagnitude =
-          (norm(m * dy) + dt * r1 * m * norm(dn) + dt2 * (norm(cg) + norm(fext)) + dt2 * norm(ge)) *
-          (norm(xi) + lengthScale);
+      gradMagnitude = (norm(m * dy) + (dt * r1 + w) * m * norm(dn) + dt2 * (norm(cg) + norm(fext)) +
+                       dt2 * norm(ge)) *
+                      (norm(xi) + lengthScale);
       for (int i = 0; i < 3; ++i) grad[i3 + i] = g[i] + dt2 * ge[i];
       contactHess[n] = ch;
       contactSeen[n] = frobeniusDot(ch, ch) > 0;
@@ -116,19 +118,20 @@ struct FreeDifferenceStage {
   }
 };
 
-/// The per-node blocks of the step's matrix, A_nn += m (1 + dt r1) I + dt^2 H_contact
-/// (eq 2.7, 3.13 with Rayleigh r1): `values` are the block-sparse values (9 per block) and
-/// diagonalBlock the block of each node's diagonal.
+/// The per-node blocks of the step's matrix, A_nn += m (1 + dt r1 + w) I + dt^2 H_contact
+/// (eq 2.7, 3.13 with Rayleigh r1 and a deform brush's drag w): `values` are the block-sparse
+/// values (9 per block) and diagonalBlock the block of each node's diagonal.
 struct NodeBlockStage {
   double* values = nullptr;
   const int32_t* diagonalBlock = nullptr;
   const double* nodeMass = nullptr;
   const Mat3* contactHess = nullptr;
   double massScale = 1, dt2 = 0;
+  const double* drag = nullptr;  ///< FemState::drag, null: none
 
   GF_HD void operator()(int32_t n) const {
     double* blk = values + 9 * int64_t(diagonalBlock[n]);
-    const double md = nodeMass[n] * massScale;
+    const double md = nodeMass[n] * (massScale + (drag ? drag[n] : 0.0));
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j)
         blk[3 * i + j] += (i == j ? md : 0.0) + dt2 * contactHess[n](i, j);

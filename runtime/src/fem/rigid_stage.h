@@ -79,15 +79,16 @@ GF_HD Mat3 turnBy(Vec3 spin, double dt) {
   return Mat3::identity() + sin(angle) * K + (1 - cos(angle)) * (K * K);
 }
 
-/// What the outside gives node n over dt when it ends at x: point forces, mass-damping drag
-/// and contact (penalty, body contact, friction) as the last Newton step linearised it at
-/// xLin. No gravity: it has no moment about the centre.
+/// What the outside gives node n over dt when it ends at x: point forces, mass-damping and
+/// deform-brush drag and contact (penalty, body contact, friction) as the last Newton step
+/// linearised it at xLin. No gravity: it has no moment about the centre.
 struct ExternalImpulse {
   const double* externalForce = nullptr;
   const double* nodeMass = nullptr;
   const double* xStart = nullptr;
   const double* xLin = nullptr;  ///< read only with colliders or body contact
   double massDamping = 0, dt = 0;
+  const double* drag = nullptr;  ///< FemState::drag, null: none
   const ColliderData* colliders = nullptr;
   int colliderCount = 0;
   SweptContacts swept;
@@ -97,7 +98,8 @@ struct ExternalImpulse {
   GF_HD Vec3 operator()(int32_t n, Vec3 x) const {
     const double m = nodeMass[n];
     const Vec3 xs = nodeVec3(xStart, n);
-    Vec3 impulse = dt * nodeVec3(externalForce, n) - (massDamping * m) * (x - xs);
+    const double damping = massDamping + (drag ? drag[n] / dt : 0.0);
+    Vec3 impulse = dt * nodeVec3(externalForce, n) - (damping * m) * (x - xs);
     if (colliderCount > 0) {
       const Vec3 xl = nodeVec3(xLin, n);
       for (int c = 0; c < colliderCount; ++c) {

@@ -291,6 +291,7 @@ StepStatus World::step(double dt) {
   const auto t0 = detail::Clock::now();
   w.timings = {};
   w.advanceWater(dt);
+  w.prepareDeformDrag();
   w.fractureEvents.clear();
   w.fragmentEvents.clear();
   w.handoffEvents.clear();
@@ -366,6 +367,7 @@ StepStatus World::step(double dt) {
       for (size_t k = 0; k < nc; ++k) w.colliderImpulse[k] += w.bodyImpulse[nc * si + k];
     }
   }
+  w.clearDeformDrag();
   for (size_t c = 0; c < w.colliders.size(); ++c) {
     const double* j = &w.colliderImpulse[6 * c];
     w.impulses[c] = {j[0], j[1], j[2]};

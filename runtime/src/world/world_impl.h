@@ -81,6 +81,8 @@ struct BodyRecord {
   std::unique_ptr<detail::WettingModel> wetting;
   std::vector<detail::WaterStroke> strokes;
   std::vector<double> saturation;
+  // World::deform: the brushes whose kernel scales the velocities at the next step's end.
+  std::vector<DeformBrush> deformBrushes;
 };
 
 /// Kernel form of a collider; the stiffness is filled in per step (World::Impl::context).
@@ -133,6 +135,12 @@ struct World::Impl {
   // Brush strokes and diffusion of every wetted body over a step of dt, before its substeps,
   // and the per-tet stiffness that follows (world_sculpt.cpp).
   void advanceWater(double dt);
+  // Turns each body's deform brushes into the per-node drag of the step (FemState::drag): a free
+  // node that nothing else moves leaves the step with its velocity times G_d (eq 7.7); the
+  // drag is implicit, so the elastic solve sees it and the far body holds still. Then forgets
+  // the brushes; clearDeformDrag removes the drag after the step.
+  void prepareDeformDrag();
+  void clearDeformDrag();
   // Publishes the proxy force of the step of dt that just ended to the attached probe.
   void publishProbe(double dt);
   // Set while step() runs: calls that change the world are refused then (a job callback

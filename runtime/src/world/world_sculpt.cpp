@@ -3,6 +3,8 @@
 #include <cmath>
 #include <string>
 
+#include "kernels/clay.h"
+#include "solver/vector_ops.h"
 #include "step/timing.h"
 #include "world/world_impl.h"
 
@@ -43,6 +45,56 @@ Result<void> World::wet(BodyId id, const WetBrush& brush) {
 
 Result<void> World::dry(BodyId id, const WetBrush& brush) {
   return queueStroke(m_impl->busy("dry"), m_impl->get(id), brush, "dry", -1.0);
+}
+
+Result<void> World::deform(BodyId id, const DeformBrush& brush) {
+  if (std::string e = m_impl->busy("deform"); !e.empty()) return fail(e);
+  BodyRecord* b = m_impl->get(id);
+  if (!b) return fail("deform: stale or null BodyId");
+  if (!bounded3(brush.centre))
+    return fail("deform: brush.centre must be finite, within 1e9 m of the origin");
+  if (!(std::isfinite(brush.radius) && brush.radius > 0 && brush.radius <= detail::kMaxMagnitude))
+    return fail("deform: brush.radius must be positive and at most 1e9 m, got ",
+                std::to_string(brush.radius));
+  if (!(std::isfinite(brush.k1) && brush.k1 > 0))
+    return fail("deform: brush.k1 must be positive and finite [1/m], got ",
+                std::to_string(brush.k1));
+  if (!(std::isfinite(brush.k2) && brush.k2 > 0))
+    return fail("deform: brush.k2 must be positive and finite [1/m], got ",
+                std::to_string(brush.k2));
+  b->deformBrushes.push_back(brush);
+  return {};
+}
+
+void World::Impl::prepareDeformDrag() {
+  for (Slot& s : slots) {
+    BodyRecord* b = s.body.get();
+    if (!b || b->deformBrushes.empty()) continue;
+    detail::FemState& st = b->state;
+    st.drag.assign(size_t(b->model.nodeCount), 0.0);
+    const std::vector<DeformBrush>& brushes = b->deformBrushes;
+    const double perSubstep = 1.0 / def.substeps;
+    detail::forRanges(*jobs, uint32_t(b->model.nodeCount), 256, [&](uint32_t lo, uint32_t hi) {
+      for (uint32_t n = lo; n < hi; ++n) {
+        if (st.fixedNode[n]) continue;  // prescribed by a grip
+        double g = 1;
+        for (const DeformBrush& br : brushes) {
+          const double dx = st.x[3 * n] - br.centre.x, dy = st.x[3 * n + 1] - br.centre.y,
+                       dz = st.x[3 * n + 2] - br.centre.z;
+          // Eq 7.7.
+          g *= clayDamping(std::sqrt(dx * dx + dy * dy + dz * dz), br.radius, br.k1, br.k2);
+        }
+        // A free node's velocity is scaled by g over the whole step: 1 / (1 + w) per substep.
+        st.drag[n] = std::pow(g, -perSubstep) - 1;
+      }
+    });
+    b->deformBrushes.clear();
+  }
+}
+
+void World::Impl::clearDeformDrag() {
+  for (Slot& s : slots)
+    if (s.body) s.body->state.drag.clear();
 }
 
 std::span<const double> World::waterMass(BodyId id) const {

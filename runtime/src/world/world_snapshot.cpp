@@ -15,6 +15,7 @@ struct BodySnapshot {
   detail::FemState state;
   std::vector<double> pendingForce;
   std::vector<detail::WaterStroke> strokes;  // wet and dry brushes queued for the next step
+  std::vector<DeformBrush> deformBrushes;    // and deform brushes
   bool hasFracture = false;
   detail::FractureData fracture;
   std::vector<int32_t> rebindHistory;
@@ -56,6 +57,7 @@ WorldSnapshot World::snapshot() const {
     s.state = b->state;
     s.pendingForce = b->pendingForce;
     s.strokes = b->strokes;
+    s.deformBrushes = b->deformBrushes;
     s.hasFracture = b->fracture != nullptr;
     if (b->fracture) s.fracture = b->fracture->data();
     s.rebindHistory = b->integrator->rebindHistory();
@@ -100,6 +102,7 @@ Result<void> World::restore(const WorldSnapshot& snapshot) {
     b.state = s.state;
     b.pendingForce = s.pendingForce;
     b.strokes = s.strokes;
+    b.deformBrushes = s.deformBrushes;
     if (b.fracture) b.fracture->restore(s.fracture);
     b.stepEndValid = false;
     // Cannot fail: the same set-up succeeded when the body was created.
