@@ -187,6 +187,22 @@ GF_HD VolumeRule fitVolumeRule(const CutPolytope& cell) {
   return rule;
 }
 
+/// The rule of a whole tet X (no cut through it): the Grundmann-Moeller rule of degree
+/// kCutRuleDegree + 1 (15 points) mapped affinely, `volume` its (positive) volume. Moment fitting
+/// would only rediscover a rule exact on the simplex, so the fitted cell frame, eq 3.9's solve
+/// and the exact moments are skipped: most tets of a cut body are not cut.
+GF_HD VolumeRule standardTetRule(const Vec3 X[4], double volume) {
+  // s = 2: degree 5 on 10 + 4 + 1 points.
+  static_assert(kCutRuleDegree <= 5 && 15 <= kVolumeRulePoints, "Grundmann-Moeller s = 2");
+  VolumeRule rule;
+  grundmannMoellerTet(2, [&](double w, const double l[4]) {
+    rule.points[rule.count] = l[0] * X[0] + l[1] * X[1] + l[2] * X[2] + l[3] * X[3];
+    rule.weights[rule.count] = w * volume;
+    ++rule.count;
+  });
+  return rule;
+}
+
 /// Moment-fitted rule of degree kCutRuleDegree on a planar convex polygon (eqs 3.11-3.12 for a
 /// planar cut): exact for every polynomial of that degree over its area. Empty for a polygon of
 /// zero area.

@@ -134,6 +134,27 @@ TEST(XfemCutBody, MomentumIsConservedWithoutGravity) {
   }
 }
 
+// A NaN put into the state is refused by the step (the factor's back-substitution reports a
+// non-finite result) and leaves the state as it was, rather than spreading through the body.
+TEST(XfemCutBody, NonFiniteVelocityIsRefusedAndLeavesTheStateUnchanged) {
+  auto made = XfemBody::create(slantedBox(0.1));
+  ASSERT_TRUE(made.ok()) << made.error().message;
+  XfemBody& body = *made.value();
+  ASSERT_TRUE(body.step());
+  const Eigen::VectorXd u = body.displacement();
+  body.velocity()[4] = std::nan("");
+  const Eigen::VectorXd v = body.velocity();
+  EXPECT_FALSE(body.step());
+  EXPECT_EQ((body.displacement() - u).cwiseAbs().maxCoeff(), 0.0);
+  for (Eigen::Index i = 0; i < v.size(); ++i) {
+    if (i == 4) continue;
+    ASSERT_EQ(body.velocity()[i], v[i]) << i;
+  }
+  body.velocity()[4] = 0;
+  EXPECT_TRUE(body.step());
+  EXPECT_TRUE(body.displacement().allFinite());
+}
+
 double conditionNumber(const Eigen::MatrixXd& a) {
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(a, Eigen::EigenvaluesOnly);
   const double lo = es.eigenvalues().minCoeff(), hi = es.eigenvalues().maxCoeff();

@@ -57,6 +57,33 @@ TEST(XfemEnrichment, StandardBlockIsThePlainTet) {
     for (int j = 0; j < 12; ++j) EXPECT_NEAR(e.stiffness(i, j), h(i, j), 1e-10 * scale);
 }
 
+// An uncut tet takes the standard (Grundmann-Moeller) rule, not a fitted one: its element is
+// still the plain linear tet, in closed form, and its one cell is the whole tet.
+TEST(XfemEnrichment, UncutTetIsThePlainTetWithTheStandardRule) {
+  const LinearElastic mat{2e6, 0.3, 900};
+  const CutElement e = buildCutElement(kTet, nullptr, 0, 0.1, mat);
+  ASSERT_EQ(e.cells.size(), 1u);
+  EXPECT_EQ(e.cells[0].rule.count, 15);  // not the 35 points of a fitted rule
+  double volume = 0;
+  const Mat3 dmInv = restShapeInverse(kTet, volume);
+  EXPECT_NEAR(e.cells[0].volume, volume, 1e-15 * volume);
+  ASSERT_EQ(e.mass.rows(), 4);
+  for (int a = 0; a < 4; ++a) {
+    EXPECT_NEAR(e.load[a], mat.density * volume / 4, 1e-14 * mat.density * volume);
+    for (int b = 0; b < 4; ++b)
+      EXPECT_NEAR(e.mass(a, b), mat.density * volume * (a == b ? 2.0 : 1.0) / 20.0,
+                  1e-14 * mat.density * volume);
+  }
+  const MaterialCoeffs c = makeMaterialCoeffs(kCorotated, mat.youngs, mat.poisson, 0, Vec3{});
+  double grad[12];
+  Mat12 h;
+  elementForces(c, kTet, dmInv, volume, grad, &h, false);
+  double scale = 0;
+  for (int i = 0; i < 144; ++i) scale = std::max(scale, std::abs(h.m[i]));
+  for (int i = 0; i < 12; ++i)
+    for (int j = 0; j < 12; ++j) EXPECT_NEAR(e.stiffness(i, j), h(i, j), 1e-10 * scale);
+}
+
 TEST(XfemEnrichment, PieceTranslationIsStressFree) {
   for (double k : {0.0, 0.1}) {
     const CutElement e = buildCutElement(kTet, &kCut, 1, k, {1e6, 0.3, 1000});

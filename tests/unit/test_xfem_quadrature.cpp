@@ -292,6 +292,41 @@ TEST(XfemQuadrature, ExactUpToDegreeOnRandomAndSliverCuts) {
   }
 }
 
+// The rule of an uncut tet (no fitting) on random tets: every monomial up to degree 5 exact
+// against the closed-form simplex integrals; degree 6 is not (the check has teeth).
+TEST(XfemQuadrature, StandardTetRuleIsExactToDegreeFive) {
+  std::mt19937_64 rng(77);
+  double worst = 0, degree6 = 0;
+  for (int n = 0; n < 40; ++n) {
+    const Tet t = randomTet(rng);
+    const double v = dot(t[1] - t[0], cross(t[2] - t[0], t[3] - t[0])) / 6.0;
+    const VolumeRule rule = standardTetRule(t.data(), v);
+    ASSERT_EQ(rule.count, 15);
+    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+    for (const Vec3& x : t)
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::min(lo[a], x[a]);
+        hi[a] = std::max(hi[a], x[a]);
+      }
+    const Vec3 o = 0.5 * (lo + hi);
+    const double L = 0.5 * std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+    for (const Exponent& e : test::exponentsUpTo(6)) {
+      double quad = 0;
+      for (int q = 0; q < rule.count; ++q)
+        quad += rule.weights[q] * monomialAt(rule.points[q], o, L, e);
+      const double err = std::abs(quad - test::simplexMonomialIntegral<3>(t, v, o, L, e)) / v;
+      if (e[0] + e[1] + e[2] <= 5)
+        worst = std::max(worst, err);
+      else
+        degree6 = std::max(degree6, err);
+    }
+  }
+  std::printf("standard tet rule: max error %.2e of the volume to degree 5, %.2e at degree 6\n",
+              worst, degree6);
+  EXPECT_LE(worst, 1e-13);
+  EXPECT_GT(degree6, 1e-6);
+}
+
 TEST(XfemQuadrature, GrundmannMoellerWeightsSumToOne) {
   for (int s = 0; s <= 3; ++s) {
     double tet = 0, tri = 0;

@@ -1,10 +1,11 @@
 // `graphfrac bench xfem`: the comparison of thesis chapters 3 and 6. The same box (2 x 1 x 1 m)
 // is cut by the same 1, 5, 10 and 20 slanted planar blades with Is-XFEM (the standalone
-// detail::XfemBody: enriched DOFs, linear elasticity, one LDL^T factorisation, CPU) and with graph
-// cuts (the World: broken edges, stable neo-Hookean, its default solver). Per count of cuts it
-// prints the cut's cost (XFEM: trace, cells, rules, assembly and factorisation; graph: the first
+// detail::XfemBody: enriched DOFs, linear elasticity, one Cholesky factorisation, CPU) and with
+// graph cuts (the World: broken edges, stable neo-Hookean, its default solver). Per count of cuts
+// it prints the cut's cost (XFEM: trace, cells, rules, assembly and factorisation; graph: the first
 // step, which applies the cut), ms per step afterwards, the cut faces' largest distance from
-// their blade plane, and the pieces' volumes against the exact split. The two step times are not
+// their blade plane, the pieces' volumes against the exact split, and (XFEM) the entries of the
+// step matrix's Cholesky factor and the fill-reducing ordering chosen. The two step times are not
 // the same physics (linear vs non-linear elasticity, a factorised vs an iterative solve), so the
 // ratio says what each mode costs here, not which algorithm is faster in general.
 #include <algorithm>
@@ -79,6 +80,8 @@ double worstRelative(std::vector<double> got, const std::vector<double>& exact) 
 struct ModeResult {
   double cutMs = 0, stepMs = 0, flat = 0, volume = 0;
   int pieces = 0, cutElements = 0, dofs = 0;
+  long long factorNonZeros = 0;  // XFEM only
+  const char* ordering = "";
 };
 
 ModeResult runXfem(const TetMesh& mesh, int count, int steps, double dt) {
@@ -124,6 +127,8 @@ ModeResult runXfem(const TetMesh& mesh, int count, int steps, double dt) {
   r.pieces = int(body.pieces().size());
   r.cutElements = body.cutTetCount();
   r.dofs = body.dofCount();
+  r.factorNonZeros = body.factorInfo().factorNonZeros;
+  r.ordering = body.factorInfo().ordering;
   return r;
 }
 
@@ -214,14 +219,14 @@ int benchXfem(int argc, char** argv) {
               cells, cells / 2, cells / 2, mesh.tetCount(), mesh.nodeCount(), steps, dt);
   std::printf(
       "cuts,mode,cut_ms,ms_per_step,dofs,cut_elements_or_broken_edges,pieces,"
-      "cut_face_max_dist_m,piece_volume_max_rel_err\n");
+      "cut_face_max_dist_m,piece_volume_max_rel_err,factor_nnz,ordering\n");
   for (int count : {1, 5, 10, 20}) {
     const ModeResult x = runXfem(mesh, count, steps, dt);
     const ModeResult g = runGraph(mesh, count, steps, dt);
     if (x.pieces < 0 || g.pieces < 0) return kExitScene;
-    std::printf("%d,xfem,%.2f,%.3f,%d,%d,%d,%.2e,%.2e\n", count, x.cutMs, x.stepMs, x.dofs,
-                x.cutElements, x.pieces, x.flat, x.volume);
-    std::printf("%d,graph,%.2f,%.3f,%d,%d,%d,%.2e,%.2e\n", count, g.cutMs, g.stepMs, g.dofs,
+    std::printf("%d,xfem,%.2f,%.3f,%d,%d,%d,%.2e,%.2e,%lld,%s\n", count, x.cutMs, x.stepMs, x.dofs,
+                x.cutElements, x.pieces, x.flat, x.volume, x.factorNonZeros, x.ordering);
+    std::printf("%d,graph,%.2f,%.3f,%d,%d,%d,%.2e,%.2e,,\n", count, g.cutMs, g.stepMs, g.dofs,
                 g.cutElements, g.pieces, g.flat, g.volume);
     std::fflush(stdout);
   }

@@ -5,7 +5,9 @@
 // matrix holds the lower triangle of A in compressed column form. analyze() builds that structure
 // and a map from each of its stored values to an entry of A.values, then runs the (AMD-ordered)
 // symbolic analysis once; solve() copies values through the map and refactorises. The pattern is
-// fixed for a body's life, so nothing is rebuilt per step.
+// fixed for a body's life, so nothing is rebuilt per step. A scalar matrix (SymmetricCsc, the
+// Is-XFEM step matrix whose size changes with every cut) is copied into the same lower-triangle
+// structure, analysed and factorised in one call; a constant matrix then only back-substitutes.
 #include "solver/cholesky.h"
 
 #include <Eigen/SparseCholesky>
@@ -95,9 +97,51 @@ struct CholeskySolver::Impl {
   Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int> >& llt = simplicial;
   static constexpr bool useSimplicial = true;
 #endif
-  int32_t n = -1;
+  int32_t n = -1;  // block rows of the analysed block pattern; -1 when none
   int32_t blocks = -1;
+  int64_t factored = -1;     // scalar size of the current factor; -1 when there is none
   std::vector<double> work;  // 3 n, for the residual
+
+  // Small matrices go to Eigen (see kSimplicialMaxBlocks); the analysis picks the ordering.
+  bool analyzeLower() {
+    factored = -1;
+#if GF_HAVE_CHOLMOD
+    useSimplicial = lower.rows() <= 3 * int64_t(kSimplicialMaxBlocks);
+    llt.cholmod().print = 0;  // failures are reported to the caller, not on stdout
+#endif
+    const SerialOpenMpScope serial;
+    if (useSimplicial)
+      simplicial.analyzePattern(lower);
+    else
+      llt.analyzePattern(lower);
+    return (useSimplicial ? simplicial.info() : llt.info()) == Eigen::Success;
+  }
+  bool factorizeLower() {
+    factored = -1;
+    const SerialOpenMpScope serial;
+    if (useSimplicial)
+      simplicial.factorize(lower);
+    else
+      llt.factorize(lower);
+    if ((useSimplicial ? simplicial.info() : llt.info()) != Eigen::Success) return false;
+    factored = lower.rows();
+    return true;
+  }
+  // x = L^-T L^-1 b with the current factor; false and x = 0 when it is not finite.
+  bool backSubstitute(const double* b, double* x) {
+    const Eigen::Index size = Eigen::Index(factored);
+    Eigen::Map<const Eigen::VectorXd> bm(b, size);
+    Eigen::Map<Eigen::VectorXd> xm(x, size);
+    if (useSimplicial) {
+      xm = simplicial.solve(bm);
+    } else {
+      const SerialOpenMpScope serial;
+      xm = llt.solve(bm);
+    }
+    if (allFinite(x, size_t(size))) return true;
+    xm.setZero();
+    return false;
+  }
 };
 
 CholeskySolver::CholeskySolver() : m_impl(std::make_unique<Impl>()) {}
@@ -163,21 +207,129 @@ Result<void> CholeskySolver::analyze(const BlockSparseMatrix& A) {
   s.n = A.n;
   s.blocks = A.blockCount();
   s.work.assign(static_cast<size_t>(size), 0.0);
+  s.factored = -1;
   if (A.n == 0) return {};  // nothing to factorise (CHOLMOD rejects an empty matrix)
-#if GF_HAVE_CHOLMOD
-  s.useSimplicial = A.n <= kSimplicialMaxBlocks;
-  s.llt.cholmod().print = 0;  // failures are reported through SolveReport, not stdout
-#endif
-  const SerialOpenMpScope serial;
-  if (s.useSimplicial)
-    s.simplicial.analyzePattern(L);
-  else
-    s.llt.analyzePattern(L);
-  if ((s.useSimplicial ? s.simplicial.info() : s.llt.info()) != Eigen::Success) {
+  if (!s.analyzeLower()) {
     s.n = -1;
     return fail("cholesky: symbolic analysis failed");
   }
   return {};
+}
+
+bool CholeskySolver::factorize(const BlockSparseMatrix& A) {
+  Impl& s = *m_impl;
+  s.factored = -1;
+  if (s.n < 0 || s.n != A.n || s.blocks != A.blockCount()) return false;
+  if (A.n == 0) {
+    s.factored = 0;
+    return true;
+  }
+  double* v = s.lower.valuePtr();
+  for (size_t i = 0; i < s.valueMap.size(); ++i) v[i] = A.values[s.valueMap[i]];
+  return s.factorizeLower();
+}
+
+Result<void> CholeskySolver::factorize(const SymmetricCsc& A) {
+  blasOnOneThread();
+  Impl& s = *m_impl;
+  s.n = -1;  // the block pattern, if any, is replaced
+  s.factored = -1;
+  if (A.n < 0 || (A.n > 0 && (!A.colStart || !A.row || !A.value)) ||
+      (A.colStart && A.colStart[0] != 0))
+    return fail("cholesky: scalar matrix: n = ", std::to_string(A.n),
+                " with missing arrays or colStart[0] != 0");
+  // Rows ascending in each column, the diagonal present: a missing diagonal cannot be positive
+  // definite and is named here rather than reported as a failed factorisation.
+  int64_t nnz = 0;
+  for (int32_t c = 0; c < A.n; ++c) {
+    if (A.colStart[c + 1] < A.colStart[c])
+      return fail("cholesky: scalar matrix: column ", std::to_string(c), ": colStart decreases");
+    bool diagonal = false;
+    for (int32_t k = A.colStart[c]; k < A.colStart[c + 1]; ++k) {
+      const int32_t r = A.row[k];
+      if (r < 0 || r >= A.n || (k > A.colStart[c] && A.row[k - 1] >= r))
+        return fail("cholesky: scalar matrix: column ", std::to_string(c), ": row ",
+                    std::to_string(r), " out of range or not ascending");
+      diagonal = diagonal || r == c;
+      if (r >= c) ++nnz;
+    }
+    if (!diagonal)
+      return fail("cholesky: scalar matrix: column ", std::to_string(c), " has no diagonal entry");
+  }
+  Impl::SpMat& L = s.lower;
+  L.resize(A.n, A.n);
+  L.resizeNonZeros(0);
+  L.reserve(nnz);
+  s.valueMap.clear();
+  for (int32_t c = 0; c < A.n; ++c) {
+    L.startVec(c);
+    for (int32_t k = A.colStart[c]; k < A.colStart[c + 1]; ++k)
+      if (A.row[k] >= c) L.insertBack(A.row[k], c) = A.value[k];
+  }
+  L.finalize();
+  if (A.n == 0) {
+    s.factored = 0;
+    return {};
+  }
+  if (!s.analyzeLower()) return fail("cholesky: scalar matrix: symbolic analysis failed");
+  if (!s.factorizeLower())
+    return fail("cholesky: scalar matrix (n = ", std::to_string(A.n), ") is not positive definite");
+  return {};
+}
+
+bool CholeskySolver::solveFactored(const double* b, double* x) {
+  Impl& s = *m_impl;
+  if (s.factored <= 0) {
+    for (int64_t i = 0; i < std::max<int64_t>(s.factored, 0); ++i) x[i] = 0;
+    return s.factored == 0;
+  }
+  return s.backSubstitute(b, x);
+}
+
+int64_t CholeskySolver::factoredSize() const { return std::max<int64_t>(m_impl->factored, 0); }
+
+CholeskyFactorInfo CholeskySolver::factorInfo() const {
+  const Impl& s = *m_impl;
+  CholeskyFactorInfo info;
+  if (s.factored <= 0) return info;
+  info.matrixNonZeros = s.lower.nonZeros();
+  if (s.useSimplicial) {
+    info.factorNonZeros = s.simplicial.matrixL().nestedExpression().nonZeros();
+    info.ordering = "amd";
+    return info;
+  }
+#if GF_HAVE_CHOLMOD
+  // Eigen keeps the Common non-const only; the analysis left the chosen method's statistics.
+  const cholmod_common& c = const_cast<Impl&>(s).llt.cholmod();
+  const int m = c.selected >= 0 && c.selected < CHOLMOD_MAXMETHODS ? c.selected : 0;
+  info.factorNonZeros = int64_t(c.method[m].lnz);
+  info.flops = c.method[m].fl;
+  switch (c.method[m].ordering) {
+    case CHOLMOD_NATURAL:
+      info.ordering = "natural";
+      break;
+    case CHOLMOD_GIVEN:
+      info.ordering = "given";
+      break;
+    case CHOLMOD_AMD:
+      info.ordering = "amd";
+      break;
+    case CHOLMOD_METIS:
+      info.ordering = "metis";
+      break;
+    case CHOLMOD_NESDIS:
+      info.ordering = "nesdis";
+      break;
+    case CHOLMOD_COLAMD:
+      info.ordering = "colamd";
+      break;
+    default:
+      info.ordering = "other";
+      break;
+  }
+  info.supernodal = true;
+#endif
+  return info;
 }
 
 SolveReport CholeskySolver::solve(const BlockSparseMatrix& A, const double* b, double* x) {
@@ -196,21 +348,8 @@ SolveReport CholeskySolver::solve(const BlockSparseMatrix& A, const double* b, d
     return report;
   }
 
-  double* v = s.lower.valuePtr();
-  for (size_t i = 0; i < s.valueMap.size(); ++i) v[i] = A.values[s.valueMap[i]];
-  Eigen::Map<const Eigen::VectorXd> bm(b, static_cast<Eigen::Index>(n3));
-  Eigen::Map<Eigen::VectorXd> xm(x, static_cast<Eigen::Index>(n3));
-  if (s.useSimplicial) {
-    s.simplicial.factorize(s.lower);
-    if (s.simplicial.info() != Eigen::Success) return failWithZero();  // not positive definite
-    xm = s.simplicial.solve(bm);
-  } else {
-    const SerialOpenMpScope serial;
-    s.llt.factorize(s.lower);
-    if (s.llt.info() != Eigen::Success) return failWithZero();
-    xm = s.llt.solve(bm);
-  }
-  if (!allFinite(x, n3)) return failWithZero();
+  if (!factorize(A)) return failWithZero();  // not positive definite
+  if (!s.backSubstitute(b, x)) return failWithZero();
 
   // |b - A x| / |b| with the block matrix itself (both triangles).
   A.multiply(x, s.work.data(), serialJobs());

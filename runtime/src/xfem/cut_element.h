@@ -27,7 +27,7 @@ struct LinearElastic {
 struct CutCell {
   unsigned sideMask = 0;  ///< Bit j: positive side of the element's cut j.
   CutPolytope polytope;
-  VolumeRule rule;
+  VolumeRule rule;       ///< Moment-fitted (eq 3.8); the standard rule in an uncut tet.
   double volume = 0;     ///< Sum of the rule's weights (exact to rounding).
   Eigen::VectorXd load;  ///< integral over the cell of rho phi_A (momentum, piece centroids).
 };
@@ -43,8 +43,9 @@ struct CutElement {
 };
 
 /// Cells, rules and matrices of tet X (positively oriented) cut by `planes` (count in
-/// [0, kMaxCutPlanes]; zero gives the plain linear tet). k is eq 3.2's parameter; onPlane is
-/// clipTet's: vertices that close to a plane count as on it.
+/// [0, kMaxCutPlanes]; zero gives the plain linear tet, with the standard rule standardTetRule
+/// instead of a fitted one). k is eq 3.2's parameter; onPlane is clipTet's: vertices that close
+/// to a plane count as on it.
 CutElement buildCutElement(const Vec3 X[4], const CutPlane* planes, int count, double k,
                            const LinearElastic& material, double onPlane = 0);
 
