@@ -22,6 +22,7 @@
 // `graphfrac bench xfem`: Is-XFEM against graph cuts on the same box and blades (bench_xfem.cpp).
 // `graphfrac bench haptic`: the cost of a haptic sample against the surface size
 // (bench_haptic.cpp).
+// `graphfrac bench peer`: graphfrac beside Bullet's deformable FEM (bench_peer.cpp).
 #include <dirent.h>
 
 #include <algorithm>
@@ -49,6 +50,7 @@ namespace gf::cli {
 
 int benchXfem(int argc, char** argv);    // bench_xfem.cpp
 int benchHaptic(int argc, char** argv);  // bench_haptic.cpp
+int benchPeer(int argc, char** argv);    // bench_peer.cpp
 
 namespace {
 
@@ -816,6 +818,13 @@ int runBenchCommand(int argc, char** argv) {
         "       graphfrac bench haptic [--cells N] [--steps S]\n"
         "  microseconds per 1 kHz haptic sample (continuous and discrete penalty) of a cube\n"
         "  pressed into a block of N x N/2 x N cells (default 6, 12 and 24) stepping at 62.5 Hz\n"
+        "       graphfrac bench peer [--cells N] [--seconds S] [--no-sweep]\n"
+        "                            [--bullet-step-limit S] [--bullet-run-limit S]\n"
+        "  graphfrac beside Bullet's deformable FEM on the same mesh, material, dt and load: a\n"
+        "  cantilever (1 x 0.1 x 0.1 m, 10N x N x N cells, default N 2) and a dropped cube; ms\n"
+        "  per step, error against the static reference, and the stable range over E and dt; a "
+        "Bullet\n"
+        "  run is stopped after S s for one step (default 2) or for the run (default 120)\n"
         "Every mode takes --backend auto|cpu|cuda (default cpu) for its worlds.");
     return argc < 2 ? kExitUsage : kExitOk;
   }
@@ -848,6 +857,7 @@ int runBenchCommand(int argc, char** argv) {
   if (!std::strcmp(argv[1], "contact")) return benchContact(argc, argv);
   if (!std::strcmp(argv[1], "xfem")) return benchXfem(argc, argv);
   if (!std::strcmp(argv[1], "haptic")) return benchHaptic(argc, argv);
+  if (!std::strcmp(argv[1], "peer")) return benchPeer(argc, argv);
   std::fprintf(stderr, "graphfrac bench: unknown benchmark '%s'\n", argv[1]);
   return kExitUsage;
 }
