@@ -8,9 +8,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <functional>
 #include <glm/geometric.hpp>
+#include <string>
 #include <vector>
 
+#include "common/temp_dir.h"
 #include "kernels/clay.h"
 
 namespace gf {
@@ -41,7 +45,7 @@ struct Press {
   double nearMove = 0;              // displacement of the top centre at the press's end
 };
 
-Press pressClay(bool brush, bool plastic) {
+Press pressClay(bool brush, bool plastic, const std::function<void(World&, BodyId)>& atEnd = {}) {
   BodyDef def;
   def.mesh = gen::box(kSide, kSide, kSide, 6, 6, 6);
   def.material = Material::stableNeoHookean(1e5, 0.3, 1800);
@@ -105,6 +109,7 @@ Press pressClay(bool brush, bool plastic) {
   EXPECT_TRUE(world.setColliders({&tool, 1}).ok());
   for (int k = 0; k < 120; ++k) EXPECT_TRUE(world.step(kDt).ok());
   r.dentEnd = dent();
+  if (atEnd) atEnd(world, id);
   std::printf(
       "brush %d, plastic %d: top centre moved %.2f mm, bottom face %.2f mm (ratio %.3f); dent "
       "%.2f mm pressed, %.2f mm 2 s after\n",
@@ -124,6 +129,49 @@ TEST(DeformBrush, ClayGivesWayAroundTheToolAndKeepsTheDent) {
   // The dent is the material's: it stays with plasticity, springs back without.
   EXPECT_GT(clay.dentEnd, 0.5 * clay.dentMax);
   EXPECT_LT(elastic.dentEnd, 0.2 * elastic.dentMax);
+}
+
+// The sculpted block saved as .msh and .obj and loaded back: the same nodes to the bit, the
+// same tets, the dent in the surface, and a new body made from it rests in the sculpted shape.
+TEST(DeformBrush, TheSculptedBodyIsSavedAndLoadsBackAsARestShape) {
+  test::TempDir dir("sculpt_export");
+  const std::string msh = (dir.path / "clay.msh").string(), obj = (dir.path / "clay.obj").string();
+  TetMesh saved;
+  (void)pressClay(true, true, [&](World& world, BodyId id) {
+    const Result<TetMesh> m = world.currentMesh(id);
+    ASSERT_TRUE(m.ok()) << m.error().message;
+    saved = m.value();
+    ASSERT_TRUE(saved.writeMsh(msh).ok());
+    ASSERT_TRUE(saved.writeSurface(obj).ok());
+    EXPECT_FALSE(world.currentMesh(BodyId{}).ok());
+  });
+  const Result<TetMesh> back = TetMesh::fromFile(msh);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back.value().positions, saved.positions);
+  EXPECT_EQ(back.value().tets, saved.tets);
+  EXPECT_LT(saved.volume(), kSide * kSide * kSide);  // the dent took material's place
+  // The OBJ holds the boundary: one vertex line per boundary node, one face per boundary face.
+  std::ifstream in(obj);
+  int vertices = 0, faces = 0;
+  for (std::string line; std::getline(in, line);) {
+    vertices += line.rfind("v ", 0) == 0;
+    faces += line.rfind("f ", 0) == 0;
+  }
+  EXPECT_EQ(faces, int(saved.boundaryFaces().size() / 3));
+  EXPECT_EQ(vertices, 7 * 7 * 7 - 5 * 5 * 5);  // the 7^3 grid nodes less the 5^3 inside
+  // As a new body's rest shape the sculpted block does not move.
+  WorldDef wd;
+  wd.gravity = {0, 0, 0};
+  World world(wd);
+  BodyDef def;
+  def.mesh = back.value();
+  def.material = Material::stableNeoHookean(1e5, 0.3, 1800);
+  const BodyId id = world.createBody(def).value();
+  for (int k = 0; k < 10; ++k) ASSERT_TRUE(world.step(kDt).ok());
+  double moved = 0;
+  for (size_t i = 0; i < saved.positions.size(); ++i)
+    moved = std::max(moved, std::abs(world.positions(id)[i] - saved.positions[i]));
+  EXPECT_LT(moved, 1e-9);
 }
 
 TEST(DeformBrush, BadBrushIsAClearErrorAndChangesNothing) {

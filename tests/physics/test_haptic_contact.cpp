@@ -238,6 +238,72 @@ TEST(HapticContact, BlendingTheWorldSurfaceKeepsTheForceSmooth) {
   EXPECT_NEAR(jumping.finalForce, blended.finalForce, 0.02 * blended.finalForce);
 }
 
+// The cut brush of thesis sec 7.2.3.6, as the pieces compose: a flat brush (two triangles in
+// the plane x = 5.2 cm, wider than the block) lowered at 2 cm/s into a frozen block (the thesis
+// freezes it while marking, so the force can build), its penalty force sampled at 1 kHz; at the
+// first sample whose force passes the threshold the brush's pose becomes a blade for
+// World::cut. The force grows with the depth, and the cut takes exactly the edges the brush
+// overlaps: those crossing its plane above its lower edge.
+TEST(HapticContact, ACutBrushCutsWhatItOverlapsOnceItsForcePassesTheThreshold) {
+  WorldDef wd;
+  wd.gravity = {0, 0, 0};
+  World world(wd);
+  BodyDef def;
+  def.mesh = gen::box(0.1, 0.04, 0.1, 8, 4, 8);
+  def.fracture.enabled = true;
+  def.fracture.strength = 1e9;  // only the cut breaks edges
+  const BodyId id = world.createBody(def).value();
+  const double x = 0.052, top = 0.04;
+  std::vector<glm::dvec3> brush = {{x, top + 0.005, -0.02},
+                                   {x, top + 0.005, 0.12},
+                                   {x, top + 0.03, 0.12},
+                                   {x, top + 0.03, -0.02}};
+  const std::vector<uint32_t> tri = {0, 1, 2, 0, 2, 3};
+  HapticContactSettings s;
+  s.stiffness = 200;
+  HapticContact h = HapticContact::create(brush, tri, s).value();
+  ASSERT_TRUE(h.setSurface(world.surface(id), 0).ok());
+  const double threshold = 20, speed = 0.02, dt = 1e-3;
+  double last = 0, lowest = 0;
+  int samples = 0;
+  for (; samples < 2000; ++samples) {
+    for (glm::dvec3& p : brush) p.y -= speed * dt;
+    const double f = glm::length(h.sample(brush, dt).value());
+    EXPECT_GE(f, last - 1e-9) << samples;  // pressing deeper never pushes back less
+    last = f;
+    if (f >= threshold) break;
+  }
+  ASSERT_LT(samples, 2000);
+  lowest = brush[0].y;
+  std::printf("cut brush: %.4g N at %.2f mm deep after %d samples\n", last, 1e3 * (top - lowest),
+              samples + 1);
+  EXPECT_GT(top - lowest, 0.0);
+  Blade blade;
+  for (const glm::dvec3& p : brush) blade.vertices.push_back(glm::vec3(p));
+  blade.triangles = tri;
+  ASSERT_TRUE(world.cut(id, blade).ok());
+  ASSERT_TRUE(world.step(1e-3).ok());
+  const std::span<const int32_t> edges = world.edges(id);
+  const std::span<const uint8_t> broken = world.brokenEdges(id);
+  const std::vector<double>& rest = def.mesh.positions;
+  int cut = 0, overlapped = 0;
+  for (size_t e = 0; e < broken.size(); ++e) {
+    const size_t a = size_t(edges[2 * e]), b = size_t(edges[2 * e + 1]);
+    const double xa = rest[3 * a] - x, xb = rest[3 * b] - x;
+    bool over = false;
+    if ((xa < 0) != (xb < 0)) {
+      const double t = xa / (xa - xb);
+      const double y = rest[3 * a + 1] + t * (rest[3 * b + 1] - rest[3 * a + 1]);
+      over = y > float(lowest);
+    }
+    overlapped += over;
+    cut += broken[e] != 0;
+    EXPECT_EQ(broken[e] != 0, over) << "edge " << e;
+  }
+  std::printf("cut brush: %d edges cut, %d overlapped\n", cut, overlapped);
+  EXPECT_GT(cut, 0);
+}
+
 TEST(HapticContact, BadInputIsAClearErrorAndChangesNothing) {
   const Cube c = cube({0, 0, 0}, 0.01);
   HapticContactSettings bad;

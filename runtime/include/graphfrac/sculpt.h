@@ -96,20 +96,20 @@ struct HapticPush {
   glm::dvec3 force{0, 0, 0};
 };
 
-/// The penalty force between a haptic proxy (a closed triangle mesh the device moves) and a
-/// body's render surface, sampled at the device's rate (1 kHz or more) between the world's
-/// steps (60 Hz; thesis fig 7.4). Contacts are proxy vertices behind body triangles, body
-/// vertices behind proxy triangles, and proxy edges crossed with body edges (fig 7.3), found by
-/// continuous collision over each sample's motion and kept while the point stays behind the
-/// feature it entered through, so a proxy pressed deep into a thin part is pushed back the way
-/// it came, never through. A vertex that slides off its triangle while behind it moves to the
-/// nearest triangle it is behind; an edge contact ends when the edges no longer cross.
-/// The surface the proxy feels moves from the previous world surface to the newest one over
-/// `blend` seconds (one world step: the device feels the body one step late, but never jump);
-/// a surface with other triangles (a crack opened) replaces it at once, and contacts on the
-/// old triangles move to the nearest new triangle behind which their vertex lies.
-/// Not thread-safe: the haptic thread owns it and is handed the surfaces (copies) by the
-/// application.
+/// The penalty force between a haptic proxy (a triangle mesh the device moves: closed for a
+/// tool, or open, e.g. the flat cut brush of thesis sec 7.2.3.6, whose force tells when to cut
+/// with World::cut) and a body's render surface, sampled at the device's rate (1 kHz or more)
+/// between the world's steps (60 Hz; thesis fig 7.4). Contacts are proxy vertices behind body
+/// triangles, body vertices behind proxy triangles, and proxy edges crossed with body edges
+/// (fig 7.3), found by continuous collision over each sample's motion and kept while the point
+/// stays behind the feature it entered through, so a proxy pressed deep into a thin part is pushed
+/// back the way it came, never through. A vertex that slides off its triangle while behind it moves
+/// to the nearest triangle it is behind; an edge contact ends when the edges no longer cross. The
+/// surface the proxy feels moves from the previous world surface to the newest one over `blend`
+/// seconds (one world step: the device feels the body one step late, but never jump); a surface
+/// with other triangles (a crack opened) replaces it at once, and contacts on the old triangles
+/// move to the nearest new triangle behind which their vertex lies. Not thread-safe: the haptic
+/// thread owns it and is handed the surfaces (copies) by the application.
 class HapticContact {
  public:
   /// `vertices` (world frame, the proxy's pose now) and `indices` (3 per triangle,

@@ -254,6 +254,11 @@ class World {
   /// not finite or farther than 1e9 m from the origin, a radius, k1 or k2 that is not positive
   /// and finite.
   Result<void> deform(BodyId id, const DeformBrush& brush);
+  /// The body's tet mesh in its current shape (its tets, the node positions now): what a
+  /// sculpting session saves (TetMesh::writeMsh, writeSurface) and reloads as a new body's
+  /// rest shape. Broken edges are not cut apart in it. Error for a bad id, or a tet the
+  /// deformation has turned inside out (it would not load back), naming the tet.
+  Result<TetMesh> currentMesh(BodyId id) const;
   /// Water mass [kg] per tet; empty for an invalid id or a body never wetted.
   std::span<const double> waterMass(BodyId id) const;
   /// Saturation S_w in [0, 1] per tet (water mass over the tet's capacity); computed on each

@@ -97,6 +97,29 @@ void World::Impl::clearDeformDrag() {
     if (s.body) s.body->state.drag.clear();
 }
 
+Result<TetMesh> World::currentMesh(BodyId id) const {
+  const BodyRecord* b = m_impl->get(id);
+  if (!b) return fail("currentMesh: stale or null BodyId");
+  TetMesh m;
+  m.positions = b->state.x;
+  m.tets = b->model.tets;
+  for (size_t t = 0; t < m.tetCount(); ++t) {
+    double e[3][3];
+    const size_t a = 3 * size_t(m.tets[4 * t]);
+    for (int k = 0; k < 3; ++k)
+      for (int i = 0; i < 3; ++i)
+        e[k][i] = m.positions[3 * size_t(m.tets[4 * t + size_t(k) + 1]) + size_t(i)] -
+                  m.positions[a + size_t(i)];
+    const double det = e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
+                       e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
+                       e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]);
+    if (!(det > 0))
+      return fail("currentMesh: tet ", std::to_string(t),
+                  " is inverted or flat in the current shape (6V = ", std::to_string(det), ")");
+  }
+  return m;
+}
+
 std::span<const double> World::waterMass(BodyId id) const {
   const BodyRecord* b = m_impl->get(id);
   return b ? std::span<const double>(b->state.water) : std::span<const double>();
