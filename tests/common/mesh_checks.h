@@ -1,14 +1,33 @@
 // Independent reference computations shared by tests: connected components by a plain search
-// over unbroken edges, and the enclosed volume of a mesh's boundary (divergence theorem).
+// over unbroken edges, the enclosed volume of a mesh's boundary (divergence theorem), and lumped
+// node masses.
 #pragma once
 
 #include <graphfrac/mesh.h>
 
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
 #include <vector>
 
 #include "mesh/edge_graph.h"
 
 namespace gf::test {
+
+/// Lumped node masses as the runtime builds them: a quarter of each tet's mass per corner.
+inline std::vector<double> lumpedMasses(const TetMesh& m, double rho) {
+  std::vector<double> mass(m.nodeCount(), 0.0);
+  for (size_t t = 0; t < m.tetCount(); ++t) {
+    glm::dvec3 p[4];
+    for (int k = 0; k < 4; ++k) {
+      const size_t n = size_t(m.tets[4 * t + size_t(k)]);
+      p[k] = {m.positions[3 * n], m.positions[3 * n + 1], m.positions[3 * n + 2]};
+    }
+    const double v = std::abs(glm::dot(p[1] - p[0], glm::cross(p[2] - p[0], p[3] - p[0]))) / 6;
+    for (int k = 0; k < 4; ++k) mass[size_t(m.tets[4 * t + size_t(k)])] += 0.25 * rho * v;
+  }
+  return mass;
+}
 
 /// Connected components of the node graph over unbroken edges; returns the count and labels.
 inline int components(const detail::EdgeGraph& g, const std::vector<uint8_t>& broken,

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "common/mesh_checks.h"
 #include "common/temp_dir.h"
 #include "kernels/clay.h"
 
@@ -174,14 +175,29 @@ TEST(DeformBrush, TheSculptedBodyIsSavedAndLoadsBackAsARestShape) {
   EXPECT_LT(moved, 1e-9);
 }
 
-TEST(DeformBrush, BadBrushIsAClearErrorAndChangesNothing) {
-  WorldDef wd;
-  wd.gravity = {0, 0, 0};
-  World world(wd);
+// A 10 cm box of 2 x 2 x 2 cells gliding at 1 m/s along x in a world without gravity.
+struct GlidingBox {
+  World world;
   BodyDef def;
-  def.mesh = gen::box(0.1, 0.1, 0.1, 2, 2, 2);
-  const BodyId id = world.createBody(def).value();
-  ASSERT_TRUE(world.setVelocity(id, {1, 0, 0}).ok());
+  BodyId id;
+  explicit GlidingBox(int substeps = 1) : world(worldDef(substeps)) {
+    def.mesh = gen::box(0.1, 0.1, 0.1, 2, 2, 2);
+    id = world.createBody(def).value();
+    EXPECT_TRUE(world.setVelocity(id, {1, 0, 0}).ok());
+  }
+  static WorldDef worldDef(int substeps) {
+    WorldDef wd;
+    wd.gravity = {0, 0, 0};
+    wd.substeps = substeps;
+    return wd;
+  }
+};
+
+TEST(DeformBrush, BadBrushIsAClearErrorAndChangesNothing) {
+  GlidingBox box;
+  World& world = box.world;
+  const BodyDef& def = box.def;
+  const BodyId id = box.id;
   DeformBrush b;
   b.radius = 0;
   Result<void> r = world.deform(id, b);
@@ -214,14 +230,10 @@ TEST(DeformBrush, BadBrushIsAClearErrorAndChangesNothing) {
 // zero, so the sum of m_i v_i / G_i keeps the momentum the body had, to the solver's tolerance.
 TEST(DeformBrush, AFreeNodeLeavesTheStepWithItsVelocityTimesTheKernel) {
   for (int substeps : {1, 4}) {
-    WorldDef wd;
-    wd.gravity = {0, 0, 0};
-    wd.substeps = substeps;
-    World world(wd);
-    BodyDef def;
-    def.mesh = gen::box(0.1, 0.1, 0.1, 2, 2, 2);
-    const BodyId id = world.createBody(def).value();
-    ASSERT_TRUE(world.setVelocity(id, {1, 0, 0}).ok());
+    GlidingBox box(substeps);
+    World& world = box.world;
+    const BodyDef& def = box.def;
+    const BodyId id = box.id;
     DeformBrush b;
     b.centre = {-10, 0, 0};
     b.radius = 100;
@@ -229,19 +241,8 @@ TEST(DeformBrush, AFreeNodeLeavesTheStepWithItsVelocityTimesTheKernel) {
     ASSERT_TRUE(world.deform(id, b).ok());
     const std::vector<double> x0(world.positions(id).begin(), world.positions(id).end());
     ASSERT_TRUE(world.step(kDt).ok());
-    // Lumped masses rho V / 4 of each tet's corners.
     const TetMesh& m = def.mesh;
-    std::vector<double> mass(m.nodeCount(), 0.0);
-    for (size_t t = 0; t < m.tetCount(); ++t) {
-      glm::dvec3 p[4];
-      for (int k = 0; k < 4; ++k) {
-        const size_t n = size_t(m.tets[4 * t + size_t(k)]);
-        p[k] = {m.positions[3 * n], m.positions[3 * n + 1], m.positions[3 * n + 2]};
-      }
-      const double v = std::abs(glm::dot(p[1] - p[0], glm::cross(p[2] - p[0], p[3] - p[0]))) / 6;
-      for (int k = 0; k < 4; ++k)
-        mass[size_t(m.tets[4 * t + size_t(k)])] += def.material.density * v / 4;
-    }
+    const std::vector<double> mass = test::lumpedMasses(m, def.material.density);
     double worst = 0, balanced = 0, before = 0;
     for (size_t n = 0; n < m.nodeCount(); ++n) {
       const double r = std::hypot(x0[3 * n] + 10, x0[3 * n + 1], x0[3 * n + 2]);

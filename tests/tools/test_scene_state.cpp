@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "common/mesh_checks.h"
 #include "scene/scene.h"
 
 namespace gf::scene {
@@ -112,21 +113,6 @@ TEST(SceneState, SettingsAreRejectedByTheRuntimeChecks) {
       std::string::npos);
 }
 
-/// Lumped node masses as the runtime builds them: a quarter of each tet's mass per corner.
-std::vector<double> lumpedMasses(const TetMesh& m, double rho) {
-  std::vector<double> mass(m.nodeCount(), 0.0);
-  for (size_t t = 0; t < m.tetCount(); ++t) {
-    glm::dvec3 p[4];
-    for (int k = 0; k < 4; ++k) {
-      const size_t n = size_t(m.tets[4 * t + size_t(k)]);
-      p[k] = {m.positions[3 * n], m.positions[3 * n + 1], m.positions[3 * n + 2]};
-    }
-    const double v = std::abs(glm::dot(p[1] - p[0], glm::cross(p[2] - p[0], p[3] - p[0]))) / 6;
-    for (int k = 0; k < 4; ++k) mass[size_t(m.tets[4 * t + size_t(k)])] += 0.25 * rho * v;
-  }
-  return mass;
-}
-
 TEST(SceneState, AngularVelocitySpinsTheBodyAboutItsCentreOfMass) {
   const glm::dvec3 w(0.5, -1.0, 2.0), v0(1, 0, 0);
   const Result<Scene> r =
@@ -138,7 +124,7 @@ TEST(SceneState, AngularVelocitySpinsTheBodyAboutItsCentreOfMass) {
 
   // Independent truth: centre of mass and inertia tensor of the lumped masses.
   const TetMesh& mesh = sb.def.mesh;
-  const std::vector<double> m = lumpedMasses(mesh, 1000);
+  const std::vector<double> m = test::lumpedMasses(mesh, 1000);
   double M = 0;
   glm::dvec3 c(0);
   for (size_t n = 0; n < m.size(); ++n) {
