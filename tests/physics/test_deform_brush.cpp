@@ -220,6 +220,16 @@ TEST(DeformBrush, BadBrushIsAClearErrorAndChangesNothing) {
   EXPECT_TRUE(world.step(kDt).ok());
   for (size_t n = 0; n < def.mesh.nodeCount(); ++n)
     EXPECT_NEAR(world.velocities(id)[3 * n], 1.0, 1e-9);
+  // A brush so far away that exp(k2 r) overflows holds the body still, finitely.
+  b = {};
+  b.centre = {1000, 0, 0};
+  b.k2 = 100;
+  ASSERT_TRUE(world.deform(id, b).ok());
+  EXPECT_TRUE(world.step(kDt).ok());
+  for (double v : world.velocities(id)) {
+    EXPECT_TRUE(std::isfinite(v));
+    EXPECT_LE(std::abs(v), 1.01e-6);
+  }
 }
 
 // A body gliding at 1 m/s with nothing acting on it but a brush 10 m away, where G_d of eq 7.7

@@ -27,8 +27,8 @@ struct WetBrush {
 /// at its distance r from `centre` (at the step's start), 1 / (1 + k1 r) within `radius` and
 /// 1 / (1 + k1 r + exp(k2 r)) beyond, exactly so for a node nothing else moves. The drag is
 /// part of the implicit step, so the body gives way near the tool and hardly moves elsewhere.
-/// The push itself comes from the tool (a collider, or HapticContact's pushes); a material with
-/// plasticity keeps the dent.
+/// G_d below 1e-6 (far from the tool) is taken as 1e-6. The push itself comes from the tool (a
+/// collider, or HapticContact's pushes); a material with plasticity keeps the dent.
 struct DeformBrush {
   glm::vec3 centre{0, 0, 0};  ///< The tool's position [m], world frame.
   float radius = 0.05f;       ///< R_D [m], > 0.

@@ -57,6 +57,12 @@ struct Box {
   }
 };
 
+// How far the felt surface has moved from the blend's start to its target after `elapsed`
+// seconds. With no blend it jumps within the first sample: swept, so no contact is missed.
+double blendFraction(double elapsed, double blend) {
+  return blend > 0 ? std::min(1.0, elapsed / blend) : (elapsed > 0 ? 1.0 : 0.0);
+}
+
 // Barycentric tolerance for "over the triangle" and relative gap for "edges meet".
 constexpr double kOverTol = 1e-9;
 constexpr double kMeetTol = 1e-9;
@@ -112,7 +118,7 @@ Result<void> HapticContact::setSurface(const SurfaceView& s, double blend) {
       std::equal(s.indices.begin(), s.indices.end(), m_triangles.begin(), m_triangles.end());
   if (sameTriangles) {
     // Start the new blend where the felt surface is now.
-    const double f = m_blend > 0 ? std::min(1.0, m_elapsed / m_blend) : (m_elapsed > 0 ? 1.0 : 0.0);
+    const double f = blendFraction(m_elapsed, m_blend);
     for (size_t i = 0; i < n; ++i) m_from[i] = m_from[i] + f * (m_to[i] - m_from[i]);
     m_to = std::move(to);
   } else {
@@ -206,12 +212,11 @@ Result<glm::dvec3> HapticContact::sample(std::span<const glm::dvec3> vertices, d
   }
 
   // The body surface at the sample's start and end, computed for the vertices used.
-  // With no blend the surface jumps within the first sample: swept, so no contact is missed.
-  const auto blendAt = [&](double t) {
-    return m_blend > 0 ? std::min(1.0, t / m_blend) : (t > 0 ? 1.0 : 0.0);
-  };
-  const double f0 = blendAt(m_elapsed), f1 = blendAt(m_elapsed + dt);
-  ++m_sampleId;
+  const double f0 = blendFraction(m_elapsed, m_blend), f1 = blendFraction(m_elapsed + dt, m_blend);
+  if (++m_sampleId == 0) {  // after 2^32 samples the stamps start over
+    std::fill(m_placed.begin(), m_placed.end(), 0u);
+    m_sampleId = 1;
+  }
   const auto place = [&](uint32_t i) {
     if (m_placed[i] == m_sampleId) return;
     m_placed[i] = m_sampleId;

@@ -1,5 +1,6 @@
 // World: sculpting commands (thesis ch. 7): wet and dry brushes, the water queries, and the
 // haptic probe the step publishes to.
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -11,6 +12,9 @@
 namespace gf {
 
 namespace {
+// The smallest G_d a deform brush applies (World::prepareDeformDrag).
+constexpr double kMinDeformKernel = 1e-6;
+
 // The checks of wet and dry, then the stroke queued for the next step. `busy` is
 // World::Impl::busy's message, `b` the body or null.
 Result<void> queueStroke(const std::string& busy, BodyRecord* b, const WetBrush& brush,
@@ -85,7 +89,9 @@ void World::Impl::prepareDeformDrag() {
           g *= clayDamping(std::sqrt(dx * dx + dy * dy + dz * dz), br.radius, br.k1, br.k2);
         }
         // A free node's velocity is scaled by g over the whole step: 1 / (1 + w) per substep.
-        st.drag[n] = std::pow(g, -perSubstep) - 1;
+        // Far from the tool g underflows (exp(k2 r) overflows beyond k2 r = 709): a node held
+        // at 1e-6 of its velocity is as still as a frozen one, and w stays finite.
+        st.drag[n] = std::pow(std::max(g, kMinDeformKernel), -perSubstep) - 1;
       }
     });
     b->deformBrushes.clear();
