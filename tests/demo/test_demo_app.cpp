@@ -12,12 +12,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <numbers>
+#include <span>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -256,6 +258,50 @@ std::vector<Ball> ballsInside(World& world, BodyId id, glm::dvec3 eye, double mi
     if (r > rMin) balls.push_back({p, r});
   }
   return balls;
+}
+
+// The demo's runner plays scene strokes through the same helper as `graphfrac run`, with a
+// Bullet floor so that the bridge rewrites the colliders every step: the tool keeps its slot
+// and dents the clay where it pushes, and barely moves the clay 10 cm away.
+TEST(DemoBulletScene, SculptStrokesDentTheClayUnderTheTool) {
+  Result<scene::Scene> sc =
+      scene::loadScene(std::string(GF_SOURCE_DIR) + "/tests/data/scenes/sculpt_short.json");
+  ASSERT_TRUE(sc.ok()) << sc.error().message;
+  scene::SceneRigidBody floor;
+  floor.name = "floor";
+  floor.shape = scene::SceneRigidBody::Shape::Plane;
+  floor.offset = -1;
+  sc.value().rigidBodies.push_back(floor);
+  Result<std::unique_ptr<scene::BulletScene>> made = scene::BulletScene::create(sc.value());
+  ASSERT_TRUE(made.ok()) << made.error().message;
+  scene::BulletScene& sim = *made.value();
+  const std::vector<double> rest(sim.world().positions(sim.body(0)).begin(),
+                                 sim.world().positions(sim.body(0)).end());
+  const auto nodeAt = [&](double x, double y, double z) {
+    size_t best = 0;
+    double d = 1e9;
+    for (size_t n = 0; 3 * n < rest.size(); ++n) {
+      const double e = std::hypot(rest[3 * n] - x, rest[3 * n + 1] - y, rest[3 * n + 2] - z);
+      if (e < d) d = e, best = n;
+    }
+    return best;
+  };
+  const size_t pushed = nodeAt(0.05, 0.1, 0.05), far = nodeAt(0.15, 0.1, 0.05);
+  for (int f = 0; f < 30; ++f) {
+    const StepStatus st = sim.step();
+    ASSERT_EQ(st.flags & kStepInvalidInput, 0u) << st.message;
+  }
+  EXPECT_EQ(sim.world().colliders().size(), 2u);  // the tool, then the mirrored floor
+  const std::span<const double> x = sim.world().positions(sim.body(0));
+  const double dent = rest[3 * pushed + 1] - x[3 * pushed + 1];
+  const double farMove = std::hypot(x[3 * far] - rest[3 * far], x[3 * far + 1] - rest[3 * far + 1],
+                                    x[3 * far + 2] - rest[3 * far + 2]);
+  std::printf("[ sculpt ] BulletScene, frame 30: dent %.2f mm, 10 cm away %.3f mm\n", 1e3 * dent,
+              1e3 * farMove);
+  // The tool's bottom is 1 cm below the top at frame 30.
+  EXPECT_GT(dent, 0.004);
+  EXPECT_LT(dent, 0.012);
+  EXPECT_LT(farMove, 0.1 * dent);
 }
 
 TEST(DemoApp, ShortRunDrawsTheBodiesAndReportsTheWorldsNumbers) {

@@ -24,8 +24,10 @@
 #include "cli/csv_writer.h"
 #include "cli/progress.h"
 #include "cli/surface_writer.h"
+#include "cli/svg_plot.h"
 #include "cli/vtk_writer.h"
 #include "scene/scene.h"
+#include "scene/strokes.h"
 
 namespace gf::cli {
 namespace {
@@ -49,7 +51,11 @@ constexpr const char* kRunUsage =
     "exerts on its body at the end of the frame (World::gripForces; grip = its entry in the\n"
     "scene, e.g. pins[0]). With colliders: DIR/colliders.csv (frame,collider,jx,jy,jz,ax,ay,\n"
     "az), the impulse [N s] each collider gave the bodies during the frame and its moment\n"
-    "about the collider's point [N m s] (collider = its index in \"colliders\").\n"
+    "about the collider's point [N m s] (collider = its index in \"colliders\"; with\n"
+    "strokes the sculpting tool is the last). With strokes: DIR/haptic.csv (frame,time,\n"
+    "stroke,type,fx,fy,fz,force), the force [N] on the tool over the frame (stroke = its\n"
+    "index in the scene's \"strokes\", -1 between strokes), and\n"
+    "DIR/haptic.svg, |F| of each push stroke against time.\n"
     "\n"
     "options:\n"
     "  --frames N         frames to run (default: the scene's \"frames\")\n"
@@ -329,6 +335,7 @@ int runCommand(int argc, char** argv) {
   WorldDef wdef = sc.world;
   wdef.jobs = jobs.get();
   if (opt.backend) wdef.backend = *opt.backend;
+  scene::StrokePlayer strokes(sc, wdef);
   World world(wdef);
 
   std::vector<BodyRecord> bodies;
@@ -390,6 +397,19 @@ int runCommand(int argc, char** argv) {
     if (Result<void> r =
             colliderCsv.open((outDir / "colliders.csv").string(),
                              {"frame", "collider", "jx", "jy", "jz", "ax", "ay", "az"});
+        !r.ok()) {
+      std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
+      return kExitOutput;
+    }
+  }
+  // The haptic force of each stroke (thesis fig 7.13): what the tool feels, frame by frame.
+  CsvWriter hapticCsv;
+  const bool writeHaptic = !sc.strokes.empty();
+  std::vector<PlotSeries> hapticSeries;
+  if (writeHaptic) {
+    if (Result<void> r =
+            hapticCsv.open((outDir / "haptic.csv").string(),
+                           {"frame", "time", "stroke", "type", "fx", "fy", "fz", "force"});
         !r.ok()) {
       std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
       return kExitOutput;
@@ -493,6 +513,13 @@ int runCommand(int argc, char** argv) {
       }
     }
     if (cutFailed) break;
+    std::vector<BodyId> ids;
+    for (const BodyRecord& b : bodies) ids.push_back(b.id);
+    if (Result<void> r = strokes.apply(world, ids, frame); !r.ok()) {
+      std::fprintf(stderr, "\n%s: %s\n", opt.scene.c_str(), r.error().message.c_str());
+      cutFailed = true;
+      break;
+    }
     const StepStatus st = world.step(sc.dt);
     const StepTimings& tm = world.timings();
     const FrameTotals t = sumStats(world, bodies);
@@ -521,6 +548,21 @@ int runCommand(int argc, char** argv) {
       r = writeEvents(events, frame, world.fractureEvents(), bodies);
     if (r.ok() && writeGrips) r = writeGripForces(gripCsv, frame, world, bodies);
     if (r.ok() && writeColliders) r = writeColliderImpulses(colliderCsv, frame, world);
+    if (r.ok() && writeHaptic) {
+      const int k = strokes.activeStroke(frame);
+      const glm::dvec3 f = strokes.toolForce(world, sc.dt);
+      const std::string type = k < 0 ? "none" : scene::strokeTypeName(sc.strokes[size_t(k)].type);
+      r = hapticCsv.row(
+          {int64_t{frame}, world.time(), int64_t{k}, type, f.x, f.y, f.z, glm::length(f)});
+      if (k >= 0 && sc.strokes[size_t(k)].type == scene::SceneStroke::Type::Push) {
+        const std::string name = "strokes[" + std::to_string(k) + "] push";
+        if (hapticSeries.empty() || hapticSeries.back().name != name) {
+          static const char* kColours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e"};
+          hapticSeries.push_back({name, kColours[hapticSeries.size() % 5], {}, true});
+        }
+        hapticSeries.back().points.push_back({world.time(), glm::length(f), ""});
+      }
+    }
     if (!r.ok()) {
       std::fprintf(stderr, "\ngraphfrac run: %s\n", r.error().message.c_str());
       outputOk = false;
@@ -539,7 +581,22 @@ int runCommand(int argc, char** argv) {
     std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
     outputOk = false;
   }
-  for (CsvWriter* w : {&events, &gripCsv, &colliderCsv}) {
+  if (writeHaptic) {
+    PlotPanel panel{"Haptic force of the push strokes",
+                    "time [s]",
+                    "|F| on the tool [N]",
+                    false,
+                    false,
+                    hapticSeries};
+    if (Result<void> r = writeSvg(
+            (outDir / "haptic.svg").string(), {panel},
+            sc.name + ": force on the sculpting tool per frame (thesis fig 7.13's analogue)");
+        !r.ok()) {
+      std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
+      outputOk = false;
+    }
+  }
+  for (CsvWriter* w : {&events, &gripCsv, &colliderCsv, &hapticCsv}) {
     if (Result<void> r = w->close(); !r.ok()) {
       std::fprintf(stderr, "graphfrac run: %s\n", r.error().message.c_str());
       outputOk = false;
@@ -598,6 +655,9 @@ int runCommand(int argc, char** argv) {
     std::printf("  wrote %s\n", (outDir / "stats.csv").string().c_str());
     if (writeGrips) std::printf("  wrote %s\n", (outDir / "grips.csv").string().c_str());
     if (writeColliders) std::printf("  wrote %s\n", (outDir / "colliders.csv").string().c_str());
+    if (writeHaptic) {
+      std::printf("  wrote %s and haptic.svg\n", (outDir / "haptic.csv").string().c_str());
+    }
     if (opt.vtk) std::printf("  wrote %s\n", (outDir / "fields.pvd").string().c_str());
     if (!opt.events.empty()) std::printf("  wrote %s\n", opt.events.c_str());
   } else if (flaggedFrames > 0) {

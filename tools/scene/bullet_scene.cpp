@@ -57,6 +57,8 @@ Result<std::unique_ptr<BulletScene>> BulletScene::create(const Scene& scene, int
   WorldDef def = scene.world;
   def.jobs = s->m_jobs.get();
   def.substeps = 1;  // taken at the bridge (see the header)
+  // The tool's collider goes in before the bridge counts the world's own colliders.
+  s->m_strokes = StrokePlayer(scene, def);
   s->m_world = std::make_unique<World>(def);
   for (size_t i = 0; i < scene.bodies.size(); ++i) {
     const SceneBody& b = scene.bodies[i];
@@ -147,6 +149,11 @@ StepStatus BulletScene::step() {
   StepStatus st;
   const double h = m_dt / m_substeps;
   for (int k = 0; k < m_substeps; ++k) {
+    if (Result<void> r = m_strokes.apply(*m_world, m_bodies, m_frame, k, m_substeps); !r) {
+      st.flags |= kStepInvalidInput;
+      st.message = r.error().message;
+      break;
+    }
     const StepStatus sub = m_bridge->step(h);
     const StepTimings& t = m_world->timings();
     m_timings.world.fractureMs += t.fractureMs;

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "scene/scene.h"
+#include "scene/strokes.h"
 
 class btDiscreteDynamicsWorld;
 
@@ -54,8 +55,9 @@ class BulletScene {
   BodyId body(size_t i) const { return m_bodies[i]; }
   size_t bodyCount() const { return m_bodies.size(); }
 
-  /// One scene frame: the cuts of the next frame, then the substeps (see above). A cut the
-  /// world rejects comes back as kStepInvalidInput with its message, and nothing is stepped.
+  /// One scene frame: the cuts of the next frame, then the substeps (see above), each after
+  /// the scene's strokes (StrokePlayer) are given for it. A cut or stroke the world rejects
+  /// comes back as kStepInvalidInput with its message, and nothing more is stepped.
   StepStatus step();
   /// Frames stepped so far.
   int frame() const { return m_frame; }
@@ -85,6 +87,7 @@ class BulletScene {
   int m_frame = 0;
   size_t m_nextCut = 0;
   std::vector<SceneCut> m_cuts;
+  StrokePlayer m_strokes;
   std::vector<BodyId> m_bodies;
   FrameTimings m_timings;
   std::vector<FractureEvent> m_fractureEvents;

@@ -1249,6 +1249,65 @@ SceneCut readCut(const json& v, const std::string& path, const Scene& scene) {
   return cut;
 }
 
+// ---- strokes ------------------------------------------------------------------------------
+
+SceneStroke readStroke(const json& v, const std::string& path, const Scene& scene) {
+  ObjReader o(v, path);
+  SceneStroke st;
+  const std::string type =
+      readChoice(o.require("type"), o.at("type"), {"push", "wet", "dry", "pull"});
+  // A sphere collider only pushes: pulling clay needs the tool to hold the surface (adhesion
+  // or friction from inside), which neither the colliders nor DeformBrush model.
+  if (type == "pull") {
+    throw SceneError{o.at("type"),
+                     "\"pull\" is not available: the tool is a sphere collider, which only "
+                     "pushes (pull clay out by pushing from the other side)"};
+  }
+  st.type = type == "push"  ? SceneStroke::Type::Push
+            : type == "wet" ? SceneStroke::Type::Wet
+                            : SceneStroke::Type::Dry;
+  if (st.type == SceneStroke::Type::Push) {
+    o.keys({"type", "body", "from_frame", "to_frame", "from", "to", "radius", "influence", "k1",
+            "k2"});
+  } else {
+    o.keys({"type", "body", "from_frame", "to_frame", "from", "to", "radius", "rate"});
+  }
+  st.body = readString(o.require("body"), o.at("body"));
+  bool found = false;
+  std::string names;
+  for (size_t i = 0; i < scene.bodies.size(); ++i) {
+    names += (i == 0 ? "\"" : ", \"") + scene.bodies[i].name + "\"";
+    if (scene.bodies[i].name == st.body) st.bodyIndex = i, found = true;
+  }
+  if (!found) {
+    throw SceneError{o.at("body"), "no body named \"" + st.body + "\" (bodies: " + names + ")"};
+  }
+  st.fromFrame = readInt(o.require("from_frame"), o.at("from_frame"), 1, scene.frames);
+  st.toFrame = readInt(o.require("to_frame"), o.at("to_frame"), st.fromFrame, scene.frames);
+  // World::deform, wet and setColliders refuse centres beyond 1e9 m.
+  const auto point = [&](const char* key) {
+    const glm::dvec3 p = readVec3(o.require(key), o.at(key));
+    if (glm::length(p) > 1e9) {
+      throw SceneError{
+          o.at(key), "expected a point within 1e9 m of the origin, got " + describe(*o.find(key))};
+    }
+    return p;
+  };
+  st.from = point("from");
+  st.to = point("to");
+  st.radius = readInRange(o.require("radius"), o.at("radius"), 0, 1e9, true, false);
+  if (st.type == SceneStroke::Type::Push) {
+    if (const json* x = o.find("influence"))
+      st.influence = readInRange(*x, o.at("influence"), 0, 1e9, true, false);
+    if (const json* x = o.find("k1")) st.k1 = readInRange(*x, o.at("k1"), 0, 1e9, true, false);
+    if (const json* x = o.find("k2")) st.k2 = readInRange(*x, o.at("k2"), 0, 1e9, true, false);
+  } else if (const json* x = o.find("rate")) {
+    st.rate = readInRange(*x, o.at("rate"), 0, 1e9, true, false);
+  }
+  o.finish();
+  return st;
+}
+
 /// A collider read for its types only, then held to World::setColliders' rules
 /// (Collider::check): what the world would reject, the scene rejects with its JSON path.
 Collider readCollider(const json& v, const std::string& path) {
@@ -1293,7 +1352,7 @@ Collider readCollider(const json& v, const std::string& path) {
 Scene readScene(const json& root, const std::string& source, const std::string& baseDir) {
   ObjReader o(root, "");
   o.keys({"name", "description", "dt", "frames", "substeps", "threads", "gravity", "backend",
-          "colliders", "bodies", "cuts", "rigid_bodies", "camera"});
+          "colliders", "bodies", "cuts", "strokes", "rigid_bodies", "camera"});
   Scene scene;
   scene.source = source;
   scene.name = std::filesystem::path(source).stem().string();
@@ -1357,6 +1416,30 @@ Scene readScene(const json& root, const std::string& source, const std::string& 
     }
     std::stable_sort(scene.cuts.begin(), scene.cuts.end(),
                      [](const SceneCut& a, const SceneCut& b) { return a.frame < b.frame; });
+  }
+  if (const json* v = o.find("strokes")) {
+    readArray(*v, o.at("strokes"), 0, "strokes");
+    std::vector<std::pair<SceneStroke, size_t>> read;
+    for (size_t i = 0; i < v->size(); ++i) {
+      read.emplace_back(readStroke((*v)[i], indexPath(o.at("strokes"), i), scene), i);
+    }
+    // File order is kept (messages and haptic.csv name strokes by it); the check sorts.
+    for (const auto& r : read) scene.strokes.push_back(r.first);
+    std::stable_sort(read.begin(), read.end(), [](const auto& a, const auto& b) {
+      return a.first.fromFrame < b.first.fromFrame;
+    });
+    // One tool: a stroke starts after the previous one ended.
+    for (size_t k = 1; k < read.size(); ++k) {
+      const auto& [prev, pi] = read[k - 1];
+      const auto& [cur, ci] = read[k];
+      if (cur.fromFrame <= prev.toFrame) {
+        throw SceneError{indexPath(o.at("strokes"), ci) + ".from_frame",
+                         "frames " + std::to_string(cur.fromFrame) + "-" +
+                             std::to_string(cur.toFrame) + " overlap strokes[" +
+                             std::to_string(pi) + "] (frames " + std::to_string(prev.fromFrame) +
+                             "-" + std::to_string(prev.toFrame) + "); there is one tool"};
+      }
+    }
   }
   o.finish();
   return scene;

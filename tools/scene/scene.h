@@ -89,6 +89,25 @@ struct SceneCut {
   Blade blade;           ///< Triangles in the blade's frame and its start and end poses.
 };
 
+/// A sculpting stroke (thesis ch. 7): a sphere tool whose centre moves linearly from `from`
+/// (at the start of frame fromFrame's step) to `to` (at the end of frame toFrame's step).
+/// Push: the sphere is a collider pressed into the body plus World::deform at its centre every
+/// step, so the body gives way around it and a plastic body keeps the dent. Wet / dry:
+/// World::wet / dry at the centre every step. tools/scene/strokes.h plays them.
+struct SceneStroke {
+  enum class Type : uint8_t { Push, Wet, Dry };
+  Type type = Type::Push;
+  std::string body;           ///< Name of the body it sculpts.
+  size_t bodyIndex = 0;       ///< Index of that body in Scene::bodies.
+  int fromFrame = 1;          ///< First frame of the stroke (>= 1).
+  int toFrame = 1;            ///< Last frame (>= fromFrame).
+  glm::dvec3 from{0}, to{0};  ///< Tool centre's path [m], world frame.
+  double radius = 0.05;       ///< Tool sphere [m].
+  double influence = 0.05;    ///< Push: R_D of eq 7.7 [m] (DeformBrush::radius).
+  double k1 = 10, k2 = 10;    ///< Push: eq 7.7's constants [1/m] (DeformBrush).
+  double rate = 1;            ///< Wet / dry: saturation per second (WetBrush::rate).
+};
+
 /// A loaded scene. `world.jobs` is null: the caller owns the job system.
 struct Scene {
   std::string name;         ///< "name" of the file, or the file's stem when absent.
@@ -96,7 +115,9 @@ struct Scene {
   std::string source;       ///< The path the scene was loaded from (or the source label).
   WorldDef world;
   std::vector<SceneBody> bodies;
-  std::vector<SceneCut> cuts;               ///< Sorted by frame; file order within a frame.
+  std::vector<SceneCut> cuts;  ///< Sorted by frame; file order within a frame.
+  /// File order; their frame ranges do not overlap (one tool at a time).
+  std::vector<SceneStroke> strokes;
   std::vector<SceneRigidBody> rigidBodies;  ///< Bullet rigid bodies, file order.
   std::optional<SceneCamera> camera;        ///< Absent: the demo frames the bodies itself.
   double dt = 1.0 / 60;  ///< Time per frame [s]; World::step(dt) is called once per frame.
