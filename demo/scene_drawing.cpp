@@ -104,6 +104,15 @@ ShapeMesh rigidMesh(const scene::SceneRigidBody& r) {
 SceneDrawing::SceneDrawing(const scene::Scene& sc)
     : m_bodyCount(sc.bodies.size()), m_rigidCount(sc.rigidBodies.size()), m_drawn(sc.rigidBodies) {
   for (const Collider& c : sc.world.colliders) m_drawn.push_back(colliderShape(c));
+  if (!sc.strokes.empty()) {
+    // The sculpting tool (scene/strokes.h) comes after the scene's colliders: a unit sphere,
+    // scaled each frame to the stroke's radius.
+    Collider tool;
+    tool.kind = Collider::Kind::Sphere;
+    tool.radius = 1;
+    m_drawn.push_back(colliderShape(tool));
+    m_drawn.back().colour = glm::vec3(0.85f, 0.75f, 0.3f);
+  }
   for (const scene::SceneRigidBody& r : m_drawn) m_shapes.push_back(rigidMesh(r));
   const size_t slots = m_bodyCount + m_shapes.size();
   m_meshes.resize(slots);
@@ -129,6 +138,8 @@ SceneDrawing::SceneDrawing(const scene::Scene& sc)
       m.castsShadow = false;
     }
   }
+  // The parked tool waits 1e6 m away: as a caster it would stretch the shadow map over that.
+  if (!sc.strokes.empty()) m_meshes.back().castsShadow = false;
 }
 
 DrawingChanges SceneDrawing::update(scene::BulletScene& sim, double strainMax) {
@@ -168,6 +179,11 @@ DrawingChanges SceneDrawing::update(scene::BulletScene& sim, double strainMax) {
                     ? glm::translate(glm::mat4(1.0f), now.point - start)
                     : glm::translate(glm::mat4(1.0f), now.point) *
                           glm::mat4_cast(glm::normalize(now.rotation));
+      // A sphere whose radius changed (the sculpting tool between strokes) is scaled to it.
+      if (m_drawn[k].shape == scene::SceneRigidBody::Shape::Sphere &&
+          now.radius != float(m_drawn[k].radius))
+        m.model =
+            m.model * glm::scale(glm::mat4(1.0f), glm::vec3(now.radius / float(m_drawn[k].radius)));
     }
     m.dirtyBegin = 0;
     m.dirtyEnd = m_first ? uint32_t(m_shapes[k].positions.size() / 3) : 0;
