@@ -19,20 +19,18 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli/commands.h"
+#include "common/cli_run.h"
 #include "scene/scene.h"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-int run(std::vector<std::string> args) {
-  std::vector<char*> argv;
-  for (std::string& a : args) argv.push_back(a.data());
-  return gf::cli::runCommand(int(argv.size()), argv.data());
-}
+int run(std::vector<std::string> args) { return gf::test::runCli(std::move(args)); }
 
 std::vector<std::map<std::string, double>> readCsv(const fs::path& path) {
   std::ifstream in(path);

@@ -11,27 +11,19 @@
 #include <map>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli/commands.h"
+#include "common/cli_run.h"
+#include "common/temp_dir.h"
 #include "scene/scene.h"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-int run(std::vector<std::string> args) {
-  std::vector<char*> argv;
-  for (std::string& a : args) argv.push_back(a.data());
-  return gf::cli::runCommand(int(argv.size()), argv.data());
-}
-
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("gf_sculpt_test_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+int run(std::vector<std::string> args) { return gf::test::runCli(std::move(args)); }
 
 const std::string kBody = R"("bodies": [{"name": "clay", "mesh": {"generator": "box",
     "size": [0.1, 0.1, 0.1], "cells": 2}, "material": {"E": 1e5, "nu": 0.3, "rho": 1800}}])";
@@ -126,7 +118,8 @@ double surfaceTop(const fs::path& obj, double x, double z) {
 }
 
 TEST(SculptSession, WetRegionPushesBackLessAndTheDentsStay) {
-  const fs::path dir = scratch("short");
+  const gf::test::TempDir tmp("sculpt_short");
+  const fs::path& dir = tmp.path;
   const std::string scene = std::string(GF_SOURCE_DIR) + "/tests/data/scenes/sculpt_short.json";
   ASSERT_EQ(run({"run", scene, "--out", (dir / "out").string(), "--quiet", "--surface", "obj",
                  "--surface-every", "100"}),
