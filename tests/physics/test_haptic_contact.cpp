@@ -238,13 +238,13 @@ TEST(HapticContact, BlendingTheWorldSurfaceKeepsTheForceSmooth) {
   EXPECT_NEAR(jumping.finalForce, blended.finalForce, 0.02 * blended.finalForce);
 }
 
-// The cut brush of thesis sec 7.2.3.6, as the pieces compose: a flat brush (two triangles in
-// the plane x = 5.2 cm, wider than the block) lowered at 2 cm/s into a frozen block (the thesis
-// freezes it while marking, so the force can build), its penalty force sampled at 1 kHz; at the
-// first sample whose force passes the threshold the brush's pose becomes a blade for
-// World::cut. The force grows with the depth, and the cut takes exactly the edges the brush
-// overlaps: those crossing its plane above its lower edge.
-TEST(HapticContact, ACutBrushCutsWhatItOverlapsOnceItsForcePassesTheThreshold) {
+// The cut brush of thesis sec 7.2.3.6 (CutBrush): a flat brush (two triangles in the plane
+// x = 5.2 cm, wider than the block) lowered at 2 cm/s into a frozen block (the thesis freezes
+// it while marking, so the force can build), its penalty force sampled at 1 kHz. Below the
+// threshold it cannot cut; from the first sample whose force passes it, cut() breaks exactly
+// the edges the brush overlaps, those crossing its plane above its lower edge, and pressed
+// 10 mm deeper it cuts again, down to the new depth.
+TEST(CutBrush, CutsWhatItOverlapsOnceItsForcePassesTheThreshold) {
   WorldDef wd;
   wd.gravity = {0, 0, 0};
   World world(wd);
@@ -259,49 +259,92 @@ TEST(HapticContact, ACutBrushCutsWhatItOverlapsOnceItsForcePassesTheThreshold) {
                                    {x, top + 0.03, 0.12},
                                    {x, top + 0.03, -0.02}};
   const std::vector<uint32_t> tri = {0, 1, 2, 0, 2, 3};
-  HapticContactSettings s;
-  s.stiffness = 200;
-  HapticContact h = HapticContact::create(brush, tri, s).value();
-  ASSERT_TRUE(h.setSurface(world.surface(id), 0).ok());
-  const double threshold = 20, speed = 0.02, dt = 1e-3;
-  double last = 0, lowest = 0;
+  CutBrushSettings s;
+  s.contact.stiffness = 200;
+  s.threshold = 20;
+  CutBrush cutter = CutBrush::create(brush, tri, s).value();
+  ASSERT_TRUE(cutter.setSurface(world.surface(id), 0).ok());
+  const double speed = 0.02, dt = 1e-3;
+  const std::vector<double>& rest = def.mesh.positions;
+  const std::span<const int32_t> edges = world.edges(id);
+  // Broken edges against those crossing the plane x above height `lowest`.
+  const auto checkCut = [&](double lowest) {
+    int cut = 0;
+    const std::span<const uint8_t> broken = world.brokenEdges(id);
+    for (size_t e = 0; e < broken.size(); ++e) {
+      const size_t a = size_t(edges[2 * e]), b = size_t(edges[2 * e + 1]);
+      const double xa = rest[3 * a] - x, xb = rest[3 * b] - x;
+      bool over = false;
+      if ((xa < 0) != (xb < 0)) {
+        const double t = xa / (xa - xb);
+        over = rest[3 * a + 1] + t * (rest[3 * b + 1] - rest[3 * a + 1]) > float(lowest);
+      }
+      cut += broken[e] != 0;
+      EXPECT_EQ(broken[e] != 0, over) << "edge " << e << " below " << lowest;
+    }
+    return cut;
+  };
+  const auto press = [&](double depth) {
+    for (glm::dvec3& p : brush) p.y -= depth;
+    return glm::length(cutter.sample(brush, dt).value());
+  };
+  double last = 0;
   int samples = 0;
   for (; samples < 2000; ++samples) {
-    for (glm::dvec3& p : brush) p.y -= speed * dt;
-    const double f = glm::length(h.sample(brush, dt).value());
+    const double f = press(speed * dt);
     EXPECT_GE(f, last - 1e-9) << samples;  // pressing deeper never pushes back less
+    if (f < s.threshold) {
+      EXPECT_FALSE(cutter.cutting());
+      // Below the threshold the brush cannot cut, and the world is left as it was.
+      if (samples % 100 == 0) {
+        EXPECT_FALSE(cutter.cut(world, id).ok());
+      }
+    }
     last = f;
-    if (f >= threshold) break;
+    if (cutter.cutting()) break;
   }
   ASSERT_LT(samples, 2000);
-  lowest = brush[0].y;
-  std::printf("cut brush: %.4g N at %.2f mm deep after %d samples\n", last, 1e3 * (top - lowest),
+  EXPECT_GE(last, s.threshold);
+  const double first = brush[0].y;
+  std::printf("cut brush: %.4g N at %.2f mm deep after %d samples\n", last, 1e3 * (top - first),
               samples + 1);
-  EXPECT_GT(top - lowest, 0.0);
-  Blade blade;
-  for (const glm::dvec3& p : brush) blade.vertices.push_back(glm::vec3(p));
-  blade.triangles = tri;
-  ASSERT_TRUE(world.cut(id, blade).ok());
+  EXPECT_GT(top - first, 0.0);
   ASSERT_TRUE(world.step(1e-3).ok());
-  const std::span<const int32_t> edges = world.edges(id);
-  const std::span<const uint8_t> broken = world.brokenEdges(id);
-  const std::vector<double>& rest = def.mesh.positions;
-  int cut = 0, overlapped = 0;
-  for (size_t e = 0; e < broken.size(); ++e) {
-    const size_t a = size_t(edges[2 * e]), b = size_t(edges[2 * e + 1]);
-    const double xa = rest[3 * a] - x, xb = rest[3 * b] - x;
-    bool over = false;
-    if ((xa < 0) != (xb < 0)) {
-      const double t = xa / (xa - xb);
-      const double y = rest[3 * a + 1] + t * (rest[3 * b + 1] - rest[3 * a + 1]);
-      over = y > float(lowest);
-    }
-    overlapped += over;
-    cut += broken[e] != 0;
-    EXPECT_EQ(broken[e] != 0, over) << "edge " << e;
+  EXPECT_EQ(world.fractureStats(id).brokenEdges, 0);  // the failed calls queued nothing
+  ASSERT_TRUE(cutter.cut(world, id).ok());
+  ASSERT_TRUE(world.step(1e-3).ok());
+  const int cut1 = checkCut(first);
+  // 10 mm deeper, past the next layer of nodes (y = 30 mm; the edges between the layers cross
+  // its plane at 38.4 mm): the brush is still over the threshold and cuts what it overlaps now.
+  for (int k = 0; k < 500; ++k) press(speed * dt);
+  ASSERT_TRUE(cutter.cutting());
+  ASSERT_TRUE(cutter.setSurface(world.surface(id), 0).ok());
+  ASSERT_TRUE(cutter.cut(world, id).ok());
+  ASSERT_TRUE(world.step(1e-3).ok());
+  const int cut2 = checkCut(brush[0].y);
+  std::printf("cut brush: %d edges cut at %.2f mm, %d at %.2f mm\n", cut1, 1e3 * (top - first),
+              cut2, 1e3 * (top - brush[0].y));
+  EXPECT_GT(cut1, 0);
+  EXPECT_GT(cut2, cut1);
+}
+
+TEST(CutBrush, BadInputIsAClearErrorAndChangesNothing) {
+  const std::vector<glm::dvec3> v = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  const std::vector<uint32_t> tri = {0, 1, 2};
+  for (double t : {0.0, -1.0, double(NAN), double(INFINITY)}) {
+    CutBrushSettings s;
+    s.threshold = t;
+    const Result<CutBrush> r = CutBrush::create(v, tri, s);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find("threshold"), std::string::npos);
   }
-  std::printf("cut brush: %d edges cut, %d overlapped\n", cut, overlapped);
-  EXPECT_GT(cut, 0);
+  CutBrushSettings s;
+  s.contact.stiffness = 0;
+  Result<CutBrush> r = CutBrush::create(v, tri, s);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("stiffness"), std::string::npos);
+  const std::vector<uint32_t> bad = {0, 1, 3};
+  EXPECT_FALSE(CutBrush::create(v, bad, {}).ok());
 }
 
 TEST(HapticContact, BadInputIsAClearErrorAndChangesNothing) {

@@ -8,6 +8,7 @@
 #include <span>
 #include <vector>
 
+#include "graphfrac/ids.h"
 #include "graphfrac/status.h"
 #include "graphfrac/surface.h"
 
@@ -34,6 +35,22 @@ struct DeformBrush {
   float radius = 0.05f;       ///< R_D [m], > 0.
   double k1 = 10;             ///< [1/m], > 0 (the thesis uses 1 to 100).
   double k2 = 10;             ///< [1/m], > 0.
+};
+
+/// Draws chosen nodes of a body toward targets during the next step (World::pull): the pull of
+/// the thesis's deform brush (sec 7.2.3.4), a tool that has grabbed the clay under it and moves
+/// away. Each node is tied to its target by a spring of `stiffness` times its mass inside the
+/// implicit step, so a stiff tether is stable at any time step; the body's elasticity, a deform
+/// brush's drag and the material's plasticity decide how the clay around follows and whether
+/// the shape stays. A node listed twice, or in several pulls before one step, is pulled by the
+/// sum of the springs toward their stiffness-weighted mean target. Nodes held by a grip are not
+/// pulled. The body feels sum m k (t - x) over the step (World::pullForce); the tool, minus it.
+struct PullBrush {
+  std::span<const int32_t> nodes;       ///< Node indices of the body.
+  std::span<const glm::dvec3> targets;  ///< One per node [m], world frame.
+  /// Spring per unit of the pulled mass [1/s^2] (N per metre of lag per kg), in (0, 1e12]. The
+  /// tool's force is about the pulled mass times this times the lag.
+  double stiffness = 1e6;
 };
 
 /// One force sample for a haptic device.
@@ -164,6 +181,50 @@ class HapticContact {
   std::vector<glm::dvec3> m_at0, m_at1;
   std::vector<uint32_t> m_placed;  // the sample that last placed each vertex
   uint32_t m_sampleId = 0;
+};
+
+class World;
+
+/// What a cut brush does.
+struct CutBrushSettings {
+  double threshold = 20;          ///< Force [N] from which the brush cuts, > 0.
+  HapticContactSettings contact;  ///< The penalty that builds the force.
+};
+
+/// The cut brush of thesis sec 7.2.3.6: a flat (open) triangle mesh that the device presses into
+/// a body. Its penetration builds the continuous penalty force of HapticContact (eq 7.5-7.6),
+/// which the device feels; while that force is at least `threshold`, the part of the body the
+/// brush overlaps is cut: cut() hands the brush at its last sampled pose to World::cut, which
+/// breaks every edge the brush crosses at the world's next step. Pressed on, the brush cuts
+/// deeper at each call. The thesis freezes the body while marking, since a body that gives
+/// way never builds the force; a deform brush (World::deform) at the cut brush does that here.
+/// Not thread-safe (the haptic thread owns it, as HapticContact).
+class CutBrush {
+ public:
+  /// The brush (world frame, its pose now; 3 indices per triangle). Error for an empty or
+  /// non-finite brush, an index out of range, or settings out of range (naming the field).
+  static Result<CutBrush> create(std::span<const glm::dvec3> vertices,
+                                 std::span<const uint32_t> indices,
+                                 const CutBrushSettings& settings = {});
+  /// As HapticContact::setSurface.
+  Result<void> setSurface(const SurfaceView& surface, double blend);
+  /// One haptic sample (HapticContact::sample): the force on the brush [N].
+  Result<glm::dvec3> sample(std::span<const glm::dvec3> vertices, double dt);
+  /// The last sample's force reached the threshold.
+  bool cutting() const { return m_cutting; }
+  /// Cuts `body` with the brush at its last sampled pose (World::cut). Error, nothing changed,
+  /// when the last sample's force is below the threshold, or with World::cut's message. Call
+  /// between steps, on the thread that steps the world.
+  Result<void> cut(World& world, BodyId body) const;
+
+ private:
+  CutBrush(HapticContact contact, std::span<const glm::dvec3> vertices,
+           std::span<const uint32_t> indices, double threshold);
+  HapticContact m_contact;
+  std::vector<glm::dvec3> m_pose;  // the last sampled pose
+  std::vector<uint32_t> m_indices;
+  double m_threshold = 0;
+  bool m_cutting = false;
 };
 
 }  // namespace gf

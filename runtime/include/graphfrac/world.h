@@ -254,6 +254,17 @@ class World {
   /// not finite or farther than 1e9 m from the origin, a radius, k1 or k2 that is not positive
   /// and finite.
   Result<void> deform(BodyId id, const DeformBrush& brush);
+  /// Pulls the brush's nodes toward its targets during the next step (see PullBrush); pulls
+  /// given before one step add up. Error, with nothing queued, for a bad id, no nodes, a
+  /// targets count that differs from the nodes count, a node index out of range or a target
+  /// that is not finite or farther than 1e9 m from the origin (each naming its index), or a
+  /// stiffness that is not in (0, 1e12].
+  Result<void> pull(BodyId id, const PullBrush& brush);
+  /// The mean force [N] the last step's pulls exerted on the body: over each substep of h,
+  /// sum m k (t - x') with x' the node's end position, averaged over the step (so the body's
+  /// momentum took pullForce * dt from them). Zero when the last step had no pull or for a bad
+  /// id. Not during step().
+  glm::dvec3 pullForce(BodyId id) const;
   /// The body's tet mesh in its current shape (its tets, the node positions now): what a
   /// sculpting session saves (TetMesh::writeMsh, writeSurface) and reloads as a new body's
   /// rest shape. Broken edges are not cut apart in it. Error for a bad id, or a tet the

@@ -53,6 +53,10 @@ struct FemState {
   /// 1/2 m w |x - x_n|^2 (in the h^2-scaled units of the incremental potential), so a free node
   /// with nothing else acting leaves the step with v_n / (1 + w). Empty: none.
   std::vector<double> drag;
+  /// Per node, the tether weight w of a pull for the coming step (World::pull): the energy
+  /// 1/2 m w |x - t|^2 toward the node's target t (tetherTarget, 3 per node), a spring of
+  /// m w / h^2 over a step of h. Empty: none.
+  std::vector<double> tether, tetherTarget;
   // Plasticity (eq 2.3-2.5), only when enabled (else empty): per tet Fp, its inverse, the
   // hardening accumulator delta and the effective rest inverse Dm^-1 Fp^-1 that the element
   // pass and the fracture criterion use instead of Dm^-1.

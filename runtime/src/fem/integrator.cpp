@@ -38,12 +38,20 @@ constexpr double kSweptTolerance = 1e-3;
 constexpr double kNewtonRoundOff = 1e-12;
 // Round-off of the incremental potential relative to the summed size of its terms.
 constexpr double kEnergyRoundOff = 1e-11;
+// Round-off of an element energy's own cancellation relative to (mu + lambda) V: a few ulps
+// of each term, summed over the elements.
+constexpr double kElementRoundOff = 1e-14;
 // A step whose elastic energy exceeds this times Young's modulus times the body's volume (a
 // mean stretch of about a thousand) diverged: no material holds together there, so it is
 // rolled back like a NaN instead of handing the game an exploded body.
 constexpr double kBlowUpEnergyDensity = 1e6;
 
 Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i + 2]}; }
+
+Tether tetherOf(const FemState& state) {
+  if (state.tether.empty()) return {};
+  return {state.tether.data(), state.tetherTarget.data()};
+}
 
 }  // namespace
 
@@ -186,6 +194,7 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
   nodes.dt = dt;
   nodes.massDamping = r1;
   nodes.drag = state.drag.empty() ? nullptr : state.drag.data();
+  nodes.tether = tetherOf(state);
   nodes.lengthScale = model.lengthScale;
   nodes.nodeCount = model.nodeCount;
   nodes.terms = m_nodeTerms.data();
@@ -207,10 +216,17 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
                              ? dampingTerm(state, m_dampRef.data(), x, dt, withGradient, jobs)
                              : 0.0;
   // The terms cancel (gravity work against elastic energy), so E's round-off follows the
-  // size of its parts, not of E itself.
-  if (withGradient)
-    m_energyMagnitude =
-        magnitude + gradMagnitude + std::abs(damping) + dt2 * (std::abs(psi) + contact);
+  // size of its parts, not of E itself. Each element's energy density cancels too: near the
+  // rest shape its terms are of order mu + lambda while their sum is near zero, so a body at
+  // rest still carries a few ulps of (mu + lambda + mu_f) V.
+  if (withGradient) {
+    const MaterialCoeffs& c = state.coeffs;
+    m_energyRoundOff =
+        kEnergyRoundOff *
+            (magnitude + gradMagnitude + std::abs(damping) + dt2 * (std::abs(psi) + contact)) +
+        kElementRoundOff * dt2 * (std::abs(c.mu) + std::abs(c.lambda) + std::abs(c.fibreMu)) *
+            m_restVolume;
+  }
   return nodeTerms + damping + dt2 * (psi + contact);
 }
 
@@ -352,6 +368,7 @@ ExternalImpulse Integrator::externalImpulse(const FemState& state, const StepCon
   e.xLin = m_xLin.data();
   e.massDamping = state.material.massDamping;
   e.drag = state.drag.empty() ? nullptr : state.drag.data();
+  e.tether = tetherOf(state);
   e.dt = ctx.dt;
   e.colliders = ctx.colliders;
   e.colliderCount = ctx.colliderCount;
@@ -499,6 +516,8 @@ BodyContactBalance Integrator::bodyContactImpulses(const FemState& state, const 
     change += m * (load3(state.v.data(), n) - load3(m_vStart.data(), n));
     change -= ctx.dt * (load3(state.externalForce.data(), n) + m * ctx.gravity);
     change += ((r1 + (state.drag.empty() ? 0.0 : state.drag[size_t(n)] / ctx.dt)) * m) * (x - x0);
+    if (!state.tether.empty())
+      change += (state.tether[size_t(n)] * m / ctx.dt) * tetherOf(state).offset(n, x);
   }
   if (ctx.colliderImpulse)
     for (int k = 0; k < 6 * ctx.colliderCount; ++k) out3.external |= ctx.colliderImpulse[k] != 0;
@@ -593,7 +612,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     exec.run(model.nodeCount, kNodeGrain,
              NodeBlockStage{m_A.values.data(), m_diagonalBlock.data(), state.nodeMass.data(),
                             m_contactHess.data(), 1 + dt * r1, dt2,
-                            state.drag.empty() ? nullptr : state.drag.data()});
+                            state.drag.empty() ? nullptr : state.drag.data(), tetherOf(state)});
     applyDirichlet(m_A, state.fixedNode.data());
     exec.run(n3i, kNodeGrain,
              FreeDifferenceStage{nullptr, m_grad.data(), state.fixedNode.data(), m_rhs.data()});
@@ -658,8 +677,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     double alpha = 1.0;
     // A predicted decrease below E's resolution cannot be judged by evaluating E: trust the
     // Newton step then (it is at round-off level anyway).
-    const bool search =
-        model.solver.lineSearch && slope < 0 && -slope > kEnergyRoundOff * m_energyMagnitude;
+    const bool search = model.solver.lineSearch && slope < 0 && -slope > m_energyRoundOff;
     finalPsiKnown = search;
     finalStepNegligible = model.solver.lineSearch && !search && slope < 0;
     if (search) {
@@ -672,8 +690,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
             incrementalPotential(model, state, start, m_tmp.data(), ctx, false, false, jobs);
         // Near convergence E changes below its round-off; accept a step that does not
         // raise E beyond that.
-        if (std::isfinite(Et) &&
-            (Et <= E + kArmijo * alpha * slope || Et <= E + kEnergyRoundOff * m_energyMagnitude))
+        if (std::isfinite(Et) && (Et <= E + kArmijo * alpha * slope || Et <= E + m_energyRoundOff))
           break;
         if (alpha <= kMinLineSearchStep) {
           searchFailed = true;
@@ -773,6 +790,9 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   // touches a collider, or would within the step, is stepped with backward Euler.
   sweepColliders(model, state, ctx, jobs, rep);
   double theta = 0.5 + 0.5 * model.solver.numericalDamping;
+  // A pull's tether is a stiff spring whose weight is set for backward Euler over the whole
+  // step; extrapolating it would overshoot the target as extrapolating penalty contact does.
+  if (!state.tether.empty()) theta = 1;
   if (theta < 1 && ctx.colliderCount > 0 &&
       nearCollider(model, state, state.x.data(), state.v.data(), ctx.dt, ctx, jobs))
     theta = 1;

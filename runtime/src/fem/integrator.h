@@ -199,7 +199,7 @@ class Integrator {
   std::vector<Mat3> m_contactHess;       // per node
   std::vector<double> m_nodeTerms;       // NodePotentialStage::terms
   std::vector<int32_t> m_diagonalBlock;  // block of each node's diagonal in m_A
-  double m_energyMagnitude = 0;          // summed |terms| of the last potential (round-off scale)
+  double m_energyRoundOff = 0;           // round-off of the last potential with its gradient
   double m_lastPsi = 0;                  // elastic energy of the last incrementalPotential call
   double m_restVolume = 0;               // of the whole body, for the blow-up test
   std::vector<uint8_t> m_contactSeen;    // contact was in the last linearisation

@@ -12,12 +12,30 @@
 
 namespace gf::detail {
 
+/// A pull's springs for one step (FemState::tether, FemState::tetherTarget): node n is drawn
+/// toward its target t by 1/2 m w |x - t|^2 in the h^2-scaled units of the incremental
+/// potential, a spring of stiffness m w / h^2. Null weights: no pull.
+struct Tether {
+  const double* w = nullptr;       ///< per node, 0 where not pulled
+  const double* target = nullptr;  ///< 3 per node
+
+  GF_HD double weight(int32_t n) const { return w ? w[n] : 0.0; }
+  /// x - t, or zero where not pulled.
+  GF_HD Vec3 offset(int32_t n, Vec3 x) const {
+    if (!w || w[n] == 0) return {0, 0, 0};
+    const int64_t i3 = 3 * int64_t(n);
+    return x - Vec3{target[i3], target[i3 + 1], target[i3 + 2]};
+  }
+};
+
 /// The node's energy terms, one array of nodeCount values each, laid out one after another
 /// in NodePotentialStage::terms.
 enum NodeTerm : int { kNodeEnergy, kNodeContact, kNodeMagnitude, kNodeGradMagnitude, kNodeTerms };
 
 /// E_n(x) = 1/2 m |x-y|^2 + dt/2 r1 m |x-x_n|^2 - dt^2 f^T x + dt^2 (Psi_c(x) + D_f(x)) per node
-/// (eq 2.7, 3.13 with Rayleigh r1; D_f collider friction's dissipation potential), and, when `grad`
+/// (eq 2.7, 3.13 with Rayleigh r1; D_f collider friction's dissipation potential), plus the
+/// sculpting terms 1/2 m w |x-x_n|^2 (deform drag) and 1/2 m w_t |x-t|^2 (pull tether; see
+/// FemState::drag, FemState::tether), and, when `grad`
 /// is non-null, its gradient plus dt^2 times the elastic node gradient, the contact Hessian block
 /// and whether the node touches a collider. The magnitude terms are the summed sizes of the parts
 /// that cancel in E and in dE/dx |x| (round-off scale of the line search).
@@ -35,6 +53,7 @@ struct NodePotentialStage {
   ColliderFriction friction;
   double dt = 0, massDamping = 0, lengthScale = 1;
   const double* drag = nullptr;  ///< FemState::drag, null: none
+  Tether tether;
   int32_t nodeCount = 0;
   double* terms = nullptr;  ///< kNodeTerms * nodeCount
   // Gradient pass only (null otherwise).
@@ -58,19 +77,22 @@ struct NodePotentialStage {
     contact += bodies.contact(n, xi, cg, ch) + bodies.friction(n, xi, xni, cg, ch);
     const Vec3 dy = xi - yi, dn = xi - xni;
     const double w = drag ? drag[n] : 0.0;
-    const double inertia = 0.5 * m * dot(dy, dy) + 0.5 * (dt * r1 + w) * m * dot(dn, dn);
+    const Vec3 dp = tether.offset(n, xi);
+    const double wt = tether.weight(n);
+    const double inertia =
+        0.5 * m * dot(dy, dy) + 0.5 * (dt * r1 + w) * m * dot(dn, dn) + 0.5 * wt * m * dot(dp, dp);
     const double work = dt2 * dot(fext, xi);
     terms[kNodeEnergy * int64_t(nodeCount) + n] = inertia - work;
     terms[kNodeContact * int64_t(nodeCount) + n] = contact;
     terms[kNodeMagnitude * int64_t(nodeCount) + n] = inertia + (work < 0 ? -work : work);
     double gradMagnitude = 0;
     if (grad) {
-      const Vec3 g = m * dy + ((dt * r1 + w) * m) * dn + dt2 * (cg - fext);
+      const Vec3 g = m * dy + ((dt * r1 + w) * m) * dn + (wt * m) * dp + dt2 * (cg - fext);
       const Vec3 ge{elasticGrad[i3], elasticGrad[i3 + 1], elasticGrad[i3 + 2]};
       // Round-off of E from rounding x: |dE/dx| |x| eps, summed over the parts before they
       // cancel (inertia against gravity against elasticity).
-      gradMagnitude = (norm(m * dy) + (dt * r1 + w) * m * norm(dn) + dt2 * (norm(cg) + norm(fext)) +
-                       dt2 * norm(ge)) *
+      gradMagnitude = (norm(m * dy) + (dt * r1 + w) * m * norm(dn) + wt * m * norm(dp) +
+                       dt2 * (norm(cg) + norm(fext)) + dt2 * norm(ge)) *
                       (norm(xi) + lengthScale);
       for (int i = 0; i < 3; ++i) grad[i3 + i] = g[i] + dt2 * ge[i];
       contactHess[n] = ch;
@@ -118,8 +140,9 @@ struct FreeDifferenceStage {
   }
 };
 
-/// The per-node blocks of the step's matrix, A_nn += m (1 + dt r1 + w) I + dt^2 H_contact
-/// (eq 2.7, 3.13 with Rayleigh r1 and a deform brush's drag w): `values` are the block-sparse
+/// The per-node blocks of the step's matrix, A_nn += m (1 + dt r1 + w + w_t) I + dt^2 H_contact
+/// (eq 2.7, 3.13 with Rayleigh r1, a deform brush's drag w and a pull's tether w_t): `values` are
+/// the block-sparse
 /// values (9 per block) and diagonalBlock the block of each node's diagonal.
 struct NodeBlockStage {
   double* values = nullptr;
@@ -128,10 +151,11 @@ struct NodeBlockStage {
   const Mat3* contactHess = nullptr;
   double massScale = 1, dt2 = 0;
   const double* drag = nullptr;  ///< FemState::drag, null: none
+  Tether tether;
 
   GF_HD void operator()(int32_t n) const {
     double* blk = values + 9 * int64_t(diagonalBlock[n]);
-    const double md = nodeMass[n] * (massScale + (drag ? drag[n] : 0.0));
+    const double md = nodeMass[n] * (massScale + (drag ? drag[n] : 0.0) + tether.weight(n));
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j)
         blk[3 * i + j] += (i == j ? md : 0.0) + dt2 * contactHess[n](i, j);

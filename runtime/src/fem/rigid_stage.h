@@ -10,6 +10,7 @@
 #include <cstdint>
 
 #include "fem/friction_stage.h"
+#include "fem/node_stage.h"
 #include "kernels/contact.h"
 #include "kernels/tet_inertia.h"
 
@@ -79,9 +80,9 @@ GF_HD Mat3 turnBy(Vec3 spin, double dt) {
   return Mat3::identity() + sin(angle) * K + (1 - cos(angle)) * (K * K);
 }
 
-/// What the outside gives node n over dt when it ends at x: point forces, mass-damping and
-/// deform-brush drag and contact (penalty, body contact, friction) as the last Newton step
-/// linearised it at xLin. No gravity: it has no moment about the centre.
+/// What the outside gives node n over dt when it ends at x: point forces, mass-damping,
+/// deform-brush drag, a pull's tether and contact (penalty, body contact, friction) as the last
+/// Newton step linearised it at xLin. No gravity: it has no moment about the centre.
 struct ExternalImpulse {
   const double* externalForce = nullptr;
   const double* nodeMass = nullptr;
@@ -89,6 +90,7 @@ struct ExternalImpulse {
   const double* xLin = nullptr;  ///< read only with colliders or body contact
   double massDamping = 0, dt = 0;
   const double* drag = nullptr;  ///< FemState::drag, null: none
+  Tether tether;
   const ColliderData* colliders = nullptr;
   int colliderCount = 0;
   SweptContacts swept;
@@ -99,7 +101,8 @@ struct ExternalImpulse {
     const double m = nodeMass[n];
     const Vec3 xs = nodeVec3(xStart, n);
     const double damping = massDamping + (drag ? drag[n] / dt : 0.0);
-    Vec3 impulse = dt * nodeVec3(externalForce, n) - (damping * m) * (x - xs);
+    Vec3 impulse = dt * nodeVec3(externalForce, n) - (damping * m) * (x - xs) -
+                   (tether.weight(n) * m / dt) * tether.offset(n, x);
     if (colliderCount > 0) {
       const Vec3 xl = nodeVec3(xLin, n);
       for (int c = 0; c < colliderCount; ++c) {

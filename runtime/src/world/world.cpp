@@ -291,12 +291,12 @@ StepStatus World::step(double dt) {
   const auto t0 = detail::Clock::now();
   w.timings = {};
   w.advanceWater(dt);
-  w.prepareDeformDrag();
   w.fractureEvents.clear();
   w.fragmentEvents.clear();
   w.handoffEvents.clear();
   const double h = dt / w.def.substeps;
   w.lastSubstep = h;
+  w.prepareBrushes(h);
   w.setColliderStiffness(h);
   detail::StepContext ctx = w.context(h);
   // Moving colliders: each substep sees them at its end pose; the sums of their impulses are
@@ -344,6 +344,7 @@ StepStatus World::step(double dt) {
     tc = detail::Clock::now();
     w.bodyContact.exchange(w.contactViews, w.contactStates);
     w.timings.contactMs += detail::msSince(tc);
+    w.sumPullImpulses(h);
     // Events, flags and sums in slot order, whichever thread stepped the body.
     for (size_t si = 0; si < w.slots.size(); ++si) {
       BodyRecord* b = w.slots[si].body.get();
@@ -367,7 +368,7 @@ StepStatus World::step(double dt) {
       for (size_t k = 0; k < nc; ++k) w.colliderImpulse[k] += w.bodyImpulse[nc * si + k];
     }
   }
-  w.clearDeformDrag();
+  w.clearBrushes(dt);
   for (size_t c = 0; c < w.colliders.size(); ++c) {
     const double* j = &w.colliderImpulse[6 * c];
     w.impulses[c] = {j[0], j[1], j[2]};

@@ -83,6 +83,13 @@ struct BodyRecord {
   std::vector<double> saturation;
   // World::deform: the brushes whose kernel scales the velocities at the next step's end.
   std::vector<DeformBrush> deformBrushes;
+  // World::pull: per node, the summed stiffness [1/s^2] of the next step's pulls and the
+  // stiffness-weighted sum of their targets (3 per node; both empty: no pull), the nodes pulled,
+  // and the impulse the pulls gave the body over the current step, then World::pullForce.
+  std::vector<double> pullStiffness, pullTargetSum;
+  std::vector<int32_t> pulledNodes;
+  Vec3 pullImpulse{0, 0, 0};
+  glm::dvec3 pullForce{0};
 };
 
 /// Kernel form of a collider; the stiffness is filled in per step (World::Impl::context).
@@ -138,9 +145,12 @@ struct World::Impl {
   // Turns each body's deform brushes into the per-node drag of the step (FemState::drag): a free
   // node that nothing else moves leaves the step with its velocity times G_d (eq 7.7); the
   // drag is implicit, so the elastic solve sees it and the far body holds still. Then forgets
-  // the brushes; clearDeformDrag removes the drag after the step.
-  void prepareDeformDrag();
-  void clearDeformDrag();
+  // the brushes. Turns each body's pulls into the tethers of substeps of h (FemState::tether).
+  void prepareBrushes(double h);
+  // After each substep of h: the impulse the tethers gave each pulled body.
+  void sumPullImpulses(double h);
+  // After the step of dt: removes drag and tethers and sets each body's pullForce.
+  void clearBrushes(double dt);
   // Publishes the proxy force of the step of dt that just ended to the attached probe.
   void publishProbe(double dt);
   // Set while step() runs: calls that change the world are refused then (a job callback

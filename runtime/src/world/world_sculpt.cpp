@@ -1,5 +1,5 @@
-// World: sculpting commands (thesis ch. 7): wet and dry brushes, the water queries, and the
-// haptic probe the step publishes to.
+// World: sculpting commands (thesis ch. 7): wet, dry, deform and pull brushes, the water
+// queries, and the haptic probe the step publishes to.
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -12,8 +12,10 @@
 namespace gf {
 
 namespace {
-// The smallest G_d a deform brush applies (World::prepareDeformDrag).
+// The smallest G_d a deform brush applies (World::prepareBrushes).
 constexpr double kMinDeformKernel = 1e-6;
+// The stiffest pull [1/s^2]: beyond it a tether is a grip (World::setGripVelocity).
+constexpr double kMaxPullStiffness = 1e12;
 
 // The checks of wet and dry, then the stroke queued for the next step. `busy` is
 // World::Impl::busy's message, `b` the body or null.
@@ -70,11 +72,69 @@ Result<void> World::deform(BodyId id, const DeformBrush& brush) {
   return {};
 }
 
-void World::Impl::prepareDeformDrag() {
+Result<void> World::pull(BodyId id, const PullBrush& brush) {
+  if (std::string e = m_impl->busy("pull"); !e.empty()) return fail(e);
+  BodyRecord* b = m_impl->get(id);
+  if (!b) return fail("pull: stale or null BodyId");
+  if (brush.nodes.empty()) return fail("pull: brush.nodes is empty");
+  if (brush.targets.size() != brush.nodes.size())
+    return fail("pull: brush.targets has ", std::to_string(brush.targets.size()), " entries for ",
+                std::to_string(brush.nodes.size()), " nodes");
+  if (!(std::isfinite(brush.stiffness) && brush.stiffness > 0 &&
+        brush.stiffness <= kMaxPullStiffness))
+    return fail("pull: brush.stiffness must be positive and at most 1e12 1/s^2, got ",
+                std::to_string(brush.stiffness));
+  const int32_t nodeCount = b->model.nodeCount;
+  for (size_t i = 0; i < brush.nodes.size(); ++i) {
+    if (brush.nodes[i] < 0 || brush.nodes[i] >= nodeCount)
+      return fail("pull: brush.nodes[", std::to_string(i), "] = ", std::to_string(brush.nodes[i]),
+                  " is out of range [0, ", std::to_string(nodeCount), ")");
+    const glm::dvec3 t = brush.targets[i];
+    if (!(std::isfinite(t.x) && std::isfinite(t.y) && std::isfinite(t.z) &&
+          std::abs(t.x) <= detail::kMaxMagnitude && std::abs(t.y) <= detail::kMaxMagnitude &&
+          std::abs(t.z) <= detail::kMaxMagnitude))
+      return fail("pull: brush.targets[", std::to_string(i),
+                  "] must be finite, within 1e9 m of the origin");
+  }
+  if (b->pullStiffness.empty()) {
+    b->pullStiffness.assign(size_t(nodeCount), 0.0);
+    b->pullTargetSum.assign(3 * size_t(nodeCount), 0.0);
+  }
+  for (size_t i = 0; i < brush.nodes.size(); ++i) {
+    const size_t n = size_t(brush.nodes[i]);
+    if (b->pullStiffness[n] == 0) b->pulledNodes.push_back(int32_t(n));
+    b->pullStiffness[n] += brush.stiffness;
+    for (int k = 0; k < 3; ++k)
+      b->pullTargetSum[3 * n + size_t(k)] += brush.stiffness * brush.targets[i][k];
+  }
+  return {};
+}
+
+glm::dvec3 World::pullForce(BodyId id) const {
+  const BodyRecord* b = m_impl->get(id);
+  return b ? b->pullForce : glm::dvec3(0);
+}
+
+void World::Impl::prepareBrushes(double h) {
   for (Slot& s : slots) {
     BodyRecord* b = s.body.get();
-    if (!b || b->deformBrushes.empty()) continue;
+    if (!b) continue;
     detail::FemState& st = b->state;
+    b->pullImpulse = {0, 0, 0};
+    if (!b->pulledNodes.empty()) {
+      // A spring of stiffness k per unit mass is the energy 1/2 m k |x - t|^2, which the
+      // incremental potential holds multiplied by h^2.
+      st.tether.assign(size_t(b->model.nodeCount), 0.0);
+      st.tetherTarget.assign(3 * size_t(b->model.nodeCount), 0.0);
+      for (int32_t n : b->pulledNodes) {
+        const size_t i = size_t(n);
+        if (st.fixedNode[i]) continue;  // prescribed by a grip
+        const double k = b->pullStiffness[i];
+        st.tether[i] = k * h * h;
+        for (size_t c = 0; c < 3; ++c) st.tetherTarget[3 * i + c] = b->pullTargetSum[3 * i + c] / k;
+      }
+    }
+    if (b->deformBrushes.empty()) continue;
     st.drag.assign(size_t(b->model.nodeCount), 0.0);
     const std::vector<DeformBrush>& brushes = b->deformBrushes;
     const double perSubstep = 1.0 / def.substeps;
@@ -98,9 +158,36 @@ void World::Impl::prepareDeformDrag() {
   }
 }
 
-void World::Impl::clearDeformDrag() {
-  for (Slot& s : slots)
-    if (s.body) s.body->state.drag.clear();
+void World::Impl::sumPullImpulses(double h) {
+  for (Slot& s : slots) {
+    BodyRecord* b = s.body.get();
+    if (!b || b->state.tether.empty()) continue;
+    const detail::FemState& st = b->state;
+    // What backward Euler gave each node over h: h times the spring force m w / h^2 (t - x).
+    for (int32_t n : b->pulledNodes) {
+      const size_t i = size_t(n);
+      const double c = st.nodeMass[i] * st.tether[i] / h;
+      b->pullImpulse += c * Vec3{st.tetherTarget[3 * i] - st.x[3 * i],
+                                 st.tetherTarget[3 * i + 1] - st.x[3 * i + 1],
+                                 st.tetherTarget[3 * i + 2] - st.x[3 * i + 2]};
+    }
+  }
+}
+
+void World::Impl::clearBrushes(double dt) {
+  for (Slot& s : slots) {
+    BodyRecord* b = s.body.get();
+    if (!b) continue;
+    b->state.drag.clear();
+    b->pullForce = glm::dvec3(0);
+    if (b->pulledNodes.empty()) continue;
+    b->pullForce = glm::dvec3(b->pullImpulse.x, b->pullImpulse.y, b->pullImpulse.z) / dt;
+    b->state.tether.clear();
+    b->state.tetherTarget.clear();
+    b->pullStiffness.clear();
+    b->pullTargetSum.clear();
+    b->pulledNodes.clear();
+  }
 }
 
 Result<TetMesh> World::currentMesh(BodyId id) const {
