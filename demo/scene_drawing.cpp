@@ -140,6 +140,24 @@ SceneDrawing::SceneDrawing(const scene::Scene& sc)
   }
   // The parked tool waits 1e6 m away: as a caster it would stretch the shadow map over that.
   if (!sc.strokes.empty()) m_meshes.back().castsShadow = false;
+  for (const scene::SceneStroke& st : sc.strokes)
+    m_hasBrush |= st.type == scene::SceneStroke::Type::Cut;
+  if (m_hasBrush) {
+    // Front (0-3) and back (4-7) copies of the square, so it shows from either side.
+    m_brushPositions.assign(24, 0.0f);
+    m_brushNormals.assign(24, 0.0f);
+    m_brushIndices = {0, 1, 2, 0, 2, 3, 4, 6, 5, 4, 7, 6};
+    m_meshes.emplace_back();
+    MeshFrame& m = m_meshes.back();
+    m.positions = m_brushPositions;
+    m.normals = m_brushNormals;
+    m.indices = m_brushIndices;
+    m.topologyVersion = 1;
+    m.colour = glm::vec3(0.75f, 0.78f, 0.82f);
+    m_lastVersion.push_back(0);
+    m_lastVertices.push_back(0);
+    m_lastTriangles.push_back(0);
+  }
 }
 
 DrawingChanges SceneDrawing::update(scene::BulletScene& sim, double strainMax) {
@@ -187,6 +205,27 @@ DrawingChanges SceneDrawing::update(scene::BulletScene& sim, double strainMax) {
     }
     m.dirtyBegin = 0;
     m.dirtyEnd = m_first ? uint32_t(m_shapes[k].positions.size() / 3) : 0;
+  }
+  if (m_hasBrush) {
+    // Between cut strokes the brush waits with the parked tool, casting no shadow.
+    const std::span<const glm::dvec3> pose = sim.strokes().brushPose();
+    const glm::vec3 n =
+        pose.size() == 4
+            ? glm::vec3(glm::normalize(glm::cross(pose[1] - pose[0], pose[2] - pose[0])))
+            : glm::vec3(0, 1, 0);
+    for (int k = 0; k < 8; ++k) {
+      const glm::vec3 p = pose.size() == 4 ? glm::vec3(pose[size_t(k % 4)])
+                                           : glm::vec3(0, scene::StrokePlayer::kParkedTool, 0);
+      const glm::vec3 nk = k < 4 ? n : -n;
+      for (int i = 0; i < 3; ++i) {
+        m_brushPositions[size_t(3 * k + i)] = p[i];
+        m_brushNormals[size_t(3 * k + i)] = nk[i];
+      }
+    }
+    MeshFrame& m = m_meshes.back();
+    m.castsShadow = pose.size() == 4;
+    m.dirtyBegin = 0;
+    m.dirtyEnd = 8;
   }
   DrawingChanges c;
   for (size_t i = 0; i < m_meshes.size(); ++i) {

@@ -1,8 +1,8 @@
 // What the demo and the viewer draw of a running scene: one MeshFrame slot per scene body (its
 // surface stream), per rigid body and per static collider (shapes uploaded once, moved by their
-// model matrix). The slots stay fixed for the scene's lifetime, so a renderer keeps each buffer
-// and uploads only what changed: a body's dirty vertex range, or everything after a fracture
-// changed its topology.
+// model matrix), and one for a cut brush when the scene has cut strokes. The slots stay fixed for
+// the scene's lifetime, so a renderer keeps each buffer and uploads only what changed: a body's
+// dirty vertex range, or everything after a fracture changed its topology.
 #pragma once
 
 #include <graphfrac/world.h>
@@ -66,6 +66,10 @@ class SceneDrawing {
   std::vector<MeshFrame> m_meshes;
   std::vector<uint64_t> m_lastVersion, m_lastVertices, m_lastTriangles;
   std::vector<std::vector<float>> m_strain;  ///< Per body, per vertex, 0..1.
+  /// The cut brush (the last slot when the scene has cut strokes): a two-sided square.
+  bool m_hasBrush = false;
+  std::vector<float> m_brushPositions, m_brushNormals;
+  std::vector<uint32_t> m_brushIndices;
   bool m_first = true;
 };
 

@@ -72,6 +72,8 @@ class BulletScene {
   /// already in world space).
   glm::mat4 rigidTransform(size_t i) const;
   size_t rigidBodyCount() const;
+  /// The scene's sculpting strokes as played so far.
+  const StrokePlayer& strokes() const { return m_strokes; }
   /// Fragments handed to Bullet so far.
   size_t handedOff() const;
 

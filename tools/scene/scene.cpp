@@ -1255,20 +1255,21 @@ SceneStroke readStroke(const json& v, const std::string& path, const Scene& scen
   ObjReader o(v, path);
   SceneStroke st;
   const std::string type =
-      readChoice(o.require("type"), o.at("type"), {"push", "wet", "dry", "pull"});
-  // A sphere collider only pushes: pulling clay needs the tool to hold the surface (adhesion
-  // or friction from inside), which neither the colliders nor DeformBrush model.
-  if (type == "pull") {
-    throw SceneError{o.at("type"),
-                     "\"pull\" is not available: the tool is a sphere collider, which only "
-                     "pushes (pull clay out by pushing from the other side)"};
-  }
-  st.type = type == "push"  ? SceneStroke::Type::Push
-            : type == "wet" ? SceneStroke::Type::Wet
-                            : SceneStroke::Type::Dry;
+      readChoice(o.require("type"), o.at("type"), {"push", "pull", "cut", "wet", "dry"});
+  st.type = type == "push"   ? SceneStroke::Type::Push
+            : type == "pull" ? SceneStroke::Type::Pull
+            : type == "cut"  ? SceneStroke::Type::Cut
+            : type == "wet"  ? SceneStroke::Type::Wet
+                             : SceneStroke::Type::Dry;
   if (st.type == SceneStroke::Type::Push) {
     o.keys({"type", "body", "from_frame", "to_frame", "from", "to", "radius", "influence", "k1",
             "k2"});
+  } else if (st.type == SceneStroke::Type::Pull) {
+    o.keys({"type", "body", "from_frame", "to_frame", "from", "to", "radius", "influence", "k1",
+            "k2", "grab", "stiffness"});
+  } else if (st.type == SceneStroke::Type::Cut) {
+    o.keys({"type", "body", "from_frame", "to_frame", "from", "to", "normal", "size", "threshold",
+            "stiffness", "influence", "k1", "k2"});
   } else {
     o.keys({"type", "body", "from_frame", "to_frame", "from", "to", "radius", "rate"});
   }
@@ -1295,12 +1296,36 @@ SceneStroke readStroke(const json& v, const std::string& path, const Scene& scen
   };
   st.from = point("from");
   st.to = point("to");
-  st.radius = readInRange(o.require("radius"), o.at("radius"), 0, 1e9, true, false);
-  if (st.type == SceneStroke::Type::Push) {
+  if (st.type == SceneStroke::Type::Cut) {
+    // The brush's plane holds the path: the normal must be across it (the tool parks meanwhile).
+    const glm::dvec3 path = st.to - st.from;
+    if (!(glm::length(path) > 0))
+      throw SceneError{o.at("to"), "a cut stroke must move: \"to\" equals \"from\""};
+    const glm::dvec3 n = readVec3(o.require("normal"), o.at("normal"));
+    const glm::dvec3 across = n - glm::dot(n, path) / glm::dot(path, path) * path;
+    if (!(glm::length(across) > 0.5 * glm::length(n)))
+      throw SceneError{o.at("normal"),
+                       "must be a non-zero vector across the path (from -> to), "
+                       "within 60 degrees of perpendicular, got " +
+                           describe(*o.find("normal"))};
+    st.normal = across / glm::length(across);
+    st.size = readInRange(o.require("size"), o.at("size"), 0, 1e9, true, false);
+    if (const json* x = o.find("threshold"))
+      st.threshold = readInRange(*x, o.at("threshold"), 0, 1e9, true, false);
+    st.stiffness = 1000;  // HapticContactSettings' default; read below
+  } else {
+    st.radius = readInRange(o.require("radius"), o.at("radius"), 0, 1e9, true, false);
+  }
+  if (st.type == SceneStroke::Type::Push || st.type == SceneStroke::Type::Pull ||
+      st.type == SceneStroke::Type::Cut) {
     if (const json* x = o.find("influence"))
       st.influence = readInRange(*x, o.at("influence"), 0, 1e9, true, false);
     if (const json* x = o.find("k1")) st.k1 = readInRange(*x, o.at("k1"), 0, 1e9, true, false);
     if (const json* x = o.find("k2")) st.k2 = readInRange(*x, o.at("k2"), 0, 1e9, true, false);
+    if (const json* x = o.find("grab"))
+      st.grab = readInRange(*x, o.at("grab"), 0, 1e9, false, false);
+    if (const json* x = o.find("stiffness"))
+      st.stiffness = readInRange(*x, o.at("stiffness"), 0, 1e12, true, false);
   } else if (const json* x = o.find("rate")) {
     st.rate = readInRange(*x, o.at("rate"), 0, 1e9, true, false);
   }

@@ -95,7 +95,7 @@ struct SceneCut {
 /// step, so the body gives way around it and a plastic body keeps the dent. Wet / dry:
 /// World::wet / dry at the centre every step. tools/scene/strokes.h plays them.
 struct SceneStroke {
-  enum class Type : uint8_t { Push, Wet, Dry };
+  enum class Type : uint8_t { Push, Wet, Dry, Pull, Cut };
   Type type = Type::Push;
   std::string body;           ///< Name of the body it sculpts.
   size_t bodyIndex = 0;       ///< Index of that body in Scene::bodies.
@@ -103,9 +103,17 @@ struct SceneStroke {
   int toFrame = 1;            ///< Last frame (>= fromFrame).
   glm::dvec3 from{0}, to{0};  ///< Tool centre's path [m], world frame.
   double radius = 0.05;       ///< Tool sphere [m].
-  double influence = 0.05;    ///< Push: R_D of eq 7.7 [m] (DeformBrush::radius).
-  double k1 = 10, k2 = 10;    ///< Push: eq 7.7's constants [1/m] (DeformBrush).
+  double influence = 0.05;    ///< Push / pull: R_D of eq 7.7 [m] (DeformBrush::radius).
+  double k1 = 10, k2 = 10;    ///< Push / pull: eq 7.7's constants [1/m] (DeformBrush).
   double rate = 1;            ///< Wet / dry: saturation per second (WetBrush::rate).
+  /// Pull: nodes within radius + grab of the tool's centre at the stroke's start stick to it.
+  double grab = 0.005;
+  double stiffness = 1e6;  ///< Pull: PullBrush::stiffness [1/s^2]; cut: the penalty [N/m].
+  /// Cut: the brush is a square of side `size` in the plane through the path with this unit
+  /// normal (across the path), its leading edge centred on the path.
+  glm::dvec3 normal{0, 1, 0};
+  double size = 0.05;
+  double threshold = 20;  ///< Cut: CutBrushSettings::threshold [N].
 };
 
 /// A loaded scene. `world.jobs` is null: the caller owns the job system.
