@@ -343,6 +343,27 @@ class Stability : public ::testing::TestWithParam<Param> {
         r.firstMessage.empty() ? "" : "; first message: ", r.firstMessage.c_str());
   }
 
+  // The same figures as properties of the test, for the GF_STABILITY_CSV rows (below).
+  void recordFigures(const Run& r, World& world, BodyId id, double ms) const {
+    const FractureStats fs = world.fractureStats(id);
+    auto num = [](double v) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.6g", v);
+      return std::string(buf);
+    };
+    RecordProperty("e0_J", num(r.e0));
+    RecordProperty("max_excess_J", num(r.maxExcess));
+    RecordProperty("max_excess_over_e0", num(r.e0 != 0 ? r.maxExcess / std::abs(r.e0) : 0.0));
+    RecordProperty("flags", int(r.flags));
+    RecordProperty("flagged_steps", r.flaggedSteps);
+    RecordProperty("not_converged", r.notConverged);
+    RecordProperty("rolled_back", r.rolledBack);
+    RecordProperty("broken_edges", fs.brokenEdges);
+    RecordProperty("edges", fs.edgeCount);
+    RecordProperty("fragments", fs.fragments);
+    RecordProperty("ms", num(ms));
+  }
+
   std::string name() const {
     return ::testing::UnitTest::GetInstance()->current_test_info()->name();
   }
@@ -545,11 +566,83 @@ TEST_P(Stability, Case) {
     std::printf("stability %s: largest difference from the correctly ordered body %.2e m\n",
                 name().c_str(), worst);
   }
-  report(r, *world, id,
-         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  report(r, *world, id, ms);
+  recordFigures(r, *world, id, ms);
   if (!m_known.empty() && !HasFailure())
     GTEST_SKIP() << "KNOWN FAILURE (docs/RESULTS.md, Stability suite): " << m_known;
 }
+
+// GF_STABILITY_CSV=FILE writes one row per run of the matrix to FILE: its verdict (passed,
+// known_failure, skipped, failed), gtest's message and the figures recordFigures() attached.
+// `graphfrac report all` builds docs/RESULTS.md's stability table from it. The report cannot
+// link these cases (they are gtest fixtures) and a case list shared through a library would
+// still need gtest's verdicts, so the report runs this binary and reads the file; a listener
+// writes the rows because only it sees the final verdict, skips and failures included. Rows are
+// flushed one by one, so a run that dies leaves the rows before it.
+class CsvRows : public ::testing::EmptyTestEventListener {
+ public:
+  explicit CsvRows(std::FILE* f) : m_file(f) {
+    std::fputs(
+        "test,case,material,damage,solver,backend,outcome,e0_J,max_excess_J,max_excess_over_e0,"
+        "flags,flagged_steps,not_converged,rolled_back,broken_edges,edges,fragments,ms,message\n",
+        m_file);
+    std::fflush(m_file);
+  }
+  ~CsvRows() override { std::fclose(m_file); }
+
+  void OnTestEnd(const ::testing::TestInfo& info) override {
+    if (std::strcmp(info.test_suite_name(), "Matrix/Stability") != 0) return;
+    const ::testing::TestResult& r = *info.result();
+    std::string message;
+    for (int i = 0; i < r.total_part_count() && message.empty(); ++i)
+      if (r.GetTestPartResult(i).failed() || r.GetTestPartResult(i).skipped())
+        message = r.GetTestPartResult(i).message();
+    const char* outcome = r.Failed()                                           ? "failed"
+                          : !r.Skipped()                                       ? "passed"
+                          : message.find("KNOWN FAILURE") != std::string::npos ? "known_failure"
+                                                                               : "skipped";
+    // The parameter part of the name: CASE_MATERIAL_DAMAGE_SOLVER_BACKEND, no '_' inside them.
+    std::string name = info.name();
+    name = name.substr(name.find('/') + 1);
+    std::string fields = name;
+    std::replace(fields.begin(), fields.end(), '_', ',');
+    std::fprintf(m_file, "%s,%s,%s", name.c_str(), fields.c_str(), outcome);
+    for (const char* key :
+         {"e0_J", "max_excess_J", "max_excess_over_e0", "flags", "flagged_steps", "not_converged",
+          "rolled_back", "broken_edges", "edges", "fragments", "ms"}) {
+      std::string value;
+      for (int i = 0; i < r.test_property_count(); ++i)
+        if (std::strcmp(r.GetTestProperty(i).key(), key) == 0) value = r.GetTestProperty(i).value();
+      std::fprintf(m_file, ",%s", value.c_str());
+    }
+    // Quoted: messages hold commas; a quote inside is doubled, line breaks become blanks.
+    std::string quoted = "\"";
+    for (char ch : message) {
+      if (ch == '"') quoted += '"';
+      quoted += ch == '\n' ? ' ' : ch;
+    }
+    std::fprintf(m_file, ",%s\"\n", quoted.c_str());
+    std::fflush(m_file);
+  }
+
+ private:
+  std::FILE* m_file;
+};
+
+bool installCsvRows() {
+  const char* path = std::getenv("GF_STABILITY_CSV");
+  if (!path || !*path) return false;
+  std::FILE* f = std::fopen(path, "w");
+  if (!f) {
+    std::fprintf(stderr, "GF_STABILITY_CSV: cannot write %s\n", path);
+    std::exit(2);
+  }
+  ::testing::UnitTest::GetInstance()->listeners().Append(new CsvRows(f));
+  return true;
+}
+[[maybe_unused]] const bool kCsvRowsInstalled = installCsvRows();
 
 // gtest prints a parameter's enums as raw bytes (ctest's test list shows them); words instead.
 void PrintTo(Case c, std::ostream* os) { *os << caseName(c); }

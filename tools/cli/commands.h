@@ -27,6 +27,12 @@ int runReportCommand(int argc, char** argv);
 /// Charpy, Izod) and writes their curves and a summary (tools/cli/report_lab_command.cpp).
 int runLabReport(int argc, char** argv);
 
+/// `graphfrac report all [--quick] [--out DIR] [--results FILE] [--scenes DIR]
+/// [--stability-bin PATH]`; argv[0] is "report", argv[1] "all". Runs every part of
+/// docs/RESULTS.md (lab, error vs time, frame-time bench, stability suite, Bullet comparison)
+/// and rewrites only the file's generated regions (tools/cli/report_all.cpp).
+int runAllReport(int argc, char** argv);
+
 /// `graphfrac mesh SUBCOMMAND ...`; argv[0] is "mesh", argv[1] the subcommand:
 ///   from-surface IN OUT.msh [--method auto|tetgen|lattice] [--cells N | --target-tets T]
 ///                [--max-volume V] [--quality Q] [--tetgen PATH] [--keep-temp] ...

@@ -18,6 +18,8 @@ constexpr const char* kUsage =
     "  report error-vs-time SCENE\n"
     "                        error against run time of every solver setting (CSV + SVG)\n"
     "  report lab [--quick]  Brazilian, Charpy and Izod tests: curves (SVG) and a summary\n"
+    "  report all [--quick]  every measurement of docs/RESULTS.md, written into its generated\n"
+    "                        regions (tens of minutes; --quick: CI's short form)\n"
     "\n"
     "  graphfrac <command> --help   options of a command\n"
     "  graphfrac --version          print the version\n"

@@ -30,7 +30,8 @@ namespace gf::cli {
 namespace {
 
 constexpr const char* kReportUsage =
-    "usage: graphfrac report lab [--quick] [--only TEST] [--out DIR]   (see report lab --help)\n"
+    "usage: graphfrac report all [--quick] [--out DIR] [--results FILE] (see report all --help)\n"
+    "       graphfrac report lab [--quick] [--only TEST] [--out DIR]   (see report lab --help)\n"
     "       graphfrac report error-vs-time SCENE [--frames N] [--out DIR] [--threads T]\n"
     "                    [--compare-threads T2] [--levels L1,L2,...] [--cycles C1,C2,...]\n"
     "                    [--pcg-caps K1,K2,...]\n"
@@ -475,6 +476,7 @@ int runReportCommand(int argc, char** argv) {
   }
   if (!std::strcmp(argv[1], "error-vs-time")) return errorVsTime(argc, argv);
   if (!std::strcmp(argv[1], "lab")) return runLabReport(argc, argv);
+  if (!std::strcmp(argv[1], "all")) return runAllReport(argc, argv);
   std::fprintf(stderr, "graphfrac report: unknown report '%s'\n\n%s", argv[1], kReportUsage);
   return kExitUsage;
 }

@@ -1,0 +1,1134 @@
+// `graphfrac report all [--quick] [--out DIR] [--results FILE]`: every measurement that
+// docs/RESULTS.md publishes, in one run, written into that file's generated regions
+// (cli/results_regions.h) and nowhere else, so the prose around the tables survives.
+//
+// The parts run in this process through the commands that own them (`report lab`,
+// `report error-vs-time`, `bench multigrid`, `bench peer`); their CSV and SVG files go under
+// DIR and the regions are built from those files, so what the page shows is what DIR holds.
+// The stability suite is a gtest binary that the tools cannot link. Its cases are fixtures whose
+// rules are gtest assertions (a failure, a skip naming a known failure), so moving the case list
+// into a library would give the report a second way of judging the same runs; instead the
+// report runs the binary as a child process with GF_STABILITY_CSV naming a file, and the suite
+// writes one row per run with gtest's own verdict and message (tests/stability). The binary is
+// found where the build puts it beside this program (or --stability-bin); when it is not
+// there, the region says so and names where it looked. Where any part cannot run, its region
+// says why instead of showing an empty table.
+//
+// The file is read and its markers checked before anything runs, and written (whole, through a
+// temporary file and a rename) only at the end: a bad marker costs nothing and changes nothing.
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cli/commands.h"
+#include "cli/report_lab.h"
+#include "cli/results_regions.h"
+#include "cli/svg_plot.h"
+
+extern char** environ;
+
+#ifndef GF_BUILD_TYPE
+#define GF_BUILD_TYPE "unknown"
+#endif
+#ifndef GF_CXX_COMPILER
+#define GF_CXX_COMPILER "unknown compiler"
+#endif
+
+namespace gf::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kAllUsage =
+    "usage: graphfrac report all [--quick] [--out DIR] [--results FILE] [--scenes DIR]\n"
+    "                            [--stability-bin PATH]\n"
+    "\n"
+    "Runs every measurement of docs/RESULTS.md and rewrites the file's generated regions, the\n"
+    "lines between <!-- report:NAME:begin --> and <!-- report:NAME:end -->; every other line is\n"
+    "kept byte for byte. Each region must appear once; a missing, unknown or unpaired marker is\n"
+    "an error before anything runs. Regions and the parts that fill them:\n"
+    "  header          machine (/proc), compiler and build type, date, the commands below\n"
+    "  thesis          the thesis's published numbers (tables 4.1, 6.1, 6.2, lab outcomes)\n"
+    "                  beside ours, with the ratio and the hardware of each\n"
+    "  lab-brazilian, lab-charpy, lab-izod, lab-acceptance\n"
+    "                  graphfrac report lab --out DIR/lab\n"
+    "  error-vs-time   graphfrac report error-vs-time scenes/hanging_sphere.json\n"
+    "  bench           graphfrac bench multigrid (4k to 160k tets, thesis table 6.2)\n"
+    "  stability       gf_stability_tests (found next to this build, or --stability-bin) run\n"
+    "                  with GF_STABILITY_CSV=DIR/stability.csv; GF_FULL_VALIDATION=1 unless\n"
+    "                  --quick\n"
+    "  peer-time, peer-range\n"
+    "                  graphfrac bench peer (Bullet's deformable FEM beside ours)\n"
+    "CSV and SVG files go to DIR (default docs/reports, where the page's links point; with\n"
+    "--quick out/report-quick), the parts' logs to DIR/logs. FILE defaults to docs/RESULTS.md,\n"
+    "--scenes to scenes. The full form takes tens of minutes (run it with OPENBLAS_NUM_THREADS=1\n"
+    "as docs/reports/README.md does); --quick is CI's short form, about a minute: coarse lab\n"
+    "meshes with the impacts stopped 0.5 mm past contact, 2 frames of error against time, the\n"
+    "4k-tet benchmark case, the stability suite's reduced form, the Bullet comparison on its\n"
+    "smallest meshes for 0.25 s per run (not at all without Bullet).\n"
+    "Exit: 0; 1 usage; 2 a scene could not be loaded; 3 a part failed or flagged a step (its\n"
+    "region says so; error against time's capped solver settings flag by design and do not\n"
+    "count); 4 FILE has a bad marker or cannot be written (it is then unchanged).\n";
+
+/// The regions `report all` owns, in the order the page shows them.
+const std::vector<std::string> kRegions = {
+    "header",        "thesis", "lab-brazilian", "lab-charpy", "lab-izod",  "lab-acceptance",
+    "error-vs-time", "bench",  "stability",     "peer-time",  "peer-range"};
+
+struct Options {
+  bool quick = false;
+  std::string out, results = "docs/RESULTS.md", scenes = "scenes", stabilityBin;
+};
+
+std::string fmt(const char* f, double v) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+Result<std::string> readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return fail(path, ": cannot read");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// A command as a user would type it: arguments with blanks quoted.
+std::string commandLine(const std::vector<std::string>& args) {
+  std::string s = "graphfrac";
+  for (const std::string& a : args)
+    s += " " + (a.find_first_of(" \t'\"") == std::string::npos ? a : "'" + a + "'");
+  return s;
+}
+
+// The part commands print their figures on stdout; here stdout goes to a file for the length of
+// one call, so the command functions run unchanged and their output lands under DIR. Child
+// processes they start (bench peer's Bullet runs) inherit it.
+class StdoutToFile {
+ public:
+  explicit StdoutToFile(const std::string& path) {
+    std::fflush(stdout);
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd < 0) return;
+    m_saved = ::dup(STDOUT_FILENO);
+    if (m_saved < 0 || ::dup2(fd, STDOUT_FILENO) < 0) {
+      if (m_saved >= 0) ::close(m_saved);
+      m_saved = -1;
+    }
+    ::close(fd);
+  }
+  ~StdoutToFile() {
+    if (m_saved < 0) return;
+    std::fflush(stdout);
+    ::dup2(m_saved, STDOUT_FILENO);
+    ::close(m_saved);
+  }
+  bool ok() const { return m_saved >= 0; }
+  StdoutToFile(const StdoutToFile&) = delete;
+  StdoutToFile& operator=(const StdoutToFile&) = delete;
+
+ private:
+  int m_saved = -1;
+};
+
+// One part of the report: what ran, how it ended, how long it took.
+struct Part {
+  std::string name, command;
+  int exit = -1;  // -1: not run
+  double seconds = 0;
+  std::string note;  // why it did not run, or what its exit code means
+};
+
+int runPart(Part& part, int (*fn)(int, char**), std::vector<std::string> args,
+            const fs::path& log) {
+  part.command = commandLine(args);
+  std::printf("report all: %s ...\n", part.command.c_str());
+  std::fflush(stdout);
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  const auto t0 = std::chrono::steady_clock::now();
+  {
+    StdoutToFile capture(log.string());
+    if (!capture.ok()) {
+      part.note = "cannot write " + log.string();
+      return part.exit = kExitOutput;
+    }
+    part.exit = fn(int(argv.size()), argv.data());
+  }
+  part.seconds = secondsSince(t0);
+  std::printf("report all:   exit %d after %.1f s (output: %s)\n", part.exit, part.seconds,
+              log.string().c_str());
+  return part.exit;
+}
+
+// A CSV as the parts write it: '#' lines are comments; fields may be double-quoted.
+struct Table {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+  int col(const std::string& name) const {
+    for (size_t i = 0; i < header.size(); ++i)
+      if (header[i] == name) return int(i);
+    return -1;
+  }
+  std::string at(size_t row, const std::string& name) const {
+    const int c = col(name);
+    return c >= 0 && size_t(c) < rows[row].size() ? rows[row][size_t(c)] : std::string();
+  }
+  std::string material(size_t row) const { return at(row, "material"); }
+  double num(size_t row, const std::string& name) const {
+    const std::string s = at(row, name);
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    return s.empty() || *end != '\0' ? NAN : v;
+  }
+};
+
+std::vector<std::string> splitCsvLine(const std::string& line) {
+  std::vector<std::string> out(1);
+  bool quoted = false;
+  for (size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+        out.back() += '"';
+        ++i;
+      } else if (c == '"') {
+        quoted = false;
+      } else {
+        out.back() += c;
+      }
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      out.emplace_back();
+    } else if (c != '\r') {
+      out.back() += c;
+    }
+  }
+  return out;
+}
+
+Result<Table> readCsv(const fs::path& path) {
+  std::ifstream in(path);
+  if (!in) return fail(path.string(), ": cannot read");
+  Table t;
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    if (t.header.empty())
+      t.header = splitCsvLine(line);
+    else
+      t.rows.push_back(splitCsvLine(line));
+  }
+  if (t.header.empty()) return fail(path.string(), ": no header row");
+  return t;
+}
+
+// Path of `target` as a link from a markdown file in `fromDir`.
+std::string linkPath(const fs::path& target, const fs::path& fromDir) {
+  std::error_code ec;
+  const fs::path a = fs::weakly_canonical(fs::absolute(target), ec);
+  const fs::path b = fs::weakly_canonical(fs::absolute(fromDir), ec);
+  const fs::path rel = a.lexically_relative(b);
+  return (rel.empty() ? a : rel).generic_string();
+}
+
+// ---- machine ------------------------------------------------------------------------------
+
+std::string procField(const char* file, const char* key) {
+  std::ifstream in(file);
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind(key, 0) == 0) {
+      const size_t colon = line.find(':');
+      if (colon == std::string::npos) continue;
+      const size_t first = line.find_first_not_of(" \t", colon + 1);
+      return first == std::string::npos ? std::string() : line.substr(first);
+    }
+  return {};
+}
+
+int procCount(const char* file, const char* key) {
+  std::ifstream in(file);
+  int n = 0;
+  for (std::string line; std::getline(in, line);) n += line.rfind(key, 0) == 0;
+  return n;
+}
+
+std::string osName() {
+  std::ifstream in("/etc/os-release");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("PRETTY_NAME=", 0) == 0) {
+      std::string v = line.substr(12);
+      v.erase(std::remove(v.begin(), v.end(), '"'), v.end());
+      return v;
+    }
+  return "unknown";
+}
+
+std::string cpuText() {
+  std::string model = procField("/proc/cpuinfo", "model name");
+  if (model.empty()) model = "unknown CPU (no /proc/cpuinfo)";
+  const int processors = procCount("/proc/cpuinfo", "processor");
+  return model + ", " +
+         std::to_string(processors > 0 ? processors : int(std::thread::hardware_concurrency())) +
+         " logical cores";
+}
+
+std::string memoryText() {
+  const std::string kb = procField("/proc/meminfo", "MemTotal");
+  const double v = std::strtod(kb.c_str(), nullptr);
+  return v > 0 ? fmt("%.1f GiB", v / (1024.0 * 1024.0)) : std::string("unknown (no /proc/meminfo)");
+}
+
+// ---- regions ------------------------------------------------------------------------------
+
+std::string headerRegion(const Options& opt, const std::vector<Part>& parts,
+                         const std::string& self, double seconds) {
+  const std::time_t now = std::time(nullptr);
+  char date[64];
+  std::strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
+  std::string s =
+      "Generated by `" + self + "` on " + date + " in " + fmt("%.0f s", seconds) +
+      (opt.quick ? " (the quick form: CI's short runs, not the published figures)" : "") +
+      ". Machine and build:\n\n";
+  s += "| | |\n|---|---|\n";
+  s += "| CPU | " + cpuText() + " |\n";
+  s += "| memory | " + memoryText() + " |\n";
+  s += "| system | " + osName() + " |\n";
+  s += std::string("| compiler, build | ") + GF_CXX_COMPILER + ", " + GF_BUILD_TYPE + " build |\n";
+  s += "\nThe parts, each a command of its own (same figures, same files):\n\n";
+  s += "| part | command | exit | wall [s] |\n|---|---|---|---|\n";
+  for (const Part& p : parts)
+    s += "| " + p.name + " | " + (p.command.empty() ? "-" : "`" + p.command + "`") + " | " +
+         (p.exit < 0 ? "not run: " + p.note
+                     : std::to_string(p.exit) + (p.note.empty() ? "" : " (" + p.note + ")")) +
+         " | " + (p.exit < 0 ? "-" : fmt("%.1f", p.seconds)) + " |\n";
+  s += "\nExit 3 is a part that ran and flagged a step (e.g. a capped PCG setting of error "
+       "against time); the figures are still written.\n";
+  return s;
+}
+
+// "13 056": thousands apart, as the hand-written tables have them.
+std::string grouped(const std::string& digits) {
+  std::string s;
+  for (size_t i = 0; i < digits.size(); ++i) {
+    if (i > 0 && (digits.size() - i) % 3 == 0) s += ' ';
+    s += digits[i];
+  }
+  return s;
+}
+
+std::string notGenerated(const Part& part, const std::string& why) {
+  if (part.exit < 0) return "Not run: " + part.note + ".\n";
+  return "Not generated: `" + part.command + "` ended with exit " + std::to_string(part.exit) +
+         " (" + why + ").\n";
+}
+
+std::string image(const char* alt, const fs::path& svg, const fs::path& resultsDir) {
+  return fs::exists(svg) ? std::string("\n![") + alt + "](" + linkPath(svg, resultsDir) + ")\n"
+                         : std::string("\n(no ") + svg.filename().string() + " was written)\n";
+}
+
+// The Brazilian disc's runs (lab/brazilian.csv), in the columns of RESULTS.md's table.
+std::string labBrazilianRegion(const fs::path& dir, const fs::path& resultsDir, const Part& part) {
+  Result<Table> t = readCsv(dir / "brazilian.csv");
+  if (!t.ok()) return notGenerated(part, t.error().message);
+  const Table& b = t.value();
+  std::string s =
+      "| mesh, jaw speed | tets | first break [kN] | 2 P_first / (pi D t) / sigma_th | P [kN] | "
+      "2P/(pi D t) [MPa] | / sigma_th (" +
+      fmt("%.3g MPa", 1e-6 * (b.rows.empty() ? 0 : b.num(0, "sigma_th_Pa"))) +
+      ") | first break from the centre | crack: broken edges, share within 0.1 D of the loaded "
+      "diameter, principal axis from it |\n|---|---|---|---|---|---|---|---|---|\n";
+  for (size_t r = 0; r < b.rows.size(); ++r) {
+    std::string run = b.at(r, "run");
+    if (const size_t at = run.find(" at "); at != std::string::npos) run.replace(at, 4, ", ");
+    s += "| " + run + " | " + grouped(b.at(r, "tets")) + " | " +
+         fmt("%.2f", 1e-3 * b.num(r, "first_break_load_N")) + " | " +
+         fmt("%.3f", b.num(r, "first_break_ratio")) + " | " +
+         fmt("%.2f", 1e-3 * b.num(r, "peak_load_N")) + " | " +
+         fmt("%.2f", 1e-6 * b.num(r, "indirect_strength_Pa")) + " | " +
+         fmt("%.3f", b.num(r, "ratio")) + " | " +
+         fmt("%.3f D", b.num(r, "first_break_from_centre_over_D")) + " | " +
+         b.at(r, "broken_edges") + ", " + fmt("%.0f %%", 100 * b.num(r, "on_diameter_fraction")) +
+         ", " + fmt("%.1f deg", b.num(r, "crack_angle_deg")) + " |\n";
+  }
+  s += "\nFrom `" + part.command + "` (" + linkPath(dir, resultsDir) + "/brazilian.csv).\n";
+  return s + image("Brazilian disc", dir / "brazilian.svg", resultsDir);
+}
+
+// "68x8x4 (13 056)" from the mesh label "68x8x4 cells" and the tet count.
+std::string meshText(const Table& m, size_t r) {
+  std::string mesh = m.at(r, "mesh");
+  if (const size_t sp = mesh.find(' '); sp != std::string::npos) mesh.resize(sp);
+  return mesh + " (" + grouped(m.at(r, "tets")) + ")";
+}
+
+std::string mmText(double metres) { return metres >= 0 ? fmt("%.3f", 1e3 * metres) : "-"; }
+
+std::string impactOutcome(const Table& m, size_t r) {
+  const double largest = m.num(r, "largest_share"), second = m.num(r, "second_share");
+  const std::string shares =
+      fmt("%.0f %% / ", 100 * largest) + fmt("%.0f %% of the nodes", 100 * second);
+  if (second >= lab::kSplitShare) return "split in two (" + shares + ")";
+  if (m.material(r) == "ductile")
+    return m.num(r, "broken_edges") > 0 ? "bent, partly cracked, one piece" : "bent, intact";
+  return "one piece (" + shares + ")";
+}
+
+// One impact test's runs (lab/impact.csv) in RESULTS.md's columns; `stopMm` is where the runs
+// that did not split were stopped.
+std::string labImpactRegion(const fs::path& dir, const fs::path& resultsDir, const Part& part,
+                            const std::string& test, double stopMm) {
+  Result<Table> t = readCsv(dir / "impact.csv");
+  if (!t.ok()) return notGenerated(part, t.error().message);
+  const Table& m = t.value();
+  const bool charpy = test == "charpy";
+  std::string s = charpy
+                      ? "| material | mesh (tets) | first break [kN] at [mm] | peak load [kN] at "
+                        "[mm] | fracture at [mm] (energy [J]) | split at [mm] | absorbed [J] | "
+                        "broken edges | ligament cut | outcome |\n"
+                        "|---|---|---|---|---|---|---|---|---|---|\n"
+                      : "| material | mesh (tets) | first break [kN] at [mm] | peak load [kN] at "
+                        "[mm] | absorbed [J] (" +
+                            fmt("%g mm", stopMm) +
+                            ") | broken edges | ligament cut | outcome |\n"
+                            "|---|---|---|---|---|---|---|---|\n";
+  for (size_t r = 0; r < m.rows.size(); ++r) {
+    if (m.at(r, "test") != test) continue;
+    const bool split = m.num(r, "displacement_at_split_m") >= 0;
+    const std::string firstBreak = m.num(r, "first_break_displacement_m") >= 0
+                                       ? fmt("%.2f at ", 1e-3 * m.num(r, "first_break_load_N")) +
+                                             mmText(m.num(r, "first_break_displacement_m"))
+                                       : std::string("none");
+    s += "| " + m.at(r, "material") + " | " + meshText(m, r) + " | " + firstBreak + " | " +
+         fmt("%.2f at ", 1e-3 * m.num(r, "peak_load_N")) +
+         mmText(m.num(r, "displacement_at_peak_m")) + " | ";
+    const std::string absorbed = fmt("%.2f", m.num(r, "absorbed_energy_J"));
+    if (charpy) {
+      const double fracture = m.num(r, "displacement_at_fracture_m");
+      s += (fracture >= 0 ? mmText(fracture) + fmt(" (%.2f)", m.num(r, "energy_to_fracture_J"))
+                          : std::string("-")) +
+           " | " + mmText(m.num(r, "displacement_at_split_m")) + " | " + absorbed +
+           (split ? "" : fmt(" (at %g mm)", stopMm)) + " | ";
+    } else {
+      s += absorbed +
+           (split ? " (split at " + mmText(m.num(r, "displacement_at_split_m")) + " mm)" : "") +
+           " | ";
+    }
+    s += m.at(r, "broken_edges") + " | " +
+         fmt("%.0f %%", 100 * m.num(r, "ligament_broken_fraction")) + " | " + impactOutcome(m, r) +
+         " |\n";
+  }
+  s += "\nFrom `" + part.command + "` (" + linkPath(dir, resultsDir) + "/impact.csv, curves/).\n";
+  return s + image(charpy ? "Charpy" : "Izod", dir / (test + ".svg"), resultsDir);
+}
+
+// Issue 19's acceptance per mesh, from the same files.
+std::string labAcceptanceRegion(const fs::path& dir, const Part& part) {
+  Result<Table> disc = readCsv(dir / "brazilian.csv");
+  Result<Table> imp = readCsv(dir / "impact.csv");
+  if (!disc.ok() || !imp.ok())
+    return notGenerated(part, (disc.ok() ? imp : Result<Table>(disc.error())).error().message);
+  const Table& b = disc.value();
+  const Table& m = imp.value();
+  const char* meshes[2] = {"68x8x4 cells", "68x12x8 cells"};
+  // The disc's runs at the scene's jaw rate: the first is the coarse disc, the last the fine.
+  std::vector<size_t> discRows;
+  for (size_t r = 0; r < b.rows.size(); ++r)
+    if (r == 0 || b.num(r, "jaw_speed_m_s") == b.num(0, "jaw_speed_m_s")) discRows.push_back(r);
+  auto cell = [](bool met, const std::string& detail) {
+    return (met ? "met, " : "**not met** (") + detail + (met ? "" : ")");
+  };
+  auto discCell = [&](int res, bool strength) -> std::string {
+    if (size_t(res) >= discRows.size()) return "not run";
+    const size_t r = discRows[size_t(res)];
+    if (strength) {
+      const double ratio = b.num(r, "ratio");
+      return cell(std::abs(ratio - 1) <= 0.15, fmt("%+.1f %%", 100 * (ratio - 1)));
+    }
+    const double d = b.num(r, "first_break_from_centre_over_D");
+    return cell(b.num(r, "broken_edges") > 0 && d <= 0.2, fmt("%.3f D", d));
+  };
+  auto row = [&](const std::string& test, const std::string& material, int res) -> int {
+    for (size_t r = 0; r < m.rows.size(); ++r)
+      if (m.at(r, "test") == test && m.at(r, "material") == material &&
+          m.at(r, "mesh") == meshes[res])
+        return int(r);
+    return -1;
+  };
+  std::string s = "| issue 19 acceptance | coarse mesh | fine mesh |\n|---|---|---|\n";
+  s += "| Brazilian: 2P/(pi D t) within 15 % of sigma_th | " + discCell(0, true) + " | " +
+       (discRows.size() > 1 ? discCell(int(discRows.size()) - 1, true) : "not run") + " |\n";
+  s += "| Brazilian: crack starts within 0.2 D of the centre | " + discCell(0, false) + " | " +
+       (discRows.size() > 1 ? discCell(int(discRows.size()) - 1, false) : "not run") + " |\n";
+  for (const std::string test : {"charpy", "izod"}) {
+    const std::string name = test == "charpy" ? "Charpy" : "Izod";
+    std::string split = "| " + name + ": brittle splits in two |",
+                bend = "| " + name + ": ductile bends and stays partly joined |",
+                energy = "| " + name + ": ductile absorbs more |";
+    for (int res = 0; res < 2; ++res) {
+      const int br = row(test, "brittle", res), du = row(test, "ductile", res);
+      if (br < 0 || du < 0) {
+        split += " not run |";
+        bend += " not run |";
+        energy += " not run |";
+        continue;
+      }
+      const size_t bi = size_t(br), di = size_t(du);
+      const bool brittleSplit = m.num(bi, "second_share") >= lab::kSplitShare;
+      split += " " +
+               cell(brittleSplit, brittleSplit
+                                      ? "at " + mmText(m.num(bi, "displacement_at_split_m")) + " mm"
+                                      : fmt("%.0f %% of the ligament",
+                                            100 * m.num(bi, "ligament_broken_fraction"))) +
+               " |";
+      const bool ductileBends =
+          m.num(di, "second_share") < lab::kSplitShare && m.num(di, "broken_edges") > 0;
+      bend += " " +
+              cell(ductileBends, fmt("%.0f %% of the ligament cut",
+                                     100 * m.num(di, "ligament_broken_fraction"))) +
+              " |";
+      const double ed = m.num(di, "absorbed_energy_J"), eb = m.num(bi, "absorbed_energy_J");
+      energy += " " + cell(ed > eb, fmt("%.2f J against ", ed) + fmt("%.2f J", eb)) + " |";
+    }
+    s += split + "\n" + bend + "\n" + energy + "\n";
+  }
+  return s;
+}
+
+std::string errorVsTimeRegion(const fs::path& dir, const fs::path& resultsDir, const Part& part) {
+  Result<Table> t = readCsv(dir / "error_vs_time.csv");
+  if (!t.ok())
+    return "Not generated: `" + part.command + "` ended with exit " + std::to_string(part.exit) +
+           " (" + t.error().message + ").\n";
+  const Table& c = t.value();
+  std::string s = "From `" + part.command + "` (" + linkPath(dir, resultsDir) +
+                  "/error_vs_time.csv). Error: |x - x_ref| / |x_ref - X| after the last frame, "
+                  "against the full-Newton reference and against the direct solver.\n\n";
+  s +=
+      "| setting | ms per frame | CPU ms per frame | error vs reference | error vs direct | volume "
+      "gain [%] | linear iterations per frame | flagged frames |\n";
+  s += "|---|---|---|---|---|---|---|---|\n";
+  for (size_t r = 0; r < c.rows.size(); ++r) {
+    if (c.at(r, "ok") != "1") {
+      s += "| " + c.at(r, "setting") + " | failed | | | | | | |\n";
+      continue;
+    }
+    s += "| " + c.at(r, "setting") + " | " + fmt("%.1f", c.num(r, "ms_per_frame")) + " | " +
+         fmt("%.1f", c.num(r, "cpu_ms_per_frame")) + " | " +
+         fmt("%.2e", c.num(r, "rel_displacement_error")) + " | " +
+         fmt("%.2e", c.num(r, "rel_error_vs_direct")) + " | " +
+         fmt("%.3f", c.num(r, "volume_gain_pct")) + " | " +
+         fmt("%.1f", c.num(r, "linear_iterations_per_frame")) + " | " + c.at(r, "flagged_frames") +
+         " |\n";
+  }
+  s += "\n![Error against run time](" + linkPath(dir / "error_vs_time.svg", resultsDir) + ")\n";
+  return s;
+}
+
+std::string benchRegion(const fs::path& csv, const fs::path& svg, const fs::path& resultsDir,
+                        const Part& part) {
+  Result<Table> t = readCsv(csv);
+  if (!t.ok() || t.value().rows.empty())
+    return "Not generated: `" + part.command + "` ended with exit " + std::to_string(part.exit) +
+           (t.ok() ? " and printed no rows" : " (" + t.error().message + ")") + ".\n";
+  const Table& c = t.value();
+  std::string s = "From `" + part.command + "` (" + linkPath(csv, resultsDir) +
+                  "): ms per frame on this machine's CPU against the thesis's fps on one RTX 2060 "
+                  "GPU (table 6.2).\n\n";
+  s += "| case | solver | tets | threads | ms per frame | fps | elements | assembly | solve | "
+       "fracture | linear iterations | thesis GPU fps |\n";
+  s += "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  PlotPanel panel{"Frame time against size", "tets", "ms per frame", true, true, {}};
+  const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e"};
+  std::map<std::string, size_t> seriesOf;
+  for (size_t r = 0; r < c.rows.size(); ++r) {
+    s += "| " + c.at(r, "case") + " | " + c.at(r, "solver") + " | " + c.at(r, "tets") + " | " +
+         c.at(r, "threads") + " | " + c.at(r, "ms_frame") + " | " + c.at(r, "fps") + " | " +
+         c.at(r, "ms_elements") + " | " + c.at(r, "ms_assembly") + " | " + c.at(r, "ms_solve") +
+         " | " + c.at(r, "ms_fracture") + " | " + c.at(r, "linear_iterations") + " | " +
+         c.at(r, "thesis_gpu_fps") + " |\n";
+    const std::string key = c.at(r, "solver") + ", " + c.at(r, "threads") + " thread(s)";
+    if (!seriesOf.count(key)) {
+      seriesOf[key] = panel.series.size();
+      panel.series.push_back({key, colours[panel.series.size() % 4], {}});
+    }
+    panel.series[seriesOf[key]].points.push_back({c.num(r, "tets"), c.num(r, "ms_frame"), ""});
+  }
+  PlotSeries thesis{"thesis, RTX 2060 (table 6.2)", "#000000", {}};
+  std::vector<std::string> cases;
+  for (size_t r = 0; r < c.rows.size(); ++r)
+    if (c.num(r, "thesis_gpu_fps") > 0 &&
+        std::find(cases.begin(), cases.end(), c.at(r, "case")) == cases.end()) {
+      cases.push_back(c.at(r, "case"));
+      thesis.points.push_back(
+          {c.num(r, "tets"), 1000 / c.num(r, "thesis_gpu_fps"), c.at(r, "case")});
+    }
+  if (!thesis.points.empty()) panel.series.push_back(thesis);
+  if (writeSvg(svg.string(), {panel}, "graphfrac bench multigrid on " + cpuText()).ok())
+    s += "\n![Frame time against size](" + linkPath(svg, resultsDir) + ")\n";
+  return s;
+}
+
+const char* kFlagNames[] = {"NotConverged", "NanContained", "InvalidInput", "LineSearchFailed",
+                            "ContactSwept"};
+
+std::string shorten(const std::string& s, size_t n) {
+  return s.size() <= n ? s : s.substr(0, n) + " ...";
+}
+
+// Per case of the matrix (stability.csv, one row per run), in RESULTS.md's columns.
+std::string stabilityRegion(const fs::path& csv, const Part& part) {
+  if (part.exit < 0) return "Not run: " + part.note + ".\n";
+  Result<Table> t = readCsv(csv);
+  if (!t.ok() || t.value().rows.empty())
+    return notGenerated(part,
+                        t.ok() ? std::string("no rows in ") + csv.string() : t.error().message);
+  const Table& c = t.value();
+  struct Agg {
+    int passed = 0, known = 0, failed = 0, skippedCpu = 0, skippedOther = 0;
+    unsigned flags = 0;
+  };
+  std::vector<std::string> order;
+  std::map<std::string, Agg> agg;
+  std::map<std::string, int> skipReasons;
+  std::string known, failed;
+  for (size_t r = 0; r < c.rows.size(); ++r) {
+    const std::string kase = c.at(r, "case"), outcome = c.at(r, "outcome");
+    if (!agg.count(kase)) order.push_back(kase);
+    Agg& a = agg[kase];
+    const bool cpu = c.at(r, "backend") == "Cpu";
+    const std::string what = kase + " " + c.at(r, "material") + " " + c.at(r, "damage") + " " +
+                             c.at(r, "solver") + " " + c.at(r, "backend");
+    if (outcome == "skipped") {
+      ++(cpu ? a.skippedCpu : a.skippedOther);
+      ++skipReasons[c.at(r, "backend") + ": " + shorten(c.at(r, "message"), 200)];
+      continue;
+    }
+    if (outcome == "passed" && cpu) ++a.passed;
+    if (outcome == "known_failure") {
+      a.known += cpu;
+      known += "- " + what + ": " + shorten(c.at(r, "message"), 400) + "\n";
+    }
+    if (outcome == "failed") {
+      a.failed += cpu;
+      failed += "- " + what + ": " + shorten(c.at(r, "message"), 400) + "\n";
+    }
+    const double flags = c.num(r, "flags");
+    if (std::isfinite(flags)) a.flags |= unsigned(flags);
+  }
+  std::string s =
+      "| case | CPU runs: pass / known failure / failed | skipped: CPU, other backends | flags "
+      "seen (all with a message) |\n|---|---|---|---|\n";
+  for (const std::string& k : order) {
+    const Agg& a = agg[k];
+    std::string flags;
+    for (int b = 0; b < 5; ++b)
+      if (a.flags & (1u << b)) flags += (flags.empty() ? "" : ", ") + std::string(kFlagNames[b]);
+    s += "| " + k + " | " + std::to_string(a.passed) + " / " + std::to_string(a.known) + " / " +
+         std::to_string(a.failed) + " | " + std::to_string(a.skippedCpu) + ", " +
+         std::to_string(a.skippedOther) + " | " + (flags.empty() ? "none" : flags) + " |\n";
+  }
+  s += "\nFrom `" + part.command + "` (exit " + std::to_string(part.exit) + ", " +
+       fmt("%.0f s", part.seconds) + "; one row per run, with its energy and step figures, in " +
+       csv.filename().string() + ").\n";
+  if (!skipReasons.empty()) {
+    s += "\nSkipped runs, by reason:\n\n";
+    for (const auto& [why, n] : skipReasons) s += "- " + std::to_string(n) + " x " + why + "\n";
+  }
+  if (!known.empty())
+    s += "\nKnown failures (reported as skips; GF_STABILITY_STRICT=1 fails them):\n\n" + known;
+  if (!failed.empty()) s += "\nFailed runs:\n\n" + failed;
+  return s;
+}
+
+// "1/240 s" for dt = 0.00417.
+std::string dtText(double dt) {
+  const double inv = 1 / dt;
+  return std::abs(inv - std::round(inv)) < 0.05 * inv ? fmt("1/%.0f s", inv) : fmt("%g s", dt);
+}
+
+std::string methodName(const std::string& m) {
+  static const std::map<std::string, std::string> names = {
+      {"graphfrac-multigrid", "graphfrac multigrid"},
+      {"graphfrac-direct", "graphfrac direct"},
+      {"graphfrac-pcg", "graphfrac PCG"},
+      {"bullet-implicit", "Bullet implicit"},
+      {"bullet-explicit", "Bullet explicit"},
+      {"bullet-implicit-linear", "Bullet implicit, linear"}};
+  const auto it = names.find(m);
+  return it == names.end() ? m : it->second;
+}
+
+// bench peer's CSV: the step time and error table (`range` false) or the stable runs over its
+// sweep of E and dt (`range` true), in RESULTS.md's columns.
+std::string peerRegion(const fs::path& csv, const Part& part, bool range) {
+  if (part.exit < 0) return "Not run: " + part.note + ".\n";
+  Result<Table> t = readCsv(csv);
+  if (!t.ok() || t.value().rows.empty())
+    return notGenerated(part, t.ok() ? std::string("no rows") : t.error().message);
+  const Table& c = t.value();
+  std::vector<std::string> methods, keys, setups;
+  std::map<std::string, std::map<std::string, std::string>> cell;
+  std::map<std::string, std::map<std::string, std::pair<int, int>>> stable;  // method, case
+  for (size_t r = 0; r < c.rows.size(); ++r) {
+    const std::string kase = c.at(r, "case"), method = methodName(c.at(r, "method")),
+                      outcome = c.at(r, "outcome");
+    if (std::find(methods.begin(), methods.end(), method) == methods.end())
+      methods.push_back(method);
+    if (kase.size() > 6 && kase.compare(kase.size() - 6, 6, "-sweep") == 0) {
+      auto& st = stable[method][kase.substr(0, kase.size() - 6)];
+      ++st.second;
+      st.first += outcome == "stable";
+      continue;
+    }
+    const std::string key = kase + ", " + dtText(c.num(r, "dt_s"));
+    const std::string setup = kase + ": E " + c.at(r, "E_Pa") + " Pa, " + c.at(r, "tets") + " tets";
+    if (std::find(keys.begin(), keys.end(), key) == keys.end()) keys.push_back(key);
+    if (std::find(setups.begin(), setups.end(), setup) == setups.end()) setups.push_back(setup);
+    cell[key][method] =
+        outcome == "stable"
+            ? fmt("%.2f ms, ", c.num(r, "ms_per_step")) + fmt("%.2e", c.num(r, "error"))
+        : outcome == "unstable" ? "unstable (" + c.at(r, "inverted_tets") + " tets inverted)"
+                                : outcome;
+  }
+  std::string s;
+  if (!range) {
+    s = "| case, dt |";
+    std::string rule = "|---|";
+    for (const std::string& m : methods) {
+      s += " " + m + " |";
+      rule += "---|";
+    }
+    s += "\n" + rule + "\n";
+    for (const std::string& key : keys) {
+      s += "| " + key + " |";
+      for (const std::string& m : methods) {
+        const auto it = cell[key].find(m);
+        s += ' ';
+        s += it == cell[key].end() ? std::string("-") : it->second;
+        s += " |";
+      }
+      s += "\n";
+    }
+    s += "\nFrom `" + part.command + "` (" + csv.filename().string() + "): ms per step, error;";
+    for (const std::string& setup : setups) s += " " + setup + ";";
+    s += " both engines on this machine's CPU, one thread.\n";
+    return s;
+  }
+  if (stable.empty())
+    return "Not generated: `" + part.command + "` ran without its sweep of E and dt.\n";
+  s = "| method | cantilever: stable runs | drop: stable runs |\n|---|---|---|\n";
+  for (const std::string& m : methods) {
+    auto frac = [&](const char* k) {
+      const auto it = stable[m].find(k);
+      return it == stable[m].end()
+                 ? std::string("-")
+                 : std::to_string(it->second.first) + " / " + std::to_string(it->second.second);
+    };
+    s += "| " + m + " | " + frac("cantilever") + " | " + frac("drop") + " |\n";
+  }
+  s += "\nFrom `" + part.command + "` (" + csv.filename().string() + ", the *-sweep rows).\n";
+  return s;
+}
+
+// Table 4.1 (thesis sec 4.5) for the three laboratory materials; its times ran on the CPU of
+// sec 4.4.3, tables 6.1 / 6.2 (sec 6.3) on the GPU named there.
+struct ThesisMaterial {
+  const char* label;
+  const char* scene;                   // under scenes/lab
+  double rho, E, nu, strength, yield;  // yield 0: none
+  double tets, secondsPerFrame;
+};
+const ThesisMaterial kTable41[] = {
+    {"granite (Brazilian disc)", "brazilian_disc.json", 2.75e3, 4.5e10, 0.33, 9.56e6, 0, 45.8e3,
+     0.39},
+    {"A516 Gr.70, brittle at -40 C", "charpy_brittle.json", 7.7e3, 2.2e11, 0.28, 6.55e8, 0, 27.8e3,
+     0.24},
+    {"NVE36, ductile at 23 C", "charpy_ductile.json", 7.7e3, 1.9e11, 0.28, 5.4e8, 8.3e7, 27.8e3,
+     0.24},
+};
+constexpr const char* kThesisCpu = "thesis: Intel i7-9750H CPU, 12 threads (sec 4.4.3)";
+constexpr const char* kThesisGpu = "thesis: one RTX 2060 GPU (sec 6.3)";
+
+std::string ratio(double ours, double theirs) {
+  return std::isfinite(ours) && theirs != 0 ? fmt("%.3g", ours / theirs) : std::string("-");
+}
+
+std::string thesisRegion(const Options& opt, const fs::path& out, const fs::path& evtDir) {
+  const std::string ours = "ours: " + cpuText() + ", ";
+  std::string s =
+      "The thesis's published numbers beside ours, read from this run's files (the lab scenes "
+      "and lab/*.csv, error_vs_time.csv, bench_multigrid.csv under " +
+      out.string() +
+      "). The thesis gives its laboratory comparisons as plots only (figs 4.21, 4.23, 4.25, "
+      "6.10), so its outcomes are words.\n\n";
+  s += "| quantity | thesis | ours | ours / thesis | hardware |\n|---|---|---|---|---|\n";
+  const fs::path labScenes = fs::path(opt.scenes) / "lab";
+  for (const ThesisMaterial& m : kTable41) {
+    Result<scene::Scene> sc = lab::loadLabScene((labScenes / m.scene).string(), "{}");
+    if (!sc.ok() || sc.value().bodies.empty()) {
+      s += std::string("| table 4.1, ") + m.label +
+           " | | not read: " + (sc.ok() ? std::string("no body") : sc.error().message) +
+           " | - | - |\n";
+      continue;
+    }
+    const BodyDef& d = sc.value().bodies[0].def;
+    auto row = [&](const char* what, double thesis, double our, const char* f) {
+      s += std::string("| table 4.1, ") + m.label + ": " + what + " | " + fmt(f, thesis) + " | " +
+           fmt(f, our) + " | " + ratio(our, thesis) + " | input |\n";
+    };
+    row("density [kg/m^3]", m.rho, d.material.density, "%.4g");
+    row("Young's modulus [Pa]", m.E, d.material.youngsModulus, "%.4g");
+    row("Poisson's ratio", m.nu, d.material.poissonRatio, "%.3g");
+    row("sigma_th [Pa]", m.strength, d.fracture.strength, "%.4g");
+    if (m.yield > 0 && d.plasticity.enabled)
+      row("sigma_p [Pa]", m.yield, d.plasticity.yieldStress, "%.4g");
+    else if (m.yield > 0)
+      s += std::string("| table 4.1, ") + m.label + ": sigma_p [Pa] | " + fmt("%.4g", m.yield) +
+           " | no plasticity in the scene | - | input |\n";
+  }
+  // Time per step of the lab runs against table 4.1's sec/frame (its dt is 5e-3 s).
+  Result<Table> disc = readCsv(out / "lab" / "brazilian.csv");
+  if (disc.ok() && !disc.value().rows.empty()) {
+    const Table& b = disc.value();
+    const double sps = b.num(0, "seconds") / b.num(0, "steps");
+    s += "| table 4.1, granite cylinder: s per frame (thesis dt 5e-3 s; ours the disc's step) | "
+         "0.39 (45.8k tets) | " +
+         fmt("%.3g", sps) + " (" + b.at(0, "tets") + " tets) | " + ratio(sps, 0.39) + " | " +
+         kThesisCpu + "; " + ours + "1 thread |\n";
+    s += "| Brazilian disc: 2P / (pi D t) / sigma_th (fig 4.25: a curve, no number) | - | " +
+         fmt("%.3f", b.num(0, "ratio")) + " (" + b.at(0, "run") + ") | - | - |\n";
+    s += "| Brazilian disc: where the crack starts | near the centre (fig 4.24) | " +
+         fmt("%.3f D from the centre", b.num(0, "first_break_from_centre_over_D")) + " | - | - |\n";
+  }
+  Result<Table> imp = readCsv(out / "lab" / "impact.csv");
+  if (imp.ok()) {
+    const Table& m = imp.value();
+    bool timed = false;
+    for (size_t r = 0; r < m.rows.size(); ++r) {
+      const std::string test = m.at(r, "test"), material = m.at(r, "material");
+      if (!timed) {
+        const double sps = m.num(r, "seconds") / m.num(r, "steps");
+        s += "| table 4.1, steel bar: s per frame (ours: " + test + " " + material +
+             " step) | 0.24 (27.8k tets) | " + fmt("%.3g", sps) + " (" + m.at(r, "tets") +
+             " tets) | " + ratio(sps, 0.24) + " | " + kThesisCpu + "; " + ours + "1 thread |\n";
+        timed = true;
+      }
+      const bool brittle = material == "brittle";
+      const std::string thesisOutcome =
+          brittle ? "splits in two (figs 4.20, 4.22)" : "bends, partly damaged (figs 4.20, 4.22)";
+      const double second = m.num(r, "second_share");
+      const std::string outcome =
+          second >= lab::kSplitShare
+              ? fmt("split in two (%.0f %% / ", 100 * m.num(r, "largest_share")) +
+                    fmt("%.0f %% of the nodes)", 100 * second)
+              : fmt("one piece, %.0f %% of the ligament cut",
+                    100 * m.num(r, "ligament_broken_fraction"));
+      s += "| " + test + " " + material + " (" + m.at(r, "mesh") + "): outcome | " + thesisOutcome +
+           " | " + outcome + fmt(", %.2f J absorbed", m.num(r, "absorbed_energy_J")) +
+           " | - | - |\n";
+    }
+  }
+  Result<Table> evt = readCsv(evtDir / "error_vs_time.csv");
+  if (evt.ok()) {
+    const Table& e = evt.value();
+    for (size_t r = 0; r < e.rows.size(); ++r) {
+      const std::string setting = e.at(r, "setting");
+      if (setting != "reference" && setting.rfind("50/all x", 0) != 0) continue;
+      const bool ref = setting == "reference";
+      const double thesis = ref ? 4.3 : 19.0;
+      s += "| table 6.1, hanging sphere: volume gain [%], " +
+           std::string(ref ? "stable Neo-Hookean, converged step"
+                           : "Galerkin multigrid " + setting) +
+           " | " + fmt("%.1f", thesis) + " | " + fmt("%.3g", e.num(r, "volume_gain_pct")) + " | " +
+           ratio(e.num(r, "volume_gain_pct"), thesis) + " | - |\n";
+    }
+  }
+  Result<Table> bench = readCsv(out / "bench_multigrid.csv");
+  if (bench.ok()) {
+    const Table& b = bench.value();
+    for (size_t r = 0; r < b.rows.size(); ++r) {
+      if (b.at(r, "solver") != "multigrid (default)") continue;
+      const double thesis = b.num(r, "thesis_gpu_fps"), fps = b.num(r, "fps");
+      s += "| table 6.2, " + b.at(r, "case") + ": fps (ours " + b.at(r, "tets") + " tets, " +
+           b.at(r, "threads") + " thread(s)) | " + fmt("%.1f", thesis) + " | " + fmt("%.2f", fps) +
+           " | " + ratio(fps, thesis) + " | " + kThesisGpu + "; " + ours + b.at(r, "threads") +
+           " thread(s), no GPU |\n";
+    }
+  }
+  s += "\nOur times are one CPU thread's unless a thread count is given; the thesis's are a "
+       "12-thread CPU (chapter 4) and a GPU (chapter 6), so these ratios compare machines as "
+       "much as methods.\n";
+  return s;
+}
+
+// ---- the stability suite ------------------------------------------------------------------
+
+// The gf_stability_tests binary: --stability-bin, else where the build puts it beside this
+// program (build/<preset>/tools/graphfrac and build/<preset>/tests/gf_stability_tests).
+std::string findStabilityBinary(const Options& opt, std::string& looked) {
+  std::vector<fs::path> candidates;
+  if (!opt.stabilityBin.empty()) {
+    candidates.push_back(opt.stabilityBin);
+  } else {
+    std::error_code ec;
+    const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+    if (!ec) {
+      candidates.push_back(self.parent_path().parent_path() / "tests" / "gf_stability_tests");
+      candidates.push_back(self.parent_path() / "gf_stability_tests");
+    }
+  }
+  for (const fs::path& p : candidates) {
+    looked += (looked.empty() ? "" : ", ") + p.string();
+    if (::access(p.c_str(), X_OK) == 0) return p.string();
+  }
+  return {};
+}
+
+// Runs the binary with GF_STABILITY_CSV (and GF_FULL_VALIDATION=1 for the full form), its
+// output to `log`; returns its exit status (128 + signal when killed).
+int runStability(const std::string& bin, const fs::path& csv, const fs::path& log, bool full,
+                 std::string& error) {
+  std::vector<std::string> env;
+  for (char** e = environ; *e; ++e)
+    if (std::strncmp(*e, "GF_STABILITY_CSV=", 17) != 0 &&
+        std::strncmp(*e, "GF_FULL_VALIDATION=", 19) != 0)
+      env.push_back(*e);
+  env.push_back("GF_STABILITY_CSV=" + csv.string());
+  if (full) env.push_back("GF_FULL_VALIDATION=1");
+  std::vector<char*> envp;
+  for (std::string& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  std::string arg0 = bin;
+  char* argv[] = {arg0.data(), nullptr};
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+  pid_t pid = 0;
+  const int rc = posix_spawn(&pid, bin.c_str(), &actions, nullptr, argv, envp.data());
+  posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0) {
+    error = bin + ": cannot start: " + std::strerror(rc);
+    return -1;
+  }
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) {
+      error = std::string("waitpid: ") + std::strerror(errno);
+      return -1;
+    }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+#ifdef GF_CLI_HAS_BULLET_SOFTBODY
+constexpr bool kHasBullet = true;
+#else
+constexpr bool kHasBullet = false;
+#endif
+
+int reportAll(int argc, char** argv) {
+  Options opt;
+  for (int i = 2; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--help" || a == "-h") {
+      std::fputs(kAllUsage, stdout);
+      return kExitOk;
+    }
+    if (a == "--quick") {
+      opt.quick = true;
+    } else if (a == "--out" || a == "--results" || a == "--scenes" || a == "--stability-bin") {
+      if (i + 1 >= argc || !*argv[i + 1]) {
+        std::fprintf(stderr, "graphfrac report all: %s: expected a path\n\n%s", a.c_str(),
+                     kAllUsage);
+        return kExitUsage;
+      }
+      (a == "--out"       ? opt.out
+       : a == "--results" ? opt.results
+       : a == "--scenes"  ? opt.scenes
+                          : opt.stabilityBin) = argv[++i];
+    } else {
+      std::fprintf(stderr, "graphfrac report all: unknown argument %s\n\n%s", a.c_str(), kAllUsage);
+      return kExitUsage;
+    }
+  }
+  // The markers first: a page that cannot take the results stops the run before it starts.
+  Result<std::string> page = readFile(opt.results);
+  if (!page.ok()) {
+    std::fprintf(stderr, "graphfrac report all: %s\n", page.error().message.c_str());
+    return kExitOutput;
+  }
+  if (Result<MarkedText> m = parseMarkedText(opt.results, page.value(), kRegions); !m.ok()) {
+    std::fprintf(stderr, "graphfrac report all: %s (the file is unchanged)\n",
+                 m.error().message.c_str());
+    return kExitOutput;
+  }
+  // The full form writes where docs/RESULTS.md's hand-written links point; the quick form
+  // elsewhere, so CI never overwrites the published files.
+  if (opt.out.empty()) opt.out = opt.quick ? "out/report-quick" : "docs/reports";
+  const fs::path out(opt.out), resultsDir = fs::path(opt.results).parent_path(),
+                               logs = out / "logs";
+  std::error_code ec;
+  fs::create_directories(logs, ec);
+  if (ec) {
+    std::fprintf(stderr, "graphfrac report all: cannot create %s: %s\n", logs.string().c_str(),
+                 ec.message().c_str());
+    return kExitOutput;
+  }
+  std::vector<std::string> selfArgs{"report", "all"};
+  for (int i = 2; i < argc; ++i) selfArgs.push_back(argv[i]);
+  const auto t0 = std::chrono::steady_clock::now();
+  const fs::path scenes(opt.scenes);
+  Part lab{"lab", "", -1, 0, ""}, evt{"error vs time", "", -1, 0, ""},
+      bench{"frame-time bench", "", -1, 0, ""}, stab{"stability suite", "", -1, 0, ""},
+      peer{"Bullet comparison", "", -1, 0, ""};
+
+  // The quick form stops the impacts 0.5 mm past contact: the brittle bars crack within that,
+  // the ductile ones have only begun to bend (their energies are then far below the full run's).
+  const double stopMm = opt.quick ? 0.5 : 4;
+  std::vector<std::string> labArgs{
+      "report", "lab", "--out", (out / "lab").string(), "--scenes", (scenes / "lab").string()};
+  if (opt.quick) labArgs.insert(labArgs.end(), {"--quick", "--stop-after", "0.5"});
+  runPart(lab, runLabReport, labArgs, logs / "lab.log");
+
+  // The hanging sphere: table 6.1's volume gain and table 6.2's 35k-tet case in one scene.
+  const fs::path evtDir = out / "hanging_sphere";
+  std::vector<std::string> evtArgs{
+      "report", "error-vs-time", (scenes / "hanging_sphere.json").string(),
+      "--out",  evtDir.string(), "--threads",
+      "1"};
+  if (opt.quick)
+    evtArgs.insert(evtArgs.end(),
+                   {"--frames", "2", "--levels", "50/all", "--cycles", "2", "--pcg-caps", "30"});
+  else
+    evtArgs.insert(evtArgs.end(), {"--levels", "50/all,256/all"});
+  runPart(evt, runReportCommand, evtArgs, logs / "error_vs_time.log");
+
+  // bench multigrid: the thesis's chapter-6 bodies (4k to 160k tets), a fixed list.
+  std::vector<std::string> benchArgs{"bench", "multigrid", "--frames", opt.quick ? "2" : "10"};
+  if (opt.quick) benchArgs.insert(benchArgs.end(), {"--only", "hinged beam", "--threads", "1"});
+  runPart(bench, runBenchCommand, benchArgs, out / "bench_multigrid.csv");
+
+  std::string looked;
+  const std::string stabBin = findStabilityBinary(opt, looked);
+  if (stabBin.empty()) {
+    stab.note = "gf_stability_tests was not found (looked for " + looked +
+                "); build it with `cmake --build --preset release --target gf_stability_tests` or "
+                "name it with --stability-bin";
+  } else {
+    stab.command = std::string(opt.quick ? "" : "GF_FULL_VALIDATION=1 ") +
+                   "GF_STABILITY_CSV=" + (out / "stability.csv").string() + " " + stabBin;
+    std::printf("report all: %s ...\n", stab.command.c_str());
+    std::fflush(stdout);
+    const auto ts = std::chrono::steady_clock::now();
+    std::string error;
+    stab.exit =
+        runStability(stabBin, out / "stability.csv", logs / "stability.log", !opt.quick, error);
+    stab.seconds = secondsSince(ts);
+    if (stab.exit < 0)
+      stab.note = error;
+    else if (stab.exit != 0)
+      stab.note = "a run failed: " + (logs / "stability.log").string();
+    std::printf("report all:   exit %d after %.1f s\n", stab.exit, stab.seconds);
+  }
+
+  if (opt.quick && !kHasBullet) {
+    peer.note =
+        "this graphfrac was built without Bullet's soft bodies, and --quick skips the "
+        "comparison then";
+  } else {
+    // The quick form: the smallest meshes and a quarter second per run, sweep included.
+    std::vector<std::string> peerArgs{"bench", "peer"};
+    if (opt.quick) peerArgs.insert(peerArgs.end(), {"--cells", "1", "--seconds", "0.25"});
+    runPart(peer, runBenchCommand, peerArgs, out / "peer.csv");
+  }
+  const double seconds = secondsSince(t0);
+
+  std::map<std::string, std::string> regions;
+  std::vector<Part> parts{lab, evt, bench, stab, peer};
+  regions["header"] = headerRegion(opt, parts, commandLine(selfArgs), seconds);
+  regions["thesis"] = thesisRegion(opt, out, evtDir);
+  regions["lab-brazilian"] = labBrazilianRegion(out / "lab", resultsDir, lab);
+  regions["lab-charpy"] = labImpactRegion(out / "lab", resultsDir, lab, "charpy", stopMm);
+  regions["lab-izod"] = labImpactRegion(out / "lab", resultsDir, lab, "izod", stopMm);
+  regions["lab-acceptance"] = labAcceptanceRegion(out / "lab", lab);
+  regions["error-vs-time"] = errorVsTimeRegion(evtDir, resultsDir, evt);
+  regions["bench"] =
+      benchRegion(out / "bench_multigrid.csv", out / "bench_multigrid.svg", resultsDir, bench);
+  regions["stability"] = stabilityRegion(out / "stability.csv", stab);
+  regions["peer-time"] = peerRegion(out / "peer.csv", peer, false);
+  regions["peer-range"] = peerRegion(out / "peer.csv", peer, true);
+
+  // The page again: it may have been edited during a long run; its markers are checked again.
+  Result<std::string> now = readFile(opt.results);
+  Result<MarkedText> marked = now.ok() ? parseMarkedText(opt.results, now.value(), kRegions)
+                                       : Result<MarkedText>(now.error());
+  if (!marked.ok()) {
+    std::fprintf(stderr, "graphfrac report all: %s (the file is unchanged)\n",
+                 marked.error().message.c_str());
+    return kExitOutput;
+  }
+  const std::string text = spliceRegions(marked.value(), regions);
+  const std::string tmp = opt.results + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    f << text;
+    f.close();
+    if (!f) {
+      std::fprintf(stderr, "graphfrac report all: cannot write %s\n", tmp.c_str());
+      fs::remove(tmp, ec);
+      return kExitOutput;
+    }
+  }
+  fs::rename(tmp, opt.results, ec);
+  if (ec) {
+    std::fprintf(stderr, "graphfrac report all: cannot replace %s: %s\n", opt.results.c_str(),
+                 ec.message().c_str());
+    fs::remove(tmp, ec);
+    return kExitOutput;
+  }
+  std::printf("report all: wrote %zu regions of %s and the files under %s in %.0f s\n",
+              regions.size(), opt.results.c_str(), opt.out.c_str(), seconds);
+  for (const Part& p : parts)
+    if (p.exit == kExitScene) return kExitScene;
+  // Error against time flags the capped solver settings it is there to measure: exit 3 is its
+  // normal outcome. The Bullet comparison is left out of --quick on purpose without Bullet.
+  for (size_t i = 0; i < parts.size(); ++i) {
+    const Part& p = parts[i];
+    if (p.exit == kExitOk || (&p == &parts[1] && p.exit == kExitFlagged) ||
+        (&p == &parts[4] && p.exit < 0))
+      continue;
+    return kExitFlagged;
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+int runAllReport(int argc, char** argv) { return reportAll(argc, argv); }
+
+}  // namespace gf::cli
