@@ -40,6 +40,10 @@ constexpr int kCutFaceLabel = 4;
 /// A planar convex polygon, counter-clockwise seen from outside its cell.
 struct CutPolygon {
   Vec3 v[kCutPolygonMaxVertices];
+  /// Per vertex, bit l set when it lies on the plane labelled l (tet faces 0..3, cuts
+  /// kCutFaceLabel + j): which mesh node, edge or face and which cuts a vertex is made of, so a
+  /// surface can weld vertices by what they are rather than by where they round to.
+  unsigned on[kCutPolygonMaxVertices] = {};
   int count = 0;
   int label = 0;  ///< 0..3: tet face opposite that node; kCutFaceLabel + j: cut plane j.
 };
@@ -57,7 +61,10 @@ GF_HD CutPolytope tetPolytope(const Vec3 X[4]) {
   CutPolytope p;
   for (int a = 0; a < 4; ++a) {
     CutPolygon& g = p.faces[a];
-    for (int k = 0; k < 3; ++k) g.v[k] = X[f[a][k]];
+    for (int k = 0; k < 3; ++k) {
+      g.v[k] = X[f[a][k]];
+      g.on[k] = 0xFu & ~(1u << f[a][k]);  // node n lies on every face but the one opposite it
+    }
     g.count = 3;
     g.label = a;
   }
@@ -99,6 +106,8 @@ GF_HD bool clipPolytope(CutPolytope& p, const CutPlane& plane, double side, int 
   const CutPlane h{side * plane.normal, side * plane.offset};
   CutPolytope out;
   Vec3 cap[2 * kCutPolygonMaxVertices * kCutPolytopeMaxFaces];
+  unsigned capOn[2 * kCutPolygonMaxVertices * kCutPolytopeMaxFaces];
+  const unsigned capBit = 1u << capLabel;
   int capCount = 0;
   bool capInFace = false;
   for (int f = 0; f < p.faceCount; ++f) {
@@ -112,6 +121,7 @@ GF_HD bool clipPolytope(CutPolytope& p, const CutPlane& plane, double side, int 
     if (inPlane) {
       g = in;
       g.label = capLabel;
+      for (int i = 0; i < g.count; ++i) g.on[i] |= capBit;
       out.faces[out.faceCount++] = g;
       capInFace = true;
       continue;
@@ -123,14 +133,22 @@ GF_HD bool clipPolytope(CutPolytope& p, const CutPlane& plane, double side, int 
       if (fabs(db) <= onPlane) db = 0;
       if (da >= 0) {
         if (g.count == kCutPolygonMaxVertices) return false;
+        g.on[g.count] = in.on[i] | (da == 0 ? capBit : 0u);
         g.v[g.count++] = a;
-        if (da == 0) cap[capCount++] = a;
+        if (da == 0) {
+          capOn[capCount] = in.on[i] | capBit;
+          cap[capCount++] = a;
+        }
       }
       // Strictly opposite sides only: a vertex on the plane is its own crossing.
       if ((da > 0 && db < 0) || (da < 0 && db > 0)) {
         if (g.count == kCutPolygonMaxVertices) return false;
         const Vec3 x = detail::planeCrossing(h, a, b);
+        // On the planes both ends share (the edge's line) and on this one.
+        const unsigned on = (in.on[i] & in.on[(i + 1) % in.count]) | capBit;
+        g.on[g.count] = on;
         g.v[g.count++] = x;
+        capOn[capCount] = on;
         cap[capCount++] = x;
       }
     }
@@ -139,9 +157,15 @@ GF_HD bool clipPolytope(CutPolytope& p, const CutPlane& plane, double side, int 
   // Each cap point was found once per face through it: keep one copy.
   int unique = 0;
   for (int i = 0; i < capCount; ++i) {
-    bool seen = false;
-    for (int j = 0; j < unique && !seen; ++j) seen = detail::sameBits(cap[i], cap[j]);
-    if (!seen) cap[unique++] = cap[i];
+    int seen = -1;
+    for (int j = 0; j < unique && seen < 0; ++j)
+      if (detail::sameBits(cap[i], cap[j])) seen = j;
+    if (seen >= 0) {
+      capOn[seen] |= capOn[i];
+    } else {
+      capOn[unique] = capOn[i];
+      cap[unique++] = cap[i];
+    }
   }
   if (out.faceCount > 0 && unique >= 3 && !capInFace) {
     if (out.faceCount == kCutPolytopeMaxFaces || unique > kCutPolygonMaxVertices) return false;
@@ -163,9 +187,15 @@ GF_HD bool clipPolytope(CutPolytope& p, const CutPlane& plane, double side, int 
         const Vec3 tv = cap[j];
         cap[j] = cap[j - 1];
         cap[j - 1] = tv;
+        const unsigned to = capOn[j];
+        capOn[j] = capOn[j - 1];
+        capOn[j - 1] = to;
       }
     CutPolygon& g = out.faces[out.faceCount++];
-    for (int i = 0; i < unique; ++i) g.v[i] = cap[i];
+    for (int i = 0; i < unique; ++i) {
+      g.v[i] = cap[i];
+      g.on[i] = capOn[i];
+    }
     g.count = unique;
     g.label = capLabel;
   }

@@ -2,10 +2,13 @@
 // a blade's triangles do not line up with the tets while the blade stays exactly planar.
 #pragma once
 
+#include <graphfrac/mesh.h>
+
 #include <cstdint>
 #include <random>
 
 #include "fracture/cutting.h"
+#include "xfem/cut_body.h"
 
 namespace gf::test {
 
@@ -31,6 +34,15 @@ inline detail::Blade planarBlade(double a, double b, double c, double lo, double
       blade.triangles.insert(blade.triangles.end(), {v00, v10, v11, v00, v11, v01});
     }
   return blade;
+}
+
+/// The 2 x 1 x 1 m box of 6 x 3 x 3 cells (nodes every 1/3 m) the blade tests cut, dt = 1e-3.
+inline detail::XfemBodyDef xfemBox(double youngs) {
+  detail::XfemBodyDef def;
+  def.mesh = gen::box(2, 1, 1, 6, 3, 3);
+  def.material = {youngs, 0.3, 1000};
+  def.dt = 1e-3;
+  return def;
 }
 
 }  // namespace gf::test

@@ -5,7 +5,10 @@
 // it prints the cut's cost (XFEM: trace, cells, rules, assembly and factorisation; graph: the first
 // step, which applies the cut), ms per step afterwards, the cut faces' largest distance from
 // their blade plane, the pieces' volumes against the exact split, and (XFEM) the entries of the
-// step matrix's Cholesky factor and the fill-reducing ordering chosen. The two step times are not
+// step matrix's Cholesky factor and the fill-reducing ordering chosen, and the render surface's
+// cost per frame (XFEM: updateSurface; graph: World::surface after the step) with its triangle
+// count (the XFEM surface's topology is built with the cut: surface_build_ms, inside cut_ms).
+// The two step times are not
 // the same physics (linear vs non-linear elasticity, a factorised vs an iterative solve), so the
 // ratio says what each mode costs here, not which algorithm is faster in general.
 #include <algorithm>
@@ -79,7 +82,9 @@ double worstRelative(std::vector<double> got, const std::vector<double>& exact) 
 
 struct ModeResult {
   double cutMs = 0, stepMs = 0, flat = 0, volume = 0;
-  int pieces = 0, cutElements = 0, dofs = 0;
+  double surfaceMs = 0;       // per frame: the render surface brought up to the step's state
+  double surfaceBuildMs = 0;  // XFEM: the surface's topology, inside cutMs
+  int pieces = 0, cutElements = 0, dofs = 0, surfaceTriangles = 0;
   long long factorNonZeros = 0;  // XFEM only
   const char* ordering = "";
 };
@@ -109,9 +114,18 @@ ModeResult runXfem(const TetMesh& mesh, int count, int steps, double dt) {
     return r;
   }
   detail::XfemBody& body = *made.value();
-  const auto t1 = std::chrono::steady_clock::now();
-  for (int s = 0; s < steps; ++s) body.step();
-  r.stepMs = msSince(t1) / steps;
+  for (int s = 0; s < steps; ++s) {
+    const auto t1 = std::chrono::steady_clock::now();
+    body.step();
+    r.stepMs += msSince(t1) / steps;
+    // The surface's topology is built with the cut; a frame evaluates eq 3.4 at its vertices.
+    const auto t2 = std::chrono::steady_clock::now();
+    body.updateSurface();
+    r.surfaceMs += msSince(t2) / steps;
+  }
+  for (const detail::XfemPieceSurface& s : body.surface())
+    r.surfaceTriangles += int(s.triangles.size() / 3);
+  r.surfaceBuildMs = body.surfaceBuildMs();
   for (const detail::XfemCutFace& f : body.cutFaces())
     for (int i = 0; i < f.polygon.count; ++i)
       r.flat = std::max(
@@ -199,9 +213,14 @@ ModeResult runGraph(const TetMesh& mesh, int count, int steps, double dt) {
   r.pieces = fs.fragments;
   r.cutElements = fs.brokenEdges;
   r.dofs = 3 * int(mesh.nodeCount());
-  const auto t1 = std::chrono::steady_clock::now();
-  for (int s = 0; s < steps; ++s) (void)world.step(dt);
-  r.stepMs = msSince(t1) / steps;
+  for (int s = 0; s < steps; ++s) {
+    const auto t1 = std::chrono::steady_clock::now();
+    (void)world.step(dt);
+    r.stepMs += msSince(t1) / steps;
+    const auto t2 = std::chrono::steady_clock::now();
+    r.surfaceTriangles = int(world.surface(id.value()).indices.size() / 3);
+    r.surfaceMs += msSince(t2) / steps;
+  }
   return r;
 }
 
@@ -219,15 +238,17 @@ int benchXfem(int argc, char** argv) {
               cells, cells / 2, cells / 2, mesh.tetCount(), mesh.nodeCount(), steps, dt);
   std::printf(
       "cuts,mode,cut_ms,ms_per_step,dofs,cut_elements_or_broken_edges,pieces,"
-      "cut_face_max_dist_m,piece_volume_max_rel_err,factor_nnz,ordering\n");
+      "cut_face_max_dist_m,piece_volume_max_rel_err,factor_nnz,ordering,surface_ms_per_frame,"
+      "surface_triangles,surface_build_ms\n");
   for (int count : {1, 5, 10, 20}) {
     const ModeResult x = runXfem(mesh, count, steps, dt);
     const ModeResult g = runGraph(mesh, count, steps, dt);
     if (x.pieces < 0 || g.pieces < 0) return kExitScene;
-    std::printf("%d,xfem,%.2f,%.3f,%d,%d,%d,%.2e,%.2e,%lld,%s\n", count, x.cutMs, x.stepMs, x.dofs,
-                x.cutElements, x.pieces, x.flat, x.volume, x.factorNonZeros, x.ordering);
-    std::printf("%d,graph,%.2f,%.3f,%d,%d,%d,%.2e,%.2e,,\n", count, g.cutMs, g.stepMs, g.dofs,
-                g.cutElements, g.pieces, g.flat, g.volume);
+    std::printf("%d,xfem,%.2f,%.3f,%d,%d,%d,%.2e,%.2e,%lld,%s,%.3f,%d,%.2f\n", count, x.cutMs,
+                x.stepMs, x.dofs, x.cutElements, x.pieces, x.flat, x.volume, x.factorNonZeros,
+                x.ordering, x.surfaceMs, x.surfaceTriangles, x.surfaceBuildMs);
+    std::printf("%d,graph,%.2f,%.3f,%d,%d,%d,%.2e,%.2e,,,%.3f,%d,\n", count, g.cutMs, g.stepMs,
+                g.dofs, g.cutElements, g.pieces, g.flat, g.volume, g.surfaceMs, g.surfaceTriangles);
     std::fflush(stdout);
   }
   return kExitOk;

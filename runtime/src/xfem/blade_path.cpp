@@ -79,22 +79,90 @@ std::vector<double> nodeSnapDistances(const TetMesh& mesh) {
   return shortest;
 }
 
-Result<BladePath> traceBlade(const TetMesh& mesh, const XfemBlade& xb) {
+Result<Blade> bladeSurface(const XfemBlade& xb) {
   const Blade& blade = xb.blade;
   const int32_t vertexCount = int32_t(blade.vertices.size() / 3);
   const int32_t triCount = int32_t(blade.triangles.size() / 3);
   if (triCount == 0) return fail("blade: no triangles");
-  std::vector<Vec3> v(static_cast<size_t>(vertexCount));
-  for (int32_t i = 0; i < vertexCount; ++i) {
-    const Vec3 local{blade.vertices[3 * size_t(i)], blade.vertices[3 * size_t(i) + 1],
-                     blade.vertices[3 * size_t(i) + 2]};
-    if (!std::isfinite(local.x) || !std::isfinite(local.y) || !std::isfinite(local.z))
-      return fail("blade: vertex ", std::to_string(i), ": not finite");
-    v[size_t(i)] = xb.pose.rotation * local + xb.pose.translation;
-  }
+  for (int32_t i = 0; i < 3 * vertexCount; ++i)
+    if (!std::isfinite(blade.vertices[size_t(i)]))
+      return fail("blade: vertex ", std::to_string(i / 3), ": not finite");
   for (int32_t k = 0; k < 3 * triCount; ++k)
     if (blade.triangles[size_t(k)] < 0 || blade.triangles[size_t(k)] >= vertexCount)
       return fail("blade: triangle ", std::to_string(k / 3), ": vertex index out of range");
+  const auto place = [&](const BladePose& pose, int32_t i) {
+    return pose.rotation * Vec3{blade.vertices[3 * size_t(i)], blade.vertices[3 * size_t(i) + 1],
+                                blade.vertices[3 * size_t(i) + 2]} +
+           pose.translation;
+  };
+  for (const BladePose* pose : {&xb.pose, xb.to ? &*xb.to : nullptr})
+    if (pose)
+      for (int32_t i = 0; i < vertexCount; ++i) {
+        const Vec3 x = place(*pose, i);
+        if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z))
+          return fail("blade: vertex ", std::to_string(i), ": not finite at its pose");
+      }
+  Blade out;
+  const auto addVertex = [&](Vec3 x) { out.vertices.insert(out.vertices.end(), {x.x, x.y, x.z}); };
+  for (int32_t i = 0; i < vertexCount; ++i) addVertex(place(xb.pose, i));
+  out.triangles = blade.triangles;
+  Vec3 move;
+  if (xb.to)
+    for (int32_t i = 0; i < vertexCount; ++i) move += place(*xb.to, i) - place(xb.pose, i);
+  if (!xb.to || norm(move) == 0) return out;
+
+  // Swept: start vertices 0..V-1, end vertices V..2V-1; the blade at both poses, and the quad
+  // each boundary edge (a -> b, as its triangle runs) sweeps.
+  move = (1.0 / vertexCount) * move;
+  for (int32_t i = 0; i < vertexCount; ++i) addVertex(place(*xb.to, i));
+  std::map<std::pair<int32_t, int32_t>, int> directed;
+  Vec3 normal;
+  for (int32_t t = 0; t < triCount; ++t) {
+    const int32_t* v = &blade.triangles[3 * size_t(t)];
+    out.triangles.insert(out.triangles.end(),
+                         {v[0] + vertexCount, v[1] + vertexCount, v[2] + vertexCount});
+    normal +=
+        cross(place(*xb.to, v[1]) - place(*xb.to, v[0]), place(*xb.to, v[2]) - place(*xb.to, v[0]));
+    for (int k = 0; k < 3; ++k) ++directed[{v[k], v[(k + 1) % 3]}];
+  }
+  for (const auto& [e, n] : directed) {
+    if (directed.count({e.second, e.first})) continue;  // interior edge
+    const int32_t a0 = e.first, b0 = e.second, a1 = a0 + vertexCount, b1 = b0 + vertexCount;
+    out.triangles.insert(out.triangles.end(), {a0, b0, b1, a0, b1, a1});
+  }
+  // Orientation: out of the swept volume ((b - a) x d of a boundary quad is outward when the
+  // blade moves along its normal: then the start blade faces in); within the blade's plane, all
+  // along the blade's normal.
+  const double along = dot(normal, move) / (norm(normal) * norm(move));
+  const auto flip = [&](size_t t) {
+    std::swap(out.triangles[3 * t + 1], out.triangles[3 * t + 2]);
+  };
+  const auto at = [&](int32_t i) {
+    return Vec3{out.vertices[3 * size_t(i)], out.vertices[3 * size_t(i) + 1],
+                out.vertices[3 * size_t(i) + 2]};
+  };
+  for (size_t t = 0; 3 * t < out.triangles.size(); ++t) {
+    const bool start = t < size_t(triCount);
+    if (std::abs(along) <= 1e-9) {
+      const int32_t* v = &out.triangles[3 * t];
+      if (dot(cross(at(v[1]) - at(v[0]), at(v[2]) - at(v[0])), normal) < 0) flip(t);
+    } else if (along > 0 ? start : !start) {
+      flip(t);
+    }
+  }
+  return out;
+}
+
+Result<BladePath> traceBlade(const TetMesh& mesh, const XfemBlade& xb) {
+  auto surface = bladeSurface(xb);
+  if (!surface.ok()) return fail(surface.error().message);
+  const Blade& blade = surface.value();
+  const int32_t vertexCount = int32_t(blade.vertices.size() / 3);
+  const int32_t triCount = int32_t(blade.triangles.size() / 3);
+  std::vector<Vec3> v(static_cast<size_t>(vertexCount));
+  for (int32_t i = 0; i < vertexCount; ++i)
+    v[size_t(i)] = {blade.vertices[3 * size_t(i)], blade.vertices[3 * size_t(i) + 1],
+                    blade.vertices[3 * size_t(i) + 2]};
 
   // World-space triangles, their unit normals and boxes; degenerate ones cover nothing.
   struct Tri {

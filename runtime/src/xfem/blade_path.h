@@ -21,12 +21,20 @@
 // whose only positive node lies on the blade is then crossed with an empty positive cell (its
 // nodes' enriched functions stay conforming there), and one whose other nodes are all positive
 // is only touched. The local plane keeps such a node exactly on its positive side.
-// Static blades only: a swept blade would be its swept triangles (cutting.h), not done here.
+// A swept blade (moved rigidly from `pose` to `to`, as a World Blade moves from `from` to `to`)
+// cuts along the surface it sweeps: the blade at both poses and the quads its boundary edges sweep
+// (bladeSurface), one closed indexed mesh oriented out of the swept volume, or, for a sweep within
+// the blade's own plane, the flat region it covers with every triangle along the blade's normal.
+// cutting.h's swept triangles (for segment tests) also sweep the blade's interior edges; as a cut
+// surface their quads would meet along the swept vertices' paths in more than two triangles, which
+// reads as the blade's boundary there (a blade ending inside every tet it crosses), so only the
+// boundary edges are swept here. A tet the surface folds in (the swept volume's edges) is partial.
 #pragma once
 
 #include <graphfrac/mesh.h>
 #include <graphfrac/status.h>
 
+#include <optional>
 #include <vector>
 
 #include "fracture/cutting.h"
@@ -38,7 +46,14 @@ namespace gf::detail {
 struct XfemBlade {
   Blade blade;
   BladePose pose;
+  std::optional<BladePose> to =
+      std::nullopt;  ///< End pose of a sweep from `pose`; unset: a static blade.
 };
+
+/// The cut surface of a blade in the body's frame (identity pose): the blade at its pose, or the
+/// surface it sweeps (see the design note). Fails, naming the field, on a triangle index out of
+/// range or a non-finite vertex.
+Result<Blade> bladeSurface(const XfemBlade& blade);
 
 /// Distance, relative to a node's shortest edge, below which the node counts as on a cut
 /// (blade or plane): far above the rounding of a distance for coordinates up to 1e3 edges from

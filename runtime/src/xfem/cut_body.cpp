@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <string>
 
 #include "kernels/xfem_enrichment.h"
+#include "xfem/cut_surface.h"
+#include "xfem/union_find.h"
 
 namespace gf::detail {
 
@@ -23,20 +26,6 @@ struct TetCut {
   CutPlane plane;
   bool full = true;
 };
-
-int32_t findRoot(std::vector<int32_t>& parent, int32_t i) {
-  while (parent[size_t(i)] != i) {
-    parent[size_t(i)] = parent[size_t(parent[size_t(i)])];
-    i = parent[size_t(i)];
-  }
-  return i;
-}
-
-void unite(std::vector<int32_t>& parent, int32_t a, int32_t b) {
-  a = findRoot(parent, a);
-  b = findRoot(parent, b);
-  if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);
-}
 
 // Point p in the convex polygon g (in g's plane), up to tol times each edge's length outside it.
 bool polygonContains(const CutPolygon& g, Vec3 p, double tol) {
@@ -73,21 +62,20 @@ int tetFaceHolding(const Vec3 X[4], const CutPolygon& g, double tol) {
   return -1;
 }
 
-// Side of x against a cut that does not cross its tet: the plane's, or for a blade the sign of
-// eq 3.1 to its nearest triangle.
-bool positiveSide(const XfemBodyDef& def, int32_t cut, Vec3 x) {
+// Side of x against a cut that does not cross its tet: the plane's, or for a blade (its cut
+// surface, bladeSurface) the sign of eq 3.1 to its nearest triangle.
+bool positiveSide(const XfemBodyDef& def, const std::vector<Blade>& surfaces, int32_t cut, Vec3 x) {
   const int32_t planes = int32_t(def.planes.size());
   if (cut < planes) return planeDistance(def.planes[size_t(cut)], x) >= 0;
-  const XfemBlade& b = def.blades[size_t(cut - planes)];
+  const Blade& b = surfaces[size_t(cut - planes)];
   double best = INFINITY, sign = 1;
-  for (size_t t = 0; 3 * t < b.blade.triangles.size(); ++t) {
+  for (size_t t = 0; 3 * t < b.triangles.size(); ++t) {
     Vec3 p[3];
     for (int k = 0; k < 3; ++k) {
-      const size_t i = size_t(b.blade.triangles[3 * t + size_t(k)]);
-      p[k] = b.pose.rotation * Vec3{b.blade.vertices[3 * i], b.blade.vertices[3 * i + 1],
-                                    b.blade.vertices[3 * i + 2]} +
-             b.pose.translation;
+      const size_t i = size_t(b.triangles[3 * t + size_t(k)]);
+      p[k] = {b.vertices[3 * i], b.vertices[3 * i + 1], b.vertices[3 * i + 2]};
     }
+    if (norm(cross(p[1] - p[0], p[2] - p[0])) == 0) continue;
     const double d = signedDistanceToTriangle(x, p[0], p[1], p[2]);  // eq 3.1
     if (std::abs(d) < best) best = std::abs(d), sign = d;
   }
@@ -107,6 +95,12 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
   for (int32_t j = 0; j < planeCount; ++j)
     if (std::abs(norm(def.planes[size_t(j)].normal) - 1.0) > 1e-12)
       return fail("XfemBody: planes[", std::to_string(j), "]: normal is not a unit vector");
+  if (!(def.constraint.minRatio >= 0 && def.constraint.minRatio < 1))
+    return fail("XfemBody: constraint.minRatio: ", std::to_string(def.constraint.minRatio),
+                " is not in [0, 1)");
+  if (!(def.constraint.relative >= 0 && std::isfinite(def.constraint.relative)))
+    return fail("XfemBody: constraint.relative: ", std::to_string(def.constraint.relative),
+                " is not finite and >= 0");
   for (int32_t n : def.fixedNodes)
     if (n < 0 || n >= nodes)
       return fail("XfemBody: fixedNodes: node ", std::to_string(n), " out of range");
@@ -158,8 +152,13 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
       }
     }
   }
+  std::vector<Blade> bladeSurfaces;
   for (size_t k = 0; k < def.blades.size(); ++k) {
     const int32_t j = planeCount + int32_t(k);
+    auto surface = bladeSurface(def.blades[k]);
+    if (!surface.ok())
+      return fail("XfemBody: blades[", std::to_string(k), "]: ", surface.error().message);
+    bladeSurfaces.push_back(std::move(surface.value()));
     auto path = traceBlade(mesh, def.blades[k]);
     if (!path.ok())
       return fail("XfemBody: blades[", std::to_string(k), "]: ", path.error().message);
@@ -254,12 +253,18 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
   b.m_force = Eigen::VectorXd::Zero(3 * F);
   std::vector<double> support(static_cast<size_t>(nodes), 0.0);
   std::vector<double> enrichedVolume(static_cast<size_t>(F - nodes), 0.0);
+  XfemSurfaceBuilder surface(mesh, cutCount, b.m_enriched, def.k);
   for (int32_t t = 0; t < tets; ++t) {
     firstCell[size_t(t)] = int32_t(cells.size());
     const std::vector<TetCut>& cuts = tetCuts[size_t(t)];
     const int m = int(cuts.size());
     CutPlane local[kMaxCutPlanes];
-    for (int j = 0; j < m; ++j) local[j] = cuts[size_t(j)].plane;
+    int32_t localCut[kMaxCutPlanes];
+    for (int j = 0; j < m; ++j) {
+      local[j] = cuts[size_t(j)].plane;
+      localCut[j] = cuts[size_t(j)].cut;
+    }
+    surface.beginTet(t, localCut, local, m);
     const Vec3* x = &X[4 * size_t(t)];
     // Nodes on a cut (to their snap distance) lie within twice the largest snap of the tet's
     // local plane: the cells treat them as on it, so no sliver of rounding noise is made.
@@ -335,6 +340,11 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
         if (m > 0 && capOnFace[f] >= 0)
           facePolygons[size_t(t)][size_t(capOnFace[f])].emplace_back(id, g);
       }
+      const auto surfaceStart = std::chrono::steady_clock::now();
+      surface.addCell(id, c.sideMask, c.polytope, capOnFace);
+      b.m_surfaceBuildMs +=
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - surfaceStart)
+              .count();
       cells.push_back(std::move(cell));
       for (int j = 0; j < m; ++j) {
         const bool cellPositive = (c.sideMask >> j) & 1u;
@@ -439,7 +449,8 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
       XfemPiece p;
       p.mask = cells[c].sides;
       for (int32_t j = 0; j < cutCount; ++j)
-        if (!((cells[c].cutBits >> j) & 1u) && positiveSide(def, j, cells[c].centroid))
+        if (!((cells[c].cutBits >> j) & 1u) &&
+            positiveSide(def, bladeSurfaces, j, cells[c].centroid))
           p.mask |= 1u << j;
       p.load = Eigen::VectorXd::Zero(F);
       b.m_pieces.push_back(std::move(p));
@@ -450,8 +461,27 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
     for (const auto& [f, w] : cells[c].load) p.load[f] += w;
   }
   // Roots are first cells, so pieces come in order of their first tet; then by mask.
-  std::stable_sort(b.m_pieces.begin(), b.m_pieces.end(),
-                   [](const XfemPiece& l, const XfemPiece& r) { return l.mask < r.mask; });
+  {
+    std::vector<int32_t> order(b.m_pieces.size()), rank(b.m_pieces.size());
+    for (size_t p = 0; p < order.size(); ++p) order[p] = int32_t(p);
+    std::stable_sort(order.begin(), order.end(), [&](int32_t l, int32_t r) {
+      return b.m_pieces[size_t(l)].mask < b.m_pieces[size_t(r)].mask;
+    });
+    std::vector<XfemPiece> sorted;
+    for (size_t p = 0; p < order.size(); ++p) {
+      rank[size_t(order[p])] = int32_t(p);
+      sorted.push_back(std::move(b.m_pieces[size_t(order[p])]));
+    }
+    b.m_pieces = std::move(sorted);
+    std::vector<int32_t> cellPiece(cells.size());
+    for (size_t c = 0; c < cells.size(); ++c)
+      cellPiece[c] = rank[size_t(pieceOf[size_t(findRoot(parent, int32_t(c)))])];
+    const auto surfaceStart = std::chrono::steady_clock::now();
+    b.m_surface = surface.build(cellPiece, int32_t(b.m_pieces.size()));
+    b.m_surfaceBuildMs +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - surfaceStart)
+            .count();
+  }
 
   b.m_enrichedRatio.assign(size_t(F - nodes), 0.0);
   for (int32_t n = 0; n < nodes; ++n)
@@ -497,6 +527,13 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
   }
   b.m_stepMatrix.finalize();
   b.m_stepMatrix.makeCompressed();
+  // Sec 3.2.2.2: (A + lambda I) on the enriched DOFs of too small a volume ratio (eq 3.16).
+  for (int32_t r = 0; r < free; ++r) {
+    const int32_t f = b.m_freeDof[size_t(r)] / 3;
+    if (f < nodes || !(b.m_enrichedRatio[size_t(f - nodes)] < def.constraint.minRatio)) continue;
+    b.m_stepMatrix.coeffRef(r, r) *= 1.0 + def.constraint.relative;
+    ++b.m_constrained;
+  }
   const SymmetricCsc csc{int32_t(b.m_stepMatrix.rows()), b.m_stepMatrix.outerIndexPtr(),
                          b.m_stepMatrix.innerIndexPtr(), b.m_stepMatrix.valuePtr()};
   if (auto factored = b.m_solver.factorize(csc); !factored.ok())
@@ -518,6 +555,17 @@ bool XfemBody::step() {
   for (size_t r = 0; r < m_freeDof.size(); ++r) m_v[m_freeDof[r]] = v[Eigen::Index(r)];
   m_u += dt * m_v;
   return true;
+}
+
+void XfemBody::updateSurface() {
+  for (XfemPieceSurface& s : m_surface)
+    for (size_t v = 0; v < s.vertices.size(); ++v) {
+      Vec3 x = s.vertices[v].rest;
+      for (int32_t w = s.weightStart[v]; w < s.weightStart[v + 1]; ++w)
+        for (int i = 0; i < 3; ++i)
+          x[i] += s.weightValue[size_t(w)] * m_u[3 * s.weightFunction[size_t(w)] + i];  // eq 3.4
+      s.positions[v] = x;
+    }
 }
 
 int XfemBody::pieceWithMask(unsigned mask) const {

@@ -22,6 +22,13 @@
 // the blade's front; no crack-tip enrichment. Pieces are the connected components of the cells
 // (cells of one tet joined unless a cut opens between them, cells of neighbouring tets joined
 // when their polygons on the shared face overlap), which is also the check that a cut closes.
+// Each piece has a closed render surface (cut_surface.h): its boundary faces clipped to its cells
+// and the exact cut polygons, built with the cells and moved per frame by eq 3.4; a cut that does
+// not open leaves a closed pocket there, not a hole. Blades may be swept (blade_path.h: the surface
+// the blade sweeps). The constraint of sec 3.2.2.2 is an option (XfemConstraint), off by default:
+// a tiny sliver cut off stays free of NaN and falls freely without it (condition number up to
+// 2.4e11 at k = 0.1, which the direct solve absorbs); with it the condition number stays near
+// 5e4 but the sliver is glued to the body (figures at XfemConstraint).
 #pragma once
 
 #include <graphfrac/mesh.h>
@@ -34,8 +41,29 @@
 #include "solver/cholesky.h"
 #include "xfem/blade_path.h"
 #include "xfem/cut_element.h"
+#include "xfem/cut_surface.h"
 
 namespace gf::detail {
+
+/// The constraint of thesis sec 3.2.2.2: (A + lambda I) v' = b on the enriched DOFs whose volume
+/// ratio v (eq 3.16) is below `minRatio`, with lambda = `relative` times the DOF's own diagonal
+/// A_ii (scale-free). Off by default, from the measurements of a sliver x > 2 - f h cut off a held
+/// stiff bar (tests/physics/test_xfem_sliver.cpp, docs/validation.md). With k = 0.1 the step
+/// matrix's condition number grows from 2.5e5 (f = 1e-3) to 2.4e11 (f = 1e-9, v = 5e-28), which
+/// the direct Cholesky solve still handles: no NaN, and the cut-off sliver falls as implicit
+/// Euler's free fall to 1.3e-4. The constraint (v < 1e-4, relative 1) holds the condition number
+/// near 5e4 at every f, but it re-glues the sliver: A_ii holds dt^2 K, so lambda freezes the
+/// enriched DOFs that let the sliver go, and the sliver stays attached to the bar (falls 0.4-0.6%
+/// of free fall where the bar's mean falls 0.2%; relative 1e-2 the same for f <= 1e-5; with a
+/// soft bar, E = 1e7, it is dragged: 84-87% of free fall). For classic XFEM (k = 0) a lambda
+/// relative to the DOF's diagonal cannot help: that diagonal itself vanishes with the sliver
+/// (3.5e10 to singular to rounding with or without it; eq 3.15's scaling is the cure there). So
+/// it is for an iterative solver (the thesis's CG) at the price of glued slivers. A cut whose
+/// every enriched DOF has v >= minRatio is untouched (bit-identical).
+struct XfemConstraint {
+  double minRatio = 0;    ///< Threshold on v of eq 3.16, in [0, 1); 0: off.
+  double relative = 1.0;  ///< lambda / A_ii, >= 0.
+};
 
 /// What an Is-XFEM body is made of.
 struct XfemBodyDef {
@@ -47,6 +75,7 @@ struct XfemBodyDef {
   std::vector<int32_t> fixedNodes;  ///< Nodes whose DOFs (standard and enriched) stay at rest.
   Vec3 gravity{0, -9.81, 0};        ///< Body force per unit mass.
   double dt = 1.0 / 60;             ///< Time step [s].
+  XfemConstraint constraint;        ///< Sec 3.2.2.2 on sliver DOFs.
 };
 
 /// A piece: a connected part of the body between opened cuts.
@@ -109,8 +138,25 @@ class XfemBody {
   const std::vector<XfemCutReport>& cutReports() const { return m_cutReports; }
   /// Cut polygons (each cut's face in each tet carrying its enrichment).
   const std::vector<XfemCutFace>& cutFaces() const { return m_cutFaces; }
+  /// Per piece (as pieces()), its closed render surface (cut_surface.h): boundary faces and exact
+  /// cut polygons, vertices welded by name. Positions as of the last updateSurface().
+  const std::vector<XfemPieceSurface>& surface() const { return m_surface; }
+  /// Moves every surface vertex with the enriched field (eq 3.4) of the current displacement.
+  void updateSurface();
+  /// Wall time create() spent on the surface's topology and weights [ms] (benchmarks).
+  double surfaceBuildMs() const { return m_surfaceBuildMs; }
+  /// The enriched shape function of node for cut j (planes first, then blades), or -1.
+  int32_t enrichedFunction(int32_t node, int32_t cut) const {
+    const int32_t cuts = int32_t(m_def.planes.size() + m_def.blades.size());
+    return m_enriched[size_t(node) * size_t(cuts) + size_t(cut)];
+  }
 
-  /// The sparse step matrix A = M + dt^2 K over the free DOFs.
+  /// Per enriched function (function - node count): v of eq 3.16.
+  const std::vector<double>& volumeRatios() const { return m_enrichedRatio; }
+  /// Free DOFs under the constraint of sec 3.2.2.2 (XfemBodyDef::constraint).
+  int32_t constrainedDofCount() const { return m_constrained; }
+  /// The sparse step matrix A = M + dt^2 K over the free DOFs, with the constraint's lambda on
+  /// the diagonal of the constrained DOFs.
   const Eigen::SparseMatrix<double>& stepMatrix() const { return m_stepMatrix; }
   /// Fill and ordering of the step matrix's Cholesky factor.
   CholeskyFactorInfo factorInfo() const { return m_solver.factorInfo(); }
@@ -124,7 +170,7 @@ class XfemBody {
  private:
   XfemBody() = default;
   XfemBodyDef m_def;
-  int32_t m_functionCount = 0, m_cutTets = 0;
+  int32_t m_functionCount = 0, m_cutTets = 0, m_constrained = 0;
   std::vector<int32_t> m_enriched;      // node * cuts + j -> function, or -1
   std::vector<double> m_enrichedRatio;  // per enriched function: v of eq 3.16
   std::vector<int32_t> m_freeDof;       // free DOF -> DOF
@@ -134,6 +180,8 @@ class XfemBody {
   std::vector<XfemPiece> m_pieces;
   std::vector<XfemCutReport> m_cutReports;
   std::vector<XfemCutFace> m_cutFaces;
+  std::vector<XfemPieceSurface> m_surface;
+  double m_surfaceBuildMs = 0;
 };
 
 }  // namespace gf::detail
