@@ -90,6 +90,51 @@ WettingModel buildWettingModel(const FemModel& model, const WettingSettings& set
   return w;
 }
 
+void updateCrackBarriers(const FemModel& model, WettingModel& w, const int32_t* nodeFragment) {
+  const int32_t nt = model.tetCount, nf = int32_t(w.conductance.size());
+  // The fragment of most of each tet's nodes, the lowest on a tie.
+  std::vector<int32_t> owner(static_cast<size_t>(nt));
+  bool split = false;
+  for (int32_t t = 0; t < nt; ++t) {
+    std::array<int32_t, 4> frag{};
+    for (int k = 0; k < 4; ++k)
+      frag[size_t(k)] = nodeFragment[model.tets[4 * size_t(t) + size_t(k)]];
+    std::sort(frag.begin(), frag.end());
+    int32_t best = frag[0], bestCount = 0;
+    for (size_t i = 0; i < 4;) {
+      size_t j = i;
+      while (j < 4 && frag[j] == frag[i]) ++j;
+      if (int32_t(j - i) > bestCount) best = frag[i], bestCount = int32_t(j - i);
+      i = j;
+    }
+    owner[size_t(t)] = best;
+    split |= frag[0] != frag[3];
+  }
+  if (!split) {
+    w.open.clear();
+    return;
+  }
+  w.open.assign(size_t(nf), 1.0);
+  for (int32_t f = 0; f < nf; ++f) {
+    const int32_t a = w.faceTets[2 * size_t(f)], b = w.faceTets[2 * size_t(f) + 1];
+    if (owner[size_t(a)] != owner[size_t(b)]) {
+      w.open[size_t(f)] = 0;
+      continue;
+    }
+    // The face's nodes: those of a that b shares.
+    int shared = 0, inside = 0;
+    for (int k = 0; k < 4; ++k) {
+      const int32_t n = model.tets[4 * size_t(a) + size_t(k)];
+      bool inB = false;
+      for (int m = 0; m < 4; ++m) inB |= model.tets[4 * size_t(b) + size_t(m)] == n;
+      if (!inB) continue;
+      ++shared;
+      inside += nodeFragment[n] == owner[size_t(a)];
+    }
+    w.open[size_t(f)] = shared == 3 ? inside / 3.0 : 0.0;
+  }
+}
+
 int32_t diffusionSubsteps(const WettingModel& w, double dt) {
   return std::max<int32_t>(1, int32_t(std::ceil(dt * w.rateBound)));
 }
@@ -111,9 +156,13 @@ void advanceWater(const FemModel& model, WettingModel& w, std::vector<double>& w
   }
   if (w.conductance.empty()) return;
   const int32_t n = diffusionSubsteps(w, dt);
-  WaterFluxStage flux{
-      w.faceTets.data(), w.conductance.data(), w.capacity.data(), water.data(), dt / n,
-      w.flux.data()};
+  WaterFluxStage flux{w.faceTets.data(),
+                      w.conductance.data(),
+                      w.capacity.data(),
+                      water.data(),
+                      w.open.empty() ? nullptr : w.open.data(),
+                      dt / n,
+                      w.flux.data()};
   const WaterGatherStage gather{w.tetFaceStart.data(), w.tetFace.data(), w.flux.data(),
                                 water.data()};
   for (int32_t k = 0; k < n; ++k) {

@@ -15,6 +15,13 @@
 // a step of dt takes ceil(dt * rateBound) equal substeps so that holds.
 // A body gets this model at its first wet brush: a body that never gets wet pays nothing (no
 // buffers, one null check per step, and a null per-tet stiffness in the element pass).
+// Cracks. Water lives per tet, while a graph crack runs between the corner cells of nodes
+// inside the tets, so a tet cannot hold water on both sides of one. Once a crack separates the
+// body into fragments, each tet's water belongs to the fragment of most of its nodes (ties: the
+// lowest fragment), and a face passes water only through the corners of its nodes that lie in
+// that fragment for both tets: a share of 0, 1/3, 2/3 or 1 of G_f. Water then never crosses
+// from one fragment's tets to another's, and it still diffuses freely inside each. A crack that
+// has not yet separated the body does not stop it.
 #pragma once
 
 #include <cstdint>
@@ -39,10 +46,16 @@ struct WettingModel {
   std::vector<double> capacity;       ///< C_e = rho_w porosity V_e [kg]
   double rateBound = 0;               ///< max_e sum_f G_f / C_e [1/s]
   std::vector<double> flux;           ///< scratch, one per face
+  /// Per face, the share of G_f that passes between fragments (see Cracks); empty: all.
+  std::vector<double> open;
 };
 
 /// The model of a body's rest mesh with these settings.
 WettingModel buildWettingModel(const FemModel& model, const WettingSettings& settings);
+
+/// Sets w.open from the fragment of every node (see Cracks in the file comment): O(tets), run
+/// at each step of a wetted body with broken edges.
+void updateCrackBarriers(const FemModel& model, WettingModel& w, const int32_t* nodeFragment);
 
 /// Diffusion substeps a step of dt takes (>= 1): the stability bound of the file comment.
 int32_t diffusionSubsteps(const WettingModel& w, double dt);
@@ -96,18 +109,20 @@ struct WaterBrushStage {
   }
 };
 
-/// q_f = G_f (S_a - S_b) h for every face (mass from a to b).
+/// q_f = G_f (S_a - S_b) h for every face (mass from a to b), times the face's open share.
 struct WaterFluxStage {
   const int32_t* faceTets = nullptr;
   const double* conductance = nullptr;
   const double* capacity = nullptr;
   const double* water = nullptr;
+  const double* open = nullptr;  ///< WettingModel::open, null: all open
   double h = 0;
   double* flux = nullptr;
 
   GF_HD void operator()(int32_t f) const {
     const int32_t a = faceTets[2 * int64_t(f)], b = faceTets[2 * int64_t(f) + 1];
-    flux[f] = conductance[f] * (water[a] / capacity[a] - water[b] / capacity[b]) * h;
+    const double g = open ? conductance[f] * open[f] : conductance[f];
+    flux[f] = g * (water[a] / capacity[a] - water[b] / capacity[b]) * h;
   }
 };
 

@@ -244,6 +244,9 @@ void World::Impl::advanceWater(double dt) {
     BodyRecord* b = s.body.get();
     if (!b || !b->wetting || b->state.water.empty()) continue;
     any = true;
+    if (b->fracture && (b->fracture->brokenCount() > 0 || !b->wetting->open.empty()))
+      detail::updateCrackBarriers(b->model, *b->wetting,
+                                  b->fracture->fragments().nodeFragment().data());
     detail::advanceWater(b->model, *b->wetting, b->state.water, b->state.x.data(), b->strokes, dt,
                          *jobs);
     b->strokes.clear();
