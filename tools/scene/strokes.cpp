@@ -18,6 +18,16 @@ std::vector<glm::dvec3> brushAt(const SceneStroke& s, glm::dvec3 c) {
 }
 constexpr uint32_t kBrushTriangles[] = {0, 1, 2, 0, 2, 3};
 
+// The clay kernel (eq 7.7) of a push, pull or cut stroke around `centre`.
+DeformBrush clayAround(const SceneStroke& s, glm::dvec3 centre) {
+  DeformBrush b;
+  b.centre = glm::vec3(centre);
+  b.radius = float(s.influence);
+  b.k1 = s.k1;
+  b.k2 = s.k2;
+  return b;
+}
+
 Collider parkedTool() {
   Collider c;
   c.kind = Collider::Kind::Sphere;
@@ -113,12 +123,7 @@ Result<void> StrokePlayer::apply(World& world, std::span<const BodyId> bodies, i
     tool.radius = float(s.radius);
     tool.velocity = glm::vec3((s.to - s.from) / ((s.toFrame - s.fromFrame + 1) * m_dt));
     if (Result<void> r = world.setColliders(colliders); !r) return failed(r.error());
-    DeformBrush b;
-    b.centre = glm::vec3(centre);
-    b.radius = float(s.influence);
-    b.k1 = s.k1;
-    b.k2 = s.k2;
-    if (Result<void> r = world.deform(body, b); !r) return failed(r.error());
+    if (Result<void> r = world.deform(body, clayAround(s, centre)); !r) return failed(r.error());
     if (s.type == SceneStroke::Type::Push) return {};
     const glm::dvec3 end = s.from + (s.to - s.from) * (double(k + 1) / steps);
     m_targets.resize(m_offsets.size());
@@ -175,12 +180,7 @@ Result<void> StrokePlayer::cutStroke(World& world, BodyId body, int active, glm:
   const Result<glm::dvec3> f = m_brush->sample(m_brushPose, h);
   if (!f) return failed(f.error());
   m_brushForce = f.value();
-  DeformBrush hold;
-  hold.centre = glm::vec3(end);
-  hold.radius = float(s.influence);
-  hold.k1 = s.k1;
-  hold.k2 = s.k2;
-  if (Result<void> r = world.deform(body, hold); !r) return failed(r.error());
+  if (Result<void> r = world.deform(body, clayAround(s, end)); !r) return failed(r.error());
   if (m_brush->cutting())
     if (Result<void> r = m_brush->cut(world, body); !r) return failed(r.error());
   return {};
