@@ -35,10 +35,10 @@ enum NodeTerm : int { kNodeEnergy, kNodeContact, kNodeMagnitude, kNodeGradMagnit
 /// E_n(x) = 1/2 m |x-y|^2 + dt/2 r1 m |x-x_n|^2 - dt^2 f^T x + dt^2 (Psi_c(x) + D_f(x)) per node
 /// (eq 2.7, 3.13 with Rayleigh r1; D_f collider friction's dissipation potential), plus the
 /// sculpting terms 1/2 m w |x-x_n|^2 (deform drag) and 1/2 m w_t |x-t|^2 (pull tether; see
-/// FemState::drag, FemState::tether), and, when `grad`
-/// is non-null, its gradient plus dt^2 times the elastic node gradient, the contact Hessian block
-/// and whether the node touches a collider. The magnitude terms are the summed sizes of the parts
-/// that cancel in E and in dE/dx |x| (round-off scale of the line search).
+/// FemState::drag, FemState::tether), and, when `grad` is non-null, its gradient plus dt^2 times
+/// the elastic node gradient, the contact Hessian block and whether the node touches a collider.
+/// The magnitude terms are the summed sizes of the parts that cancel in E and in dE/dx |x|
+/// (round-off scale of the line search).
 struct NodePotentialStage {
   const double* x = nullptr;   ///< 3 per node
   const double* xn = nullptr;  ///< start of the step
@@ -142,8 +142,7 @@ struct FreeDifferenceStage {
 
 /// The per-node blocks of the step's matrix, A_nn += m (1 + dt r1 + w + w_t) I + dt^2 H_contact
 /// (eq 2.7, 3.13 with Rayleigh r1, a deform brush's drag w and a pull's tether w_t): `values` are
-/// the block-sparse
-/// values (9 per block) and diagonalBlock the block of each node's diagonal.
+/// the block-sparse values (9 per block) and diagonalBlock the block of each node's diagonal.
 struct NodeBlockStage {
   double* values = nullptr;
   const int32_t* diagonalBlock = nullptr;
