@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <sstream>
 #include <string>
@@ -193,6 +194,15 @@ TEST(SculptSession, WetRegionPushesBackLessAndTheDentsStay) {
                  "--surface-every", "10"}),
             gf::cli::kExitOk);
   ASSERT_TRUE(fs::exists(dir / "out" / "haptic.svg"));
+  {
+    // Every stroke whose tool meets the body has a curve; the wet one touches only water.
+    std::ifstream in(dir / "out" / "haptic.svg");
+    const std::string svg((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (const char* name :
+         {"strokes[0] push", "strokes[2] push", "strokes[3] pull", "strokes[4] cut"})
+      EXPECT_NE(svg.find(name), std::string::npos) << name;
+    EXPECT_EQ(svg.find("strokes[1]"), std::string::npos);
+  }
   const std::vector<HapticRow> rows = readHaptic(dir / "out" / "haptic.csv");
   ASSERT_EQ(rows.size(), 150u);
   const std::vector<int> broken = brokenEdgesPerFrame(dir / "out" / "stats.csv");

@@ -55,7 +55,7 @@ constexpr const char* kRunUsage =
     "strokes the sculpting tool is the last). With strokes: DIR/haptic.csv (frame,time,\n"
     "stroke,type,fx,fy,fz,force), the force [N] on the tool over the frame (stroke = its\n"
     "index in the scene's \"strokes\", -1 between strokes), and\n"
-    "DIR/haptic.svg, |F| of each push stroke against time.\n"
+    "DIR/haptic.svg, |F| of each push, pull and cut stroke against time.\n"
     "\n"
     "options:\n"
     "  --frames N         frames to run (default: the scene's \"frames\")\n"
@@ -554,8 +554,11 @@ int runCommand(int argc, char** argv) {
       const std::string type = k < 0 ? "none" : scene::strokeTypeName(sc.strokes[size_t(k)].type);
       r = hapticCsv.row(
           {int64_t{frame}, world.time(), int64_t{k}, type, f.x, f.y, f.z, glm::length(f)});
-      if (k >= 0 && sc.strokes[size_t(k)].type == scene::SceneStroke::Type::Push) {
-        const std::string name = "strokes[" + std::to_string(k) + "] push";
+      // The strokes whose tool meets the body: wet and dry only touch its water.
+      const bool touches = k >= 0 && sc.strokes[size_t(k)].type != scene::SceneStroke::Type::Wet &&
+                           sc.strokes[size_t(k)].type != scene::SceneStroke::Type::Dry;
+      if (touches) {
+        const std::string name = "strokes[" + std::to_string(k) + "] " + type;
         if (hapticSeries.empty() || hapticSeries.back().name != name) {
           static const char* kColours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e"};
           hapticSeries.push_back({name, kColours[hapticSeries.size() % 5], {}, true});
@@ -582,7 +585,7 @@ int runCommand(int argc, char** argv) {
     outputOk = false;
   }
   if (writeHaptic) {
-    PlotPanel panel{"Haptic force of the push strokes",
+    PlotPanel panel{"Haptic force of the push, pull and cut strokes",
                     "time [s]",
                     "|F| on the tool [N]",
                     false,
