@@ -4,6 +4,7 @@
 
 #include <graphfrac/mesh.h>
 
+#include <cmath>
 #include <cstdint>
 #include <random>
 
@@ -34,6 +35,12 @@ inline detail::Blade planarBlade(double a, double b, double c, double lo, double
       blade.triangles.insert(blade.triangles.end(), {v00, v10, v11, v00, v11, v01});
     }
   return blade;
+}
+
+/// x = a + b y + c z as a unit-normal cut plane (positive side: x above it).
+inline CutPlane slantedPlane(double a, double b, double c) {
+  const double len = std::sqrt(1 + b * b + c * c);
+  return {{1 / len, -b / len, -c / len}, a / len};
 }
 
 /// The 2 x 1 x 1 m box of 6 x 3 x 3 cells (nodes every 1/3 m) the blade tests cut, dt = 1e-3.

@@ -20,18 +20,12 @@ namespace {
 
 using test::planarBlade;
 
-XfemBodyDef boxDef() {
-  XfemBodyDef def;
-  def.mesh = gen::box(2, 1, 1, 6, 3, 3);
-  def.material = {1e7, 0.3, 1000};
-  def.dt = 1e-3;
-  return def;
-}
+XfemBodyDef boxDef() { return test::xfemBox(1e7); }
 
 TEST(XfemBlades, PlanarBladeMatchesThePlane) {
-  const double a = 0.93, b = 0.2, c = 0.1, len = std::sqrt(1 + b * b + c * c);
+  const double a = 0.93, b = 0.2, c = 0.1;
   XfemBodyDef byPlane = boxDef();
-  byPlane.planes = {{{1 / len, -b / len, -c / len}, a / len}};
+  byPlane.planes = {test::slantedPlane(a, b, c)};
   auto plane = XfemBody::create(byPlane);
   ASSERT_TRUE(plane.ok()) << plane.error().message;
   const double exactLeft = a + b / 2 + c / 2;

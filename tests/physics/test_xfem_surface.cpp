@@ -22,12 +22,6 @@ namespace {
 
 using test::planarBlade;
 
-// x = a + b y + c z as a unit-normal plane (positive side: x above it).
-CutPlane slanted(double a, double b, double c) {
-  const double len = std::sqrt(1 + b * b + c * c);
-  return {{1 / len, -b / len, -c / len}, a / len};
-}
-
 XfemBodyDef boxDef() { return test::xfemBox(1e6); }
 
 struct SurfaceCheck {
@@ -87,7 +81,7 @@ void expectClosedPieces(const XfemBody& body, const std::vector<CutPlane>& plane
 
 TEST(XfemSurface, TiltedPlaneGivesTwoClosedPiecesWithExactCutFaces) {
   XfemBodyDef def = boxDef();
-  def.planes = {slanted(0.93, 0.2, 0.1)};
+  def.planes = {test::slantedPlane(0.93, 0.2, 0.1)};
   auto made = XfemBody::create(def);
   ASSERT_TRUE(made.ok()) << made.error().message;
   const XfemBody& body = *made.value();
@@ -117,7 +111,7 @@ TEST(XfemSurface, TiltedPlaneGivesTwoClosedPiecesWithExactCutFaces) {
 TEST(XfemSurface, SeveralCutsIncludingABladeGiveClosedPieces) {
   // Two tilted planes crossing inside the body, then a third cut as a blade.
   XfemBodyDef def = boxDef();
-  def.planes = {slanted(0.71, 0.2, 0.1), {{0.1, 0.05, std::sqrt(1 - 0.0125)}, 0.47}};
+  def.planes = {test::slantedPlane(0.71, 0.2, 0.1), {{0.1, 0.05, std::sqrt(1 - 0.0125)}, 0.47}};
   {
     auto made = XfemBody::create(def);
     ASSERT_TRUE(made.ok()) << made.error().message;
@@ -125,7 +119,8 @@ TEST(XfemSurface, SeveralCutsIncludingABladeGiveClosedPieces) {
     expectClosedPieces(*made.value(), def.planes, "two planes");
   }
   {
-    const std::vector<CutPlane> planes = {def.planes[0], def.planes[1], slanted(1.43, -0.15, 0.2)};
+    const std::vector<CutPlane> planes = {def.planes[0], def.planes[1],
+                                          test::slantedPlane(1.43, -0.15, 0.2)};
     def.blades = {{planarBlade(1.43, -0.15, 0.2, -0.5, 1.5, 3), {}}};
     auto made = XfemBody::create(def);
     ASSERT_TRUE(made.ok()) << made.error().message;
@@ -151,7 +146,7 @@ TEST(XfemSurface, SeveralCutsIncludingABladeGiveClosedPieces) {
   {
     // Three planes through one tet's region, one of them along a node layer (x = 1).
     XfemBodyDef three = boxDef();
-    three.planes = {slanted(0.93, 0.2, 0.1), {{0, 1, 0}, 0.41}, {{1, 0, 0}, 1.0}};
+    three.planes = {test::slantedPlane(0.93, 0.2, 0.1), {{0, 1, 0}, 0.41}, {{1, 0, 0}, 1.0}};
     auto made = XfemBody::create(three);
     ASSERT_TRUE(made.ok()) << made.error().message;
     // x = 1 crosses the tilted cut only where y < 0.41: 4 pieces below y = 0.41, 3 above.
@@ -270,7 +265,7 @@ TEST(XfemSurface, VerticesFollowTheEnrichedFieldUnderGravity) {
     def.material.youngs = 1e9;  // stiff: the held piece's sag stays far below the fall
     // Each cut within one slab of tets clear of x = 1: the held nodes carry no enrichment, so
     // the outer pieces are free.
-    def.planes = {slanted(0.35, 0.2, 0.1), slanted(1.38, 0.1, 0.15)};
+    def.planes = {test::slantedPlane(0.35, 0.2, 0.1), test::slantedPlane(1.38, 0.1, 0.15)};
     for (int32_t n = 0; n < int32_t(def.mesh.nodeCount()); ++n)
       if (std::abs(def.mesh.positions[3 * size_t(n)] - 1.0) < 1e-12) def.fixedNodes.push_back(n);
     auto made = XfemBody::create(def);
@@ -366,7 +361,7 @@ TEST(XfemSurface, BladeEndingInsideMakesAClosedPocketNotAHole) {
   // The pocket's vertices on mesh edges against eq 3.2-3.4 by hand: a point with two copies has
   // each on its side's field; a single (welded) one sits where both sides' fields agree (the
   // jump vanishes there), which is the rule that closes the pocket.
-  const CutPlane plane = slanted(0.93, 0.2, 0.1);
+  const CutPlane plane = test::slantedPlane(0.93, 0.2, 0.1);
   std::map<std::array<double, 3>, int> copies;
   for (const XfemSurfaceVertex& v : s.vertices)
     if (v.cuts == 1u && v.simplex[1] >= 0 && v.simplex[2] < 0)

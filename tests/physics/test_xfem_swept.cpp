@@ -28,9 +28,9 @@ BladePose shifted(Vec3 d) {
 }
 
 TEST(XfemSwept, InPlaneSweepGivesTheStaticPlanesPieces) {
-  const double a = 0.93, b = 0.2, c = 0.1, len = std::sqrt(1 + b * b + c * c);
+  const double a = 0.93, b = 0.2, c = 0.1;
   XfemBodyDef byPlane = boxDef();
-  byPlane.planes = {{{1 / len, -b / len, -c / len}, a / len}};
+  byPlane.planes = {test::slantedPlane(a, b, c)};
   auto plane = XfemBody::create(byPlane);
   ASSERT_TRUE(plane.ok()) << plane.error().message;
   const double exactLeft = a + b / 2 + c / 2;

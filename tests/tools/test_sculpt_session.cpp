@@ -42,69 +42,59 @@ TEST(SculptSession, BadStrokesNameTheStrokeAndField) {
       R"({"type": "push", "body": "clay", "from_frame": 1, "to_frame": 10, "from": [0, 0.2, 0],
           "to": [0, 0.09, 0], "radius": 0.02})";
   EXPECT_EQ(strokeError("[" + push + "]"), "(no error)");
-  EXPECT_NE(strokeError(R"([{"type": "push", "body": "clay", "from_frame": 1, "to_frame": 10,
-      "from": [0, 0.2, 0], "to": [0, "x", 0], "radius": 0.02}])")
-                .find("strokes[0].to"),
-            std::string::npos);
-  EXPECT_NE(strokeError("[" + push + R"(, {"type": "wet", "body": "stone", "from_frame": 11,
-      "to_frame": 12, "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.02}])")
-                .find("strokes[1].body: no body named \"stone\""),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "pull", "body": "clay", "from_frame": 1, "to_frame": 2,
-      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.02, "rate": 1}])")
-                .find("strokes[0].rate"),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "pull", "body": "clay", "from_frame": 1, "to_frame": 2,
-      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.02, "stiffness": 0}])")
-                .find("strokes[0].stiffness"),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "pull", "body": "clay", "from_frame": 1, "to_frame": 2,
-      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.02, "grab": -0.1}])")
-                .find("strokes[0].grab"),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "cut", "body": "clay", "from_frame": 1, "to_frame": 2,
-      "from": [0, 0.2, 0], "to": [0, 0.1, 0], "normal": [0, 1, 0], "size": 0.1}])")
-                .find("strokes[0].normal: must be a non-zero vector across the path"),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "cut", "body": "clay", "from_frame": 1, "to_frame": 2,
-      "from": [0, 0.2, 0], "to": [0, 0.2, 0], "normal": [1, 0, 0], "size": 0.1}])")
-                .find("strokes[0].to: a cut stroke must move"),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "cut", "body": "clay", "from_frame": 1, "to_frame": 2,
+  // Each bad stroke list and the words its error must hold (the stroke and the field).
+  const std::pair<std::string, std::string> cases[] = {
+      {R"([{"type": "push", "body": "clay", "from_frame": 1, "to_frame": 10,
+      "from": [0, 0.2, 0], "to": [0, "x", 0], "radius": 0.02}])",
+       "strokes[0].to"},
+      {"[" + push + R"(, {"type": "wet", "body": "stone", "from_frame": 11,
+      "to_frame": 12, "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.02}])",
+       "strokes[1].body: no body named \"stone\""},
+      {R"([{"type": "pull", "body": "clay", "from_frame": 1, "to_frame": 2,
+      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.02, "rate": 1}])",
+       "strokes[0].rate"},
+      {R"([{"type": "pull", "body": "clay", "from_frame": 1, "to_frame": 2,
+      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.02, "stiffness": 0}])",
+       "strokes[0].stiffness"},
+      {R"([{"type": "pull", "body": "clay", "from_frame": 1, "to_frame": 2,
+      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.02, "grab": -0.1}])",
+       "strokes[0].grab"},
+      {R"([{"type": "cut", "body": "clay", "from_frame": 1, "to_frame": 2,
+      "from": [0, 0.2, 0], "to": [0, 0.1, 0], "normal": [0, 1, 0], "size": 0.1}])",
+       "strokes[0].normal: must be a non-zero vector across the path"},
+      {R"([{"type": "cut", "body": "clay", "from_frame": 1, "to_frame": 2,
+      "from": [0, 0.2, 0], "to": [0, 0.2, 0], "normal": [1, 0, 0], "size": 0.1}])",
+       "strokes[0].to: a cut stroke must move"},
+      {R"([{"type": "cut", "body": "clay", "from_frame": 1, "to_frame": 2,
       "from": [0, 0.2, 0], "to": [0, 0.1, 0], "normal": [1, 0, 0], "size": 0.1,
-      "radius": 0.1}])")
-                .find("strokes[0].radius"),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "cut", "body": "clay", "from_frame": 1, "to_frame": 2,
+      "radius": 0.1}])",
+       "strokes[0].radius"},
+      {R"([{"type": "cut", "body": "clay", "from_frame": 1, "to_frame": 2,
       "from": [0, 0.2, 0], "to": [0, 0.1, 0], "normal": [1, 0, 0], "size": 0.1,
-      "threshold": 0}])")
-                .find("strokes[0].threshold"),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "wet", "body": "clay", "from_frame": 1, "to_frame": 2,
-      "from": [0, 0, 0], "to": [0, 0, 0], "radius": -1}])")
-                .find("strokes[0].radius"),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "wet", "body": "clay", "from_frame": 1, "to_frame": 2,
-      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.01, "rate": 0}])")
-                .find("strokes[0].rate"),
-            std::string::npos);
-  // A deform constant on a wet stroke is a mistake, not something to ignore.
-  EXPECT_NE(strokeError(R"([{"type": "wet", "body": "clay", "from_frame": 1, "to_frame": 2,
-      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.01, "k1": 3}])")
-                .find("strokes[0].k1"),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "push", "body": "clay", "from_frame": 5, "to_frame": 4,
-      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.01}])")
-                .find("strokes[0].to_frame"),
-            std::string::npos);
-  EXPECT_NE(strokeError(R"([{"type": "push", "body": "clay", "from_frame": 1, "to_frame": 60,
-      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.01}])")
-                .find("strokes[0].to_frame"),
-            std::string::npos);  // beyond "frames"
-  EXPECT_NE(strokeError("[" + push + R"(, {"type": "dry", "body": "clay", "from_frame": 10,
-      "to_frame": 12, "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.02}])")
-                .find("strokes[1].from_frame: frames 10-12 overlap strokes[0]"),
-            std::string::npos);
+      "threshold": 0}])",
+       "strokes[0].threshold"},
+      {R"([{"type": "wet", "body": "clay", "from_frame": 1, "to_frame": 2,
+      "from": [0, 0, 0], "to": [0, 0, 0], "radius": -1}])",
+       "strokes[0].radius"},
+      {R"([{"type": "wet", "body": "clay", "from_frame": 1, "to_frame": 2,
+      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.01, "rate": 0}])",
+       "strokes[0].rate"},
+      // A deform constant on a wet stroke is a mistake, not something to ignore.
+      {R"([{"type": "wet", "body": "clay", "from_frame": 1, "to_frame": 2,
+      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.01, "k1": 3}])",
+       "strokes[0].k1"},
+      {R"([{"type": "push", "body": "clay", "from_frame": 5, "to_frame": 4,
+      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.01}])",
+       "strokes[0].to_frame"},
+      {R"([{"type": "push", "body": "clay", "from_frame": 1, "to_frame": 60,
+      "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.01}])",
+       "strokes[0].to_frame"},  // beyond "frames"
+      {"[" + push + R"(, {"type": "dry", "body": "clay", "from_frame": 10,
+      "to_frame": 12, "from": [0, 0, 0], "to": [0, 0, 0], "radius": 0.02}])",
+       "strokes[1].from_frame: frames 10-12 overlap strokes[0]"},
+  };
+  for (const auto& [strokes, words] : cases)
+    EXPECT_NE(strokeError(strokes).find(words), std::string::npos) << strokes;
 }
 
 TEST(SculptSession, APullThatTouchesNothingIsAnErrorNamingTheStroke) {
