@@ -203,21 +203,19 @@ struct Scene {
 // ground), measured with this file (docs/RESULTS.md, "Stability suite"). They run and are
 // checked like the others: a violation of those rules is reported as a skip that says
 // "KNOWN FAILURE" and why (GF_STABILITY_STRICT=1 makes it a failure), and every other rule
-// (finite state, no rollback, truthful status) still fails them. Both are StVK bodies that
-// shatter and gain energy in steps that break nothing (the damage change itself lowers the
-// energy at fixed positions):
-//  - nu = 0.49, degradation damage, direct solver: up to 21 E0;
-//  - nu = 0.4999, projection damage, multigrid: up to 7.8 E0.
-// Both pass with SolverSettings::corotatedInertia off and with 3 Newton iterations. Suspected,
-// not shown: the turning frame of a free piece gives it the end spin I'^-1 L, and a shattered
-// StVK piece (no resistance to inversion) changes its inertia I' a lot within one linearised
-// step.
-// The projection damage failures of the steel beam, the nearly incompressible blocks and the
-// 100 m/s impact are fixed (kernels/damage.h; Integrator::groupPieces and solve).
+// (finite state, no rollback, truthful status) still fails them. One is left: nu = 0.4999, StVK,
+// projection damage, multigrid (+7.8 E0), in a step that breaks nothing. The shattered block is
+// one turning piece there (fragments that share damaged tets turn together), and in step 17 its
+// spin jumps from 6.6 to 52.6 rad/s while its inertia grows by 10 %: the angular momentum target
+// took about 31 kg m^2/s from the moments of the contact impulses as the single Newton step
+// linearised them (the only external moment in the scene). It passes with
+// SolverSettings::corotatedInertia off and with 3 Newton iterations.
+// Fixed: the nu = 0.49 StVK degradation run (+21 E0), whose needle-like fragments took I^-1 L of
+// a near-singular inertia (kThinAxis, fem/rigid_stage.h; ShatteredBlocks below is its family),
+// and the projection damage failures of the steel beam, the nearly incompressible blocks and the
+// 100 m/s impact (kernels/damage.h; Integrator::groupPieces and solve).
 bool knownFailure(Case c, MaterialModel m, DamageModel d) {
-  if (m != MaterialModel::StVK) return false;
-  return (c == Case::Nu049 && d == DamageModel::Degradation) ||
-         (c == Case::Nu04999 && d == DamageModel::Projection);
+  return c == Case::Nu04999 && m == MaterialModel::StVK && d == DamageModel::Projection;
 }
 
 bool strict() {
@@ -661,6 +659,63 @@ INSTANTIATE_TEST_SUITE_P(Matrix, Stability,
                                             ::testing::ValuesIn(kSolvers),
                                             ::testing::Values(Backend::Cpu, Backend::Cuda)),
                          paramName);
+
+// The family of the Nu0p49 StVK failure: a block shattered on the ground leaves needle-like
+// fragments (nodes nearly on one line), whose turning frame once took I^-1 L of a near-singular
+// inertia and spun them up to thousands of rad/s (kThinAxis, fem/rigid_stage.h; before the fix
+// two of these runs gained 21 and 25 E0). Every material, two Poisson ratios, strengths, impact
+// speeds and time steps, degradation damage (the one that leaves free fragments); the energy may
+// never rise above the start's beyond the contact tolerance. One run is a known failure of the
+// other cause that knownFailure() describes (+0.30 E0): reported, not failed, unless
+// GF_STABILITY_STRICT=1.
+bool familyKnownFailure(MaterialModel m, double nu, double strength, double speed, double dt) {
+  return m == MaterialModel::StVK && nu == 0.49 && strength == 2e3 && speed == 5 && dt == 1.0 / 60;
+}
+
+TEST(ShatteredBlocks, FragmentsNeverGainEnergy) {
+  int runs = 0, shattered = 0;
+  double worst = -1e300;
+  std::string known;
+  for (MaterialModel m : kMaterials)
+    for (double nu : {0.3, 0.49})
+      for (double strength : {2e3, 1e4})
+        for (double speed : {5.0, 10.0})
+          for (double dt : {1.0 / 60, 1.0 / 120}) {
+            WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
+            wd.colliders.push_back(Collider{});  // ground plane y = 0
+            World world(wd);
+            BodyDef def;
+            def.mesh = gen::box(0.2, 0.2, 0.2, 3, 3, 3);
+            translate(def.mesh, 0, 0.01, 0);
+            def.material = makeMaterial(m, 1e6, nu, 1000);
+            def.fracture.enabled = true;
+            def.fracture.strength = strength;
+            def.fracture.model = DamageModel::Degradation;
+            def.solver.linearSolver = LinearSolverKind::Direct;
+            def.initialVelocity = glm::vec3(0, float(-speed), 0);
+            const Result<BodyId> id = world.createBody(def);
+            ASSERT_TRUE(id.ok()) << id.error().message;
+            const double e0 = test::totalEnergy(world.stats(id.value()));
+            double excess = -1e300;
+            for (int i = 0; i < int(1.0 / dt); ++i) {
+              (void)world.step(dt);
+              excess = std::max(excess, test::totalEnergy(world.stats(id.value())) - e0);
+            }
+            std::ostringstream what;
+            what << materialName(m) << ", nu " << nu << ", strength " << strength << " Pa, "
+                 << speed << " m/s, dt " << dt << ": max(E - E0) " << excess / e0 << " E0";
+            if (familyKnownFailure(m, nu, strength, speed, dt) && !strict())
+              known += (known.empty() ? "" : "; ") + what.str();
+            else
+              EXPECT_LE(excess, kContactTol * e0) << what.str();
+            worst = std::max(worst, excess / e0);
+            ++runs;
+            shattered += world.fractureStats(id.value()).fragments >= 8;
+          }
+  std::printf("shattered blocks: %d runs, %d in 8 or more fragments, max(E - E0) %+.2e E0%s%s\n",
+              runs, shattered, worst, known.empty() ? "" : "; KNOWN FAILURE: ", known.c_str());
+  EXPECT_GE(shattered, runs / 3);  // the family is about shattered bodies (26 of 64 today)
+}
 
 }  // namespace
 
