@@ -143,8 +143,9 @@ std::vector<glm::dvec3> rigidBoundPoints(const scene::SceneRigidBody& r) {
       pts.emplace_back(m.positions[i], m.positions[i + 1], m.positions[i + 2]);
     return pts;
   }
-  const double extent = r.shape == scene::SceneRigidBody::Shape::Sphere
-                            ? r.radius
+  const double extent = r.shape == scene::SceneRigidBody::Shape::Sphere ? r.radius
+                        : r.shape == scene::SceneRigidBody::Shape::Capsule
+                            ? r.radius + r.halfLength
                             : glm::length(r.halfExtents);  // any orientation
   for (int k = 0; k < 8; ++k) {
     pts.push_back(r.position + extent * glm::dvec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1));

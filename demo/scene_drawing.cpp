@@ -48,6 +48,12 @@ scene::SceneRigidBody colliderShape(const Collider& c) {
       r.halfExtents = glm::dvec3(c.halfExtents);
       r.orientation = glm::normalize(glm::dquat(c.rotation));
       break;
+    case Collider::Kind::Capsule:
+      r.shape = scene::SceneRigidBody::Shape::Capsule;
+      r.radius = c.radius;
+      r.halfLength = c.halfLength;
+      r.orientation = glm::normalize(glm::dquat(c.rotation));
+      break;
     case Collider::Kind::Plane:
       r.shape = scene::SceneRigidBody::Shape::Plane;
       r.normal = glm::normalize(glm::dvec3(c.normal));
@@ -60,17 +66,23 @@ scene::SceneRigidBody colliderShape(const Collider& c) {
 ShapeMesh rigidMesh(const scene::SceneRigidBody& r) {
   using Shape = scene::SceneRigidBody::Shape;
   ShapeMesh m;
-  if (r.shape == Shape::Sphere) {
+  if (r.shape == Shape::Sphere || r.shape == Shape::Capsule) {
     // Latitude theta from the +y pole, longitude phi; d/dphi x d/dtheta points outwards, so
-    // (a, a+1, b) and (a+1, b+1, b) are counter-clockwise seen from outside.
-    constexpr uint32_t kRings = 16, kSegments = 32;
+    // (a, a+1, b) and (a+1, b+1, b) are counter-clockwise seen from outside. A capsule is the
+    // sphere cut at the equator, its halves moved to the segment's ends: the equator ring is
+    // drawn twice, and the band between the two copies is the cylinder's side.
+    constexpr uint32_t kHalfRings = 8, kSegments = 32;
+    const bool capsule = r.shape == Shape::Capsule;
+    const uint32_t kRings = capsule ? 2 * kHalfRings + 1 : 2 * kHalfRings;
     for (uint32_t i = 0; i <= kRings; ++i) {
-      const double theta = std::numbers::pi * i / kRings;
+      const uint32_t latitude = capsule && i > kHalfRings ? i - 1 : i;
+      const double theta = std::numbers::pi * latitude / (2 * kHalfRings);
+      const double shift = capsule ? (i <= kHalfRings ? r.halfLength : -r.halfLength) : 0;
       for (uint32_t j = 0; j <= kSegments; ++j) {
         const double phi = 2 * std::numbers::pi * j / kSegments;
         const glm::dvec3 n(std::sin(theta) * std::cos(phi), std::cos(theta),
                            std::sin(theta) * std::sin(phi));
-        pushVec(m.positions, r.radius * n);
+        pushVec(m.positions, r.radius * n + glm::dvec3(0, shift, 0));
         pushVec(m.normals, n);
       }
     }

@@ -8,26 +8,58 @@
 
 namespace gf {
 
-enum ColliderKind : int { kColliderPlane = 0, kColliderBox = 1, kColliderSphere = 2 };
+enum ColliderKind : int {
+  kColliderPlane = 0,
+  kColliderBox = 1,
+  kColliderSphere = 2,
+  kColliderCapsule = 3
+};
 
 /// Collider in kernel form. `stiffness` is per unit node mass [1/s^2].
 struct ColliderData {
   int kind = kColliderPlane;
-  Vec3 point;                        ///< plane point, box or sphere centre
+  Vec3 point;                        ///< plane point, box, sphere or capsule centre
   Vec3 normal;                       ///< plane normal (unit)
   Vec3 halfExtents;                  ///< box
-  Mat3 rotation = Mat3::identity();  ///< box: local-to-world axes (columns)
-  double radius = 0;                 ///< sphere
+  Mat3 rotation = Mat3::identity();  ///< box, capsule: local-to-world axes (columns)
+  double radius = 0;                 ///< sphere, capsule
+  double halfLength = 0;             ///< capsule: its segment runs along local y, +-halfLength
   double stiffness = 0;
   Vec3 velocity;        ///< translation [m/s]: sliding is measured against it
   double friction = 0;  ///< the collider's Coulomb coefficient (mixed with the body's)
 };
+
+/// A capsule's segment: its start and its axis times the segment's length (local y).
+GF_HD void capsuleSegment(const ColliderData& c, Vec3& start, Vec3& along) {
+  const Vec3 axis = column(c.rotation, 1);
+  start = c.point - c.halfLength * axis;
+  along = (2 * c.halfLength) * axis;
+}
+
+/// The parameter in [0, 1] of the point of segment a + s (b - a) nearest to p.
+GF_HD double closestOnSegment(Vec3 p, Vec3 a, Vec3 along) {
+  const double len2 = dot(along, along);
+  if (!(len2 > 0)) return 0;
+  const double s = dot(p - a, along) / len2;
+  return s < 0 ? 0 : (s > 1 ? 1 : s);
+}
 
 /// Penetration depth (> 0 inside) and the outward direction that reduces it.
 GF_HD double penetration(const ColliderData& c, Vec3 x, Vec3& n) {
   if (c.kind == kColliderPlane) {
     n = c.normal;
     return -dot(x - c.point, c.normal);
+  }
+  if (c.kind == kColliderCapsule) {
+    // Measured from the segment's nearest point: the normal is radial and turns smoothly
+    // across a rounded edge, where a box's jumps from one face to the next at its corner.
+    Vec3 a, along;
+    capsuleSegment(c, a, along);
+    const Vec3 d = x - (a + closestOnSegment(x, a, along) * along);
+    const double r = norm(d);
+    // On the axis any radial direction is as near; the local x axis is one.
+    n = r > 1e-12 * c.radius ? (1.0 / r) * d : column(c.rotation, 0);
+    return c.radius - r;
   }
   if (c.kind == kColliderSphere) {
     const Vec3 d = x - c.point;
@@ -59,7 +91,9 @@ GF_HD double penetration(const ColliderData& c, Vec3 x, Vec3& n) {
 
 /// Adds the penalty energy k d^2 / 2 of a node at depth d > 0 along the outward direction n
 /// (k = stiffness times the node's mass), its gradient and its Hessian block; returns the
-/// energy (0 when not in contact).
+/// energy (0 when not in contact). On a curved collider (sphere, capsule) the exact Hessian also
+/// has -k d / r times the projector off n (and off a capsule's axis), r the distance to the
+/// centre or axis; that part is negative, so it is left out to keep the block PSD.
 GF_HD double penaltyContact(double k, double d, Vec3 n, Vec3& grad, Mat3& hess) {
   if (!(d > 0)) return 0;
   grad -= (k * d) * n;
@@ -76,28 +110,76 @@ GF_HD double nodeContact(const ColliderData& c, Vec3 x, double m, Vec3& grad, Ma
   return penaltyContact(c.stiffness * m, d, n, grad, hess);
 }
 
+/// Extent of a box, sphere or capsule collider along direction n (unit).
+GF_HD double colliderThickness(const ColliderData& c, Vec3 n) {
+  if (c.kind == kColliderSphere) return 2 * c.radius;
+  if (c.kind == kColliderCapsule)
+    return 2 * c.radius + 2 * c.halfLength * fabs(dot(column(c.rotation, 1), n));
+  const Vec3 l = transpose(c.rotation) * n;
+  return 2 *
+         (fabs(l.x) * c.halfExtents.x + fabs(l.y) * c.halfExtents.y + fabs(l.z) * c.halfExtents.z);
+}
+
+/// The first t in [0, 1] at which a + t d meets the sphere (centre, r), a outside it; or -1.
+GF_HD double sphereEntry(Vec3 a, Vec3 d, Vec3 centre, double r) {
+  const Vec3 f = a - centre;
+  const double A = dot(d, d), B = dot(f, d), C = dot(f, f) - r * r;
+  if (!(C > 0) || !(A > 0)) return -1;
+  const double disc = B * B - A * C;
+  if (!(disc >= 0)) return -1;
+  const double t = (-B - sqrt(disc)) / A;
+  return t >= 0 && t <= 1 ? t : -1;
+}
+
 /// Where the straight path a -> b first enters collider c when a lies outside it: the entry
 /// point, the outward normal of the face (or sphere point) it enters through, and the
 /// collider's thickness along that normal. False when a is inside, or the path misses. A plane is a
 /// half-space and cannot be passed through, so it never has an entry. This is the continuous check
-/// that keeps a fast node from crossing a thin box or a small sphere within one step, where the
-/// nearest-face depth of penetration() would point out of the far side.
+/// that keeps a fast node from crossing a thin box, a small sphere or a thin capsule within one
+/// step, where the nearest-face depth of penetration() would point out of the far side.
 GF_HD bool sweptEntry(const ColliderData& c, Vec3 a, Vec3 b, Vec3& point, Vec3& normal,
                       double& thickness) {
   if (c.kind == kColliderSphere) {
     // |a + t (b - a) - centre| = r, smallest root in [0, 1], with a outside.
-    const Vec3 d = b - a, f = a - c.point;
-    const double A = dot(d, d), B = dot(f, d), C = dot(f, f) - c.radius * c.radius;
-    if (!(C > 0) || !(A > 0)) return false;
-    const double disc = B * B - A * C;
-    if (!(disc >= 0)) return false;
-    const double t = (-B - sqrt(disc)) / A;
-    if (!(t >= 0 && t <= 1)) return false;
-    point = a + t * d;
+    const double t = sphereEntry(a, b - a, c.point, c.radius);
+    if (t < 0) return false;
+    point = a + t * (b - a);
     const Vec3 r = point - c.point;
     const double len = norm(r);
     normal = len > 0 ? (1.0 / len) * r : Vec3{0, 1, 0};
     thickness = 2 * c.radius;
+    return true;
+  }
+  if (c.kind == kColliderCapsule) {
+    // The capsule is the union of its two end spheres and the side of its cylinder; with a
+    // outside all three, the path enters it where it first enters one of them.
+    Vec3 p0, along;
+    capsuleSegment(c, p0, along);
+    Vec3 n;
+    if (penetration(c, a, n) >= 0) return false;
+    const Vec3 d = b - a;
+    double best = sphereEntry(a, d, p0, c.radius);
+    const double t1 = sphereEntry(a, d, p0 + along, c.radius);
+    if (t1 >= 0 && (best < 0 || t1 < best)) best = t1;
+    const double len2 = dot(along, along);
+    if (len2 > 0) {
+      // The side: |radial part of (a + t d - p0)| = r, with the axial part on the segment.
+      const Vec3 u = (1.0 / sqrt(len2)) * along, m = a - p0;
+      const Vec3 dp = d - dot(d, u) * u, mp = m - dot(m, u) * u;
+      const double A = dot(dp, dp), B = dot(mp, dp), C = dot(mp, mp) - c.radius * c.radius;
+      const double disc = B * B - A * C;
+      if (A > 0 && C > 0 && disc >= 0) {
+        const double t = (-B - sqrt(disc)) / A;
+        const double s = dot(m + t * d, u);
+        if (t >= 0 && t <= 1 && s >= 0 && s * s <= len2 && (best < 0 || t < best)) best = t;
+      }
+    }
+    if (best < 0) return false;
+    point = a + best * d;
+    const Vec3 r = point - (p0 + closestOnSegment(point, p0, along) * along);
+    const double len = norm(r);
+    normal = len > 0 ? (1.0 / len) * r : column(c.rotation, 0);
+    thickness = colliderThickness(c, normal);
     return true;
   }
   if (c.kind != kColliderBox) return false;
@@ -135,14 +217,6 @@ GF_HD bool sweptEntry(const ColliderData& c, Vec3 a, Vec3 b, Vec3& point, Vec3& 
   point = a + enter * (b - a);
   thickness = 2 * c.halfExtents[axis];
   return true;
-}
-
-/// Extent of a box or sphere collider along direction n (unit).
-GF_HD double colliderThickness(const ColliderData& c, Vec3 n) {
-  if (c.kind == kColliderSphere) return 2 * c.radius;
-  const Vec3 l = transpose(c.rotation) * n;
-  return 2 *
-         (fabs(l.x) * c.halfExtents.x + fabs(l.y) * c.halfExtents.y + fabs(l.z) * c.halfExtents.z);
 }
 
 /// Penalty stiffness per unit mass for a node whose path over dt reaches `reach` past the face

@@ -107,6 +107,21 @@ TEST(DemoShapes, RigidMeshesAreClosedOutwardAndTheRightSize) {
   EXPECT_NEAR(enclosedVolume(b), 0.2 * 0.4 * 0.6, 1e-7);
   EXPECT_LT(worstNormalAngle(b), 1e-6);  // flat faces
 
+  // A capsule: the sphere's facets plus a 32-sided prism between the halves; every vertex at
+  // the radius from the segment along local y.
+  SceneRigidBody capsule;
+  capsule.shape = SceneRigidBody::Shape::Capsule;
+  capsule.radius = 0.3;
+  capsule.halfLength = 0.5;
+  const ShapeMesh c = rigidMesh(capsule);
+  const double prism = 0.5 * 32 * std::sin(2 * std::numbers::pi / 32) * 0.09 * 1.0;
+  EXPECT_NEAR(enclosedVolume(c), enclosedVolume(s) + prism, 1e-6);  // float positions
+  for (size_t i = 0; i < c.positions.size(); i += 3) {
+    const double y = std::clamp(double(c.positions[i + 1]), -0.5, 0.5);
+    EXPECT_NEAR(std::hypot(c.positions[i], c.positions[i + 1] - y, c.positions[i + 2]), 0.3, 1e-6);
+  }
+  EXPECT_LT(worstNormalAngle(c), 0.25);
+
   SceneRigidBody plane;
   plane.shape = SceneRigidBody::Shape::Plane;
   plane.normal = glm::normalize(glm::dvec3(0, 1, 1));

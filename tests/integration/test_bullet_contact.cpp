@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <vector>
 
 #include "common/bullet_world.h"
 #include "common/sim_helpers.h"
@@ -104,6 +105,53 @@ TEST(BulletContact, OrientedBoxPenetrationTurnsWithTheBox) {
     EXPECT_NEAR(d, dl, 1e-12);
     EXPECT_NEAR(glm::length(glm::dvec3(n.x, n.y, n.z) - nw), 0, 1e-12);
   }
+}
+
+// Bullet's capsules (along y, x or z, turned and moving) mirror as capsule colliders whose
+// segment ends are where Bullet puts them (the transform applied to +-halfHeight on the
+// shape's up axis) and whose radius and velocity are Bullet's.
+TEST(BulletContact, CapsulesMirrorWithBulletsSegment) {
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  test::BulletWorld dyn(btVector3(0, 0, 0), /*withFloor=*/false);
+  btCapsuleShape alongY(0.05f, 0.3f);
+  btCapsuleShapeX alongX(0.02f, 0.1f);
+  btCapsuleShapeZ alongZ(0.01f, 0.4f);
+  const btCapsuleShape* shapes[3] = {&alongY, &alongX, &alongZ};
+  std::vector<std::unique_ptr<btRigidBody>> bodies;
+  {
+    bullet::Bridge bridge(world, dyn.world);
+    for (int i = 0; i < 3; ++i) {
+      btRigidBody::btRigidBodyConstructionInfo ci(
+          1, nullptr, const_cast<btCapsuleShape*>(shapes[i]), btVector3(1, 1, 1));
+      ci.m_startWorldTransform.setOrigin(btVector3(0.1f * i, 1, -0.2f));
+      ci.m_startWorldTransform.setRotation(
+          btQuaternion(btVector3(1, -2, 0.5f + i).normalized(), 0.4f + 0.3f * i));
+      bodies.push_back(std::make_unique<btRigidBody>(ci));
+      bodies.back()->setLinearVelocity(btVector3(0, -1, 0.5f * i));
+      dyn.world.addRigidBody(bodies.back().get());
+      ASSERT_EQ(bridge.addCollider(bodies.back().get()).value(), i);
+    }
+    ASSERT_EQ(world.colliders().size(), 3u);
+    for (int i = 0; i < 3; ++i) {
+      const Collider& c = world.colliders()[size_t(i)];
+      ASSERT_EQ(c.kind, Collider::Kind::Capsule);
+      ASSERT_TRUE(c.check().ok()) << c.check().error().message;
+      const btTransform& T = bodies[size_t(i)]->getCenterOfMassTransform();
+      btVector3 tip(0, 0, 0);
+      tip[shapes[i]->getUpAxis()] = shapes[i]->getHalfHeight();
+      const glm::dvec3 axis = glm::dquat(c.rotation) * glm::dvec3(0, double(c.halfLength), 0);
+      const glm::dvec3 top = glm::dvec3(c.point) + axis, bottom = glm::dvec3(c.point) - axis;
+      EXPECT_NEAR(glm::length(top - toGlm(T * tip)), 0, 1e-6) << i;
+      EXPECT_NEAR(glm::length(bottom - toGlm(T * -tip)), 0, 1e-6) << i;
+      EXPECT_FLOAT_EQ(c.radius, shapes[i]->getRadius()) << i;
+      EXPECT_NEAR(
+          glm::length(glm::dvec3(c.velocity) - toGlm(bodies[size_t(i)]->getLinearVelocity())), 0,
+          1e-6)
+          << i;
+    }
+    for (auto& b : bodies) ASSERT_TRUE(bridge.removeCollider(b.get()).ok());
+  }
+  for (auto& b : bodies) dyn.world.removeRigidBody(b.get());
 }
 
 TEST(BulletContact, SetCollidersNamesTheBadFieldAndChangesNothing) {

@@ -106,7 +106,7 @@ TEST(WorldMisuse, CudaBackendThatCannotRunRefusesToRun) {
 
 // World::setColliders and a WorldDef judge colliders by the same rule.
 TEST(WorldMisuse, CollidersAreCheckedAlikeEverywhere) {
-  std::vector<Collider> bad(8);
+  std::vector<Collider> bad(10);
   bad[0].stiffness = kInf;
   bad[1].stiffness = -1;
   bad[2].point.x = std::nanf("");
@@ -118,6 +118,10 @@ TEST(WorldMisuse, CollidersAreCheckedAlikeEverywhere) {
   bad[6].radius = -0.1f;
   bad[7].kind = Collider::Kind::Box;
   bad[7].rotation = glm::quat(0, 0, 0, 0);
+  bad[8].kind = Collider::Kind::Capsule;
+  bad[8].halfLength = -0.01f;
+  bad[9].kind = Collider::Kind::Capsule;
+  bad[9].radius = 0;
   World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
   const BodyId id = world.createBody(cube()).value();
   for (size_t i = 0; i < bad.size(); ++i) {

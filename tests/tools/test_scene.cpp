@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/vec4.hpp>
 #include <map>
@@ -466,6 +467,55 @@ TEST(Scene, FrictionKeysLoadAndAreChecked) {
       << rb.error().message;
 }
 
+// A capsule collider: its axis turns the collider's local y onto the given direction (so the
+// segment's ends are center +- half_length * axis), and bad values name their keys.
+TEST(Scene, CapsuleColliderLoadsAndIsChecked) {
+  const auto scene = [](const std::string& capsule) {
+    return R"({"colliders": [)" + capsule + R"(], "bodies": [{"mesh": {"generator": "box",
+        "size": [1, 1, 1], "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1}}]})";
+  };
+  for (const glm::dvec3 axis :
+       {glm::dvec3(0, 0, 2), glm::dvec3(1, -1, 0.5), glm::dvec3(0, -3, 0), glm::dvec3(0, 1, 0)}) {
+    const std::string text = scene(
+        R"({"type": "capsule", "center": [1, 2, 3], "radius": 0.002, "half_length": 0.25,
+        "axis": [)" +
+        std::to_string(axis.x) + ", " + std::to_string(axis.y) + ", " + std::to_string(axis.z) +
+        R"(], "velocity": [0, 5, 0]})");
+    const Result<Scene> r = parseScene(text, "inline", "");
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    const Collider& c = r.value().world.colliders[0];
+    EXPECT_EQ(c.kind, Collider::Kind::Capsule);
+    EXPECT_EQ(c.point, glm::vec3(1, 2, 3));
+    EXPECT_FLOAT_EQ(c.radius, 0.002f);
+    EXPECT_FLOAT_EQ(c.halfLength, 0.25f);
+    EXPECT_EQ(c.velocity, glm::vec3(0, 5, 0));
+    const glm::dvec3 along = glm::dquat(c.rotation) * glm::dvec3(0, 1, 0);
+    EXPECT_NEAR(glm::length(along - glm::normalize(axis)), 0, 1e-6) << axis.x << axis.y << axis.z;
+  }
+  const auto error = [&](const std::string& capsule) {
+    const Result<Scene> r = parseScene(scene(capsule), "inline", "");
+    return r.ok() ? std::string() : r.error().message;
+  };
+  EXPECT_NE(error(R"({"type": "capsule", "center": [0, 0, 0], "radius": 0, "half_length": 1})")
+                .find("colliders[0].radius: must be positive"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"type": "capsule", "center": [0, 0, 0], "radius": 1, "half_length": -1})")
+                .find("colliders[0].half_length: must lie in [0, 1e9] m"),
+            std::string::npos)
+      << error(R"({"type": "capsule", "center": [0, 0, 0], "radius": 1, "half_length": -1})");
+  EXPECT_NE(error(R"({"type": "capsule", "center": [0, 0, 0], "radius": 1, "half_length": 1,
+                      "axis": [0, 0, 0]})")
+                .find("colliders[0].axis: must be a non-zero direction"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"type": "capsule", "center": [0, 0, 0], "radius": 1})")
+                .find("colliders[0].half_length"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"type": "capsule", "center": [0, 0, 0], "radius": 1, "half_length": 1,
+                      "half_extents": [1, 1, 1]})")
+                .find("half_extents"),
+            std::string::npos);
+}
+
 TEST(Scene, ContactKeyLoadsAndIsChecked) {
   const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
       "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1}, "contact": true},
@@ -751,7 +801,8 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
     {"wrong_type_cuts.json", {": cuts: expected an array of cuts, got an object"}},
     // Demo keys: Bullet rigid bodies, hand-off, colours, camera.
     {"bad_rigid_shape.json",
-     {": rigid_bodies[0].shape: expected one of \"sphere\", \"box\", \"plane\", got \"cone\""}},
+     {": rigid_bodies[0].shape: expected one of \"sphere\", \"box\", \"plane\", \"capsule\", got "
+      "\"cone\""}},
     {"bad_rigid_radius.json", {": rigid_bodies[0].radius: expected a positive number, got 0"}},
     {"bad_rigid_box_size.json",
      {": rigid_bodies[0].size[1]: expected a positive number, got -0.2"}},

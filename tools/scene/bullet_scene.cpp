@@ -88,6 +88,9 @@ Result<std::unique_ptr<BulletScene>> BulletScene::create(const Scene& scene, int
       case SceneRigidBody::Shape::Plane:
         shape = std::make_unique<btStaticPlaneShape>(bt(r.normal), btScalar(r.offset));
         break;
+      case SceneRigidBody::Shape::Capsule:  // Bullet's height is the segment's length
+        shape = std::make_unique<btCapsuleShape>(btScalar(r.radius), btScalar(2 * r.halfLength));
+        break;
     }
     btVector3 inertia(0, 0, 0);
     if (r.mass > 0) shape->calculateLocalInertia(btScalar(r.mass), inertia);

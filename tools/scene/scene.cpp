@@ -935,7 +935,7 @@ SceneRigidBody readRigidBody(const json& v, const std::string& path, size_t inde
   ObjReader o(v, path);
   SceneRigidBody r;
   const std::string shape =
-      readChoice(o.require("shape"), o.at("shape"), {"sphere", "box", "plane"});
+      readChoice(o.require("shape"), o.at("shape"), {"sphere", "box", "plane", "capsule"});
   if (shape == "plane") {
     o.keys({"name", "shape", "normal", "offset", "point", "render_size", "mass", "friction",
             "rolling_friction", "restitution", "colour", "touches_bodies"});
@@ -954,12 +954,17 @@ SceneRigidBody readRigidBody(const json& v, const std::string& path, size_t inde
       throw SceneError{o.at("mass"), "a plane is static: expected 0, got " + describe(*m)};
     }
   } else {
-    o.keys({"name", "shape", "radius", "size", "mass", "position", "orientation", "velocity",
-            "angular_velocity", "friction", "rolling_friction", "restitution", "colour",
+    o.keys({"name", "shape", "radius", "size", "half_length", "mass", "position", "orientation",
+            "velocity", "angular_velocity", "friction", "rolling_friction", "restitution", "colour",
             "touches_bodies"});
     if (shape == "sphere") {
       r.shape = SceneRigidBody::Shape::Sphere;
       r.radius = readPositive(o.require("radius"), o.at("radius"));
+    } else if (shape == "capsule") {
+      // btCapsuleShape: along the body's own y axis.
+      r.shape = SceneRigidBody::Shape::Capsule;
+      r.radius = readPositive(o.require("radius"), o.at("radius"));
+      r.halfLength = readNonNegative(o.require("half_length"), o.at("half_length"));
     } else {
       r.shape = SceneRigidBody::Shape::Box;
       r.halfExtents = 0.5 * readPositiveVec3(o.require("size"), o.at("size"));
@@ -1338,7 +1343,8 @@ SceneStroke readStroke(const json& v, const std::string& path, const Scene& scen
 Collider readCollider(const json& v, const std::string& path) {
   ObjReader o(v, path);
   Collider c;
-  const std::string type = readChoice(o.require("type"), o.at("type"), {"plane", "box", "sphere"});
+  const std::string type =
+      readChoice(o.require("type"), o.at("type"), {"plane", "box", "sphere", "capsule"});
   if (type == "plane") {
     o.keys({"type", "point", "normal", "stiffness", "velocity", "friction"});
     c.kind = Collider::Kind::Plane;
@@ -1354,6 +1360,26 @@ Collider readCollider(const json& v, const std::string& path) {
     c.kind = Collider::Kind::Box;
     c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
     c.halfExtents = glm::vec3(readVec3(o.require("half_extents"), o.at("half_extents")));
+  } else if (type == "capsule") {
+    o.keys(
+        {"type", "center", "axis", "half_length", "radius", "stiffness", "velocity", "friction"});
+    c.kind = Collider::Kind::Capsule;
+    c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
+    c.radius = static_cast<float>(readNumber(o.require("radius"), o.at("radius")));
+    c.halfLength = static_cast<float>(readNumber(o.require("half_length"), o.at("half_length")));
+    if (const json* a = o.find("axis")) {
+      // The segment runs along the collider's own y axis: turn y onto the given axis.
+      const glm::dvec3 axis = readVec3(*a, o.at("axis"));
+      const double len = glm::length(axis);
+      if (!(len > 1e-12)) throw SceneError{o.at("axis"), "must be a non-zero direction"};
+      const glm::dvec3 u = axis / len, y{0, 1, 0};
+      const double w = 1 + glm::dot(y, u);
+      const glm::dvec3 v = glm::cross(y, u);
+      // Opposite to y, any half-turn about a perpendicular axis will do.
+      const glm::dquat q =
+          w > 1e-9 ? glm::normalize(glm::dquat(w, v.x, v.y, v.z)) : glm::dquat(0, 1, 0, 0);
+      c.rotation = glm::quat(q);
+    }
   } else {
     o.keys({"type", "center", "radius", "stiffness", "velocity", "friction"});
     c.kind = Collider::Kind::Sphere;
@@ -1364,12 +1390,12 @@ Collider readCollider(const json& v, const std::string& path) {
   if (const json* u = o.find("velocity")) c.velocity = glm::vec3(readVec3(*u, o.at("velocity")));
   if (const json* f = o.find("friction")) c.friction = readNumber(*f, o.at("friction"));
   o.finish();
-  // Box and sphere read their point from "center".
+  // Box, sphere and capsule read their point from "center".
   const std::string_view pointKey = c.kind == Collider::Kind::Plane ? "point" : "center";
-  const FieldName names[] = {{"kind", "type"},         {"point", pointKey},
-                             {"velocity", "velocity"}, {"stiffness", "stiffness"},
-                             {"normal", "normal"},     {"halfExtents", "half_extents"},
-                             {"radius", "radius"},     {"friction", "friction"}};
+  const FieldName names[] = {
+      {"kind", "type"},           {"point", pointKey},      {"velocity", "velocity"},
+      {"stiffness", "stiffness"}, {"normal", "normal"},     {"halfExtents", "half_extents"},
+      {"radius", "radius"},       {"friction", "friction"}, {"halfLength", "half_length"}};
   requireValid(c.check(), path, names);
   return c;
 }

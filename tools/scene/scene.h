@@ -49,10 +49,11 @@ struct SceneBody {
 
 /// A Bullet rigid body of the scene (tools/scene/bullet_scene.h builds it).
 struct SceneRigidBody {
-  enum class Shape : uint8_t { Sphere, Box, Plane };
+  enum class Shape : uint8_t { Sphere, Box, Plane, Capsule };
   std::string name;  ///< Unique among the rigid bodies; "rigid<i>" by default.
   Shape shape = Shape::Sphere;
-  double radius = 0;                   ///< Sphere [m].
+  double radius = 0;                   ///< Sphere, Capsule [m].
+  double halfLength = 0;               ///< Capsule: half its segment, along its own y [m].
   glm::dvec3 halfExtents{0};           ///< Box, along its own axes [m] (half the "size").
   glm::dvec3 normal{0, 1, 0};          ///< Plane: unit normal; the plane is normal . x = offset.
   double offset = 0;                   ///< Plane [m].

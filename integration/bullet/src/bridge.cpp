@@ -85,9 +85,10 @@ Result<int32_t> Bridge::addCollider(btRigidBody* body) {
   if (type == STATIC_PLANE_PROXYTYPE && !body->isStaticObject())
     return fail("Bridge::addCollider: a btStaticPlaneShape must belong to a static body");
   if (type != SPHERE_SHAPE_PROXYTYPE && type != BOX_SHAPE_PROXYTYPE &&
-      type != STATIC_PLANE_PROXYTYPE)
+      type != CAPSULE_SHAPE_PROXYTYPE && type != STATIC_PLANE_PROXYTYPE)
     return fail("Bridge::addCollider: shape type ", std::to_string(type),
-                " is not supported (btSphereShape, btBoxShape, btStaticPlaneShape)");
+                " is not supported (btSphereShape, btBoxShape, btCapsuleShape, "
+                "btStaticPlaneShape)");
   m_colliders.push_back(body);
   mirrorColliders();
   return int32_t(m_worldColliders + m_colliders.size() - 1);
@@ -128,6 +129,20 @@ void Bridge::mirrorColliders() {
         c.halfExtents =
             glm::vec3(toGlm(static_cast<const btBoxShape*>(shape)->getHalfExtentsWithMargin()));
         const btQuaternion q = T.getRotation();
+        c.rotation = glm::quat(float(q.w()), float(q.x()), float(q.y()), float(q.z()));
+        break;
+      }
+      case CAPSULE_SHAPE_PROXYTYPE: {
+        // btCapsuleShapeX and Z share the proxy type; the up axis says which local axis the
+        // segment runs along, and a turn onto local y makes it ours.
+        const auto* capsule = static_cast<const btCapsuleShape*>(shape);
+        c.kind = Collider::Kind::Capsule;
+        c.radius = float(capsule->getRadius());
+        c.halfLength = float(capsule->getHalfHeight());
+        btQuaternion q = T.getRotation();
+        const int up = capsule->getUpAxis();
+        if (up == 0) q *= btQuaternion(btVector3(0, 0, 1), btScalar(-SIMD_HALF_PI));  // y to x
+        if (up == 2) q *= btQuaternion(btVector3(1, 0, 0), btScalar(SIMD_HALF_PI));   // y to z
         c.rotation = glm::quat(float(q.w()), float(q.x()), float(q.y()), float(q.z()));
         break;
       }

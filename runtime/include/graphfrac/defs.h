@@ -336,17 +336,22 @@ struct BodyDef {
 /// pushes), and the world advances `point` by velocity * dt per step until the game replaces
 /// it (World::setColliders). It is kinematic: World::colliderImpulses reports what it gave.
 struct Collider {
-  enum class Kind : uint8_t { Plane, Box, Sphere };
+  /// Capsule: the points within `radius` of a segment (a rounded edge: a striker, an anvil, a
+  /// rod; Bullet's btCapsuleShape).
+  enum class Kind : uint8_t { Plane, Box, Sphere, Capsule };
   Kind kind = Kind::Plane;
-  glm::vec3 point{0, 0, 0};                 ///< Plane: a point on it; Box/Sphere: centre.
+  glm::vec3 point{0, 0, 0};                 ///< Plane: a point on it; else the centre.
   glm::vec3 normal{0, 1, 0};                ///< Plane: outward normal.
   glm::vec3 halfExtents{0.5f, 0.5f, 0.5f};  ///< Box, along its own axes.
-  float radius = 0.5f;                      ///< Sphere.
+  float radius = 0.5f;                      ///< Sphere, Capsule.
+  /// Capsule: half the length of its segment, which runs along the collider's own y axis
+  /// (`rotation`) through `point`, as btCapsuleShape's does; 0 makes it a sphere.
+  float halfLength = 0.5f;
   /// Penalty stiffness [N/m per node-mass kg]; 0 picks one from the time step so that a
   /// node is pushed out within about one step.
   double stiffness = 0;
   glm::vec3 velocity{0, 0, 0};     ///< Translation velocity [m/s] (no spin).
-  glm::quat rotation{1, 0, 0, 0};  ///< Box: box-to-world rotation (unit, or normalised).
+  glm::quat rotation{1, 0, 0, 0};  ///< Box, Capsule: local-to-world rotation (normalised).
   /// Coulomb friction coefficient of the collider's surface (>= 0). A body meets it with
   /// sqrt(friction * BodyDef::friction) (Box2D's rule). 0, the default, is frictionless.
   double friction = 0;

@@ -297,7 +297,7 @@ class World {
   /// impulses, to the linear solver's tolerance.
   std::span<const glm::dvec3> colliderImpulses() const;
   /// Per collider, the moment [N m s] of those impulses about the collider's point (its centre
-  /// for a box or sphere) at the end of each substep.
+  /// for a box, sphere or capsule) at the end of each substep.
   std::span<const glm::dvec3> colliderAngularImpulses() const;
 
   /// Copies the whole world state for rollback and replays (O(state), no solver work).

@@ -261,8 +261,8 @@ struct ColliderImpulseStage {
   }
 };
 
-/// Per free node, the box or sphere collider that it is in at the step's start (its nearest
-/// face), or else the first one that its path over the step (x_n to x_n + dt v_n, in the
+/// Per free node, the box, sphere or capsule collider that it is in at the step's start (its
+/// nearest face), or else the first one that its path over the step (x_n to x_n + dt v_n, in the
 /// colliders' end-of-step frame) enters, with the face's point and normal (SweptContacts),
 /// kept only where the path would pass the collider (`crossed` 1: it ends more than half the
 /// collider's thickness below the face, where the nearest-face depth would push it out of the

@@ -193,7 +193,7 @@ Result<void> WettingSettings::check() const {
 }
 
 Result<void> Collider::check() const {
-  if (kind != Kind::Plane && kind != Kind::Box && kind != Kind::Sphere)
+  if (kind != Kind::Plane && kind != Kind::Box && kind != Kind::Sphere && kind != Kind::Capsule)
     return fail("kind: ", std::to_string(static_cast<int>(kind)), " is not a Collider::Kind");
   if (!bounded3(point)) return fail("point: must be finite, within 1e9 m of the origin");
   if (!bounded3(velocity)) return fail("velocity: must be finite, at most 1e9 m/s");
@@ -208,15 +208,19 @@ Result<void> Collider::check() const {
     if (!(finite3(normal) && std::isfinite(len2) && len2 > 1e-24))
       return fail("normal: must be finite and non-zero");
   }
-  if (kind == Kind::Box) {
-    if (!(bounded3(halfExtents) && halfExtents.x > 0 && halfExtents.y > 0 && halfExtents.z > 0))
-      return fail("halfExtents: must be positive and at most 1e9 m");
+  if (kind == Kind::Box &&
+      !(bounded3(halfExtents) && halfExtents.x > 0 && halfExtents.y > 0 && halfExtents.z > 0))
+    return fail("halfExtents: must be positive and at most 1e9 m");
+  if (kind == Kind::Capsule &&
+      !(std::isfinite(halfLength) && halfLength >= 0 && halfLength <= detail::kMaxMagnitude))
+    return fail("halfLength: must lie in [0, 1e9] m (0 is a sphere), got ", num(halfLength));
+  if (kind == Kind::Box || kind == Kind::Capsule) {
     const double q2 = double(rotation.x) * rotation.x + double(rotation.y) * rotation.y +
                       double(rotation.z) * rotation.z + double(rotation.w) * rotation.w;
     if (!(std::isfinite(q2) && q2 > 1e-24))
       return fail("rotation: must be a finite non-zero quaternion");
   }
-  if (kind == Kind::Sphere &&
+  if ((kind == Kind::Sphere || kind == Kind::Capsule) &&
       !(std::isfinite(radius) && radius > 0 && radius <= detail::kMaxMagnitude))
     return fail("radius: must be positive and at most 1e9 m, got ", num(radius));
   return {};

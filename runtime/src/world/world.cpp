@@ -34,6 +34,7 @@ ColliderData toData(const Collider& c) {
   d.normal = len > 0 ? (1.0 / len) * n : Vec3{0, 1, 0};
   d.halfExtents = {c.halfExtents.x, c.halfExtents.y, c.halfExtents.z};
   d.radius = c.radius;
+  d.halfLength = c.halfLength;
   d.velocity = {c.velocity.x, c.velocity.y, c.velocity.z};
   d.friction = c.friction;
   const glm::dquat q(c.rotation);
