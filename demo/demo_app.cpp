@@ -199,10 +199,8 @@ Totals totals(const World& world, const scene::BulletScene& sim) {
     if (f.edgeCount > 0) {
       t.brokenEdges += f.brokenEdges;
       t.edgeCount += f.edgeCount;
-      t.fragments += f.fragments;
-    } else {
-      t.fragments += 1;
     }
+    t.fragments += f.fragments;  // 1 for a body that cannot break; pieces of an Is-XFEM body
   }
   return t;
 }

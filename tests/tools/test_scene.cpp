@@ -532,6 +532,30 @@ TEST(Scene, ContactKeyLoadsAndIsChecked) {
   EXPECT_NE(rb.error().message.find("bodies[0].contact"), std::string::npos) << rb.error().message;
 }
 
+TEST(Scene, CutModeKeyLoadsAndIsChecked) {
+  const std::string box = R"("mesh": {"generator": "box", "size": [1, 1, 1], "cells": [1, 1, 1]},
+      "material": {"E": 1, "nu": 0, "rho": 1})";
+  const Result<Scene> r = parseScene(R"({"bodies": [{)" + box + R"(, "cut_mode": "xfem"}, {)" +
+                                         box + R"(}], "cuts": [{"frame": 1, "body": "body0",
+      "blade": {"type": "plane", "point": [0.3, 0, 0], "normal": [1, 0, 0], "size": 2}}]})",
+                                     "inline", "");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r.value().bodies[0].def.cutMode, CutMode::Xfem);   // cut without a fracture block
+  EXPECT_EQ(r.value().bodies[1].def.cutMode, CutMode::Graph);  // the default
+  // An unknown mode, and a setting an Is-XFEM body cannot honour, fail naming the key.
+  const Result<Scene> unknown =
+      parseScene(R"({"bodies": [{)" + box + R"(, "cut_mode": "mesh"}]})", "inline", "");
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.error().message.find("bodies[0].cut_mode"), std::string::npos)
+      << unknown.error().message;
+  const Result<Scene> fracturing = parseScene(
+      R"({"bodies": [{)" + box + R"(, "cut_mode": "xfem", "fracture": {"strength": 1e6}}]})",
+      "inline", "");
+  ASSERT_FALSE(fracturing.ok());
+  EXPECT_NE(fracturing.error().message.find("fracture.enabled"), std::string::npos)
+      << fracturing.error().message;
+}
+
 TEST(Scene, SolverKeysLoad) {
   const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
       "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},

@@ -153,7 +153,9 @@ struct BodyRecord {
   BodyId id;
   std::vector<double> rest;  // rest positions, for displacements
   size_t tets = 0;
-  bool fracture = false;  // fracturing bodies write World::surface, the others `surface`
+  // Fracturing and Is-XFEM bodies write World::surface (crack or cut faces), the others
+  // `surface`.
+  bool fracture = false;
   SurfaceTopology surface;
   std::vector<int32_t> tetNodes;       // --vtk: the cells
   std::vector<std::string> gripNames;  // the scene entry of each BodyDef::grips
@@ -346,7 +348,7 @@ int runCommand(int argc, char** argv) {
     rec.name = sb.name;
     rec.rest = sb.def.mesh.positions;
     rec.tets = sb.def.mesh.tetCount();
-    rec.fracture = sb.def.fracture.enabled;
+    rec.fracture = sb.def.fracture.enabled || sb.def.cutMode == CutMode::Xfem;
     rec.gripNames = sb.gripNames;
     anyGrips = anyGrips || !sb.def.grips.empty();
     if (opt.surface && !rec.fracture) rec.surface = surfaceTopology(sb.def.mesh);

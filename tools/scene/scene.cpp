@@ -95,6 +95,7 @@ constexpr FieldName kPlasticityNames[] = {
     {"yieldStress", "yield"}, {"flowRate", "flow_rate"}, {"hardening", "hardening"}};
 constexpr FieldName kBodyNames[] = {
     {"fracture.fibreStrengthRatio", "fracture.fibre_strength_ratio"},
+    {"cutMode", "cut_mode"},
     {"initialVelocity", "initial_velocity"}};
 constexpr FieldName kWorldNames[] = {{"WorldDef.substeps", "substeps"},
                                      {"WorldDef.gravity", "gravity"},
@@ -1080,7 +1081,8 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
           "contact",
           "impurities",
           "impurity_maps",
-          "render_mesh"});
+          "render_mesh",
+          "cut_mode"});
   SceneBody body;
   body.name = "body" + std::to_string(index);
   body.colour = kBodyPalette[index % kBodyPalette.size()];
@@ -1113,6 +1115,11 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
   }
   if (const json* f = o.find("friction")) body.def.friction = readNumber(*f, o.at("friction"));
   if (const json* c = o.find("contact")) body.def.contact = readBool(*c, o.at("contact"));
+  if (const json* m = o.find("cut_mode")) {
+    body.def.cutMode = readChoice(*m, o.at("cut_mode"), {"graph", "xfem"}) == "xfem"
+                           ? CutMode::Xfem
+                           : CutMode::Graph;
+  }
   if (const json* w = o.find("angular_velocity")) {
     body.angularVelocity = readVec3(*w, o.at("angular_velocity"));
   }
@@ -1241,10 +1248,11 @@ SceneCut readCut(const json& v, const std::string& path, const Scene& scene) {
   if (!found) {
     throw SceneError{o.at("body"), "no body named \"" + cut.body + "\" (bodies: " + names + ")"};
   }
-  if (!scene.bodies[cut.bodyIndex].def.fracture.enabled) {
+  if (!scene.bodies[cut.bodyIndex].def.fracture.enabled &&
+      scene.bodies[cut.bodyIndex].def.cutMode != CutMode::Xfem) {
     throw SceneError{o.at("body"), "body \"" + cut.body +
                                        "\" has no \"fracture\" block; only fracturing bodies "
-                                       "can be cut"};
+                                       "or bodies with \"cut_mode\": \"xfem\" can be cut"};
   }
   readBladeGeometry(o.require("blade"), o.at("blade"), cut.blade);
   if (const json* f = o.find("from")) cut.blade.from = readPose(*f, o.at("from"));

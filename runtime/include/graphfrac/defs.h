@@ -291,6 +291,38 @@ struct PointForce {
   glm::vec3 force{0, 0, 0};
 };
 
+/// How a body is cut (World::cut).
+enum class CutMode : uint8_t {
+  /// Graph-based FEM (thesis ch. 4): a blade breaks the mesh edges it crosses, so the cut face
+  /// follows the tets. Any setting of BodyDef applies.
+  Graph,
+  /// Is-XFEM (thesis ch. 3): a blade cuts through the tets and the cut face is the blade's own
+  /// surface, at the price of enriched DOFs per cut (eq 3.4) and a CPU direct solve. For a few
+  /// clean cuts on a small body. What such a body is:
+  /// - linear (small-strain) elasticity with material.youngsModulus, poissonRatio and density
+  ///   (material.model is not used: all four models share this limit at rest), stepped by the
+  ///   linear implicit Euler step of eq 3.13 with the world's gravity and substep, solved by a
+  ///   sparse Cholesky factor (solver settings are not used; a new substep length refactorises);
+  /// - grips hold nodes still (velocity zero only; their standard and enriched DOFs stay at
+  ///   rest), initialVelocity and World::setVelocity/setVelocities set the standard DOFs
+  ///   (enriched ones to zero);
+  /// - plane colliders only, met as hard frictionless contact of the render surface's vertices
+  ///   (exact cut faces included) inside the implicit step (an LCP on the factorised system:
+  ///   no penetration, no bounce); collider stiffness and friction do not apply;
+  /// - World::cut adds the blade (static or swept, at most 32 per body, at most 4 through one
+  ///   tet) at once, in the body's rest frame (the blade is carried back by the best-fit rigid
+  ///   motion of the piece it meets); the next step reports it (FractureEvent with cause Cut and
+  ///   `tet`, FragmentEvent per new piece);
+  /// - pieces are its fragments (World::fractureStats, surface()'s vertexFragment).
+  /// It refuses (createBody names the field): fracture.enabled (no stress-driven fracture),
+  /// plasticity.enabled, a fibre term or fibreField, Rayleigh damping, point forces, a grip with
+  /// a velocity, contact (body-body), a renderMesh, and box or sphere colliders in the world
+  /// (WorldDef.colliders; setColliders refuses them while such a body lives). Commands that
+  /// would need what it lacks (setPositions, applyForce, applyImpulse, setMaterial, a grip
+  /// velocity, sculpting brushes, fragment hand-off, snapshots) return an error.
+  Xfem,
+};
+
 /// A body: its mesh, material, boundary conditions and solver settings.
 struct BodyDef {
   TetMesh mesh;
@@ -323,6 +355,8 @@ struct BodyDef {
   /// tet than twice the longest tet edge is an error (wrong units or placement). Cost: nothing
   /// until World::surface is called, then O(render vertices) per rendered frame.
   std::optional<RenderMesh> renderMesh;
+  /// How World::cut cuts the body; Graph by default (see CutMode for what Xfem supports).
+  CutMode cutMode = CutMode::Graph;
   /// Everything World::createBody checks before it allocates: the mesh (validate()), the
   /// material, solver, fracture, plasticity and wetting settings, node indices of grips and
   /// forces, finite vectors, the fibre field, the render mesh's own fields (RenderMesh::check;

@@ -9,14 +9,18 @@
 
 namespace gf {
 
-/// An edge of a body's mesh broke (by the stress criterion, a brittle crack plane or a cut).
+/// An edge of a body's mesh broke (by the stress criterion, a brittle crack plane or a cut),
+/// or, for a body in CutMode::Xfem, a cut crossed a tet (one event per tet that carries the new
+/// cut's enrichment: edge, nodeA and nodeB are -1, `tet` names it, position is the centroid of
+/// the cut polygon in it).
 struct FractureEvent {
   BodyId body;
-  int32_t edge = -1;               ///< Edge index in the body's edge graph.
+  int32_t edge = -1;               ///< Edge index in the body's edge graph (-1: Is-XFEM).
   int32_t nodeA = -1, nodeB = -1;  ///< Its end nodes.
   glm::vec3 position{0, 0, 0};     ///< World-space midpoint of the edge when it broke.
   float stress = 0;                ///< Tensile normal stress that broke it [Pa]; 0 for cuts.
   enum class Cause : uint8_t { Stress, BrittlePlane, Cut } cause = Cause::Stress;
+  int32_t tet = -1;  ///< CutMode::Xfem: the tet the cut crosses; -1 for graph events.
 };
 
 /// A body's node graph split: a new fragment appeared (the old one keeps its id).

@@ -143,14 +143,19 @@ class World {
   /// threads may call it between steps.
   BodyStats stats(BodyId id) const;
   /// Cuts a body with a blade; the edges it crosses break at the start of the next step and
-  /// show up in that step's events. Error for a bad id, a body without fracture, an empty
-  /// blade, an index out of range or a non-finite vertex.
+  /// show up in that step's events. A body in CutMode::Xfem is cut through its tets at once (its
+  /// state unchanged: the new enriched DOFs start at zero) and the next step reports the cut
+  /// (one FractureEvent per cut tet, a FragmentEvent per new piece). Error, with nothing
+  /// changed, for a bad id, a body without fracture (graph mode), an empty blade, an index out of
+  /// range or a non-finite vertex; in Xfem mode also for more than 32 cuts or more than 4
+  /// through one tet (CutMode).
   Result<void> cut(BodyId id, const Blade& blade);
   /// Edges broken and fragments created during the last step, sorted by (body, edge) and
   /// (body, fragment). Valid until the next step.
   std::span<const FractureEvent> fractureEvents() const;
   std::span<const FragmentEvent> fragmentEvents() const;
-  /// Broken edges and fragments of a body; zeroes for an invalid id.
+  /// Broken edges and fragments of a body; zeroes for an invalid id. A body in CutMode::Xfem has
+  /// no edges; its fragments are its pieces.
   FractureStats fractureStats(BodyId id) const;
   /// Fragment id of every node (empty for an invalid id or a body without fracture).
   std::span<const int32_t> nodeFragments(BodyId id) const;
@@ -164,8 +169,9 @@ class World {
   /// Per grip of BodyDef::grips, the force [N] it exerts on the body at the end of the last
   /// step: what holds its nodes on their prescribed path against inertia, elasticity, gravity,
   /// applied forces and contact (the residual of the implicit step's momentum balance on them).
-  /// Zero before the first step. Computed on each call, O(tets); valid until the next call,
-  /// step or body creation/destruction. Empty for an invalid id or during step().
+  /// Zero before the first step; empty for a body in CutMode::Xfem (not computed). Computed on each
+  /// call, O(tets); valid until the next call, step or body creation/destruction. Empty for an
+  /// invalid id or during step().
   std::span<const glm::dvec3> gripForces(BodyId id);
   /// Per node, the largest principal Lagrangian strain (F^T F - I) / 2 of its tets, averaged
   /// with the tets' rest volumes as weights: what a strain colour map shows (map it to the
@@ -201,7 +207,9 @@ class World {
   /// range covers the vertices moved since the previous call. A body with a
   /// BodyDef::renderMesh shows that mesh, deformed with its tets, split by fragment and with the
   /// crack faces added (uvs filled when it has UVs; every vertex is dirty after an update);
-  /// other bodies show their tet boundary with crack faces. Empty for an invalid id or when
+  /// other bodies show their tet boundary with crack faces; a body in CutMode::Xfem shows each
+  /// piece's closed surface with the exact cut polygons (crackMask 1, vertexFragment the piece,
+  /// vertexNode a node of the simplex the vertex lies on). Empty for an invalid id or when
   /// called while step() runs.
   SurfaceView surface(BodyId id);
   /// Timings of the last step.

@@ -293,6 +293,36 @@ Result<void> checkBodySettings(const BodyDef& def) {
   if (def.renderMesh) {
     if (auto r = def.renderMesh->check(); !r) return fail("renderMesh.", r.error().message);
   }
+  return checkCutMode(def);
+}
+
+// What a body in CutMode::Xfem cannot honour (defs.h, CutMode): each names the field.
+Result<void> checkCutMode(const BodyDef& def) {
+  if (def.cutMode != CutMode::Graph && def.cutMode != CutMode::Xfem)
+    return fail("cutMode: unknown cut mode ", std::to_string(static_cast<int>(def.cutMode)));
+  if (def.cutMode == CutMode::Graph) return {};
+  const auto refuse = [](const char* field, const char* why) {
+    return fail(field, ": ", why, " (cutMode Xfem: linear elasticity, cuts by World::cut only)");
+  };
+  if (def.fracture.enabled)
+    return refuse("fracture.enabled", "an Is-XFEM body has no stress-driven fracture");
+  if (def.plasticity.enabled)
+    return refuse("plasticity.enabled", "an Is-XFEM body has no plasticity");
+  if (def.material.fibreStiffness != 0)
+    return refuse("material.fibreStiffness", "an Is-XFEM body is isotropic");
+  if (!def.fibreField.empty()) return refuse("fibreField", "an Is-XFEM body is isotropic");
+  if (def.material.massDamping != 0 || def.material.stiffnessDamping != 0)
+    return refuse(
+        def.material.massDamping != 0 ? "material.massDamping" : "material.stiffnessDamping",
+        "an Is-XFEM body has no Rayleigh damping");
+  if (!def.forces.empty()) return refuse("forces", "an Is-XFEM body takes no point forces");
+  for (size_t g = 0; g < def.grips.size(); ++g)
+    if (def.grips[g].velocity != glm::vec3(0))
+      return fail("grips[", std::to_string(g),
+                  "].velocity: an Is-XFEM body holds its grips still (velocity 0 only) "
+                  "(cutMode Xfem)");
+  if (def.contact) return refuse("contact", "an Is-XFEM body meets plane colliders only");
+  if (def.renderMesh) return refuse("renderMesh", "an Is-XFEM body renders its cut surface");
   return {};
 }
 }  // namespace detail

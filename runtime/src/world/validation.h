@@ -21,4 +21,7 @@ inline bool bounded3(glm::vec3 v) {
 
 /// BodyDef::check without the mesh: World::createBody validates (and repairs) the mesh itself.
 Result<void> checkBodySettings(const BodyDef& def);
+/// BodyDef::cutMode and, for CutMode::Xfem, every setting such a body cannot honour (named);
+/// part of checkBodySettings, so the scene loader applies the same rules.
+Result<void> checkCutMode(const BodyDef& def);
 }  // namespace gf::detail

@@ -55,8 +55,13 @@ constexpr int32_t kBatchBelowTets = 2048;
 
 // Builds a body's model, state, solver and fracture from a checked def; throws std::bad_alloc
 // when the machine has not the memory for it.
-Result<std::unique_ptr<BodyRecord>> buildBody(BodyDef&& def, JobSystem& jobs) {
+Result<std::unique_ptr<BodyRecord>> buildBody(BodyDef&& def, JobSystem& jobs, Vec3 gravity) {
   auto body = std::make_unique<BodyRecord>();
+  if (def.cutMode == CutMode::Xfem) {
+    auto xfem = detail::buildXfem(def, gravity);
+    if (!xfem) return xfem.error();
+    body->xfem = std::move(xfem.value());
+  }
   body->model = detail::buildFemModel(def);
   body->state = detail::buildFemState(def, body->model);
   for (size_t i = 0; i < body->state.v.size(); ++i)
@@ -71,6 +76,7 @@ Result<std::unique_ptr<BodyRecord>> buildBody(BodyDef&& def, JobSystem& jobs) {
   }
   body->integrator->attach(body->fracture.get());
 
+  if (body->xfem) detail::syncXfemState(*body);
   body->gripForces.assign(def.grips.size(), glm::dvec3(0));
   body->grips = std::move(def.grips);
   return body;
@@ -141,6 +147,10 @@ void World::Impl::stepBody(size_t si, const detail::StepContext& ctx, JobSystem&
   detail::StepContext own = ctx;
   own.colliderImpulse = colliders.empty() ? nullptr : &bodyImpulse[6 * colliders.size() * si];
   if (own.colliderImpulse) std::fill_n(own.colliderImpulse, 6 * colliders.size(), 0.0);
+  if (b->xfem) {
+    stepXfem(si, own);
+    return;
+  }
   own.bodyContacts = bodyContact.halfSpaces(si);
   r = b->integrator->step(b->model, b->state, own, js);
   if (own.bodyContacts.start)
@@ -236,7 +246,13 @@ Result<BodyId> World::createBody(BodyDef def) {
       if (!bound) return bound.error();
       binding = std::make_unique<detail::EmbeddedBinding>(std::move(bound.value()));
     }
-    Result<std::unique_ptr<BodyRecord>> built = buildBody(std::move(def), *w.jobs);
+    if (def.cutMode == CutMode::Xfem)
+      if (std::string e =
+              w.xfemColliderError(w.def.colliders, "BodyDef.cutMode: WorldDef.colliders");
+          !e.empty())
+        return fail(e);
+    const glm::vec3 g = w.def.gravity;
+    Result<std::unique_ptr<BodyRecord>> built = buildBody(std::move(def), *w.jobs, {g.x, g.y, g.z});
     if (!built) return built.error();
     built.value()->renderBinding = std::move(binding);
     size_t slot = 0;
@@ -353,6 +369,7 @@ StepStatus World::step(double dt) {
       const detail::BodyStepReport& r = w.reports[si];
       const BodyId id{uint32_t(si + 1), w.slots[si].generation};
       if (b->fracture) w.collectEvents(id, *b);
+      if (b->xfem) w.collectXfemEvents(*b);
       b->stepEndValid = true;
       w.timings.fractureMs += r.fractureMs;
       st.flags |= r.flags;
@@ -380,8 +397,8 @@ StepStatus World::step(double dt) {
   // Events sorted by body, then edge / fragment: the same order for any thread count.
   std::stable_sort(w.fractureEvents.begin(), w.fractureEvents.end(),
                    [](const FractureEvent& a, const FractureEvent& b) {
-                     return a.body.index != b.body.index ? a.body.index < b.body.index
-                                                         : a.edge < b.edge;
+                     if (a.body.index != b.body.index) return a.body.index < b.body.index;
+                     return a.edge != b.edge ? a.edge < b.edge : a.tet < b.tet;
                    });
   std::stable_sort(w.fragmentEvents.begin(), w.fragmentEvents.end(),
                    [](const FragmentEvent& a, const FragmentEvent& b) {
@@ -429,6 +446,7 @@ BodyStats World::stats(BodyId id) const {
   BodyStats s;
   const BodyRecord* b = m_impl->get(id);
   if (!b || m_impl->stepping.load()) return s;
+  if (b->xfem) return m_impl->xfemStats(*b);
   const auto& m = b->model;
   const auto& x = b->state.x;
   const auto& v = b->state.v;
@@ -459,6 +477,7 @@ FractureStats World::fractureStats(BodyId id) const {
   FractureStats s;
   const BodyRecord* b = m_impl->get(id);
   if (!b) return s;
+  if (b->xfem) return {0, 0, b->xfem->fragmentCount};
   if (!b->fracture) return {0, 0, 1};
   s.edgeCount = b->fracture->graph().edgeCount;
   s.brokenEdges = b->fracture->brokenCount();
@@ -487,6 +506,7 @@ std::span<const uint8_t> World::brokenEdges(BodyId id) const {
 std::span<const glm::dvec3> World::gripForces(BodyId id) {
   BodyRecord* b = m_impl->get(id);
   if (!b || m_impl->stepping.load()) return {};
+  if (b->xfem) return {};
   std::fill(b->gripForces.begin(), b->gripForces.end(), glm::dvec3(0));
   if (!b->stepEndValid || b->allRigid) return b->gripForces;
   const detail::StepContext ctx = m_impl->context(m_impl->lastSubstep);
@@ -510,6 +530,10 @@ Result<void> World::setColliders(std::span<const Collider> colliders) {
     if (Result<void> r = colliders[i].check(); !r)
       return fail("setColliders: colliders[", std::to_string(i), "].", r.error().message);
   Impl& w = *m_impl;
+  for (const Slot& s : w.slots)
+    if (s.body && s.body->xfem)
+      if (std::string e = w.xfemColliderError(colliders, "setColliders: colliders"); !e.empty())
+        return fail(e);
   w.def.colliders.assign(colliders.begin(), colliders.end());
   w.colliders.clear();
   for (const Collider& c : colliders) w.colliders.push_back(toData(c));

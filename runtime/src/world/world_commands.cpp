@@ -27,6 +27,25 @@ bool finiteMat(const glm::mat4& m) {
   return true;
 }
 
+// The error of a command an Is-XFEM body cannot honour (BodyDef::cutMode), or empty.
+std::string xfemRefuses(const BodyRecord* b, const char* call) {
+  return b && b->xfem ? std::string(call) +
+                            ": not supported for a body in CutMode::Xfem (BodyDef.cutMode); "
+                            "nothing changed"
+                      : std::string();
+}
+
+// An Is-XFEM body's standard velocities from its nodes' (enriched ones to zero), gripped
+// nodes held.
+void setXfemVelocity(BodyRecord& b) {
+  Eigen::VectorXd& v = b.xfem->body->velocity();
+  v.setZero();
+  for (size_t i = 0; i < b.state.v.size(); ++i) v[Eigen::Index(i)] = b.state.v[i];
+  for (const Grip& g : b.grips)
+    for (int32_t n : g.nodes) v.segment(3 * Eigen::Index(n), 3).setZero();
+  for (size_t i = 0; i < b.state.v.size(); ++i) b.state.v[i] = v[Eigen::Index(i)];
+}
+
 }  // namespace
 
 Result<void> World::setVelocity(BodyId id, glm::dvec3 v) {
@@ -35,6 +54,7 @@ Result<void> World::setVelocity(BodyId id, glm::dvec3 v) {
   if (!b) return fail("setVelocity: stale or null BodyId");
   if (!bounded3(glm::vec3(v))) return fail("setVelocity: velocity must be finite, at most 1e9 m/s");
   for (size_t i = 0; i < b->state.v.size(); ++i) b->state.v[i] = v[int(i % 3)];
+  if (b->xfem) setXfemVelocity(*b);
   return {};
 }
 
@@ -57,6 +77,7 @@ Result<void> World::setPositions(BodyId id, std::span<const double> x) {
   BodyRecord* b = m_impl->get(id);
   if (std::string e = m_impl->busy("setPositions"); !e.empty()) return fail(e);
   if (!b) return fail("setPositions: stale or null BodyId");
+  if (std::string e = xfemRefuses(b, "setPositions"); !e.empty()) return fail(e);
   if (Result<void> r = overwrite(b->state.x, x, "setPositions", "m"); !r) return r;
   b->surfaceStale = true;
   b->stepEndValid = false;
@@ -67,14 +88,17 @@ Result<void> World::setVelocities(BodyId id, std::span<const double> v) {
   BodyRecord* b = m_impl->get(id);
   if (std::string e = m_impl->busy("setVelocities"); !e.empty()) return fail(e);
   if (!b) return fail("setVelocities: stale or null BodyId");
-  return overwrite(b->state.v, v, "setVelocities", "m/s");
+  if (Result<void> r = overwrite(b->state.v, v, "setVelocities", "m/s"); !r) return r;
+  if (b->xfem) setXfemVelocity(*b);
+  return {};
 }
 
 Result<void> World::cut(BodyId id, const Blade& blade) {
   BodyRecord* b = m_impl->get(id);
   if (std::string e = m_impl->busy("cut"); !e.empty()) return fail(e);
   if (!b) return fail("cut: stale or null BodyId");
-  if (!b->fracture) return fail("cut: the body was created without fracture (BodyDef.fracture)");
+  if (!b->fracture && !b->xfem)
+    return fail("cut: the body was created without fracture (BodyDef.fracture)");
   if (blade.triangles.empty() || blade.triangles.size() % 3 != 0)
     return fail("cut: blade.triangles must hold 3 indices per triangle, got ",
                 std::to_string(blade.triangles.size()));
@@ -87,6 +111,7 @@ Result<void> World::cut(BodyId id, const Blade& blade) {
                   "] = ", std::to_string(blade.triangles[i]), " is out of range");
   if (!finiteMat(blade.from) || !finiteMat(blade.to))
     return fail("cut: blade.from/to must be finite transforms");
+  if (b->xfem) return m_impl->cutXfem(id, *b, blade);
   detail::PendingCut pc;
   for (const glm::vec3& v : blade.vertices) {
     pc.blade.vertices.push_back(v.x);
@@ -155,6 +180,7 @@ Result<void> World::applyForce(BodyId id, glm::vec3 point, glm::vec3 force) {
           checkPointCommand(m_impl->busy("applyForce"), b, "applyForce", point, force, "force");
       !r)
     return r;
+  if (std::string e = xfemRefuses(b, "applyForce"); !e.empty()) return fail(e);
   int32_t corner[4];
   double w[4];
   if (!pointWeights(b->model, b->state.x, glm::dvec3(point), corner, w))
@@ -171,6 +197,7 @@ Result<void> World::applyImpulse(BodyId id, glm::vec3 point, glm::vec3 impulse) 
                                  "impulse");
       !r)
     return r;
+  if (std::string e = xfemRefuses(b, "applyImpulse"); !e.empty()) return fail(e);
   int32_t corner[4];
   double w[4];
   if (!pointWeights(b->model, b->state.x, glm::dvec3(point), corner, w))
@@ -191,6 +218,10 @@ Result<void> World::setGripVelocity(BodyId id, int grip, glm::vec3 velocity) {
     return fail("setGripVelocity: grip ", std::to_string(grip), " out of range [0, ",
                 std::to_string(b->grips.size()), ")");
   if (!finite3(velocity)) return fail("setGripVelocity: velocity is not finite");
+  if (b->xfem && velocity != glm::vec3(0))
+    return fail(
+        "setGripVelocity: a body in CutMode::Xfem holds its grips still (velocity 0 "
+        "only); nothing changed");
   detail::FemState& s = b->state;
   for (int32_t n : b->grips[size_t(grip)].nodes)
     for (int i = 0; i < 3; ++i) s.gripVelocity[3 * n + i] = velocity[i];
@@ -233,6 +264,7 @@ Result<void> World::setMaterial(BodyId id, const Material& material) {
   if (std::string e = m_impl->busy("setMaterial"); !e.empty()) return fail(e);
   BodyRecord* b = m_impl->get(id);
   if (!b) return fail("setMaterial: stale or null BodyId");
+  if (std::string e = xfemRefuses(b, "setMaterial"); !e.empty()) return fail(e);
   if (auto r = material.check(); !r) return fail("setMaterial: ", r.error().message);
   detail::FemState& s = b->state;
   if (material.model != s.material.model)

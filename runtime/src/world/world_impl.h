@@ -21,9 +21,29 @@
 #include "surface/embedded_mesh.h"
 #include "world/backend.h"
 #include "world/validation.h"
+#include "xfem/cut_body.h"
 
 namespace gf {
 namespace detail {
+
+// A body in CutMode::Xfem (world_xfem.cpp): the Is-XFEM body that steps it, its pieces as the
+// body's fragments, the events of its last cut (reported by the next step) and its render
+// surface. Its FemState's x and v mirror the standard DOFs (rest + u, v) after every step.
+struct XfemRecord {
+  std::unique_ptr<XfemBody> body;
+  std::vector<int32_t> pieceFragment;  // piece -> public fragment id (stable across cuts)
+  int32_t fragmentCount = 1;
+  std::vector<FractureEvent> pendingBreaks;  // of World::cut, for the next step
+  std::vector<FragmentEvent> pendingSplits;
+  XfemContactReport contact;  // of the last substep
+  // World::surface's buffers, all pieces concatenated.
+  std::vector<float> positions, normals;
+  std::vector<uint32_t> indices;
+  std::vector<uint8_t> crackMask;
+  std::vector<int32_t> vertexFragment, vertexNode;
+  uint64_t topologyVersion = 1;
+  bool built = false;  // buffers hold the current topology
+};
 
 // Contact penalty stiffness per unit mass when the collider names none: dt^2 k = 100 makes
 // contact a hundred times stiffer than inertia, so a node is pushed out within about a step
@@ -51,6 +71,7 @@ struct BodyRecord {
   detail::FemState state;
   std::unique_ptr<detail::Integrator> integrator;
   std::unique_ptr<detail::FractureBody> fracture;          // null: no fracture, no edge stresses
+  std::unique_ptr<detail::XfemRecord> xfem;                // null: CutMode::Graph
   std::unique_ptr<SurfaceRecord> surface;                  // null until somebody asks for it
   std::unique_ptr<detail::EmbeddedBinding> renderBinding;  // BodyDef::renderMesh, bound
   std::vector<Grip> grips;                                 // node lists for setGripVelocity
@@ -91,6 +112,12 @@ struct BodyRecord {
   Vec3 pullImpulse{0, 0, 0};
   glm::dvec3 pullForce{0};
 };
+
+struct BodyRecord;
+/// The Is-XFEM body of a def in CutMode::Xfem (checked), with the world's gravity.
+Result<std::unique_ptr<XfemRecord>> buildXfem(const BodyDef& def, Vec3 gravity);
+/// Sets an Is-XFEM body's node positions and velocities from its standard DOFs.
+void syncXfemState(BodyRecord& b);
 
 /// Kernel form of a collider; the stiffness is filled in per step (World::Impl::context).
 ColliderData toData(const Collider& c);
@@ -170,6 +197,15 @@ struct World::Impl {
   }
   // Converts a body's breaks and splits of the last detect() into public events.
   void collectEvents(BodyId id, const BodyRecord& b);
+  // CutMode::Xfem (world_xfem.cpp): one substep of the body in slot si (report, collider
+  // impulses as stepBody), its pending cut events, a cut, its stats, its render surface.
+  void stepXfem(size_t si, const detail::StepContext& ctx);
+  void collectXfemEvents(BodyRecord& b);
+  Result<void> cutXfem(BodyId id, BodyRecord& b, const Blade& blade);
+  BodyStats xfemStats(const BodyRecord& b) const;
+  SurfaceView xfemSurface(BodyRecord& b, bool moved);
+  // Error when a live Is-XFEM body cannot meet these colliders (plane colliders only).
+  std::string xfemColliderError(std::span<const Collider> colliders, const char* where) const;
   // Multiplicative plasticity after the step (eq 2.3-2.5): only yielding elements change.
   void plasticUpdate(BodyRecord& b, double h, JobSystem& js);
   // One substep of the body in slot si with `js` for its loops: its report into reports[si],

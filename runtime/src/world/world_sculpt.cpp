@@ -23,6 +23,7 @@ Result<void> queueStroke(const std::string& busy, BodyRecord* b, const WetBrush&
                          const char* call, double sign) {
   if (!busy.empty()) return fail(busy);
   if (!b) return fail(call, ": stale or null BodyId");
+  if (b->xfem) return fail(call, ": not supported for a body in CutMode::Xfem; nothing changed");
   if (!bounded3(brush.centre))
     return fail(call, ": brush.centre must be finite, within 1e9 m of the origin");
   if (!(std::isfinite(brush.radius) && brush.radius > 0 && brush.radius <= detail::kMaxMagnitude))
@@ -57,6 +58,7 @@ Result<void> World::deform(BodyId id, const DeformBrush& brush) {
   if (std::string e = m_impl->busy("deform"); !e.empty()) return fail(e);
   BodyRecord* b = m_impl->get(id);
   if (!b) return fail("deform: stale or null BodyId");
+  if (b->xfem) return fail("deform: not supported for a body in CutMode::Xfem; nothing changed");
   if (!bounded3(brush.centre))
     return fail("deform: brush.centre must be finite, within 1e9 m of the origin");
   if (!(std::isfinite(brush.radius) && brush.radius > 0 && brush.radius <= detail::kMaxMagnitude))
@@ -76,6 +78,7 @@ Result<void> World::pull(BodyId id, const PullBrush& brush) {
   if (std::string e = m_impl->busy("pull"); !e.empty()) return fail(e);
   BodyRecord* b = m_impl->get(id);
   if (!b) return fail("pull: stale or null BodyId");
+  if (b->xfem) return fail("pull: not supported for a body in CutMode::Xfem; nothing changed");
   if (brush.nodes.empty()) return fail("pull: brush.nodes is empty");
   if (brush.targets.size() != brush.nodes.size())
     return fail("pull: brush.targets has ", std::to_string(brush.targets.size()), " entries for ",

@@ -92,6 +92,10 @@ Result<void> World::restore(const WorldSnapshot& snapshot) {
       return fail(which, "mesh, fracture or plasticity differ from the snapshot's");
     // The snapshot does not hold which nodes a hand-off prescribed; refuse rather than restore
     // a body half rigid.
+    if (b.xfem)
+      return fail(which,
+                  "is in CutMode::Xfem (its enriched DOFs and cuts are not in a snapshot); "
+                  "restoring it is not supported yet");
     if (!b.rigid.empty())
       return fail(which,
                   "has fragments handed to rigid physics (detachFragment); restoring "

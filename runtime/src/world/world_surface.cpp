@@ -35,6 +35,14 @@ std::span<const double> World::nodeStrain(BodyId id) {
 SurfaceView World::surface(BodyId id) {
   BodyRecord* b = m_impl->get(id);
   if (!b || m_impl->stepping.load()) return {};
+  if (b->xfem) {
+    const bool moved = b->surfaceStale;
+    b->surfaceStale = false;
+    const auto t0 = detail::Clock::now();
+    SurfaceView v = m_impl->xfemSurface(*b, moved);
+    m_impl->timings.surfaceMs += detail::msSince(t0);
+    return v;
+  }
   // The view's dirty range covers what changed since the previous call.
   if (b->surface) b->surface->surface.clearDirty();
   bool updated = false;

@@ -1,5 +1,6 @@
 #include "xfem/cut_body.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -497,50 +498,59 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
   b.m_stiffness.resize(3 * F, 3 * F);
   b.m_stiffness.setFromTriplets(stiffness.begin(), stiffness.end());
 
+  if (auto r = b.buildStepMatrix(); !r) return r.error();
+  b.m_u = Eigen::VectorXd::Zero(3 * F);
+  b.m_v = Eigen::VectorXd::Zero(3 * F);
+  return body;
+}
+
+Result<void> XfemBody::buildStepMatrix() {
+  const int32_t nodes = int32_t(m_def.mesh.nodeCount()), F = m_functionCount;
+  const int32_t cutCount = int32_t(m_def.planes.size() + m_def.blades.size());
+  m_freeDof.clear();
+  m_constrained = 0;
   // Fixed nodes hold their standard and enriched DOFs; the step matrix is over the rest.
   std::vector<uint8_t> fixed(static_cast<size_t>(F), 0);
-  for (int32_t n : def.fixedNodes) {
+  for (int32_t n : m_def.fixedNodes) {
     fixed[size_t(n)] = 1;
     for (int32_t j = 0; j < cutCount; ++j) {
-      const int32_t f = b.m_enriched[size_t(n) * size_t(cutCount) + size_t(j)];
+      const int32_t f = m_enriched[size_t(n) * size_t(cutCount) + size_t(j)];
       if (f >= 0) fixed[size_t(f)] = 1;
     }
   }
   for (int32_t f = 0; f < F; ++f)
     if (!fixed[size_t(f)])
-      for (int i = 0; i < 3; ++i) b.m_freeDof.push_back(3 * f + i);
+      for (int i = 0; i < 3; ++i) m_freeDof.push_back(3 * f + i);
   // The free rows and columns of A, renumbered: the free DOFs ascend, so each column's rows
   // stay sorted (a selection-matrix product did the same at twice the assembly's cost).
-  const int32_t free = int32_t(b.m_freeDof.size());
+  const int32_t free = int32_t(m_freeDof.size());
   std::vector<int32_t> freeIndex(3 * size_t(F), -1);
-  for (int32_t r = 0; r < free; ++r) freeIndex[size_t(b.m_freeDof[size_t(r)])] = r;
-  const Eigen::SparseMatrix<double> A = b.m_mass + (def.dt * def.dt) * b.m_stiffness;
-  b.m_stepMatrix.resize(free, free);
-  b.m_stepMatrix.reserve(A.nonZeros());
+  for (int32_t r = 0; r < free; ++r) freeIndex[size_t(m_freeDof[size_t(r)])] = r;
+  const Eigen::SparseMatrix<double> A = m_mass + (m_def.dt * m_def.dt) * m_stiffness;
+  m_stepMatrix.resize(free, free);
+  m_stepMatrix.reserve(A.nonZeros());
   for (Eigen::Index c = 0; c < A.outerSize(); ++c) {
     const int32_t fc = freeIndex[size_t(c)];
     if (fc < 0) continue;
-    b.m_stepMatrix.startVec(fc);
+    m_stepMatrix.startVec(fc);
     for (Eigen::SparseMatrix<double>::InnerIterator it(A, c); it; ++it)
       if (const int32_t fr = freeIndex[size_t(it.row())]; fr >= 0)
-        b.m_stepMatrix.insertBack(fr, fc) = it.value();
+        m_stepMatrix.insertBack(fr, fc) = it.value();
   }
-  b.m_stepMatrix.finalize();
-  b.m_stepMatrix.makeCompressed();
+  m_stepMatrix.finalize();
+  m_stepMatrix.makeCompressed();
   // Sec 3.2.2.2: (A + lambda I) on the enriched DOFs of too small a volume ratio (eq 3.16).
   for (int32_t r = 0; r < free; ++r) {
-    const int32_t f = b.m_freeDof[size_t(r)] / 3;
-    if (f < nodes || !(b.m_enrichedRatio[size_t(f - nodes)] < def.constraint.minRatio)) continue;
-    b.m_stepMatrix.coeffRef(r, r) *= 1.0 + def.constraint.relative;
-    ++b.m_constrained;
+    const int32_t f = m_freeDof[size_t(r)] / 3;
+    if (f < nodes || !(m_enrichedRatio[size_t(f - nodes)] < m_def.constraint.minRatio)) continue;
+    m_stepMatrix.coeffRef(r, r) *= 1.0 + m_def.constraint.relative;
+    ++m_constrained;
   }
-  const SymmetricCsc csc{int32_t(b.m_stepMatrix.rows()), b.m_stepMatrix.outerIndexPtr(),
-                         b.m_stepMatrix.innerIndexPtr(), b.m_stepMatrix.valuePtr()};
-  if (auto factored = b.m_solver.factorize(csc); !factored.ok())
+  const SymmetricCsc csc{int32_t(m_stepMatrix.rows()), m_stepMatrix.outerIndexPtr(),
+                         m_stepMatrix.innerIndexPtr(), m_stepMatrix.valuePtr()};
+  if (auto factored = m_solver.factorize(csc); !factored.ok())
     return fail("XfemBody: step matrix M + dt^2 K: ", factored.error().message);
-  b.m_u = Eigen::VectorXd::Zero(3 * F);
-  b.m_v = Eigen::VectorXd::Zero(3 * F);
-  return body;
+  return {};
 }
 
 bool XfemBody::step() {
@@ -555,6 +565,291 @@ bool XfemBody::step() {
   for (size_t r = 0; r < m_freeDof.size(); ++r) m_v[m_freeDof[r]] = v[Eigen::Index(r)];
   m_u += dt * m_v;
   return true;
+}
+
+bool XfemBody::step(const std::vector<XfemContactPlane>& planes, XfemContactReport* report) {
+  if (report) {
+    *report = {};
+    report->impulse.assign(6 * planes.size(), 0.0);
+  }
+  if (planes.empty()) return step();
+  const double dt = m_def.dt;
+  const Eigen::Index free = Eigen::Index(m_freeDof.size());
+  // Eq 3.13 without contact: v0 = A^-1 b.
+  const Eigen::VectorXd full = m_mass * m_v - dt * (m_stiffness * m_u - m_force);
+  Eigen::VectorXd rhs(free);
+  for (Eigen::Index r = 0; r < free; ++r) rhs[r] = full[m_freeDof[size_t(r)]];
+  Eigen::VectorXd v0(free);
+  if (!m_solver.solveFactored(rhs.data(), v0.data())) return false;
+  std::vector<int32_t> freeIndex(size_t(m_u.size()), -1);
+  for (Eigen::Index r = 0; r < free; ++r) freeIndex[size_t(m_freeDof[size_t(r)])] = int32_t(r);
+
+  // A contact row: vertex i of piece p against plane c, its current gap and G_k over the free
+  // DOFs (n times the vertex's weights, eq 3.4), sparse.
+  struct Row {
+    int32_t piece, vertex, plane;
+    double gap;
+    std::vector<std::pair<int32_t, double>> g;
+  };
+  const auto gapOf = [&](const XfemPieceSurface& s, size_t i, const XfemContactPlane& c,
+                         const Eigen::VectorXd* v) {
+    Vec3 x = s.vertices[i].rest;
+    for (int32_t w = s.weightStart[i]; w < s.weightStart[i + 1]; ++w)
+      for (int d = 0; d < 3; ++d) {
+        const int32_t dof = 3 * s.weightFunction[size_t(w)] + d;
+        double u = m_u[dof];
+        if (v && freeIndex[size_t(dof)] >= 0) u += dt * (*v)[freeIndex[size_t(dof)]];
+        x[d] += s.weightValue[size_t(w)] * u;
+      }
+    return dot(c.normal, x) - c.offset;
+  };
+  double size = 0;  // the body's largest extent at rest
+  {
+    Vec3 lo{INFINITY, INFINITY, INFINITY}, hi = -lo;
+    for (size_t n = 0; 3 * n < m_def.mesh.positions.size(); ++n)
+      for (int d = 0; d < 3; ++d) {
+        lo[d] = std::min(lo[d], m_def.mesh.positions[3 * n + size_t(d)]);
+        hi[d] = std::max(hi[d], m_def.mesh.positions[3 * n + size_t(d)]);
+      }
+    for (int d = 0; d < 3; ++d) size = std::max(size, hi[d] - lo[d]);
+  }
+  std::vector<Row> rows;
+  std::vector<uint8_t> active;  // per (piece, vertex, plane), flattened below
+  std::vector<size_t> vertexBase(m_surface.size() + 1, 0);
+  for (size_t p = 0; p < m_surface.size(); ++p)
+    vertexBase[p + 1] = vertexBase[p] + m_surface[p].vertices.size();
+  active.assign(vertexBase.back() * planes.size(), 0);
+  std::vector<Eigen::VectorXd> Y;  // A^-1 G_k^T
+  std::vector<double> lambda, start;
+  std::vector<size_t> keys;
+  Eigen::VectorXd v = v0;
+  Eigen::MatrixXd S;  // G A^-1 G^T, grown by rows
+  int rounds = 0, sweeps = 0, pivots = 0;
+  double worst = 0;
+  bool converged = true;
+  for (; rounds < 16; ++rounds) {
+    // The vertices that v leaves beyond a plane join the active set.
+    const size_t before = rows.size();
+    for (size_t p = 0; p < m_surface.size(); ++p)
+      for (size_t i = 0; i < m_surface[p].vertices.size(); ++i)
+        for (size_t c = 0; c < planes.size(); ++c) {
+          const size_t key = (vertexBase[p] + i) * planes.size() + c;
+          uint8_t& a = active[key];
+          // Last step's contacts join at once with their impulses (warm start): a resting body
+          // then needs a few sweeps, not thousands.
+          const auto warm = rounds == 0 ? m_warm.find(key) : m_warm.end();
+          if (a || (warm == m_warm.end() && gapOf(m_surface[p], i, planes[c], &v) >= 0)) continue;
+          Row row{
+              int32_t(p), int32_t(i), int32_t(c), gapOf(m_surface[p], i, planes[c], nullptr), {}};
+          const XfemPieceSurface& s = m_surface[p];
+          for (int32_t w = s.weightStart[i]; w < s.weightStart[i + 1]; ++w)
+            for (int d = 0; d < 3; ++d) {
+              const int32_t r = freeIndex[size_t(3 * s.weightFunction[size_t(w)] + d)];
+              const double value = s.weightValue[size_t(w)] * planes[c].normal[d];
+              if (r >= 0 && value != 0) row.g.emplace_back(r, value);
+            }
+          a = 1;
+          if (row.g.empty()) continue;  // held by fixed DOFs only: nothing can move it
+          rows.push_back(std::move(row));
+          keys.push_back(key);
+          start.push_back(warm == m_warm.end() ? 0.0 : warm->second);
+        }
+    if (rows.size() == before) break;
+    for (size_t k = before; k < rows.size(); ++k) {
+      Eigen::VectorXd gk = Eigen::VectorXd::Zero(free), yk(free);
+      for (const auto& [r, value] : rows[k].g) gk[r] += value;
+      if (!m_solver.solveFactored(gk.data(), yk.data())) return false;
+      Y.push_back(std::move(yk));
+      lambda.push_back(start[k]);
+    }
+    const Eigen::Index m = Eigen::Index(rows.size());
+    Eigen::MatrixXd grown(m, m);
+    grown.topLeftCorner(Eigen::Index(before), Eigen::Index(before)) =
+        S.topLeftCorner(Eigen::Index(before), Eigen::Index(before));
+    for (Eigen::Index k = 0; k < m; ++k)
+      for (Eigen::Index l = std::max<Eigen::Index>(k, Eigen::Index(before)); l < m; ++l) {
+        double sum = 0;
+        for (const auto& [r, value] : rows[size_t(k)].g) sum += value * Y[size_t(l)][r];
+        grown(k, l) = grown(l, k) = sum;
+      }
+    S = std::move(grown);
+    // q_k = G_k v0 + g_k / dt: the end gap over dt without contact impulses.
+    Eigen::VectorXd q(m);
+    for (Eigen::Index k = 0; k < m; ++k) {
+      double gv = 0;
+      for (const auto& [r, value] : rows[size_t(k)].g) gv += value * v0[r];
+      q[k] = gv + rows[size_t(k)].gap / dt;
+    }
+    // lambda >= 0, w = S lambda + q >= 0, complementary. The contacts of one piece are
+    // coupled through its near-rigid motion, so S is nearly singular (its elastic directions
+    // are dt^2 E times softer than the rigid ones) and exactly so where more vertices than
+    // DOFs touch: projected Gauss-Seidel alone crawls there. So first principal pivoting: the
+    // pushing set P solved exactly (S_PP lambda_P = -q_P, least squares of minimum norm where
+    // S_PP is singular), vertices switched in or out by sign, all at once for 10 rounds and
+    // then the first one only (Murty's least-index rule, which terminates on a P-matrix); then
+    // projected Gauss-Seidel from there for what rounding leaves. It stops when every vertex's
+    // complementarity residual (w where it pushes, a negative w where it does not) moves it by
+    // under 1e-9 of the body's size in the step.
+    const double tolerance = 1e-9 * size / dt;
+    const auto residualOf = [&](const Eigen::VectorXd& w) {
+      double r = 0;
+      for (Eigen::Index k = 0; k < m; ++k)
+        r = std::max(r, lambda[size_t(k)] > 0 ? std::abs(w[k]) : -w[k]);
+      return r;
+    };
+    Eigen::VectorXd w(m);
+    std::vector<uint8_t> pushing(static_cast<size_t>(m));
+    for (Eigen::Index k = 0; k < m; ++k) pushing[size_t(k)] = lambda[size_t(k)] > 0 || q[k] < 0;
+    // S + eps I with eps 1e-10 of S's largest diagonal is positive definite, a P-matrix, for
+    // which Murty's rule cannot cycle (on the singular S it did); eps lambda is far below the
+    // tolerance, which is checked on S itself.
+    const double eps = 1e-10 * S.diagonal().maxCoeff();
+    for (int pivot = 0; pivot < 10 * m + 50; ++pivot) {
+      ++pivots;
+      std::vector<Eigen::Index> P;
+      for (Eigen::Index k = 0; k < m; ++k)
+        if (pushing[size_t(k)]) P.push_back(k);
+      std::fill(lambda.begin(), lambda.end(), 0.0);
+      if (!P.empty()) {
+        Eigen::MatrixXd SP(Eigen::Index(P.size()), Eigen::Index(P.size()));
+        Eigen::VectorXd qP(Eigen::Index(P.size()));
+        for (size_t i = 0; i < P.size(); ++i) {
+          qP[Eigen::Index(i)] = -q[P[i]];
+          for (size_t j = 0; j < P.size(); ++j)
+            SP(Eigen::Index(i), Eigen::Index(j)) = S(P[i], P[j]) + (i == j ? eps : 0.0);
+        }
+        const Eigen::VectorXd x = SP.completeOrthogonalDecomposition().solve(qP);
+        for (size_t i = 0; i < P.size(); ++i) lambda[size_t(P[i])] = x[Eigen::Index(i)];
+      }
+      w = q;
+      for (Eigen::Index k = 0; k < m; ++k)
+        if (lambda[size_t(k)] != 0) w += lambda[size_t(k)] * S.col(k);
+      // Violations: a pushing vertex that pulls, a free one that penetrates.
+      Eigen::Index first = -1;
+      int switched = 0;
+      for (Eigen::Index k = 0; k < m; ++k) {
+        const double violation =
+            pushing[size_t(k)] ? -lambda[size_t(k)] * S(k, k) : -w[k];  // both velocities
+        if (violation <= tolerance) continue;
+        ++switched;
+        if (first < 0) first = k;  // Murty: the least index
+      }
+      if (switched == 0) break;
+      if (pivot < 10) {
+        for (Eigen::Index k = 0; k < m; ++k) {
+          const double violation = pushing[size_t(k)] ? -lambda[size_t(k)] * S(k, k) : -w[k];
+          if (violation > tolerance) pushing[size_t(k)] ^= 1;
+        }
+      } else {
+        pushing[size_t(first)] ^= 1;
+      }
+    }
+    for (double& l : lambda) l = std::max(l, 0.0);
+    w = q;
+    for (Eigen::Index k = 0; k < m; ++k)
+      if (lambda[size_t(k)] != 0) w += lambda[size_t(k)] * S.col(k);
+    worst = residualOf(w);
+    for (int sweep = 0; sweep < 5000 && worst > tolerance; ++sweep) {
+      ++sweeps;
+      for (Eigen::Index k = 0; k < m; ++k) {
+        if (!(S(k, k) > 0)) continue;
+        const double next = std::max(0.0, lambda[size_t(k)] - w[k] / S(k, k));
+        const double d = next - lambda[size_t(k)];
+        if (d != 0) {
+          w += d * S.col(k);
+          lambda[size_t(k)] = next;
+        }
+      }
+      worst = residualOf(w);
+    }
+    converged = worst <= tolerance;
+    v = v0;
+    for (size_t k = 0; k < rows.size(); ++k)
+      if (lambda[k] != 0) v += lambda[k] * Y[k];
+  }
+  if (!v.allFinite()) return false;
+  m_warm.clear();
+  for (size_t k = 0; k < rows.size(); ++k)
+    if (lambda[k] > 0) m_warm.emplace(keys[k], lambda[k]);
+  m_v.setZero();
+  for (Eigen::Index r = 0; r < free; ++r) m_v[m_freeDof[size_t(r)]] = v[r];
+  m_u += dt * m_v;
+  if (report) {
+    report->contacts = int32_t(rows.size());
+    report->rounds = rounds;
+    report->sweeps = sweeps;
+    report->pivots = pivots;
+    report->converged = converged;
+    report->residual = worst;
+    for (size_t k = 0; k < rows.size(); ++k) {
+      const Row& row = rows[k];
+      const XfemPieceSurface& s = m_surface[size_t(row.piece)];
+      const XfemContactPlane& c = planes[size_t(row.plane)];
+      report->minGap = std::min(report->minGap, gapOf(s, size_t(row.vertex), c, nullptr));
+      Vec3 x = s.vertices[size_t(row.vertex)].rest;
+      for (int32_t w = s.weightStart[size_t(row.vertex)]; w < s.weightStart[size_t(row.vertex) + 1];
+           ++w)
+        for (int d = 0; d < 3; ++d)
+          x[d] += s.weightValue[size_t(w)] * m_u[3 * s.weightFunction[size_t(w)] + d];
+      const Vec3 J = lambda[k] * c.normal, L = cross(x, J);
+      for (int d = 0; d < 3; ++d) {
+        report->impulse[6 * size_t(row.plane) + size_t(d)] += J[d];
+        report->impulse[6 * size_t(row.plane) + 3 + size_t(d)] += L[d];
+      }
+    }
+  }
+  return true;
+}
+
+Result<std::unique_ptr<XfemBody>> XfemBody::withBlade(const XfemBlade& blade) const {
+  XfemBodyDef def = m_def;
+  def.blades.push_back(blade);
+  auto made = create(def);
+  if (!made) return made.error();
+  XfemBody& b = *made.value();
+  const int32_t nodes = int32_t(m_def.mesh.nodeCount());
+  const int32_t oldCuts = int32_t(m_def.planes.size() + m_def.blades.size());
+  // Planes come first, so a blade appended keeps every old cut's index.
+  b.m_u.segment(0, 3 * nodes) = m_u.segment(0, 3 * nodes);
+  b.m_v.segment(0, 3 * nodes) = m_v.segment(0, 3 * nodes);
+  for (int32_t n = 0; n < nodes; ++n)
+    for (int32_t j = 0; j < oldCuts; ++j) {
+      const int32_t from = enrichedFunction(n, j), to = b.enrichedFunction(n, j);
+      if (from < 0) continue;
+      if (to < 0)
+        return fail("XfemBody: blades[", std::to_string(def.blades.size() - 1), "]: node ",
+                    std::to_string(n), " lost its enrichment for cut ", std::to_string(j));
+      b.m_u.segment(3 * to, 3) = m_u.segment(3 * from, 3);
+      b.m_v.segment(3 * to, 3) = m_v.segment(3 * from, 3);
+    }
+  b.updateSurface();
+  return made;
+}
+
+Result<void> XfemBody::setTimeStep(double dt) {
+  if (!(std::isfinite(dt) && dt > 0))
+    return fail("XfemBody: dt: ", std::to_string(dt), " is not positive and finite");
+  if (dt == m_def.dt) return {};
+  const double old = m_def.dt;
+  m_def.dt = dt;
+  if (auto r = buildStepMatrix(); !r) {
+    m_def.dt = old;
+    (void)buildStepMatrix();  // the old matrix factorised before
+    return r;
+  }
+  return {};
+}
+
+Vec3 XfemBody::pieceRestCentre(int piece) const {
+  if (piece < 0 || size_t(piece) >= m_pieces.size()) return {};
+  const XfemPiece& p = m_pieces[size_t(piece)];
+  Vec3 s;
+  double m = 0;
+  for (int32_t n = 0; n < int32_t(m_def.mesh.nodeCount()); ++n) {
+    s += p.load[n] * nodePosition(m_def.mesh, n);
+    m += p.load[n];
+  }
+  return m > 0 ? (1.0 / m) * s : s;
 }
 
 void XfemBody::updateSurface() {

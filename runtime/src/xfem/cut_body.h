@@ -11,24 +11,27 @@
 // 12000-tet box a simplicial LDL^T (AMD) spent over ten seconds, the supernodal one (CHOLMOD's
 // METIS ordering, half AMD's fill) under one, analysis included. Linear elasticity keeps M and K
 // constant, so the step matrix is factorised once and a step only back-substitutes. A body without
-// cuts is a plain linear FEM body; the World's bodies never see this class, so they pay nothing for
-// it. Cuts are infinite planes or blades (triangle meshes, blade_path.h); a blade cuts each tet
-// along its local plane. Blades that end inside the body: a node gets the enriched DOF of a cut
-// only when every tet around it that the cut meets is fully crossed (eq 3.4 restricted so that the
-// enriched field stays conforming across faces, since an enriched function then vanishes on every
-// face its node shares with an uncut tet). A tet the blade ends in is not enriched; a fully crossed
-// tet with some nodes not enriched has an opening that fades to zero toward them. So a crack
-// opens only in tets whose four nodes are all enriched, and stops up to one ring of tets short of
-// the blade's front; no crack-tip enrichment. Pieces are the connected components of the cells
-// (cells of one tet joined unless a cut opens between them, cells of neighbouring tets joined
-// when their polygons on the shared face overlap), which is also the check that a cut closes.
-// Each piece has a closed render surface (cut_surface.h): its boundary faces clipped to its cells
-// and the exact cut polygons, built with the cells and moved per frame by eq 3.4; a cut that does
-// not open leaves a closed pocket there, not a hole. Blades may be swept (blade_path.h: the surface
-// the blade sweeps). The constraint of sec 3.2.2.2 is an option (XfemConstraint), off by default:
-// a tiny sliver cut off stays free of NaN and falls freely without it (condition number up to
-// 2.4e11 at k = 0.1, which the direct solve absorbs); with it the condition number stays near
-// 5e4 but the sliver is glued to the body (figures at XfemConstraint).
+// cuts is a plain linear FEM body. The World steps its bodies in BodyDef::cutMode Xfem with this
+// class (world/world_xfem.cpp): a cut there builds a new body with the blade added (withBlade) and
+// carries the state over; plane colliders are met by step(planes). Bodies in graph mode never see
+// it, so they pay nothing for it. Cuts are infinite planes or blades (triangle meshes,
+// blade_path.h); a blade cuts each tet along its local plane. Blades that end inside the body: a
+// node gets the enriched DOF of a cut only when every tet around it that the cut meets is fully
+// crossed (eq 3.4 restricted so that the enriched field stays conforming across faces, since an
+// enriched function then vanishes on every face its node shares with an uncut tet). A tet the blade
+// ends in is not enriched; a fully crossed tet with some nodes not enriched has an opening that
+// fades to zero toward them. So a crack opens only in tets whose four nodes are all enriched, and
+// stops up to one ring of tets short of the blade's front; no crack-tip enrichment. Pieces are the
+// connected components of the cells (cells of one tet joined unless a cut opens between them, cells
+// of neighbouring tets joined when their polygons on the shared face overlap), which is also the
+// check that a cut closes. Each piece has a closed render surface (cut_surface.h): its boundary
+// faces clipped to its cells and the exact cut polygons, built with the cells and moved per frame
+// by eq 3.4; a cut that does not open leaves a closed pocket there, not a hole. Blades may be swept
+// (blade_path.h: the surface the blade sweeps). The constraint of sec 3.2.2.2 is an option
+// (XfemConstraint), off by default: a tiny sliver cut off stays free of NaN and falls freely
+// without it (condition number up to 2.4e11 at k = 0.1, which the direct solve absorbs); with it
+// the condition number stays near 5e4 but the sliver is glued to the body (figures at
+// XfemConstraint).
 #pragma once
 
 #include <graphfrac/mesh.h>
@@ -36,6 +39,7 @@
 
 #include <Eigen/Sparse>
 #include <memory>
+#include <unordered_map>
 #include <vector>
 
 #include "solver/cholesky.h"
@@ -105,6 +109,29 @@ struct XfemCutReport {
   double maxDeviation = 0;   ///< Blade's distance from its local planes, fully crossed tets.
 };
 
+/// A half-space the body stays in (the World's plane colliders): normal . x >= offset, with a
+/// unit normal.
+struct XfemContactPlane {
+  Vec3 normal{0, 1, 0};
+  double offset = 0;
+};
+
+/// What the contact of one step did.
+struct XfemContactReport {
+  int32_t contacts = 0;      ///< Surface vertices in the step's LCP (active set).
+  int32_t rounds = 0;        ///< Active-set rounds (each adds the vertices still penetrating).
+  int32_t pivots = 0;        ///< Principal pivoting solves, summed over rounds.
+  int32_t sweeps = 0;        ///< Projected Gauss-Seidel sweeps after them, summed over rounds.
+  double minGap = INFINITY;  ///< Smallest end-of-step gap of the active vertices [m].
+  /// The last round's LCP met its tolerance (every active vertex's complementarity residual
+  /// moves it by at most 1e-9 of the body's size in the step) after pivoting and at most 5000
+  /// sweeps.
+  bool converged = true;
+  double residual = 0;  ///< That residual [m/s].
+  /// Per plane: the impulse sum lambda_k n [N s], then its moment about the origin.
+  std::vector<double> impulse;
+};
+
 /// The cut body, its enriched system and its state.
 class XfemBody {
  public:
@@ -122,9 +149,38 @@ class XfemBody {
   /// One implicit Euler step (eq 3.13): (M + dt^2 K) v' = M v - dt (K u - f_ext), u' = u + dt v'.
   /// False, with u and v unchanged, when the state is not finite (a NaN set through velocity()).
   bool step();
+  /// The same step with hard frictionless contact: every vertex of the render surface (cut faces
+  /// included) ends the step in every plane's half-space. With impulses lambda_k >= 0 along
+  /// the normals at the active vertices, A v' = b + G^T lambda, and the gaps after the step
+  /// g_k + dt G_k v' >= 0 complementary to lambda (a linear complementarity problem on the
+  /// Schur complement G A^-1 G^T over the existing factor, solved by principal pivoting with a
+  /// projected Gauss-Seidel polish; new penetrating vertices join the active set round by round,
+  /// last step's contacts start it). An inelastic contact: no bounce.
+  /// False, with u and v unchanged, when the state is not finite.
+  bool step(const std::vector<XfemContactPlane>& planes, XfemContactReport* report = nullptr);
+
+  /// A new body: this one with `blade` added as its last cut, its state carried over. Every
+  /// shape function this body has keeps its displacement and velocity (standard ones by node,
+  /// enriched ones by node and cut); the new cut's enriched functions start at zero, so the
+  /// displacement field, and so the momentum, are unchanged by the cut. Fails as create().
+  Result<std::unique_ptr<XfemBody>> withBlade(const XfemBlade& blade) const;
+  /// Refactorises the step matrix for a new time step (a no-op for the same one); fails, with
+  /// the body unchanged, on a dt that is not positive and finite or a singular matrix.
+  Result<void> setTimeStep(double dt);
+  double timeStep() const { return m_def.dt; }
+  const XfemBodyDef& def() const { return m_def; }
+  /// Consistent mass matrix M and stiffness K over all 3 F DOFs (eq 3.5, 3.7).
+  const Eigen::SparseMatrix<double>& massMatrix() const { return m_mass; }
+  const Eigen::SparseMatrix<double>& stiffnessMatrix() const { return m_stiffness; }
+  /// Displacement, 3 per shape function (e.g. to start from a deformed shape).
+  Eigen::VectorXd& displacementMut() { return m_u; }
+  /// Rest centre of mass of a piece: sum over standard functions of load_i X_i / mass (the
+  /// standard functions interpolate x exactly and sum to 1).
+  Vec3 pieceRestCentre(int piece) const;
 
   const Eigen::VectorXd& displacement() const { return m_u; }  ///< 3 per shape function.
   Eigen::VectorXd& velocity() { return m_v; }                  ///< 3 per shape function.
+  const Eigen::VectorXd& velocity() const { return m_v; }
 
   /// Pieces ordered by mask, then by their first tet.
   const std::vector<XfemPiece>& pieces() const { return m_pieces; }
@@ -169,6 +225,8 @@ class XfemBody {
 
  private:
   XfemBody() = default;
+  // The step matrix over the free DOFs for m_def.dt, the constraint, and its factor.
+  Result<void> buildStepMatrix();
   XfemBodyDef m_def;
   int32_t m_functionCount = 0, m_cutTets = 0, m_constrained = 0;
   std::vector<int32_t> m_enriched;      // node * cuts + j -> function, or -1
@@ -181,6 +239,8 @@ class XfemBody {
   std::vector<XfemCutReport> m_cutReports;
   std::vector<XfemCutFace> m_cutFaces;
   std::vector<XfemPieceSurface> m_surface;
+  // Contact impulses of the last step with planes, by (surface vertex, plane): its warm start.
+  std::unordered_map<size_t, double> m_warm;
   double m_surfaceBuildMs = 0;
 };
 
