@@ -46,7 +46,6 @@ constexpr double kElementRoundOff = 1e-14;
 // rolled back like a NaN instead of handing the game an exploded body.
 constexpr double kBlowUpEnergyDensity = 1e6;
 
-Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i + 2]}; }
 
 Tether tetherOf(const FemState& state) {
   if (state.tether.empty()) return {};
@@ -243,11 +242,11 @@ double Integrator::dampingTerm(const FemState& state, const double* xn, const do
 }
 
 bool Integrator::enteredUnseenContact(const FemModel& model, const FemState& state,
-                                      const StepContext& ctx) const {
+                                      const StepContext& ctx, JobSystem& jobs) const {
   const UnseenContactTerm unseen{m_x.data(),      m_contactSeen.data(), state.fixedNode.data(),
                                  ctx.colliders,   ctx.colliderCount,    m_swept,
                                  ctx.bodyContacts};
-  return chunkedReduce<MaxOp>(unseen, model.nodeCount) > 0;
+  return CpuExecutor(jobs).reduce<MaxOp>(model.nodeCount, unseen) > 0;
 }
 
 int32_t Integrator::mergePiecesSharingTets(const FemModel& model, std::vector<int32_t>& pieceOf,
@@ -464,65 +463,57 @@ EnergyBreakdown Integrator::energies(const FemModel& model, const FemState& stat
            elementStage(model, state, x, energy.data(), grad.data(), nullptr, nullptr));
   EnergyBreakdown out;
   out.elastic = exec.sum(energy.data(), model.tetCount);
-  for (int32_t n = 0; n < model.nodeCount; ++n) {
-    Vec3 g;
-    Mat3 h;
-    for (int c = 0; c < ctx.colliderCount; ++c)
-      out.contact += nodeContact(ctx.colliders[c], load3(x, n), state.nodeMass[n], g, h);
-  }
+  out.contact = exec.reduce<SumOp>(
+      model.nodeCount,
+      ColliderEnergyTerm{x, state.nodeMass.data(), ctx.colliders, ctx.colliderCount});
   return out;
 }
 
 BodyContactBalance Integrator::bodyContactImpulses(const FemState& state, const StepContext& ctx,
-                                                   bool rolledBack, double* out) const {
+                                                   bool rolledBack, double* out, JobSystem& jobs) {
   const HalfSpaceContacts& hs = ctx.bodyContacts;
   if (!hs.start) return {};
-  const int32_t nodeCount = int32_t(state.nodeMass.size());
-  std::fill_n(out, 3 * size_t(hs.start[nodeCount]), 0.0);
-  if (rolledBack) return {};
+  const int32_t nn = int32_t(state.nodeMass.size());
+  if (rolledBack) {
+    std::fill_n(out, 3 * size_t(hs.start[nn]), 0.0);
+    return {};
+  }
   // As for the colliders: the force that entered the momentum balance is the penalty
   // linearised at the last Newton step's start, g + H (x - x_lin), one half-space at a time.
-  Vec3 linearised{0, 0, 0};
-  for (int32_t n = 0; n < nodeCount; ++n) {
-    if (state.fixedNode[n] || hs.start[n] == hs.start[n + 1]) continue;
-    const Vec3 x = load3(state.x.data(), n), xl = load3(m_xLin.data(), n);
-    for (int32_t c = hs.start[n]; c < hs.start[n + 1]; ++c) {
-      Vec3 g;
-      Mat3 h;
-      double e = penaltyContact(hs.stiffness[c], hs.depth(c, xl), hs.normal[c], g, h);
-      if (hs.muLambda && hs.muLambda[c] > 0) {
-        Vec3 u = xl - load3(m_xStart.data(), n) - hs.faceMotion[c];
-        u = u - dot(u, hs.normal[c]) * hs.normal[c];
-        e += nodeFriction(hs.muLambda[c], hs.normal[c], u, hs.slipEps, g, h);
-      }
-      if (e == 0) continue;
-      const Vec3 j = -ctx.dt * (g + h * (x - xl));
-      linearised += j;
-      for (int i = 0; i < 3; ++i) out[3 * size_t(c) + i] = j[i];
-    }
-  }
+  BodyContactBalanceStage balance;
+  balance.x = state.x.data();
+  balance.xLin = m_xLin.data();
+  balance.xStart = m_xStart.data();
+  balance.v = state.v.data();
+  balance.vStart = m_vStart.data();
+  balance.nodeMass = state.nodeMass.data();
+  balance.externalForce = state.externalForce.data();
+  balance.fixedNode = state.fixedNode.data();
+  balance.drag = state.drag.empty() ? nullptr : state.drag.data();
+  balance.tether = tetherOf(state);
+  balance.hs = hs;
+  balance.gravity = ctx.gravity;
+  balance.dt = ctx.dt;
+  balance.massDamping = state.material.massDamping;
+  balance.nodeCount = nn;
+  balance.impulse = out;
+  m_balanceTerms.resize(kBalanceTerms * size_t(nn));
+  balance.terms = m_balanceTerms.data();
+  const CpuExecutor exec(jobs);
+  exec.run(nn, kNodeGrain, balance);
+  auto total = [&](int k) { return exec.sum(m_balanceTerms.data() + size_t(k) * size_t(nn), nn); };
   // The linear model is what moved the body only when Newton's last step was taken whole and
   // solved exactly; otherwise its residual moved it too. What the body's momentum did that
   // gravity, point forces and mass damping do not explain is the contact's (eq 2.7:
   // m (v' - v) = dt f - r1 m (x' - x_n) + ... at a zero residual). A body on a grip or a
   // collider also takes momentum from outside, which cannot be told apart from the residual.
-  BodyContactBalance out3;
-  Vec3 change{0, 0, 0};
-  const double r1 = state.material.massDamping;
-  for (int32_t n = 0; n < nodeCount; ++n) {
-    if (state.fixedNode[n]) out3.external = true;
-    const double m = state.nodeMass[n];
-    const Vec3 x = load3(state.x.data(), n), x0 = load3(m_xStart.data(), n);
-    change += m * (load3(state.v.data(), n) - load3(m_vStart.data(), n));
-    change -= ctx.dt * (load3(state.externalForce.data(), n) + m * ctx.gravity);
-    change += ((r1 + (state.drag.empty() ? 0.0 : state.drag[size_t(n)] / ctx.dt)) * m) * (x - x0);
-    if (!state.tether.empty())
-      change += (state.tether[size_t(n)] * m / ctx.dt) * tetherOf(state).offset(n, x);
-  }
+  BodyContactBalance result;
+  result.external = exec.max(m_balanceTerms.data() + 6 * size_t(nn), nn) > 0;
   if (ctx.colliderImpulse)
-    for (int k = 0; k < 6 * ctx.colliderCount; ++k) out3.external |= ctx.colliderImpulse[k] != 0;
-  if (!out3.external) out3.unexplained = change - linearised;
-  return out3;
+    for (int k = 0; k < 6 * ctx.colliderCount; ++k) result.external |= ctx.colliderImpulse[k] != 0;
+  if (!result.external)
+    for (int k = 0; k < 3; ++k) result.unexplained[k] = total(3 + k) - total(k);
+  return result;
 }
 
 void Integrator::prescribedNodeForces(const FemModel& model, const FemState& state,
@@ -535,9 +526,10 @@ void Integrator::prescribedNodeForces(const FemModel& model, const FemState& sta
   const double* x = m_theta == 1 ? state.x.data() : m_x.data();
   (void)incrementalPotential(model, state, m_xStart.data(), x, inner, true, false, jobs);
   const double dt2 = inner.dt * inner.dt;
-  out.assign(state.x.size(), 0.0);
-  for (size_t i = 0; i < out.size(); ++i)
-    if (state.fixedNode[i / 3]) out[i] = m_grad[i] / dt2;
+  out.resize(state.x.size());
+  CpuExecutor(jobs).run(
+      int32_t(out.size()), kNodeGrain,
+      PrescribedGradientStage{m_grad.data(), state.fixedNode.data(), 1.0 / dt2, out.data()});
 }
 
 double Integrator::solve(const FemModel& model, FemState& state, const StepContext& ctx,
@@ -723,7 +715,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
         converged = true;
         break;
       }
-    } else if (!enteredUnseenContact(model, state, ctx)) {
+    } else if (!enteredUnseenContact(model, state, ctx, jobs)) {
       break;
     }
   }
@@ -768,12 +760,13 @@ void Integrator::sweepColliders(const FemModel& model, const FemState& state,
 bool Integrator::nearCollider(const FemModel& model, const FemState& state, const double* x,
                               const double* v, double dt, const StepContext& ctx,
                               JobSystem& jobs) const {
+  const CpuExecutor exec(jobs);
   if (v && m_swept.collider &&
-      std::any_of(m_sweptCollider.begin(), m_sweptCollider.end(), [](int32_t c) { return c >= 0; }))
+      exec.reduce<MaxOp>(model.nodeCount, SweptAnyTerm{m_sweptCollider.data()}) > 0)
     return true;
   const InsideColliderTerm inside{
       x, v, dt, state.fixedNode.data(), ctx.colliders, ctx.colliderCount};
-  return CpuExecutor(jobs).reduce<MaxOp>(model.nodeCount, inside) > 0;
+  return exec.reduce<MaxOp>(model.nodeCount, inside) > 0;
 }
 
 BodyStepReport Integrator::step(const FemModel& model, FemState& state, const StepContext& ctx,

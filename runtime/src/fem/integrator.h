@@ -125,7 +125,7 @@ class Integrator {
   /// early), or that the body also took momentum from a grip or a collider. Valid while
   /// `state` is the one the last step() produced with this ctx.
   BodyContactBalance bodyContactImpulses(const FemState& state, const StepContext& ctx,
-                                         bool rolledBack, double* out) const;
+                                         bool rolledBack, double* out, JobSystem& jobs);
   /// The force [N] each prescribed node (grip or detached fragment) needs to stay on its path
   /// at the end of the last step: the gradient of that step's incremental potential at
   /// state.x over dt^2 (zero for free nodes, whose gradient the step drove to zero), 3 per node
@@ -183,8 +183,8 @@ class Integrator {
   bool nearCollider(const FemModel& model, const FemState& state, const double* x, const double* v,
                     double dt, const StepContext& ctx, JobSystem& jobs) const;
   // True when a free node now penetrates a collider that the last linearisation missed.
-  bool enteredUnseenContact(const FemModel& model, const FemState& state,
-                            const StepContext& ctx) const;
+  bool enteredUnseenContact(const FemModel& model, const FemState& state, const StepContext& ctx,
+                            JobSystem& jobs) const;
   // Rayleigh stiffness-damping term dt/2 (x-x_r)^T r2 K(x_n) (x-x_r) (+ gradient into m_grad),
   // x_r = x_n, or the rigid motion of x_n for a free piece.
   double dampingTerm(const FemState& state, const double* xn, const double* x, double dt,
@@ -215,6 +215,7 @@ class Integrator {
   bool m_dampKValid = false;               // m_dampK belongs to the current step
   std::vector<double> m_xLin;              // the last linearisation point, for collider impulses
   std::vector<double> m_impulses;          // ColliderImpulseStage's, 6 per collider and node
+  std::vector<double> m_balanceTerms;      // BodyContactBalanceStage's
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
   double m_theta = 1;  // of the last step; below 1, m_x keeps the solved point the forces act at
   FractureBody* m_fracture = nullptr;

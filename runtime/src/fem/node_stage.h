@@ -226,6 +226,103 @@ struct InsideColliderTerm {
   }
 };
 
+/// Free node n's penalty energy against the colliders at x: a sum-reduction term.
+struct ColliderEnergyTerm {
+  const double* x = nullptr;
+  const double* nodeMass = nullptr;
+  const ColliderData* colliders = nullptr;
+  int colliderCount = 0;
+
+  GF_HD double operator()(int32_t n) const {
+    const Vec3 xi{x[3 * int64_t(n)], x[3 * int64_t(n) + 1], x[3 * int64_t(n) + 2]};
+    double e = 0;
+    for (int c = 0; c < colliderCount; ++c) {
+      Vec3 g;
+      Mat3 h;
+      e += nodeContact(colliders[c], xi, nodeMass[n], g, h);
+    }
+    return e;
+  }
+};
+
+/// 1 when node n's swept contact holds a collider (SweepStage), else 0: a max-reduction term.
+struct SweptAnyTerm {
+  const int32_t* collider = nullptr;
+  GF_HD double operator()(int32_t n) const { return collider[n] >= 0 ? 1.0 : 0.0; }
+};
+
+/// Node n's share of a body's momentum balance over the last step (Integrator::
+/// bodyContactImpulses), kBalanceTerms arrays of nodeCount: the impulses its body-contact
+/// half-spaces gave it as the last Newton step linearised them at xLin (each also written to
+/// `impulse`, 3 per half-space), its momentum change beyond gravity, point forces, mass damping,
+/// drag and tether, and 1 when it is prescribed.
+constexpr int kBalanceTerms = 7;
+struct BodyContactBalanceStage {
+  const double* x = nullptr;
+  const double* xLin = nullptr;
+  const double* xStart = nullptr;
+  const double* v = nullptr;
+  const double* vStart = nullptr;
+  const double* nodeMass = nullptr;
+  const double* externalForce = nullptr;
+  const uint8_t* fixedNode = nullptr;
+  const double* drag = nullptr;  ///< FemState::drag, null: none
+  Tether tether;
+  HalfSpaceContacts hs;
+  Vec3 gravity;
+  double dt = 0, massDamping = 0;
+  int32_t nodeCount = 0;
+  double* impulse = nullptr;
+  double* terms = nullptr;
+
+  GF_HD void operator()(int32_t n) const {
+    const int64_t i3 = 3 * int64_t(n);
+    const Vec3 xi{x[i3], x[i3 + 1], x[i3 + 2]}, x0{xStart[i3], xStart[i3 + 1], xStart[i3 + 2]};
+    Vec3 linearised{0, 0, 0};
+    if (!fixedNode[n]) {
+      const Vec3 xl{xLin[i3], xLin[i3 + 1], xLin[i3 + 2]};
+      for (int32_t c = hs.start[n]; c < hs.start[n + 1]; ++c) {
+        Vec3 g;
+        Mat3 h;
+        double e = penaltyContact(hs.stiffness[c], hs.depth(c, xl), hs.normal[c], g, h);
+        if (hs.muLambda && hs.muLambda[c] > 0) {
+          Vec3 u = xl - x0 - hs.faceMotion[c];
+          u = u - dot(u, hs.normal[c]) * hs.normal[c];
+          e += nodeFriction(hs.muLambda[c], hs.normal[c], u, hs.slipEps, g, h);
+        }
+        const Vec3 j = e == 0 ? Vec3{0, 0, 0} : -dt * (g + h * (xi - xl));
+        linearised += j;
+        for (int i = 0; i < 3; ++i) impulse[3 * int64_t(c) + i] = j[i];
+      }
+    } else {
+      for (int32_t c = hs.start[n]; c < hs.start[n + 1]; ++c)
+        for (int i = 0; i < 3; ++i) impulse[3 * int64_t(c) + i] = 0;
+    }
+    const double m = nodeMass[n];
+    const Vec3 vi{v[i3], v[i3 + 1], v[i3 + 2]}, v0{vStart[i3], vStart[i3 + 1], vStart[i3 + 2]};
+    const Vec3 f{externalForce[i3], externalForce[i3 + 1], externalForce[i3 + 2]};
+    Vec3 change = m * (vi - v0) - dt * (f + m * gravity);
+    change += ((massDamping + (drag ? drag[n] / dt : 0.0)) * m) * (xi - x0);
+    change += (tether.weight(n) * m / dt) * tether.offset(n, xi);
+    for (int k = 0; k < 3; ++k) {
+      terms[k * int64_t(nodeCount) + n] = linearised[k];
+      terms[(3 + k) * int64_t(nodeCount) + n] = change[k];
+    }
+    terms[6 * int64_t(nodeCount) + n] = fixedNode[n] ? 1.0 : 0.0;
+  }
+};
+
+/// The force on a prescribed node, its gradient of the incremental potential times `scale`
+/// (1 / dt^2), and zero on free nodes; one entry per item.
+struct PrescribedGradientStage {
+  const double* grad = nullptr;
+  const uint8_t* fixedNode = nullptr;
+  double scale = 0;
+  double* out = nullptr;
+
+  GF_HD void operator()(int32_t i) const { out[i] = fixedNode[i / 3] ? grad[i] * scale : 0.0; }
+};
+
 /// What each collider's penalty gave free node n over the step, as the last Newton step
 /// linearised it at xLin: j = scale (g + H (x - xLin)) with scale = -dt (over theta below 1)
 /// and its moment about the collider's point, 6 values per collider into

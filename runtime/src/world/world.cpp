@@ -156,7 +156,7 @@ void World::Impl::stepBody(size_t si, const detail::StepContext& ctx, JobSystem&
   if (own.bodyContacts.start)
     bodyContact.setBalance(
         si, b->integrator->bodyContactImpulses(b->state, own, (r.flags & kStepNanContained) != 0,
-                                               bodyContact.impulseBuffer(si)));
+                                               bodyContact.impulseBuffer(si), js));
   // A rolled-back body is where it was before the substep: nothing flowed.
   if (b->model.plasticity.enabled && !(r.flags & kStepNanContained)) {
     const auto tp = detail::Clock::now();
