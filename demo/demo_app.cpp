@@ -405,6 +405,10 @@ std::string formatSummary(const DemoSummary& s) {
   add("  fracture:   %lld fragments, %lld broken edges of %lld, %zu fragment%s handed to Bullet\n",
       static_cast<long long>(s.fragments), static_cast<long long>(s.brokenEdges),
       static_cast<long long>(s.edgeCount), s.handedOff, s.handedOff == 1 ? "" : "s");
+  for (const DemoSummary::BodyFracture& b : s.bodies)
+    add("    %-10s %lld fragment%s, %lld broken edges of %lld\n", b.name.c_str(),
+        static_cast<long long>(b.fragments), b.fragments == 1 ? "" : "s",
+        static_cast<long long>(b.brokenEdges), static_cast<long long>(b.edgeCount));
   if (s.frames > 1) {
     add("  streaming:  %s uploaded per frame vs %s for full surfaces (%.1f %%), mean after the "
         "first frame\n",
@@ -678,6 +682,17 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
   progress.finish();
 
   const Totals t = totals(world, sim);
+  for (size_t i = 0; i < sim.bodyCount(); ++i) {
+    const FractureStats fs = world.fractureStats(sim.body(i));
+    DemoSummary::BodyFracture bf;
+    bf.name = sc.bodies[i].name;
+    if (fs.edgeCount > 0) {
+      bf.fragments = fs.fragments;
+      bf.brokenEdges = fs.brokenEdges;
+      bf.edgeCount = fs.edgeCount;
+    }
+    s.bodies.push_back(bf);
+  }
   s.brokenEdges = t.brokenEdges;
   s.edgeCount = t.edgeCount;
   s.fragments = t.fragments;

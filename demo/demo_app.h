@@ -75,6 +75,12 @@ struct DemoSummary {
   int64_t brokenEdges = 0, edgeCount = 0;  ///< Summed over the fracturing bodies.
   int64_t fragments = 0;  ///< Summed over the bodies (one for a body without fracture).
   size_t handedOff = 0;   ///< Fragments handed to Bullet.
+  /// Per scene body at the end, so a scene's story can be checked body by body.
+  struct BodyFracture {
+    std::string name;
+    int64_t fragments = 1, brokenEdges = 0, edgeCount = 0;
+  };
+  std::vector<BodyFracture> bodies;
   /// Mean over the frames after the first (the first uploads everything): bytes uploaded and
   /// bytes a full re-upload of every mesh would have cost.
   double uploadedBytesMean = 0, surfaceBytesMean = 0;

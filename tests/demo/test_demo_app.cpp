@@ -365,8 +365,14 @@ TEST(DemoApp, ShortRunDrawsTheBodiesAndReportsTheWorldsNumbers) {
   int64_t broken = 0, fragments = 0, edges = 0;
   const Camera cam = s.perFrame.back().camera;  // the follow camera of frame 3
   std::vector<Ball> balls;
+  ASSERT_EQ(s.bodies.size(), sim.bodyCount());
   for (size_t i = 0; i < sim.bodyCount(); ++i) {
     const FractureStats st = world.fractureStats(sim.body(i));
+    // Each body's line of the summary is that body's own count in the replay.
+    EXPECT_EQ(s.bodies[i].name, sc.value().bodies[i].name);
+    EXPECT_EQ(s.bodies[i].brokenEdges, st.brokenEdges) << s.bodies[i].name;
+    EXPECT_EQ(s.bodies[i].edgeCount, st.edgeCount) << s.bodies[i].name;
+    EXPECT_EQ(s.bodies[i].fragments, st.edgeCount > 0 ? st.fragments : 1) << s.bodies[i].name;
     broken += st.brokenEdges;
     edges += st.edgeCount;
     fragments += st.edgeCount > 0 ? st.fragments : 1;
