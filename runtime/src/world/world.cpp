@@ -12,6 +12,7 @@
 #include "kernels/edge_stress.h"
 #include "solver/cholesky.h"
 #include "solver/vector_ops.h"
+#include "solver/vector_stages.h"
 #include "step/executor.h"
 #include "step/timing.h"
 #include "world/validation.h"
@@ -52,6 +53,8 @@ namespace {
 // their loops (256 tets, 128 rows a range) would give a thread a range or two at most, and
 // each parallelFor would cost more than the work it splits.
 constexpr int32_t kBatchBelowTets = 2048;
+// Items per range of the world's own per-node passes.
+constexpr uint32_t kVectorGrain = 2048;
 
 // Builds a body's model, state, solver and fracture from a checked def; throws std::bad_alloc
 // when the machine has not the memory for it.
@@ -298,12 +301,14 @@ StepStatus World::step(double dt) {
   }
   // Forces of applyForce act over this whole step: swapped in, the constant ones swapped back
   // after (restoring the copy, not subtracting, keeps the constant forces bit-exact).
+  const detail::CpuExecutor exec(*w.jobs);
   std::vector<std::vector<double>> constantForces;
   for (Slot& s : w.slots) {
     if (!s.body || s.body->pendingForce.empty()) continue;
     std::vector<double>& f = s.body->state.externalForce;
     constantForces.push_back(f);
-    for (size_t i = 0; i < f.size(); ++i) f[i] += s.body->pendingForce[i];
+    exec.run(int32_t(f.size()), kVectorGrain,
+             detail::AxpyStage{f.data(), s.body->pendingForce.data(), 1.0, f.data()});
   }
   const auto t0 = detail::Clock::now();
   w.timings = {};
@@ -336,10 +341,10 @@ StepStatus World::step(double dt) {
       if (!b) continue;
       if (b->allRigid) {
         // The integrator's own update of prescribed nodes, x += h v, v = grip velocity.
-        for (size_t i = 0; i < b->state.x.size(); ++i) {
-          b->state.x[i] += h * b->state.gripVelocity[i];
-          b->state.v[i] = b->state.gripVelocity[i];
-        }
+        const int32_t n3 = int32_t(b->state.x.size());
+        const double* gv = b->state.gripVelocity.data();
+        exec.run(n3, kVectorGrain, detail::AxpyStage{b->state.x.data(), gv, h, b->state.x.data()});
+        exec.run(n3, kVectorGrain, detail::CopyStage{gv, b->state.v.data()});
         continue;
       }
       (b->model.tetCount < kBatchBelowTets ? w.batched : w.single).push_back(uint32_t(si));
