@@ -880,7 +880,7 @@ glm::vec3 readColour(const json& v, const std::string& path) {
   return c;
 }
 
-SceneHandoff readHandoff(const json& v, const std::string& path, bool fracture) {
+SceneHandoff readHandoff(const json& v, const std::string& path, bool breaks) {
   ObjReader o(v, path);
   o.keys({"policy", "max_volume"});
   const std::string p =
@@ -894,11 +894,13 @@ SceneHandoff readHandoff(const json& v, const std::string& path, bool fracture) 
   } else if (o.has("max_volume")) {
     throw SceneError{o.at("max_volume"), "only with \"policy\": \"below_volume\""};
   }
-  // Only fragments are handed off; a body that never breaks has none.
-  if (h.policy != SceneHandoff::Policy::Never && !fracture) {
+  // Only fragments are handed off; a body that never breaks has none (an Is-XFEM body's pieces
+  // are its fragments).
+  if (h.policy != SceneHandoff::Policy::Never && !breaks) {
     throw SceneError{o.at("policy"),
-                     "needs a \"fracture\" block on the body (only fragments "
-                     "of a fracturing body are handed to Bullet)"};
+                     "needs a \"fracture\" block on the body or \"cut_mode\": \"xfem\" (only "
+                     "fragments of a fracturing body or pieces of a cut one are handed to "
+                     "Bullet)"};
   }
   o.finish();
   return h;
@@ -1145,7 +1147,8 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
           readImpurityMap((*maps)[i], indexPath(mp, i), baseDir, translate));
   }
   if (const json* h = o.find("handoff")) {
-    body.handoff = readHandoff(*h, o.at("handoff"), body.def.fracture.enabled);
+    body.handoff = readHandoff(*h, o.at("handoff"),
+                               body.def.fracture.enabled || body.def.cutMode == CutMode::Xfem);
   }
   if (const json* c = o.find("colour")) body.colour = readColour(*c, o.at("colour"));
   if (const json* c = o.find("crack_colour"))

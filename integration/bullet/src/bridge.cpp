@@ -50,7 +50,8 @@ Bridge::~Bridge() {
 
 Result<void> Bridge::setPolicy(BodyId body, HandoffPolicy policy, double maxVolume) {
   if (!m_world.isValid(body)) return fail("Bridge::setPolicy: stale or null BodyId");
-  if (m_world.fractureStats(body).edgeCount == 0)
+  // A body in CutMode::Xfem has no edges but has pieces (fragmentInfo answers for it).
+  if (m_world.fractureStats(body).edgeCount == 0 && !m_world.fragmentInfo(body, 0))
     return fail("Bridge::setPolicy: the body was created without fracture (BodyDef.fracture)");
   if (policy == HandoffPolicy::BelowVolume && !(std::isfinite(maxVolume) && maxVolume > 0))
     return fail("Bridge::setPolicy: maxVolume must be positive and finite for BelowVolume");
@@ -243,12 +244,21 @@ Result<btRigidBody*> Bridge::handOff(BodyId body, int32_t fragment) {
   const std::span<const int32_t> nodeFragment = m_world.nodeFragments(body);
   const std::span<const double> x = m_world.positions(body);
   glm::dvec3 lo(1e300), hi(-1e300);
-  for (size_t n = 0; n < nodeFragment.size(); ++n) {
-    if (nodeFragment[n] != fragment) continue;
-    const glm::dvec3 p = Bt * (glm::dvec3(x[3 * n], x[3 * n + 1], x[3 * n + 2]) - f.centreOfMass);
+  const auto add = [&](glm::dvec3 point) {
+    const glm::dvec3 p = Bt * (point - f.centreOfMass);
     lo = glm::min(lo, p);
     hi = glm::max(hi, p);
     e->shape->addPoint(toBt(p), false);
+  };
+  for (size_t n = 0; n < nodeFragment.size(); ++n)
+    if (nodeFragment[n] == fragment) add(glm::dvec3(x[3 * n], x[3 * n + 1], x[3 * n + 2]));
+  // A piece of a body in CutMode::Xfem (no node fragments: a node may lie in several pieces):
+  // the hull of its closed surface, exact cut faces included, at the rigid pose.
+  if (nodeFragment.empty()) {
+    const SurfaceView s = m_world.surface(body);
+    for (size_t i = 0; i < s.vertexFragment.size(); ++i)
+      if (s.vertexFragment[i] == fragment)
+        add(glm::dvec3(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2]));
   }
   e->shape->recalcLocalAabb();
   e->shape->optimizeConvexHull();

@@ -313,13 +313,22 @@ enum class CutMode : uint8_t {
   ///   tet) at once, in the body's rest frame (the blade is carried back by the best-fit rigid
   ///   motion of the piece it meets); the next step reports it (FractureEvent with cause Cut and
   ///   `tet`, FragmentEvent per new piece);
-  /// - pieces are its fragments (World::fractureStats, surface()'s vertexFragment).
+  /// - pieces are its fragments (World::fractureStats, surface()'s vertexFragment);
+  /// - fragment hand-off as for graph bodies (World::fragmentInfo, detachFragment,
+  ///   setFragmentTransform; integration/bullet's Bridge): a piece's mass, centre, inertia and
+  ///   momenta are exact moments of its own cells (its consistent mass against the DOFs); on
+  ///   detach its cells leave the system (no mass, stiffness, load or contact; the enriched
+  ///   functions reaching into them are held, and the velocity is the L2 projection of the old
+  ///   field onto the functions left, which keeps the momentum exactly), so the rest steps on as
+  ///   before, and its surface shows the rest surface at the rigid pose. Refused: a piece holding
+  ///   gripped nodes, one already detached, and the last piece left in the system (the whole
+  ///   body). World::positions still shows the detached piece's nodes where it left.
   /// It refuses (createBody names the field): fracture.enabled (no stress-driven fracture),
   /// plasticity.enabled, a fibre term or fibreField, Rayleigh damping, point forces, a grip with
-  /// a velocity, contact (body-body), a renderMesh, and box or sphere colliders in the world
-  /// (WorldDef.colliders; setColliders refuses them while such a body lives). Commands that
-  /// would need what it lacks (setPositions, applyForce, applyImpulse, setMaterial, a grip
-  /// velocity, sculpting brushes, fragment hand-off, snapshots) return an error.
+  /// a velocity, contact (body-body), a renderMesh, and box, sphere or capsule colliders in the
+  /// world (WorldDef.colliders; setColliders refuses them while such a body lives). Commands
+  /// that would need what it lacks (setPositions, applyForce, applyImpulse, setMaterial, a grip
+  /// velocity, sculpting brushes, snapshots) return an error.
   Xfem,
 };
 

@@ -49,7 +49,10 @@ struct FractureStats {
 /// A fragment as a rigid body (World::fragmentInfo, World::detachFragment). The fragment is
 /// the union of its nodes' corner cells: its mass is the FEM's (lumped) mass, its inertia the
 /// exact one of those cells. x = rotation * X + translation maps rest positions X onto the
-/// rigid pose that fits the current positions best (least squares, mass-weighted).
+/// rigid pose that fits the current positions best (least squares, mass-weighted). For a piece
+/// of a body in CutMode::Xfem: the exact moments of the piece's cells (consistent mass), and the
+/// rigid pose best fitting its field in the mass norm; nodeCount counts the nodes whose
+/// functions reach into it.
 struct RigidFragmentInfo {
   int32_t nodeCount = 0;
   double mass = 0;                ///< [kg]
@@ -190,7 +193,8 @@ class World {
   /// Takes a fragment out of the FEM solve and returns its rigid-body properties (momentum and
   /// angular momentum of its nodes carried over). Error (nothing changed) for a bad id, a body
   /// without fracture, a fragment out of range, one holding gripped nodes, or one already
-  /// detached.
+  /// detached; for a body in CutMode::Xfem also for the last piece left in it (see CutMode for
+  /// what detaching a piece does there).
   Result<RigidFragmentInfo> detachFragment(BodyId id, int32_t fragment);
   /// Moves a detached fragment rigidly: x = rotation * X + translation for its rest positions
   /// X, and velocities v = linearVelocity + angularVelocity x (x - centre of mass). The render

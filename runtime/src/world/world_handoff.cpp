@@ -90,6 +90,7 @@ void setRigidVelocities(BodyRecord& b, int32_t fragment, glm::dvec3 v, glm::dvec
 
 Result<RigidFragmentInfo> World::fragmentInfo(BodyId id, int32_t fragment) const {
   const BodyRecord* b = m_impl->get(id);
+  if (b && b->xfem) return detail::xfemFragmentInfo(*b, "fragmentInfo", fragment);
   if (std::string e = checkFragment(b, "fragmentInfo", fragment); !e.empty()) return fail(e);
   const detail::RigidProperties p = detail::rigidProperties(
       b->model, b->state, b->fracture->fragments().nodeFragment().data(), fragment);
@@ -99,22 +100,29 @@ Result<RigidFragmentInfo> World::fragmentInfo(BodyId id, int32_t fragment) const
 Result<RigidFragmentInfo> World::detachFragment(BodyId id, int32_t fragment) {
   if (std::string e = m_impl->busy("detachFragment"); !e.empty()) return fail(e);
   BodyRecord* b = m_impl->get(id);
-  if (std::string e = checkFragment(b, "detachFragment", fragment); !e.empty()) return fail(e);
-  if (detachedCentre(*b, fragment))
-    return fail("detachFragment: fragment ", std::to_string(fragment), " is already detached");
-  const detail::RigidProperties p = detail::rigidProperties(
-      b->model, b->state, b->fracture->fragments().nodeFragment().data(), fragment);
-  if (p.hasFixedNode)
-    return fail("detachFragment: fragment ", std::to_string(fragment),
-                " holds gripped nodes (BodyDef.grips); a pinned piece cannot move rigidly");
-  if (!(p.mass > 0))
-    return fail("detachFragment: fragment ", std::to_string(fragment), " has no mass");
-  const RigidFragmentInfo info = toInfo(p);
-  for (int32_t n : b->fracture->fragments().nodes(fragment)) b->state.fixedNode[size_t(n)] = 1;
-  setRigidVelocities(*b, fragment, info.linearVelocity, info.angularVelocity, info.centreOfMass);
-  b->integrator->refreshFixedNodes(b->model, b->state);
-  b->rigid.emplace_back(fragment, p.restCentre);
-  markRigidTets(*b);
+  RigidFragmentInfo info;
+  if (b && b->xfem) {
+    Result<RigidFragmentInfo> detached = detail::detachXfemPiece(*b, fragment);
+    if (!detached) return detached.error();
+    info = detached.value();
+  } else {
+    if (std::string e = checkFragment(b, "detachFragment", fragment); !e.empty()) return fail(e);
+    if (detachedCentre(*b, fragment))
+      return fail("detachFragment: fragment ", std::to_string(fragment), " is already detached");
+    const detail::RigidProperties p = detail::rigidProperties(
+        b->model, b->state, b->fracture->fragments().nodeFragment().data(), fragment);
+    if (p.hasFixedNode)
+      return fail("detachFragment: fragment ", std::to_string(fragment),
+                  " holds gripped nodes (BodyDef.grips); a pinned piece cannot move rigidly");
+    if (!(p.mass > 0))
+      return fail("detachFragment: fragment ", std::to_string(fragment), " has no mass");
+    info = toInfo(p);
+    for (int32_t n : b->fracture->fragments().nodes(fragment)) b->state.fixedNode[size_t(n)] = 1;
+    setRigidVelocities(*b, fragment, info.linearVelocity, info.angularVelocity, info.centreOfMass);
+    b->integrator->refreshFixedNodes(b->model, b->state);
+    b->rigid.emplace_back(fragment, p.restCentre);
+    markRigidTets(*b);
+  }
 
   HandoffEvent ev;
   ev.body = id;
@@ -139,12 +147,13 @@ Result<void> World::setFragmentTransform(BodyId id, int32_t fragment, glm::dvec3
                                          glm::dvec3 angularVelocity) {
   if (std::string e = m_impl->busy("setFragmentTransform"); !e.empty()) return fail(e);
   BodyRecord* b = m_impl->get(id);
-  if (std::string e = checkFragment(b, "setFragmentTransform", fragment); !e.empty())
-    return fail(e);
-  const Vec3* restCentre = detachedCentre(*b, fragment);
-  if (!restCentre)
-    return fail("setFragmentTransform: fragment ", std::to_string(fragment),
-                " is not detached (call detachFragment first)");
+  if (!(b && b->xfem)) {
+    if (std::string e = checkFragment(b, "setFragmentTransform", fragment); !e.empty())
+      return fail(e);
+    if (!detachedCentre(*b, fragment))
+      return fail("setFragmentTransform: fragment ", std::to_string(fragment),
+                  " is not detached (call detachFragment first)");
+  }
   if (!finite3d(translation)) return fail("setFragmentTransform: translation is not finite");
   if (!finite3d(linearVelocity)) return fail("setFragmentTransform: linearVelocity is not finite");
   if (!finite3d(angularVelocity))
@@ -155,6 +164,16 @@ Result<void> World::setFragmentTransform(BodyId id, int32_t fragment, glm::dvec3
   // Normalised in double: a single-precision engine's quaternion is off unity by ~1e-7, which
   // would otherwise show up as strain of the fragment.
   const glm::dmat3 R = glm::mat3_cast(rotation / qn);
+  if (b->xfem) {
+    Mat3 Rm;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) Rm(i, j) = R[j][i];
+    return detail::setXfemPieceTransform(
+        *b, fragment, Rm, Vec3{translation.x, translation.y, translation.z},
+        Vec3{linearVelocity.x, linearVelocity.y, linearVelocity.z},
+        Vec3{angularVelocity.x, angularVelocity.y, angularVelocity.z});
+  }
+  const Vec3* restCentre = detachedCentre(*b, fragment);
   const std::vector<double>& X = b->model.restPositions;
   for (int32_t n : b->fracture->fragments().nodes(fragment)) {
     const glm::dvec3 x = R * glm::dvec3(X[3 * n], X[3 * n + 1], X[3 * n + 2]) + translation;

@@ -36,6 +36,17 @@ struct XfemRecord {
   std::vector<FractureEvent> pendingBreaks;  // of World::cut, for the next step
   std::vector<FragmentEvent> pendingSplits;
   XfemContactReport contact;  // of the last substep
+  // Pieces handed to rigid physics (World::detachFragment): their cells are out of the system
+  // (XfemBodyDef::dropped) and their surface is the rest surface moved by the rigid pose
+  // x = rotation X + translation that setFragmentTransform gives.
+  struct Detached {
+    int32_t fragment = 0;
+    Vec3 restCentre;
+    Mat3 rotation = Mat3::identity();
+    Vec3 translation;
+    Vec3 velocity, angularVelocity;  // of the centre of mass; world axes
+  };
+  std::vector<Detached> detached;
   // World::surface's buffers, all pieces concatenated.
   std::vector<float> positions, normals;
   std::vector<uint32_t> indices;
@@ -118,6 +129,12 @@ struct BodyRecord;
 Result<std::unique_ptr<XfemRecord>> buildXfem(const BodyDef& def, Vec3 gravity);
 /// Sets an Is-XFEM body's node positions and velocities from its standard DOFs.
 void syncXfemState(BodyRecord& b);
+/// The hand-off of an Is-XFEM piece (world_xfem.cpp): its rigid properties (`call` names the
+/// World call in errors), taking it out of the system, and its rigid pose.
+Result<RigidFragmentInfo> xfemFragmentInfo(const BodyRecord& b, const char* call, int32_t fragment);
+Result<RigidFragmentInfo> detachXfemPiece(BodyRecord& b, int32_t fragment);
+Result<void> setXfemPieceTransform(BodyRecord& b, int32_t fragment, const Mat3& rotation,
+                                   Vec3 translation, Vec3 velocity, Vec3 angularVelocity);
 
 /// Kernel form of a collider; the stiffness is filled in per step (World::Impl::context).
 ColliderData toData(const Collider& c);

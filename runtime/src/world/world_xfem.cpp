@@ -19,10 +19,13 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/matrix.hpp>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "kernels/tet_inertia.h"
 #include "step/timing.h"
 #include "world/world_impl.h"
 
@@ -79,6 +82,7 @@ RestFrame restFrame(const XfemBody& x, const Blade& blade) {
   size_t piece = 0, most = 0;
   double nearest = INFINITY;
   for (size_t k = 0; k < x.surface().size(); ++k) {
+    if (x.pieces()[k].dropped) continue;  // handed to rigid physics: not where its DOFs say
     const detail::XfemPieceSurface& s = x.surface()[k];
     size_t inside = 0;
     double closest = INFINITY;
@@ -184,6 +188,137 @@ Result<std::unique_ptr<XfemRecord>> buildXfem(const BodyDef& def, Vec3 gravity) 
 
 void syncXfemState(BodyRecord& b) { mirrorState(b); }
 
+namespace {
+// The piece that is fragment `fragment` now, or -1.
+int pieceOfFragment(const XfemRecord& r, int32_t fragment) {
+  for (size_t p = 0; p < r.pieceFragment.size(); ++p)
+    if (r.pieceFragment[p] == fragment) return int(p);
+  return -1;
+}
+const XfemRecord::Detached* findDetached(const XfemRecord& r, int32_t fragment) {
+  for (const XfemRecord::Detached& d : r.detached)
+    if (d.fragment == fragment) return &d;
+  return nullptr;
+}
+glm::dvec3 toGlm(Vec3 v) { return {v.x, v.y, v.z}; }
+glm::dmat3 toGlm(const Mat3& m) {
+  glm::dmat3 g;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) g[j][i] = m(i, j);  // glm is column-major
+  return g;
+}
+}  // namespace
+
+Result<RigidFragmentInfo> xfemFragmentInfo(const BodyRecord& b, const char* call,
+                                           int32_t fragment) {
+  const XfemRecord& r = *b.xfem;
+  const int piece = pieceOfFragment(r, fragment);
+  if (fragment < 0 || fragment >= r.fragmentCount || piece < 0)
+    return fail(call, ": fragment ", std::to_string(fragment), " out of range [0, ",
+                std::to_string(r.fragmentCount), ")");
+  const XfemBody& x = *r.body;
+  const XfemPieceMoments m = x.pieceMoments(piece);
+  if (!(m.mass > 0)) return fail(call, ": fragment ", std::to_string(fragment), " has no mass");
+  // The best-fit rotation is the polar factor of the mass-weighted spread (x - c)(X - C)^T,
+  // the rigid motion closest to the piece's field in the mass norm.
+  Eigen::Matrix3d S;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) S(i, j) = m.spread(i, j);
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(S, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1 : 1;
+  const Eigen::Matrix3d Re = svd.matrixU() * D * svd.matrixV().transpose();
+  Mat3 R;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) R(i, j) = Re(i, j);
+  // A piece that has left the system moves as its rigid pose says.
+  if (const XfemRecord::Detached* d = findDetached(r, fragment)) R = d->rotation;
+  const Mat3 restInertia = inertiaFromSecondMoment(m.restSecond);
+  RigidFragmentInfo info;
+  for (int32_t n = 0; n < int32_t(x.def().mesh.nodeCount()); ++n)
+    info.nodeCount += x.pieces()[size_t(piece)].load[n] > 0;
+  info.mass = m.mass;
+  info.volume = m.volume;
+  info.centreOfMass = toGlm(m.centre);
+  Vec3 centre = m.centre;
+  if (const XfemRecord::Detached* d = findDetached(r, fragment)) {
+    centre = d->rotation * d->restCentre + d->translation;
+    info.centreOfMass = toGlm(centre);
+  }
+  const glm::dmat3 Rg = toGlm(R);
+  info.inertia = Rg * toGlm(restInertia) * glm::transpose(Rg);
+  info.linearVelocity = toGlm(m.momentum) / m.mass;
+  info.angularVelocity = glm::inverse(info.inertia) * toGlm(m.angularMomentum);
+  if (const XfemRecord::Detached* d = findDetached(r, fragment)) {
+    info.linearVelocity = toGlm(d->velocity);
+    info.angularVelocity = toGlm(d->angularVelocity);
+  }
+  info.rotation = glm::quat_cast(Rg);
+  info.translation = info.centreOfMass - Rg * toGlm(m.restCentre);
+  return info;
+}
+
+Result<RigidFragmentInfo> detachXfemPiece(BodyRecord& b, int32_t fragment) {
+  XfemRecord& r = *b.xfem;
+  auto info = xfemFragmentInfo(b, "detachFragment", fragment);
+  if (!info) return info.error();
+  if (findDetached(r, fragment))
+    return fail("detachFragment: fragment ", std::to_string(fragment), " is already detached");
+  const XfemBody& x = *r.body;
+  const int piece = pieceOfFragment(r, fragment);
+  size_t left = 0;
+  for (const detail::XfemPiece& p : x.pieces()) left += !p.dropped;
+  if (left < 2)
+    return fail("detachFragment: fragment ", std::to_string(fragment),
+                " is the whole body (the only piece left in its Is-XFEM system); cut it first");
+  for (int32_t n : x.def().fixedNodes)
+    if (x.pieces()[size_t(piece)].load[n] > 0)
+      return fail("detachFragment: fragment ", std::to_string(fragment),
+                  " holds gripped nodes (BodyDef.grips); a pinned piece cannot move rigidly");
+  const XfemPieceMoments m = x.pieceMoments(piece);
+  auto made = x.withoutPiece(piece);
+  if (!made) return fail("detachFragment: ", made.error().message);
+  if (auto set = made.value()->setTimeStep(x.timeStep()); !set)
+    return fail("detachFragment: ", set.error().message);
+  // Nothing failed: the piece leaves the system at its best-fit rigid pose.
+  XfemRecord::Detached d;
+  d.fragment = fragment;
+  d.restCentre = m.restCentre;
+  const glm::dmat3 R = glm::mat3_cast(info.value().rotation);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) d.rotation(i, j) = R[j][i];
+  d.translation = m.centre - d.rotation * m.restCentre;
+  const glm::dvec3 v = info.value().linearVelocity, w = info.value().angularVelocity;
+  d.velocity = Vec3{v.x, v.y, v.z};
+  d.angularVelocity = Vec3{w.x, w.y, w.z};
+  r.body = std::move(made.value());
+  r.detached.push_back(d);
+  r.built = false;
+  ++r.topologyVersion;
+  mirrorState(b);
+  b.surfaceStale = true;
+  return info;
+}
+
+Result<void> setXfemPieceTransform(BodyRecord& b, int32_t fragment, const Mat3& rotation,
+                                   Vec3 translation, Vec3 velocity, Vec3 angularVelocity) {
+  XfemRecord& r = *b.xfem;
+  for (XfemRecord::Detached& d : r.detached)
+    if (d.fragment == fragment) {
+      d.rotation = rotation;
+      d.translation = translation;
+      d.velocity = velocity;
+      d.angularVelocity = angularVelocity;
+      b.surfaceStale = true;
+      return {};
+    }
+  if (fragment < 0 || fragment >= r.fragmentCount)
+    return fail("setFragmentTransform: fragment ", std::to_string(fragment), " out of range [0, ",
+                std::to_string(r.fragmentCount), ")");
+  return fail("setFragmentTransform: fragment ", std::to_string(fragment),
+              " is not detached (call detachFragment first)");
+}
+
 }  // namespace detail
 
 std::string World::Impl::xfemColliderError(std::span<const Collider> list,
@@ -192,7 +327,10 @@ std::string World::Impl::xfemColliderError(std::span<const Collider> list,
     if (list[c].kind != Collider::Kind::Plane)
       return std::string(where) + "[" + std::to_string(c) +
              "]: a body in CutMode::Xfem meets plane colliders only (got a " +
-             (list[c].kind == Collider::Kind::Box ? "box" : "sphere") + ")";
+             (list[c].kind == Collider::Kind::Box      ? "box"
+              : list[c].kind == Collider::Kind::Sphere ? "sphere"
+                                                       : "capsule") +
+             ")";
   return {};
 }
 
@@ -393,18 +531,26 @@ SurfaceView World::Impl::xfemSurface(BodyRecord& b, bool moved) {
     size_t base = 0;
     std::fill(r.normals.begin(), r.normals.end(), 0.0f);
     std::vector<Vec3> normal;
-    for (const detail::XfemPieceSurface& s : x.surface()) {
+    std::vector<Vec3> position;
+    for (size_t p = 0; p < x.surface().size(); ++p) {
+      const detail::XfemPieceSurface& s = x.surface()[p];
+      position = s.positions;
+      // A detached piece shows its rest surface at the rigid pose (its DOFs are held).
+      for (const XfemRecord::Detached& d : r.detached)
+        if (d.fragment == r.pieceFragment[p])
+          for (size_t i = 0; i < s.vertices.size(); ++i)
+            position[i] = d.rotation * s.vertices[i].rest + d.translation;
       normal.assign(s.vertices.size(), Vec3{});
       for (size_t t = 0; 3 * t < s.triangles.size(); ++t) {
-        const Vec3 a = s.positions[size_t(s.triangles[3 * t])];
-        const Vec3 n = cross(s.positions[size_t(s.triangles[3 * t + 1])] - a,
-                             s.positions[size_t(s.triangles[3 * t + 2])] - a);  // area-weighted
+        const Vec3 a = position[size_t(s.triangles[3 * t])];
+        const Vec3 n = cross(position[size_t(s.triangles[3 * t + 1])] - a,
+                             position[size_t(s.triangles[3 * t + 2])] - a);  // area-weighted
         for (int k = 0; k < 3; ++k) normal[size_t(s.triangles[3 * t + k])] += n;
       }
       for (size_t i = 0; i < s.vertices.size(); ++i) {
         const double len = norm(normal[i]);
         for (int k = 0; k < 3; ++k) {
-          r.positions[3 * (base + i) + size_t(k)] = float(s.positions[i][k]);
+          r.positions[3 * (base + i) + size_t(k)] = float(position[i][k]);
           r.normals[3 * (base + i) + size_t(k)] = len > 0 ? float(normal[i][k] / len) : 0.0f;
         }
       }

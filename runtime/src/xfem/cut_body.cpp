@@ -1,6 +1,7 @@
 #include "xfem/cut_body.h"
 
 #include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -227,7 +228,9 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
     Vec3 centroid;
     unsigned cutBits = 0, sides = 0;  // The tet's cuts (bit j: cut j) and the cell's sides.
     double volume = 0;
+    bool dropped = false;
     std::vector<std::pair<int32_t, double>> load;
+    std::vector<Eigen::Triplet<double>> mass;  // the cell's own, by function
   };
   std::vector<Cell> cells;
   std::vector<int32_t> firstCell(size_t(tets) + 1, 0);
@@ -255,6 +258,12 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
   std::vector<double> support(static_cast<size_t>(nodes), 0.0);
   std::vector<double> enrichedVolume(static_cast<size_t>(F - nodes), 0.0);
   XfemSurfaceBuilder surface(mesh, cutCount, b.m_enriched, def.k);
+  std::vector<std::vector<XfemDroppedCell>> droppedIn(def.dropped.empty() ? 0 : size_t(tets));
+  for (const XfemDroppedCell& d : def.dropped) {
+    if (d.tet < 0 || d.tet >= tets)
+      return fail("XfemBody: dropped: tet ", std::to_string(d.tet), " out of range");
+    droppedIn[size_t(d.tet)].push_back(d);
+  }
   for (int32_t t = 0; t < tets; ++t) {
     firstCell[size_t(t)] = int32_t(cells.size());
     const std::vector<TetCut>& cuts = tetCuts[size_t(t)];
@@ -272,7 +281,16 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
     double onPlane = 0;
     for (int a = 0; a < 4; ++a)
       onPlane = std::max(onPlane, 4 * snap[size_t(mesh.tets[4 * size_t(t) + a])]);
-    const CutElement e = buildCutElement(x, local, m, def.k, def.material, onPlane);
+    uint32_t dropCells = 0;  // bit mask: the cell of that side mask is dropped
+    if (!droppedIn.empty())
+      for (unsigned mask = 0; mask < (1u << m); ++mask) {
+        unsigned sides = 0;
+        for (int j = 0; j < m; ++j)
+          if ((mask >> j) & 1u) sides |= 1u << localCut[j];
+        for (const XfemDroppedCell& d : droppedIn[size_t(t)])
+          if ((sides & d.cutBits) == d.sides) dropCells |= 1u << mask;
+      }
+    const CutElement e = buildCutElement(x, local, m, def.k, def.material, onPlane, dropCells);
     const int n = 4 * (1 + m);
     // Functions of nodes without the cut's enrichment are dropped (-1).
     std::vector<int32_t> map(static_cast<size_t>(n));
@@ -320,8 +338,19 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
         cell.cutBits |= 1u << cuts[size_t(j)].cut;
         if ((c.sideMask >> j) & 1u) cell.sides |= 1u << cuts[size_t(j)].cut;
       }
+      cell.dropped = c.dropped;
+      if (c.dropped) {
+        b.m_held.resize(size_t(F), 0);
+        for (int A = 4; A < n; ++A)
+          if (map[size_t(A)] >= 0 && c.mass(A, A) > 0) b.m_held[size_t(map[size_t(A)])] = 1;
+      }
       for (int A = 0; A < n; ++A)
-        if (map[size_t(A)] >= 0) cell.load.emplace_back(map[size_t(A)], c.load[A]);
+        if (map[size_t(A)] >= 0) {
+          cell.load.emplace_back(map[size_t(A)], c.load[A]);
+          for (int B = 0; B < n; ++B)
+            if (map[size_t(B)] >= 0 && c.mass(A, B) != 0)
+              cell.mass.emplace_back(map[size_t(A)], map[size_t(B)], c.mass(A, B));
+        }
       // Cells of one tet stay joined across a cut that does not open there.
       const int32_t id = int32_t(cells.size());
       parent.push_back(id);
@@ -360,7 +389,7 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
           for (int f = 0; f < c.polytope.faceCount; ++f)
             if (c.polytope.faces[f].label == kCutFaceLabel + j && capOnFace[f] >= 0) {
               CutPolygon g = c.polytope.faces[f];
-              for (int i = 0; i < g.count / 2; ++i) std::swap(g.v[i], g.v[g.count - 1 - i]);
+              std::reverse(g.v, g.v + g.count);
               b.m_cutFaces.push_back({t, cuts[size_t(j)].cut, ((opens >> j) & 1u) != 0, g});
             }
         if (cellPositive)
@@ -460,6 +489,19 @@ Result<std::unique_ptr<XfemBody>> XfemBody::create(const XfemBodyDef& def) {
     p.volume += cells[c].volume;
     ++p.cells;
     for (const auto& [f, w] : cells[c].load) p.load[f] += w;
+    p.cellIds.push_back({cells[c].tet, cells[c].cutBits, cells[c].sides});
+    p.dropped = p.dropped || cells[c].dropped;
+  }
+  {
+    std::vector<std::vector<Eigen::Triplet<double>>> pieceMass(b.m_pieces.size());
+    for (size_t c = 0; c < cells.size(); ++c) {
+      auto& to = pieceMass[size_t(pieceOf[size_t(findRoot(parent, int32_t(c)))])];
+      to.insert(to.end(), cells[c].mass.begin(), cells[c].mass.end());
+    }
+    for (size_t p = 0; p < b.m_pieces.size(); ++p) {
+      b.m_pieces[p].mass.resize(F, F);
+      b.m_pieces[p].mass.setFromTriplets(pieceMass[p].begin(), pieceMass[p].end());
+    }
   }
   // Roots are first cells, so pieces come in order of their first tet; then by mask.
   {
@@ -517,6 +559,12 @@ Result<void> XfemBody::buildStepMatrix() {
       const int32_t f = m_enriched[size_t(n) * size_t(cutCount) + size_t(j)];
       if (f >= 0) fixed[size_t(f)] = 1;
     }
+  }
+  if (!m_def.dropped.empty()) {
+    const Eigen::VectorXd diagonal = m_mass.diagonal();
+    for (int32_t f = 0; f < F; ++f)
+      if (!(diagonal[3 * f] > 0) || (size_t(f) < m_held.size() && m_held[size_t(f)]))
+        fixed[size_t(f)] = 1;
   }
   for (int32_t f = 0; f < F; ++f)
     if (!fixed[size_t(f)])
@@ -631,7 +679,7 @@ bool XfemBody::step(const std::vector<XfemContactPlane>& planes, XfemContactRepo
     // The vertices that v leaves beyond a plane join the active set.
     const size_t before = rows.size();
     for (size_t p = 0; p < m_surface.size(); ++p)
-      for (size_t i = 0; i < m_surface[p].vertices.size(); ++i)
+      for (size_t i = 0; i < m_surface[p].vertices.size() && !m_pieces[p].dropped; ++i)
         for (size_t c = 0; c < planes.size(); ++c) {
           const size_t key = (vertexBase[p] + i) * planes.size() + c;
           uint8_t& a = active[key];
@@ -897,6 +945,103 @@ Eigen::VectorXd XfemBody::volumeRatioScaling() const {
     t[Eigen::Index(r)] = v > 0 ? 1.0 / std::sqrt(v) : 1.0;  // eq 3.15
   }
   return t;
+}
+
+}  // namespace gf::detail
+
+namespace gf::detail {
+
+XfemPieceMoments XfemBody::pieceMoments(int piece) const {
+  XfemPieceMoments r;
+  if (piece < 0 || size_t(piece) >= m_pieces.size()) return r;
+  const XfemPiece& p = m_pieces[size_t(piece)];
+  const int32_t nodes = int32_t(m_def.mesh.nodeCount());
+  const auto rest = [&](int32_t f) { return f < nodes ? nodePosition(m_def.mesh, f) : Vec3{}; };
+  const auto dof = [](const Eigen::VectorXd& v, int32_t f) {
+    return Vec3{v[3 * f], v[3 * f + 1], v[3 * f + 2]};
+  };
+  r.volume = p.volume;
+  // First moments from the loads (the standard functions sum to one on the piece).
+  Vec3 restFirst, first;
+  for (int32_t f = 0; f < m_functionCount; ++f) {
+    const double w = p.load[f];
+    if (w == 0) continue;
+    if (f < nodes) r.mass += w;
+    restFirst += w * rest(f);
+    first += w * (rest(f) + dof(m_u, f));
+    r.momentum += w * dof(m_v, f);
+  }
+  if (!(r.mass > 0)) return r;
+  r.restCentre = (1.0 / r.mass) * restFirst;
+  r.centre = (1.0 / r.mass) * first;
+  // Second moments about the centres: the shifts make them exact for a piece far from the origin.
+  for (int k = 0; k < p.mass.outerSize(); ++k)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(p.mass, k); it; ++it) {
+      const int32_t f = int32_t(it.row()), g = int32_t(it.col());
+      const double w = it.value();
+      // sum_f phi_f = 1 on the piece, so the shift by the centre goes on the standard functions.
+      const Vec3 Xf = rest(f) - (f < nodes ? r.restCentre : Vec3{});
+      const Vec3 Xg = rest(g) - (g < nodes ? r.restCentre : Vec3{});
+      const Vec3 xf = rest(f) + dof(m_u, f) - (f < nodes ? r.centre : Vec3{});
+      const Vec3 vg = dof(m_v, g);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+          r.restSecond(i, j) += w * Xf[i] * Xg[j];
+          r.spread(i, j) += w * xf[i] * Xg[j];
+        }
+      r.angularMomentum += w * cross(xf, vg);
+    }
+  return r;
+}
+
+Result<std::unique_ptr<XfemBody>> XfemBody::withoutPiece(int piece) const {
+  if (piece < 0 || size_t(piece) >= m_pieces.size())
+    return fail("XfemBody: piece ", std::to_string(piece), " out of range [0, ",
+                std::to_string(m_pieces.size()), ")");
+  XfemBodyDef def = m_def;
+  const XfemPiece& p = m_pieces[size_t(piece)];
+  def.dropped.insert(def.dropped.end(), p.cellIds.begin(), p.cellIds.end());
+  auto made = create(def);
+  if (!made) return made.error();
+  XfemBody& b = *made.value();
+  // The same cuts give the same functions in the same order: the state carries over as is.
+  if (b.m_functionCount != m_functionCount)
+    return fail("XfemBody: dropping piece ", std::to_string(piece), " changed the functions");
+  b.m_u = m_u;
+  b.m_v = m_v;
+  // v on the free functions: M_ff v_f = (M_new v_old)_f, the L2 projection (mass-weighted)
+  // of the old field on the cells left (M_new has only those) onto the free functions.
+  std::vector<int32_t> freeIndex(size_t(m_functionCount), -1);
+  int32_t freeCount = 0;
+  for (size_t r = 0; r < b.m_freeDof.size(); r += 3)
+    freeIndex[size_t(b.m_freeDof[r] / 3)] = freeCount++;
+  Eigen::SparseMatrix<double> scalar(freeCount, freeCount);
+  {
+    std::vector<Eigen::Triplet<double>> t;
+    for (int k = 0; k < b.m_mass.outerSize(); ++k)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(b.m_mass, k); it; ++it)
+        if (it.row() % 3 == 0 && it.col() % 3 == 0) {
+          const int32_t r = freeIndex[size_t(it.row() / 3)], c = freeIndex[size_t(it.col() / 3)];
+          if (r >= 0 && c >= 0) t.emplace_back(r, c, it.value());
+        }
+    scalar.setFromTriplets(t.begin(), t.end());
+  }
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> mass(scalar);
+  if (mass.info() != Eigen::Success)
+    return fail("XfemBody: dropping piece ", std::to_string(piece), ": mass matrix not definite");
+  const Eigen::VectorXd Mv = b.m_mass * m_v;
+  b.m_v.setZero();
+  for (int d = 0; d < 3; ++d) {
+    Eigen::VectorXd rhs(freeCount);
+    for (int32_t f = 0; f < m_functionCount; ++f)
+      if (freeIndex[size_t(f)] >= 0) rhs[freeIndex[size_t(f)]] = Mv[3 * f + d];
+    const Eigen::VectorXd x = mass.solve(rhs);
+    for (int32_t f = 0; f < m_functionCount; ++f)
+      if (freeIndex[size_t(f)] >= 0) b.m_v[3 * f + d] = x[freeIndex[size_t(f)]];
+  }
+  b.m_warm = m_warm;
+  b.updateSurface();
+  return made;
 }
 
 }  // namespace gf::detail

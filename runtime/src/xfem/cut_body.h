@@ -69,6 +69,27 @@ struct XfemConstraint {
   double relative = 1.0;  ///< lambda / A_ii, >= 0.
 };
 
+/// A cell left out of the system (a piece handed to rigid physics): the cells of `tet` on side
+/// `sides` of the cuts in `cutBits` (bit j: cut j), whatever later cuts do to them.
+struct XfemDroppedCell {
+  int32_t tet = 0;
+  unsigned cutBits = 0, sides = 0;
+};
+
+/// A piece's own rigid-body moments, exact for the enriched field: with x_f = X_f + u_f (X_f the
+/// node's rest position for a standard function, 0 for an enriched one) x(X) = sum_f phi_f x_f
+/// on the piece, so each moment is the piece's mass matrix M^p against the DOFs.
+struct XfemPieceMoments {
+  double mass = 0;       ///< [kg]
+  double volume = 0;     ///< Rest volume [m^3].
+  Vec3 restCentre;       ///< Rest centre of mass.
+  Mat3 restSecond;       ///< integral of rho (X - C)(X - C)^T at rest, about restCentre.
+  Vec3 centre;           ///< Current centre of mass.
+  Vec3 momentum;         ///< integral of rho v.
+  Vec3 angularMomentum;  ///< integral of rho (x - c) x v, about the current centre.
+  Mat3 spread;           ///< integral of rho (x - c)(X - C)^T (its polar factor: the rotation).
+};
+
 /// What an Is-XFEM body is made of.
 struct XfemBodyDef {
   TetMesh mesh;                     ///< Rest shape, positively oriented tets.
@@ -80,6 +101,12 @@ struct XfemBodyDef {
   Vec3 gravity{0, -9.81, 0};        ///< Body force per unit mass.
   double dt = 1.0 / 60;             ///< Time step [s].
   XfemConstraint constraint;        ///< Sec 3.2.2.2 on sliver DOFs.
+  /// Cells out of the system: no mass, stiffness, load or contact. Held (DOFs kept, velocity 0):
+  /// every function left without support, and every enriched function that reaches into a
+  /// dropped cell; on the cells left such a function is N_a (c - k gamma) (eq 3.2), nearly
+  /// N_a times a constant, so it would make the step matrix all but singular (a stiff body's
+  /// Cholesky failed), and its field there is frozen at the hand-off.
+  std::vector<XfemDroppedCell> dropped;
 };
 
 /// A piece: a connected part of the body between opened cuts.
@@ -90,6 +117,9 @@ struct XfemPiece {
   double volume = 0;
   int32_t cells = 0;
   Eigen::VectorXd load;  ///< integral over the piece of rho phi_A, per scalar shape function.
+  Eigen::SparseMatrix<double> mass;      ///< integral over the piece of rho phi_A phi_B (scalar).
+  std::vector<XfemDroppedCell> cellIds;  ///< Its cells, as XfemBodyDef::dropped names them.
+  bool dropped = false;                  ///< Its cells are out of the system (XfemBodyDef).
 };
 
 /// A cut polygon: cut j's face inside one tet (seen from the positive side's cell).
@@ -190,6 +220,14 @@ class XfemBody {
   Vec3 pieceMeanDisplacement(int piece) const;
   /// Linear momentum of a piece, or of the whole body when piece < 0.
   Vec3 momentum(int piece = -1) const;
+  /// A piece's rigid-body moments now (XfemPieceMoments); zero for a piece out of range.
+  XfemPieceMoments pieceMoments(int piece) const;
+  /// A new body: this one with the piece's cells dropped (XfemBodyDef::dropped), its
+  /// displacement carried over and its velocity the mass-weighted (L2) projection of the old
+  /// field on the cells left onto the functions still free: exact, and so momentum-preserving,
+  /// for the velocity fields the free functions hold (a rigid motion always). Fails as
+  /// create(), or for a piece out of range.
+  Result<std::unique_ptr<XfemBody>> withoutPiece(int piece) const;
   /// Per cut (planes first, then blades): how it crosses the body.
   const std::vector<XfemCutReport>& cutReports() const { return m_cutReports; }
   /// Cut polygons (each cut's face in each tet carrying its enrichment).
@@ -232,6 +270,7 @@ class XfemBody {
   std::vector<int32_t> m_enriched;      // node * cuts + j -> function, or -1
   std::vector<double> m_enrichedRatio;  // per enriched function: v of eq 3.16
   std::vector<int32_t> m_freeDof;       // free DOF -> DOF
+  std::vector<uint8_t> m_held;          // per function: held by XfemBodyDef::dropped
   Eigen::SparseMatrix<double> m_mass, m_stiffness, m_stepMatrix;
   Eigen::VectorXd m_force, m_u, m_v;
   CholeskySolver m_solver;  // the step matrix's factor

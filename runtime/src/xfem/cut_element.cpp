@@ -5,7 +5,7 @@
 namespace gf::detail {
 
 CutElement buildCutElement(const Vec3 X[4], const CutPlane* planes, int count, double k,
-                           const LinearElastic& material, double onPlane) {
+                           const LinearElastic& material, double onPlane, uint32_t dropCells) {
   CutElement e;
   e.sides.cutCount = count;
   for (int j = 0; j < count; ++j)
@@ -46,7 +46,13 @@ CutElement buildCutElement(const Vec3 X[4], const CutPlane* planes, int count, d
     }
     cell.load = rho * (phi.transpose() * w);  // eq 3.6 per unit g
     weighted = w.asDiagonal() * phi;
-    e.mass.noalias() += rho * (phi.transpose() * weighted);  // eq 3.5
+    cell.mass = rho * (phi.transpose() * weighted);  // eq 3.5 over the cell
+    cell.dropped = (dropCells >> mask) & 1u;
+    if (cell.dropped) {
+      e.cells.push_back(std::move(cell));
+      continue;
+    }
+    e.mass.noalias() += rho * (phi.transpose() * weighted);  // as cell.mass, same rounding
     weighted = w.asDiagonal() * grad;
     T.noalias() += grad.transpose() * weighted;
     e.load += cell.load;

@@ -30,6 +30,8 @@ struct CutCell {
   VolumeRule rule;       ///< Moment-fitted (eq 3.8); the standard rule in an uncut tet.
   double volume = 0;     ///< Sum of the rule's weights (exact to rounding).
   Eigen::VectorXd load;  ///< integral over the cell of rho phi_A (momentum, piece centroids).
+  Eigen::MatrixXd mass;  ///< integral over the cell of rho phi_A phi_B (a piece's own moments).
+  bool dropped = false;  ///< Left out of the element's sums (buildCutElement's dropCells).
 };
 
 /// An element's cells and enriched matrices. Shape functions are numbered as in
@@ -45,8 +47,11 @@ struct CutElement {
 /// Cells, rules and matrices of tet X (positively oriented) cut by `planes` (count in
 /// [0, kMaxCutPlanes]; zero gives the plain linear tet, with the standard rule standardTetRule
 /// instead of a fitted one). k is eq 3.2's parameter; onPlane is clipTet's: vertices that close
-/// to a plane count as on it.
+/// to a plane count as on it. dropCells: bit `mask` set leaves the cell of that side mask out of
+/// mass, load and stiffness (a piece handed to rigid physics); the cell is still listed, with its
+/// own load and mass, and `dropped` set.
 CutElement buildCutElement(const Vec3 X[4], const CutPlane* planes, int count, double k,
-                           const LinearElastic& material, double onPlane = 0);
+                           const LinearElastic& material, double onPlane = 0,
+                           uint32_t dropCells = 0);
 
 }  // namespace gf::detail

@@ -19,7 +19,9 @@
 // that moves more than about half the FEM body's thickness or node spacing per step can pass
 // between nodes (no continuous detection). Friction and the collider's spin during the step
 // are not modelled. A handed-off fragment collides only with Bullet objects.
-// Concave fragments get the hull of their nodes (no convex decomposition yet).
+// Concave fragments get the hull of their nodes (no convex decomposition yet). A piece of a body
+// in CutMode::Xfem gets the hull of its closed surface (its exact cut faces included); the last
+// piece left in that body's Is-XFEM system stays there (World::detachFragment refuses it).
 //
 // Bullet is used in single precision (integration/CMakeLists.txt says why).
 #pragma once
