@@ -46,7 +46,6 @@ constexpr double kElementRoundOff = 1e-14;
 // rolled back like a NaN instead of handing the game an exploded body.
 constexpr double kBlowUpEnergyDensity = 1e6;
 
-
 Tether tetherOf(const FemState& state) {
   if (state.tether.empty()) return {};
   return {state.tether.data(), state.tetherTarget.data()};
