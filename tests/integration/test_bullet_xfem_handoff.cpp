@@ -14,51 +14,12 @@
 #include <vector>
 
 #include "common/bullet_world.h"
+#include "common/xfem_cut_box.h"
 
 namespace gf {
 namespace {
 
-// The plane x = a + b (y - 1) + c z through the box [0,2] x [1,2] x [0,1] (no node on it).
-struct SlantedCut {
-  double a = 0.6875, b = 0.1875, c = 0.09375;
-  double h(double y, double z) const { return a + b * (y - 1) + c * z; }
-  Blade blade() const {
-    Blade bl;
-    for (double y : {0.5, 2.5})
-      for (double z : {-0.5, 1.5})
-        bl.vertices.push_back(glm::vec3(float(a + b * (y - 1) + c * z), float(y), float(z)));
-    bl.triangles = {0, 2, 3, 0, 3, 1};
-    return bl;
-  }
-};
-
-// Mass, centre and inertia of the part x < h(y, z), density rho: x integrated in closed form,
-// (y, z) by 4 x 4 Gauss-Legendre (exact for the cubic integrands).
-void cutOffPart(const SlantedCut& cut, double rho, double& mass, glm::dvec3& centre,
-                glm::dmat3& inertia) {
-  const double g[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
-                       0.8611363115940526};
-  const double w[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461,
-                       0.3478548451374538};
-  double V = 0;
-  glm::dvec3 first(0);
-  glm::dmat3 second(0.0);
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j) {
-      const double y = 1.5 + 0.5 * g[i], z = 0.5 + 0.5 * g[j], wt = 0.25 * w[i] * w[j];
-      const double h = cut.h(y, z);
-      V += wt * h;
-      first += wt * glm::dvec3(h * h / 2, y * h, z * h);
-      const double xx = h * h * h / 3, xy = y * h * h / 2, xz = z * h * h / 2;
-      const double m[3][3] = {{xx, xy, xz}, {xy, y * y * h, y * z * h}, {xz, y * z * h, z * z * h}};
-      for (int r = 0; r < 3; ++r)
-        for (int s = 0; s < 3; ++s) second[s][r] += wt * m[r][s];
-    }
-  mass = rho * V;
-  centre = first / V;
-  const glm::dmat3 J = rho * (second - V * glm::outerProduct(centre, centre));
-  inertia = (J[0][0] + J[1][1] + J[2][2]) * glm::dmat3(1.0) - J;
-}
+using test::SlantedCut;
 
 glm::dvec3 toGlm(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
 
@@ -88,10 +49,10 @@ TEST(BulletXfemHandoff, CutOffPieceGoesToBulletAndLandsOnTheFloor) {
   ASSERT_EQ(world.handoffEvents().size(), 1u);
   const int32_t piece = bridge.fragments()[0].fragment;
   const btRigidBody& rb = *bridge.fragments()[0].rigidBody;
-  double mass = 0;
-  glm::dvec3 centre;
-  glm::dmat3 inertia;
-  cutOffPart(cut, 1000, mass, centre, inertia);
+  const test::MassProperties exact = test::cutOffPart(cut, 1000);
+  const double mass = exact.mass;
+  const glm::dvec3 centre = exact.centre;
+  const glm::dmat3 inertia = exact.inertia;
   EXPECT_NEAR(world.handoffEvents()[0].mass, mass, 1e-9 * mass);
   EXPECT_NEAR(1.0 / rb.getInvMass(), mass, 1e-6 * mass);
   Eigen::Matrix3d I;

@@ -15,57 +15,13 @@
 #include <string>
 #include <vector>
 
+#include "common/xfem_cut_box.h"
+
 namespace gf {
 namespace {
 
-// The plane x = a + b (y - 1) + c z through the box [0,2] x [1,2] x [0,1] (no node on it).
-struct SlantedCut {
-  double a = 0.6875, b = 0.1875, c = 0.09375;
-  double h(double y, double z) const { return a + b * (y - 1) + c * z; }
-  Blade blade() const {
-    Blade bl;
-    for (double y : {0.5, 2.5})
-      for (double z : {-0.5, 1.5})
-        bl.vertices.push_back(glm::vec3(float(a + b * (y - 1) + c * z), float(y), float(z)));
-    bl.triangles = {0, 2, 3, 0, 3, 1};
-    return bl;
-  }
-};
-
-// Mass properties of the part x < h(y, z) of the box, density rho: integrals over x in closed
-// form, then over (y, z) by 4 x 4 Gauss-Legendre (exact to degree 7; the integrands are cubic).
-struct Analytic {
-  double mass = 0;
-  glm::dvec3 centre{0};
-  glm::dmat3 inertia{0.0};
-};
-Analytic cutOffPart(const SlantedCut& cut, double rho) {
-  const double g[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
-                       0.8611363115940526};
-  const double w[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461,
-                       0.3478548451374538};
-  double V = 0;
-  glm::dvec3 first(0);
-  glm::dmat3 second(0.0);  // integral of x x^T
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j) {
-      const double y = 1.5 + 0.5 * g[i], z = 0.5 + 0.5 * g[j], wt = 0.25 * w[i] * w[j];
-      const double h = cut.h(y, z);
-      V += wt * h;
-      first += wt * glm::dvec3(h * h / 2, y * h, z * h);
-      const double xx = h * h * h / 3, xy = y * h * h / 2, xz = z * h * h / 2;
-      const double m[3][3] = {{xx, xy, xz}, {xy, y * y * h, y * z * h}, {xz, y * z * h, z * z * h}};
-      for (int r = 0; r < 3; ++r)
-        for (int s = 0; s < 3; ++s) second[s][r] += wt * m[r][s];
-    }
-  Analytic out;
-  out.mass = rho * V;
-  out.centre = first / V;
-  const glm::dmat3 J = rho * (second - V * glm::outerProduct(out.centre, out.centre));
-  const double tr = J[0][0] + J[1][1] + J[2][2];
-  out.inertia = tr * glm::dmat3(1.0) - J;
-  return out;
-}
+using test::cutOffPart;
+using test::SlantedCut;
 
 BodyDef xfemBox(double youngs) {
   BodyDef def;
@@ -108,7 +64,7 @@ int32_t leftFragment(const World& world, BodyId id) {
 
 TEST(XfemHandoff, RigidPropertiesOfTheCutOffPieceAreTheCutBoxs) {
   const SlantedCut cut;
-  const Analytic exact = cutOffPart(cut, 1000);
+  const test::MassProperties exact = cutOffPart(cut, 1000);
   for (double youngs : {1e7, 1e9}) {
     World world{WorldDef{}};
     const BodyId id = world.createBody(xfemBox(youngs)).value();

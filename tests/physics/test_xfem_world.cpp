@@ -16,32 +16,14 @@
 #include <utility>
 #include <vector>
 
+#include "common/xfem_cut_box.h"
+
 namespace gf {
 namespace {
 
 constexpr double kG = 9.81;
 
-// The plane x = a + b (y - 1) + c z; a, b, c dyadic, so the blade's float vertices lie on it
-// exactly and it passes through no node of the box's thirds.
-struct SlantedBlade {
-  double a = 0.6875, b = 0.1875, c = 0.09375;
-  // Box [0,2] x [1,2] x [0,1]: the part with x below the plane.
-  double leftVolume() const { return a + b / 2 + c / 2; }
-  glm::dvec3 normal() const {
-    const double len = std::sqrt(1 + b * b + c * c);
-    return {1 / len, -b / len, -c / len};
-  }
-  double offset() const { return (a - b) / std::sqrt(1 + b * b + c * c); }  // n . x on the plane
-  Blade blade() const {
-    Blade bl;
-    for (double y : {0.5, 2.5})
-      for (double z : {-0.5, 1.5})
-        bl.vertices.push_back(glm::vec3(float(a + b * (y - 1) + c * z), float(y), float(z)));
-    // (y, z) = (0.5,-0.5), (0.5,1.5), (2.5,-0.5), (2.5,1.5): counter-clockwise seen from +x.
-    bl.triangles = {0, 2, 3, 0, 3, 1};
-    return bl;
-  }
-};
+using SlantedBlade = test::SlantedCut;
 
 // A 2 x 1 x 1 m box of 6 x 3 x 3 cells, lifted to y in [1, 2], in CutMode::Xfem.
 BodyDef xfemBox(double youngs, bool holdLeftEnd) {

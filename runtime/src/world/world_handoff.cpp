@@ -12,13 +12,7 @@
 namespace gf {
 
 namespace {
-glm::dvec3 toGlm(Vec3 v) { return {v.x, v.y, v.z}; }
-glm::dmat3 toGlm(const Mat3& m) {
-  glm::dmat3 g;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) g[j][i] = m(i, j);  // glm is column-major
-  return g;
-}
+using detail::toGlm;
 bool finite3d(glm::dvec3 v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }

@@ -124,6 +124,15 @@ struct BodyRecord {
   glm::dvec3 pullForce{0};
 };
 
+/// Kernel vectors and matrices as glm's, for the public API.
+inline glm::dvec3 toGlm(Vec3 v) { return {v.x, v.y, v.z}; }
+inline glm::dmat3 toGlm(const Mat3& m) {
+  glm::dmat3 g;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) g[j][i] = m(i, j);  // glm is column-major
+  return g;
+}
+
 struct BodyRecord;
 /// The Is-XFEM body of a def in CutMode::Xfem (checked), with the world's gravity.
 Result<std::unique_ptr<XfemRecord>> buildXfem(const BodyDef& def, Vec3 gravity);

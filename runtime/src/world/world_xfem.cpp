@@ -32,6 +32,7 @@
 namespace gf {
 
 namespace {
+using detail::toGlm;
 
 using detail::XfemBody;
 using detail::XfemRecord;
@@ -199,13 +200,6 @@ const XfemRecord::Detached* findDetached(const XfemRecord& r, int32_t fragment) 
   for (const XfemRecord::Detached& d : r.detached)
     if (d.fragment == fragment) return &d;
   return nullptr;
-}
-glm::dvec3 toGlm(Vec3 v) { return {v.x, v.y, v.z}; }
-glm::dmat3 toGlm(const Mat3& m) {
-  glm::dmat3 g;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) g[j][i] = m(i, j);  // glm is column-major
-  return g;
 }
 }  // namespace
 
