@@ -556,6 +556,25 @@ TEST(Scene, CutModeKeyLoadsAndIsChecked) {
       << fracturing.error().message;
 }
 
+TEST(Scene, SplitPointKeyLoadsAndIsChecked) {
+  const std::string box = R"("mesh": {"generator": "box", "size": [1, 1, 1], "cells": [1, 1, 1]},
+      "material": {"E": 1, "nu": 0, "rho": 1})";
+  const Result<Scene> r =
+      parseScene(R"({"bodies": [{)" + box +
+                     R"(, "fracture": {"strength": 1, "split_point": "force_ratio"}},
+      {)" + box + R"(, "fracture": {"strength": 1}}]})",
+                 "inline", "");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r.value().bodies[0].def.fracture.splitPoint, SplitPoint::ForceRatio);
+  EXPECT_EQ(r.value().bodies[1].def.fracture.splitPoint, SplitPoint::Midpoint);  // the default
+  const Result<Scene> bad = parseScene(
+      R"({"bodies": [{)" + box + R"(, "fracture": {"strength": 1, "split_point": "ratio"}}]})",
+      "inline", "");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("bodies[0].fracture.split_point"), std::string::npos)
+      << bad.error().message;
+}
+
 TEST(Scene, SolverKeysLoad) {
   const std::string text = R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1],
       "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},

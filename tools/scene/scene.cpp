@@ -88,9 +88,10 @@ constexpr FieldName kSolverNames[] = {
     {"numericalDamping", "numerical_damping"},        {"linearSolver", "linear"},
     {"maxLinearIterations", "max_linear_iterations"}, {"linearTolerance", "linear_tolerance"}};
 constexpr FieldName kFractureNames[] = {
-    {"strength", "strength"}, {"fibreStrengthRatio", "fibre_strength_ratio"},
-    {"radius", "radius"},     {"nonlocalLength", "nonlocal_length"},
-    {"model", "model"},       {"regions", "regions"}};
+    {"strength", "strength"},     {"fibreStrengthRatio", "fibre_strength_ratio"},
+    {"radius", "radius"},         {"nonlocalLength", "nonlocal_length"},
+    {"model", "model"},           {"regions", "regions"},
+    {"splitPoint", "split_point"}};
 constexpr FieldName kPlasticityNames[] = {
     {"yieldStress", "yield"}, {"flowRate", "flow_rate"}, {"hardening", "hardening"}};
 constexpr FieldName kBodyNames[] = {
@@ -673,7 +674,7 @@ constexpr int kMaxBrittleRegions = 1'000'000;
 FractureSettings readFracture(const json& v, const std::string& path) {
   ObjReader o(v, path);
   o.keys({"strength", "radius", "nonlocal_length", "model", "brittle", "regions",
-          "fibre_strength_ratio"});
+          "fibre_strength_ratio", "split_point"});
   FractureSettings f;
   f.enabled = true;
   f.strength = readNumber(o.require("strength"), o.at("strength"));
@@ -695,6 +696,11 @@ FractureSettings readFracture(const json& v, const std::string& path) {
   }
   if (const json* r = o.find("fibre_strength_ratio")) {
     f.fibreStrengthRatio = readNumber(*r, o.at("fibre_strength_ratio"));
+  }
+  if (const json* p = o.find("split_point")) {
+    f.splitPoint = readChoice(*p, o.at("split_point"), {"midpoint", "force_ratio"}) == "force_ratio"
+                       ? SplitPoint::ForceRatio
+                       : SplitPoint::Midpoint;
   }
   o.finish();
   requireValid(f.check(), path, kFractureNames);

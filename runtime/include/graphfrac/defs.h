@@ -146,6 +146,17 @@ struct SolverSettings {
   Result<void> check() const;
 };
 
+/// Where the render surface (World::surface) splits a broken edge (thesis sec 4.4.1, fig 4.10).
+enum class SplitPoint : uint8_t {
+  /// At its midpoint, as the thesis renders by default.
+  Midpoint,
+  /// A stress break at the force-ratio point of fig 4.10: the edge's two sections are in
+  /// inverse proportion to the elastic forces on its nodes when it breaks, so the crack lies
+  /// nearer the node that is pulled harder. A blade's or a brittle plane's break at the point
+  /// where the blade or plane crosses the edge. Ratios are clamped to [0.1, 0.9] of the edge.
+  ForceRatio,
+};
+
 /// How a damaged element's energy follows from its broken edges (SPEC §2).
 enum class DamageModel : uint8_t {
   /// eq 4.25-4.27 on the material-frame (Green) strain: broken edges lose only their tensile
@@ -238,6 +249,8 @@ struct FractureSettings {
   /// regions each start a crack plane normal to the maximum principal stress.
   bool brittle = false;
   int regions = 1;
+  /// Where the render surface splits each broken edge; set once, when the edge breaks.
+  SplitPoint splitPoint = SplitPoint::Midpoint;
   /// Random-graph impurities (thesis sec 5.2); off by default: then no work is added.
   ImpuritySettings impurities;
   /// Impurity maps applied when the body is created (World::applyImpurityMap adds more).

@@ -19,6 +19,9 @@ struct FractureEvent {
   int32_t nodeA = -1, nodeB = -1;  ///< Its end nodes.
   glm::vec3 position{0, 0, 0};     ///< World-space midpoint of the edge when it broke.
   float stress = 0;                ///< Tensile normal stress that broke it [Pa]; 0 for cuts.
+  /// Where the render surface splits the edge, from nodeA (0) to nodeB (1): 0.5, or with
+  /// FractureSettings::splitPoint = ForceRatio the point set when it broke (fig 4.10).
+  float split = 0.5f;
   enum class Cause : uint8_t { Stress, BrittlePlane, Cut } cause = Cause::Stress;
   int32_t tet = -1;  ///< CutMode::Xfem: the tet the cut crosses; -1 for graph events.
 };

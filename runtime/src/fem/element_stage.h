@@ -63,14 +63,19 @@ struct ElementStage {
   GF_HD void operator()(int32_t t) const {
     double* g = grad + 12 * int64_t(t);
     Mat12* h = hess ? reinterpret_cast<Mat12*>(hess + 144 * int64_t(t)) : nullptr;
+    energy[t] = evaluate(t, g, h);
+  }
+
+  /// Tet t's energy, its gradient into g (12, node-major; -g are the element's nodal forces)
+  /// and, when h is non-null, its Hessian; writes the stress buffer as operator() does.
+  GF_HD double evaluate(int32_t t, double* g, Mat12* h) const {
     if (rigidTet && rigidTet[t]) {
       // A tet of a fragment handed to rigid physics moves rigidly: no strain, no force.
-      energy[t] = 0;
       for (int k = 0; k < 12; ++k) g[k] = 0;
       if (h) *h = Mat12{};
       if (stress)
         for (int k = 0; k < 6; ++k) stress[6 * int64_t(t) + k] = 0;
-      return;
+      return 0;
     }
     Vec3 xe[4];
     tetCorners(tets, x, t, xe);
@@ -78,18 +83,18 @@ struct ElementStage {
     const uint8_t mask = tetMask ? tetMask[t] : 0;
     if (mask == 0) {
       Mat3 S;
-      energy[t] = elementForces(c, xe, restInverse[t], restVolume[t], g, h, /*projectPsd=*/true,
-                                stress ? &S : nullptr);
+      const double e = elementForces(c, xe, restInverse[t], restVolume[t], g, h,
+                                     /*projectPsd=*/true, stress ? &S : nullptr);
       if (stress) toVoigt(S, stress + 6 * int64_t(t));
-      return;
+      return e;
     }
     uint8_t brokenLocal[6];
     for (int k = 0; k < 6; ++k) brokenLocal[k] = (mask >> k) & 1;
     const Mat<6, 6> identity = Mat<6, 6>::identity();
-    energy[t] = damagedElementForces(damageModel, c, edgeMatrix ? edgeMatrix[t] : identity,
-                                     edgeMatrixInverse ? edgeMatrixInverse[t] : identity, chi[t],
-                                     brokenLocal, xe, restInverse[t], restVolume[t], g, h,
-                                     /*projectPsd=*/true, closedCrackHessian);
+    return damagedElementForces(damageModel, c, edgeMatrix ? edgeMatrix[t] : identity,
+                                edgeMatrixInverse ? edgeMatrixInverse[t] : identity, chi[t],
+                                brokenLocal, xe, restInverse[t], restVolume[t], g, h,
+                                /*projectPsd=*/true, closedCrackHessian);
   }
 };
 

@@ -127,24 +127,7 @@ Result<void> Integrator::restoreSolver(const FemModel& model, const FemState& st
 ElementStage Integrator::elementStage(const FemModel& model, const FemState& state, const double* x,
                                       double* energy, double* grad, double* hess,
                                       double* stress) const {
-  ElementStage s;
-  s.tets = model.tets.data();
-  s.x = x;
-  // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
-  s.restInverse =
-      state.plasticInverse.empty() ? model.restInverse.data() : state.plasticInverse.data();
-  s.restVolume = model.restVolume.data();
-  s.coeffs = state.coeffs;
-  s.fibreDir = model.fibreDir.empty() ? nullptr : model.fibreDir.data();
-  if (m_fracture) {
-    s.tetMask = m_fracture->tetMask();
-    s.damageModel = m_fracture->damageModel();
-    s.edgeMatrix = m_fracture->edgeMatrices();
-    s.edgeMatrixInverse = m_fracture->edgeMatrixInverses();
-    s.chi = m_fracture->chi();
-  }
-  s.rigidTet = state.rigidTet.empty() ? nullptr : state.rigidTet.data();
-  s.tetLame = state.tetLame.empty() ? nullptr : state.tetLame.data();
+  ElementStage s = bodyElementStage(model, state, m_fracture, x);
   s.energy = energy;
   s.grad = grad;
   s.hess = hess;

@@ -7,6 +7,7 @@
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
+#include "kernels/split_point.h"
 #include "step/executor.h"
 
 namespace gf::detail {
@@ -51,6 +52,16 @@ Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem,
         return fail("BodyDef.mesh: tet ", std::to_string(t),
                     ": too flat for the projection damage model (its edge matrix T is singular)");
     }
+  }
+  if (fem.fracture.splitPoint == SplitPoint::ForceRatio) {
+    fb->m_data.splitRatio.assign(size_t(fb->m_graph.edgeCount), 0.5);
+    fb->m_nodeRefStart.assign(nn + 1, 0);
+    for (int32_t n : fem.tets) ++fb->m_nodeRefStart[size_t(n) + 1];
+    for (size_t i = 0; i < nn; ++i) fb->m_nodeRefStart[i + 1] += fb->m_nodeRefStart[i];
+    fb->m_nodeRef.resize(fem.tets.size());
+    std::vector<int32_t> fill(fb->m_nodeRefStart.begin(), fb->m_nodeRefStart.end() - 1);
+    for (size_t k = 0; k < fem.tets.size(); ++k)
+      fb->m_nodeRef[size_t(fill[size_t(fem.tets[k])]++)] = int32_t(k);
   }
   fb->m_data.broken.assign(fb->m_graph.edgeCount, 0);
   fb->m_data.tetMask.assign(nt, 0);
@@ -122,11 +133,66 @@ void FractureBody::computeStresses(const FemModel& fem, const FemState& data, co
   CpuExecutor(jobs).run(fem.tetCount, kTetGrain, stressStage(fem, data, x, undamagedToo));
 }
 
+ElementStage bodyElementStage(const FemModel& fem, const FemState& data,
+                              const FractureBody* fracture, const double* x) {
+  ElementStage s;
+  s.tets = fem.tets.data();
+  s.x = x;
+  // Plastic elements see Fe = F Fp^-1 through an effective rest inverse (eq 2.3).
+  s.restInverse = data.plasticInverse.empty() ? fem.restInverse.data() : data.plasticInverse.data();
+  s.restVolume = fem.restVolume.data();
+  s.coeffs = data.coeffs;
+  s.fibreDir = fem.fibreDir.empty() ? nullptr : fem.fibreDir.data();
+  if (fracture) {
+    s.tetMask = fracture->tetMask();
+    s.damageModel = fracture->damageModel();
+    s.edgeMatrix = fracture->edgeMatrices();
+    s.edgeMatrixInverse = fracture->edgeMatrixInverses();
+    s.chi = fracture->chi();
+  }
+  s.rigidTet = data.rigidTet.empty() ? nullptr : data.rigidTet.data();
+  s.tetLame = data.tetLame.empty() ? nullptr : data.tetLame.data();
+  return s;
+}
+
+ElementStage FractureBody::elementStage(const FemModel& fem, const FemState& data,
+                                        const double* x) const {
+  return bodyElementStage(fem, data, this, x);
+}
+
+void FractureBody::computeSplits(size_t first, const FemModel& fem, const FemState& data,
+                                 const double* x, JobSystem& jobs) {
+  if (m_data.splitRatio.empty()) return;
+  // Breaks with a geometric crossing (blade, brittle plane) split there, where the material
+  // parts; stress breaks are contiguous in each batch and take their force ratio.
+  size_t stressBegin = m_data.breaks.size(), stressEnd = first;
+  for (size_t i = first; i < m_data.breaks.size(); ++i) {
+    EdgeBreak& b = m_data.breaks[i];
+    if (m_data.breakCause[i] == cause(FractureEvent::Cause::Stress)) {
+      stressBegin = std::min(stressBegin, i);
+      stressEnd = i + 1;
+    } else {
+      b.split = clampSplitRatio(b.split);
+    }
+  }
+  if (stressBegin >= stressEnd) return;
+  ForceRatioSplitStage stage;
+  stage.element = elementStage(fem, data, x);
+  stage.nodeRefStart = m_nodeRefStart.data();
+  stage.nodeRef = m_nodeRef.data();
+  stage.edgeNodes = m_graph.edgeNodes.data();
+  stage.breaks = m_data.breaks.data() + stressBegin;
+  CpuExecutor(jobs).run(int32_t(stressEnd - stressBegin), 16, stage);
+}
+
 void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState& data,
                                const double* x) {
   if (first == m_data.breaks.size()) return;
   std::sort(m_data.breaks.begin() + long(first), m_data.breaks.end(),
             [](const EdgeBreak& a, const EdgeBreak& b) { return a.edge < b.edge; });
+  if (!m_data.splitRatio.empty())
+    for (size_t i = first; i < m_data.breaks.size(); ++i)
+      m_data.splitRatio[size_t(m_data.breaks[i].edge)] = m_data.breaks[i].split;
   applyBreaksToMasks(m_graph, m_data.breaks.data() + first, m_data.breaks.size() - first,
                      m_data.tetMask.data());
   m_newEdges.clear();
@@ -167,6 +233,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     (void)cutEdges(m_graph, x, cut.blade, cut.from, cut.to, m_data.broken, m_data.breaks, m_cutWs,
                    jobs);
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Cut));
+    computeSplits(first, fem, data, x, jobs);
     applyBreaks(first, fem, data, x);
   }
   m_data.pendingCuts.clear();
@@ -184,6 +251,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     }
     m_data.impurity.pendingPrecut.clear();
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Cut));
+    computeSplits(first, fem, data, x, jobs);
     applyBreaks(first, fem, data, x);
   }
 
@@ -211,6 +279,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
   }
   // Keep each cause with its break through the sort in applyBreaks.
   if (m_data.breaks.size() > first) {
+    computeSplits(first, fem, data, x, jobs);
     std::vector<std::pair<int32_t, uint8_t>> causes;
     for (size_t i = first; i < m_data.breaks.size(); ++i)
       causes.push_back({m_data.breaks[i].edge, m_data.breakCause[i]});

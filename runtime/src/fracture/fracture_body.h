@@ -9,6 +9,7 @@
 #include <memory>
 #include <vector>
 
+#include "fem/element_stage.h"
 #include "fem/fem_body.h"
 #include "fracture/criterion.h"
 #include "fracture/cutting.h"
@@ -43,11 +44,21 @@ struct FractureData {
   Fragments fragments;
   std::vector<PendingCut> pendingCuts;
   std::vector<int32_t> breakOrder;  ///< Every broken edge in the order it broke.
+  /// Per edge with SplitPoint::ForceRatio (empty otherwise): where the render surface splits
+  /// it, as the parameter from edgeNodes[2e]; 0.5 until it breaks, then set once.
+  std::vector<double> splitRatio;
   int32_t brokenCount = 0;
   bool brittleFired = false;  ///< Brittle crack planes start once per body.
   bool hasImpurity = false;
   ImpurityField impurity;  ///< Meaningful only with hasImpurity.
 };
+
+class FractureBody;
+
+/// The element pass of a body at x (damage from `fracture`, none when null), outputs unset:
+/// the one place that binds FemModel, FemState and the damage to an ElementStage.
+ElementStage bodyElementStage(const FemModel& fem, const FemState& data,
+                              const FractureBody* fracture, const double* x);
 
 class FractureBody {
  public:
@@ -104,6 +115,14 @@ class FractureBody {
   /// impurities gets a field of pure nodes first.
   Result<void> applyImpurityMap(const FemModel& fem, const ImpurityMap& map);
 
+  /// Per-edge split ratios for CrackSurface::setSplitRatios, or null for midpoints
+  /// (FractureSettings::splitPoint).
+  const double* splitRatios() const {
+    return m_data.splitRatio.empty() ? nullptr : m_data.splitRatio.data();
+  }
+  /// The element pass of this body at x with its damage as it is now (outputs unset).
+  ElementStage elementStage(const FemModel& fem, const FemState& data, const double* x) const;
+
   /// Everything a run changes (World::snapshot copies it, restore puts it back).
   const FractureData& data() const { return m_data; }
   void restore(const FractureData& data) { m_data = data; }
@@ -115,6 +134,9 @@ class FractureBody {
   // The stage that does it, writing into m_stress.
   CriterionStressStage stressStage(const FemModel& fem, const FemState& data, const double* x,
                                    bool undamagedToo);
+  // The split points of m_data.breaks[first..] (SplitPoint::ForceRatio), before they apply.
+  void computeSplits(size_t first, const FemModel& fem, const FemState& data, const double* x,
+                     JobSystem& jobs);
   // Masks, chi and fragments after edges in m_data.breaks[first..] broke.
   void applyBreaks(size_t first, const FemModel& fem, const FemState& data, const double* x);
 
@@ -125,6 +147,9 @@ class FractureBody {
   std::vector<Vec3> m_restDir;         // 6 per tet, unit rest edge directions
   std::vector<Mat<6, 6>> m_T, m_Tinv;  // projection model only
   std::vector<double> m_nodeVolume;
+  // SplitPoint::ForceRatio only: node -> 4 tet + corner (CSR, element order), as the
+  // integrator's gather, for the nodal forces of breaking edges.
+  std::vector<int32_t> m_nodeRefStart, m_nodeRef;
   FractureData m_data;
   // Scratch: rewritten before every read.
   std::vector<double> m_stress;

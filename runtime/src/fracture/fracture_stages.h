@@ -12,6 +12,7 @@
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
+#include "kernels/split_point.h"
 
 namespace gf::detail {
 
@@ -335,6 +336,35 @@ struct BreakEventStage {
       ev.position = {0.5 * (xa[0] + xb[0]), 0.5 * (xa[1] + xb[1]), 0.5 * (xa[2] + xb[2])};
     }
     events[i] = ev;
+  }
+};
+
+/// Break i of a batch about to be applied: its split ratio from the elastic forces on the
+/// edge's two nodes (fig 4.10, kernels/split_point.h), each the sum of -dE_t/dx_n over the
+/// node's tets in element order, at x and with the damage from before the batch, i.e. the
+/// forces in the body at the moment the edge breaks.
+struct ForceRatioSplitStage {
+  ElementStage element;  ///< the body's element pass at x (its outputs are not written)
+  const int32_t* nodeRefStart = nullptr;  ///< CSR node -> 4 tet + corner, in element order
+  const int32_t* nodeRef = nullptr;
+  const int32_t* edgeNodes = nullptr;
+  EdgeBreak* breaks = nullptr;  ///< the batch; `split` is written
+
+  GF_HD Vec3 nodeForce(int32_t n) const {
+    Vec3 f{};
+    for (int32_t k = nodeRefStart[n]; k < nodeRefStart[n + 1]; ++k) {
+      const int32_t ref = nodeRef[k];
+      double g[12];
+      element.evaluate(ref / 4, g, nullptr);
+      const int c = ref % 4;
+      f -= Vec3{g[3 * c], g[3 * c + 1], g[3 * c + 2]};
+    }
+    return f;
+  }
+
+  GF_HD void operator()(int32_t i) const {
+    const int64_t e = breaks[i].edge;
+    breaks[i].split = forceRatioSplit(nodeForce(edgeNodes[2 * e]), nodeForce(edgeNodes[2 * e + 1]));
   }
 };
 

@@ -147,7 +147,7 @@ void CrackSurface::setSplitRatios(const double* ratio) {
     return;
   }
   m_ratio.assign(ratio, ratio + m_graph->edgeCount);
-  for (double& t : m_ratio) t = std::isfinite(t) ? std::clamp(t, kMinRatio, 1 - kMinRatio) : 0.5;
+  for (double& t : m_ratio) t = clampSplitRatio(t);
 }
 
 double CrackSurface::splitRatio(int32_t edge) const {

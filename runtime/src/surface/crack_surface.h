@@ -65,6 +65,7 @@
 #include "graphfrac/jobs.h"
 #include "graphfrac/mesh.h"
 #include "graphfrac/status.h"
+#include "kernels/split_point.h"
 #include "mesh/edge_graph.h"
 
 namespace gf::detail {
@@ -86,8 +87,8 @@ struct DirtyRange {
 class CrackSurface {
  public:
   /// Smallest split ratio accepted (ratios are clamped to [kMinRatio, 1 - kMinRatio] so no
-  /// corner cell collapses).
-  static constexpr double kMinRatio = 0.05;
+  /// boundary facet degenerates; kernels/split_point.h says why this bound).
+  static constexpr double kMinRatio = kMinSplitRatio;
 
   /// Precomputes the face table of the rest mesh (O(T log T), once per body). `rest` must be
   /// valid and positively oriented (as after validate()); `graph` must be built from it. Both

@@ -117,6 +117,8 @@ Result<void> FractureSettings::check() const {
   if (static_cast<unsigned>(model) > static_cast<unsigned>(DamageModel::Degradation))
     return fail("model: unknown damage model ", std::to_string(static_cast<int>(model)));
   if (regions < 1) return fail("regions: must be >= 1, got ", std::to_string(regions));
+  if (static_cast<unsigned>(splitPoint) > static_cast<unsigned>(SplitPoint::ForceRatio))
+    return fail("splitPoint: unknown split point ", std::to_string(static_cast<int>(splitPoint)));
   if (static_cast<unsigned>(impurities.noise) > static_cast<unsigned>(ImpurityNoise::Uniform))
     return fail("impurities.noise: unknown distribution ",
                 std::to_string(static_cast<int>(impurities.noise)));

@@ -103,6 +103,7 @@ void World::Impl::collectEvents(BodyId id, const BodyRecord& b) {
     ev.position = glm::vec3(float(0.5 * (xa[0] + xb[0])), float(0.5 * (xa[1] + xb[1])),
                             float(0.5 * (xa[2] + xb[2])));
     ev.stress = float(e.stress);
+    if (const double* r = f.splitRatios()) ev.split = float(r[e.edge]);
     ev.cause = static_cast<FractureEvent::Cause>(f.breakCause()[i]);
     fractureEvents.push_back(ev);
   }

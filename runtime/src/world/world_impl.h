@@ -253,6 +253,7 @@ struct World::Impl {
                             b.fracture->fragments().nodeFragment().data());
         r.surface.setExtraFrameNodes(r.embedded->frameNodes());
       }
+      r.surface.setSplitRatios(b.fracture->splitRatios());
       r.surface.rebuild(b.fracture->broken().data(), b.fracture->fragments().nodeFragment().data(),
                         b.state.x.data(), jobs);
     } else {

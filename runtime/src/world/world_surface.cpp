@@ -74,6 +74,7 @@ SurfaceView World::surface(BodyId id) {
       r->brokenCount = uint64_t(b->fracture->brokenCount());
       broken = b->fracture->broken().data();
       fragments = b->fracture->fragments().nodeFragment().data();
+      r->surface.setSplitRatios(b->fracture->splitRatios());
     }
     if (b->renderBinding) {
       r->embedded = std::make_unique<detail::EmbeddedSurface>();
