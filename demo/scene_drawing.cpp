@@ -155,6 +155,7 @@ SceneDrawing::SceneDrawing(const scene::Scene& sc)
   for (const scene::SceneStroke& st : sc.strokes)
     m_hasBrush |= st.type == scene::SceneStroke::Type::Cut;
   if (m_hasBrush) {
+    m_brushSlot = m_meshes.size();
     // Front (0-3) and back (4-7) copies of the square, so it shows from either side.
     m_brushPositions.assign(24, 0.0f);
     m_brushNormals.assign(24, 0.0f);
@@ -166,6 +167,53 @@ SceneDrawing::SceneDrawing(const scene::Scene& sc)
     m.indices = m_brushIndices;
     m.topologyVersion = 1;
     m.colour = glm::vec3(0.75f, 0.78f, 0.82f);
+    m_lastVersion.push_back(0);
+    m_lastVertices.push_back(0);
+    m_lastTriangles.push_back(0);
+  }
+  // Scripted cuts show their blade: a thin steel sheet, seen from either side.
+  for (const scene::SceneCut& c : sc.cuts) {
+    BladeSlot b;
+    b.frame = c.frame;
+    b.slot = m_meshes.size();
+    const std::vector<glm::vec3>& v = c.blade.vertices;
+    const std::vector<uint32_t>& tri = c.blade.triangles;
+    // One triangle of the blade at `pose`, flat: its own three vertices with its normal.
+    auto addTriangle = [&](const glm::mat4& pose, const uint32_t(&idx)[3], std::vector<float>& pos,
+                           std::vector<float>& nrm) {
+      glm::vec3 p[3];
+      for (int k = 0; k < 3; ++k) p[k] = glm::vec3(pose * glm::vec4(v[idx[k]], 1.0f));
+      const glm::vec3 a = glm::cross(p[1] - p[0], p[2] - p[0]);
+      const float len = glm::length(a);
+      const glm::vec3 n = len > 0 ? a / len : glm::vec3(0, 1, 0);
+      for (int k = 0; k < 3; ++k)
+        for (int d = 0; d < 3; ++d) {
+          pos.push_back(p[k][d]);
+          nrm.push_back(n[d]);
+        }
+    };
+    for (int side = 0; side < 2; ++side)
+      for (size_t t = 0; t + 2 < tri.size(); t += 3) {
+        const uint32_t idx[3] = {tri[t], side ? tri[t + 2] : tri[t + 1],
+                                 side ? tri[t + 1] : tri[t + 2]};
+        addTriangle(c.blade.from, idx, b.from, b.normalsFrom);
+        addTriangle(c.blade.to, idx, b.to, b.normalsTo);
+        for (int k = 0; k < 3; ++k) b.indices.push_back(uint32_t(b.indices.size()));
+      }
+    b.positions.assign(b.from.size(), 0.0f);
+    b.normals.assign(b.from.size(), 0.0f);
+    m_blades.push_back(std::move(b));
+  }
+  for (BladeSlot& b : m_blades) {
+    m_meshes.emplace_back();
+    MeshFrame& m = m_meshes.back();
+    m.positions = b.positions;
+    m.normals = b.normals;
+    m.indices = b.indices;
+    m.topologyVersion = 1;
+    m.colour = glm::vec3(0.78f, 0.8f, 0.84f);
+    m.crackLook.metallic = 1.0f;
+    m.castsShadow = false;
     m_lastVersion.push_back(0);
     m_lastVertices.push_back(0);
     m_lastTriangles.push_back(0);
@@ -234,10 +282,31 @@ DrawingChanges SceneDrawing::update(scene::BulletScene& sim, double strainMax) {
         m_brushNormals[size_t(3 * k + i)] = nk[i];
       }
     }
-    MeshFrame& m = m_meshes.back();
+    MeshFrame& m = m_meshes[m_brushSlot];
     m.castsShadow = pose.size() == 4;
     m.dirtyBegin = 0;
     m.dirtyEnd = 8;
+  }
+  for (BladeSlot& b : m_blades) {
+    // Frame f's picture follows the step of frame f; the cut acts in the step of b.frame.
+    const int f = sim.frame();
+    const bool shown = f >= b.frame - kBladeLead && f <= b.frame + kBladeTrail;
+    const bool after = f >= b.frame;
+    MeshFrame& m = m_meshes[b.slot];
+    m.dirtyBegin = 0;
+    m.dirtyEnd = 0;
+    if (shown != b.shown || (shown && after && f == b.frame) || m_first) {
+      if (shown) {
+        b.positions = after ? b.to : b.from;
+        b.normals = after ? b.normalsTo : b.normalsFrom;
+      } else {
+        // Collapsed to one point: nothing is rasterised.
+        std::fill(b.positions.begin(), b.positions.end(), 0.0f);
+      }
+      m.dirtyEnd = uint32_t(b.positions.size() / 3);
+    }
+    b.shown = shown;
+    m.castsShadow = shown;
   }
   DrawingChanges c;
   for (size_t i = 0; i < m_meshes.size(); ++i) {

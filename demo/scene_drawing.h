@@ -1,6 +1,7 @@
 // What the demo and the viewer draw of a running scene: one MeshFrame slot per scene body (its
 // surface stream), per rigid body and per static collider (shapes uploaded once, moved by their
-// model matrix), and one for a cut brush when the scene has cut strokes. The slots stay fixed for
+// model matrix), one for a cut brush when the scene has cut strokes, and one per scripted cut
+// (Scene::cuts) for its blade, drawn for a few frames around the cut. The slots stay fixed for
 // the scene's lifetime, so a renderer keeps each buffer and uploads only what changed: a body's
 // dirty vertex range, or everything after a fracture changed its topology.
 #pragma once
@@ -35,6 +36,13 @@ scene::SceneRigidBody colliderShape(const Collider& collider);
 /// Cell of the grid drawn on ground planes [m] (a stronger line every 5 cells).
 inline constexpr float kGroundCell = 0.1f;
 
+/// A scripted cut's blade (Scene::cuts) is drawn from this many frames before the frame whose
+/// step it cuts in ...
+inline constexpr int kBladeLead = 3;
+/// ... to this many frames after it (at the demo's 30 frames per second, 0.1 s and 0.27 s):
+/// long enough to be seen, short enough not to hide the opened cut.
+inline constexpr int kBladeTrail = 8;
+
 /// What one SceneDrawing::update changed, as the demo's summary counts it.
 struct DrawingChanges {
   /// Meshes whose topology (version or size) changed since the previous update, the first
@@ -58,6 +66,10 @@ class SceneDrawing {
   /// object, valid until the next step or update.
   std::span<const MeshFrame> meshes() const { return m_meshes; }
   size_t bodyCount() const { return m_bodyCount; }
+  /// The slot of Scene::cuts[i]'s blade (after every other slot).
+  size_t bladeSlot(size_t i) const { return m_blades[i].slot; }
+  /// Whether that blade was drawn by the last update().
+  bool bladeShown(size_t i) const { return m_blades[i].shown; }
 
  private:
   size_t m_bodyCount = 0, m_rigidCount = 0;
@@ -68,8 +80,20 @@ class SceneDrawing {
   std::vector<std::vector<float>> m_strain;  ///< Per body, per vertex, 0..1.
   /// The cut brush (the last slot when the scene has cut strokes): a two-sided square.
   bool m_hasBrush = false;
+  size_t m_brushSlot = 0;
   std::vector<float> m_brushPositions, m_brushNormals;
   std::vector<uint32_t> m_brushIndices;
+  /// The scene's cuts' blades: flat-shaded two-sided triangles at the blade's start and end
+  /// poses (world space), shown around the cut's frame and collapsed to a point otherwise.
+  struct BladeSlot {
+    int frame = 1;
+    size_t slot = 0;
+    bool shown = false;
+    std::vector<float> from, to, normalsFrom, normalsTo;  ///< 3 per vertex
+    std::vector<float> positions, normals;
+    std::vector<uint32_t> indices;
+  };
+  std::vector<BladeSlot> m_blades;
   bool m_first = true;
 };
 

@@ -29,6 +29,7 @@
 #include "renderer.h"
 #include "scene/bullet_scene.h"
 #include "scene/scene.h"
+#include "scene_drawing.h"
 
 namespace gf::demo {
 namespace {
@@ -524,6 +525,70 @@ int callMain(std::vector<std::string> args) {
   std::vector<char*> argv;
   for (std::string& a : args) argv.push_back(a.data());
   return demoMain(int(argv.size()), argv.data());
+}
+
+// A scripted cut (Scene::cuts, World::cut) shows its blade: each frame rendered with every slot
+// and again without the blade's differs where the blade is in the frames from kBladeLead before
+// the cut to kBladeTrail after it, and nowhere before or after that.
+TEST(DemoApp, ScriptedCutShowsItsBladeAroundTheCutOnly) {
+  SKIP_WITHOUT_RENDERER();
+  const TempDir tmp("demo_blade");
+  const int cutFrame = 5, frames = cutFrame + kBladeTrail + 3;
+  const fs::path scenePath = writeScene(tmp.path, R"({
+    "name": "blade", "dt": 0.03333333333333333, "frames": 16, "substeps": 4,
+    "gravity": [0, -9.81, 0],
+    "bodies": [
+      {"name": "column", "mesh": {"generator": "box", "size": [0.08, 0.24, 0.08], "cells": [2, 6, 2]},
+       "translate": [-0.04, 0.002, -0.04],
+       "material": {"model": "stable_neo_hookean", "E": 1e8, "nu": 0.3, "rho": 2700},
+       "fracture": {"strength": 1e12, "radius": 0}, "solver": {"linear": "direct"}}
+    ],
+    "cuts": [
+      {"frame": 5, "body": "column",
+       "blade": {"type": "plane", "point": [0, 0.15, 0], "normal": [0.707, 0.707, 0], "size": 0.3}}
+    ],
+    "rigid_bodies": [
+      {"name": "floor", "shape": "plane", "normal": [0, 1, 0], "offset": 0, "render_size": 2}
+    ]
+  })");
+  Result<scene::Scene> sc = scene::loadScene(scenePath.string());
+  ASSERT_TRUE(sc.ok()) << sc.error().message;
+  Result<std::unique_ptr<scene::BulletScene>> made = scene::BulletScene::create(sc.value());
+  ASSERT_TRUE(made.ok()) << made.error().message;
+  scene::BulletScene& sim = *made.value();
+  SceneDrawing drawing(sc.value());
+  const size_t blade = drawing.bladeSlot(0);
+  ASSERT_EQ(blade + 1, drawing.meshes().size());  // the last slot, so the others keep theirs
+  RendererOptions ro;
+  ro.width = 160;
+  ro.height = 90;
+  Result<std::unique_ptr<Renderer>> withBlade = createRenderer(ro);
+  Result<std::unique_ptr<Renderer>> without = createRenderer(ro);
+  ASSERT_TRUE(withBlade.ok() && without.ok());
+  Camera cam;
+  cam.eye = {0.55f, 0.35f, 0.75f};
+  cam.target = {0.0f, 0.12f, 0.0f};
+  for (int f = 1; f <= frames; ++f) {
+    ASSERT_EQ(sim.step().flags & kStepInvalidInput, 0u);
+    (void)drawing.update(sim, 0);
+    const std::span<const MeshFrame> all = drawing.meshes();
+    Image a, b;
+    ASSERT_TRUE(withBlade.value()->render(all, cam, a).ok());
+    ASSERT_TRUE(without.value()->render(all.first(blade), cam, b).ok());
+    Result<ImageDiff> d = compareImages(a, b, 8);
+    ASSERT_TRUE(d.ok()) << d.error().message;
+    const int pixels = int(std::lround(d.value().fractionOver * 160 * 90));
+    const bool expected = f >= cutFrame - kBladeLead && f <= cutFrame + kBladeTrail;
+    std::printf("[ blade ] frame %2d: %4d blade pixels%s\n", f, pixels,
+                expected ? " (around the cut)" : "");
+    EXPECT_EQ(drawing.bladeShown(0), expected) << "frame " << f;
+    if (expected)
+      EXPECT_GE(pixels, 200) << "frame " << f;  // a 0.3 m sheet across a 0.24 m column
+    else
+      EXPECT_EQ(pixels, 0) << "frame " << f;
+  }
+  // The blade really cut: the column is in two pieces.
+  EXPECT_EQ(sim.world().fractureStats(sim.body(0)).fragments, 2);
 }
 
 // --compare: each half of a composed frame is that scene's own frame, pixel for pixel, and
