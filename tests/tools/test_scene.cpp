@@ -619,7 +619,7 @@ TEST(Scene, MultigridKeysLoadEveryValue) {
       "cells": [1, 1, 1]}, "material": {"E": 1, "nu": 0, "rho": 1},
       "solver": {"linear": "multigrid", "multigrid": {"levels": "50/1000/all",
         "smoother": "chebyshev", "pre_sweeps": 3, "post_sweeps": 1, "mode": "cycles",
-        "cycles": 4, "refresh_interval": 5, "crack_rebinding": false,
+        "cycles": 4, "refresh_interval": 5, "refresh_slack": 3, "crack_rebinding": false,
         "smoothed_prolongation": true}}}]})";
   const Result<Scene> r = parseScene(text, "inline", "");
   ASSERT_TRUE(r.ok()) << r.error().message;
@@ -632,6 +632,7 @@ TEST(Scene, MultigridKeysLoadEveryValue) {
   EXPECT_FALSE(s.multigrid.preconditionCG);
   EXPECT_EQ(s.multigrid.cycles, 4);
   EXPECT_EQ(s.multigrid.coarseRefreshInterval, 5);
+  EXPECT_EQ(s.multigrid.coarseRefreshSlack, 3);
   EXPECT_FALSE(s.multigrid.crackRebinding);
   EXPECT_TRUE(s.multigrid.smoothedProlongation);
   // "auto": the levels are chosen from the body's size (no counts).

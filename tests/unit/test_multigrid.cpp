@@ -704,6 +704,10 @@ TEST(Multigrid, InvalidSettingsAreRejectedWithTheField) {
   st.preSweeps = 1;
   st.coarseRefreshInterval = 0;
   EXPECT_NE(tryLevels(st).find("coarseRefreshInterval"), std::string::npos);
+  st.coarseRefreshInterval = 1;
+  st.coarseRefreshSlack = -1;
+  EXPECT_NE(tryLevels(st).find("coarseRefreshSlack"), std::string::npos);
+  st.coarseRefreshSlack = 2;
   // A solver that is not set up for this pattern returns zero, not NaN.
   std::vector<double> x(s.b.size(), 1.0);
   const SolveReport r = mg.solve(s.A, s.b.data(), x.data(), 10, 1e-6, jobs);
@@ -751,15 +755,16 @@ TEST(Multigrid, RebindingKeepsAggregatesInsideFragments) {
   const MultigridSettings st = settingsFor({1, 24}, Smoother::GaussSeidel, 2, true);
   MultigridSolver mg;
   ASSERT_TRUE(mg.setup(st, s.mesh.positions.data(), s.fixed.data(), s.A).ok());
-  auto straddling = [&](int l) {
-    const auto& lv = mg.hierarchy().level(l);
-    std::vector<int> seen(2 * mg.hierarchy().handleCount(l), 0);
+  auto straddling2 = [&](const MultigridSolver& m, int l) {
+    const auto& lv = m.hierarchy().level(l);
+    std::vector<int> seen(2 * m.hierarchy().handleCount(l), 0);
     for (size_t i = 0; i < lv.nodeHandle.size(); ++i)
       if (lv.nodeHandle[i] >= 0) seen[2 * lv.nodeHandle[i] + side(int32_t(i))] = 1;
     int n = 0;
-    for (int32_t p = 0; p < mg.hierarchy().handleCount(l); ++p) n += seen[2 * p] && seen[2 * p + 1];
+    for (int32_t p = 0; p < m.hierarchy().handleCount(l); ++p) n += seen[2 * p] && seen[2 * p + 1];
     return n;
   };
+  auto straddling = [&](int l) { return straddling2(mg, l); };
   EXPECT_EQ(mg.hierarchy().handleCount(2), 1);
   EXPECT_EQ(straddling(2), 1);  // the single coarsest handle ties both pieces together
   std::vector<double> x0(s.b.size(), 0.0);
@@ -825,6 +830,133 @@ TEST(Multigrid, RebindingKeepsAggregatesInsideFragments) {
   EXPECT_LE(relDiff(x, xc), 1e-6);
   EXPECT_EQ(crossing(mgs.hierarchy(), entries), 0);
   EXPECT_GT(entries, 0);
+
+  // With coarseRefreshInterval > 1 the re-binding waits for the next refresh: until then the
+  // old aggregates (one handle across the cut) still precondition CG to the Cholesky solution;
+  // the refresh, brought forward by the iterations the cut costs or at the latest at the
+  // interval, applies it.
+  for (bool smoothed : {false, true}) {
+    MultigridSettings lag = st;
+    lag.smoothedProlongation = smoothed;
+    lag.coarseRefreshInterval = 3;
+    lag.coarseRefreshSlack = 2;
+    MultigridSolver mgl;
+    ASSERT_TRUE(mgl.setup(lag, s.mesh.positions.data(), s.fixed.data(), s.A).ok());
+    std::fill(x.begin(), x.end(), 0.0);
+    const SolveReport first = mgl.solve(s.A, s.b.data(), x.data(), 200, 1e-8, jobs);
+    mgl.rebind(eg.edgeNodes.data(), broken.data(), eg.edgeCount);
+    EXPECT_EQ(mgl.hierarchy().handleCount(2), 1);  // not yet re-bound
+    std::vector<int> its;
+    std::string refreshed;
+    for (int k = 0; k < 3; ++k) {
+      std::fill(x.begin(), x.end(), 0.0);
+      const SolveReport r = mgl.solve(s.A, s.b.data(), x.data(), 200, 1e-8, jobs);
+      EXPECT_TRUE(r.converged);
+      EXPECT_LE(relDiff(x, xc), 1e-6);
+      its.push_back(r.iterations);
+      refreshed += mgl.stats().refreshed ? 'R' : '.';
+    }
+    std::printf("[ info ] cut slab, %s, re-binding deferred: %d its before, then %d, %d, %d (%s)\n",
+                smoothed ? "smoothed" : "piecewise-affine", first.iterations, its[0], its[1],
+                its[2], refreshed.c_str());
+    // The first solve after the cut ran on the old binding; the second re-binds when that one
+    // drifted, the third (the interval) in any case.
+    EXPECT_EQ(refreshed[0], '.');
+    EXPECT_EQ(refreshed[1] == 'R', its[0] > first.iterations + 2);
+    EXPECT_TRUE(refreshed.find('R') != std::string::npos);
+    EXPECT_EQ(mgl.hierarchy().handleCount(2), 2);
+    for (int l = 1; l <= 2; ++l) EXPECT_EQ(straddling2(mgl, l), 0) << "level " << l;
+  }
+}
+
+// The V-cycle only preconditions CG: coarse operators built from an earlier matrix of the
+// same pattern (coarseRefreshInterval > 1) leave an SPD preconditioner, so MG-CG still reaches
+// the current system's solution (against Cholesky), and a drift that costs iterations
+// triggers a refresh at the next solve (coarseRefreshSlack). Drifts: a 4x longer and a 4x
+// shorter step (stiffness against mass), every other tet of a band without stiffness (damage
+// before a crack re-binds the aggregates), and a 10 % longer step (a drift too small to
+// matter); steel and rubber; piecewise-affine and smoothed.
+TEST(Multigrid, StaleCoarseOperatorsReachTheCurrentSolutionAndRefreshOnDrift) {
+  gf::ThreadPoolJobSystem jobs(2);
+  constexpr int kSlack = 2;
+  int triggered = 0, quiet = 0;
+  for (const MaterialCase& mat : {kSteel, kRubber}) {
+    auto system = [&](double dt, bool band) {
+      const gf::TetMesh mesh = gf::gen::box(1.0, 0.2, 0.2, 25, 5, 5);
+      std::function<bool(size_t)> skip;
+      if (band)
+        skip = [&mesh](size_t e) {
+          double cx = 0;
+          for (int a = 0; a < 4; ++a) cx += 0.25 * mesh.positions[3 * mesh.tets[4 * e + a]];
+          return cx > 0.45 && cx < 0.55 && e % 2 == 0;
+        };
+      return gf::test::assembleElasticSystem(
+          mesh, mat.E, mat.nu, mat.rho, dt, [](double x, double, double) { return x < 1e-9; }, jobs,
+          skip);
+    };
+    const ElasticSystem s0 = system(kDt, false);
+    const ElasticSystem drifted[] = {system(4 * kDt, false), system(kDt / 4, false),
+                                     system(kDt, true), system(1.1 * kDt, false)};
+    for (bool smoothed : {false, true}) {
+      for (const ElasticSystem& s1 : drifted) {
+        MultigridSettings st = settingsFor({64}, Smoother::GaussSeidel, 2, true);
+        st.smoothedProlongation = smoothed;
+        st.coarseRefreshInterval = 1000;
+        st.coarseRefreshSlack = kSlack;
+        MultigridSolver mg, fresh;
+        ASSERT_TRUE(mg.setup(st, s0.mesh.positions.data(), s0.fixed.data(), s0.A).ok());
+        ASSERT_TRUE(fresh.setup(st, s1.mesh.positions.data(), s1.fixed.data(), s1.A).ok());
+        std::vector<double> x0(s0.b.size(), 0.0), xs(s1.b.size(), 0.0), xf(s1.b.size(), 0.0);
+        const SolveReport r0 = mg.solve(s0.A, s0.b.data(), x0.data(), 200, 1e-10, jobs);
+        ASSERT_TRUE(mg.stats().refreshed);
+        // The coarse levels still hold s0's operators; the fine smoother sees s1.
+        const SolveReport rs = mg.solve(s1.A, s1.b.data(), xs.data(), 200, 1e-10, jobs);
+        EXPECT_FALSE(mg.stats().refreshed);
+        const SolveReport rf = fresh.solve(s1.A, s1.b.data(), xf.data(), 200, 1e-10, jobs);
+        CholeskySolver chol;
+        ASSERT_TRUE(chol.analyze(s1.A).ok());
+        std::vector<double> xc(s1.b.size(), 0.0);
+        ASSERT_TRUE(chol.solve(s1.A, s1.b.data(), xc.data()).converged);
+        EXPECT_TRUE(rs.converged);
+        EXPECT_LE(rs.relativeResidual, 1e-10);
+        EXPECT_LE(relDiff(xs, xc), 1e-7);
+        EXPECT_LE(relDiff(xf, xc), 1e-7);
+        // The next solve refreshes exactly when the stale one took more than kSlack
+        // iterations beyond the first after the refresh, and then needs no more than it did.
+        std::vector<double> xa(s1.b.size(), 0.0);
+        const SolveReport ra = mg.solve(s1.A, s1.b.data(), xa.data(), 200, 1e-10, jobs);
+        const bool drift = rs.iterations > r0.iterations + kSlack;
+        EXPECT_EQ(mg.stats().refreshed, drift);
+        EXPECT_LE(ra.iterations, rs.iterations);
+        if (drift && !smoothed) {
+          EXPECT_EQ(ra.iterations, rf.iterations);  // the same operators
+        }
+        (drift ? triggered : quiet) += 1;
+        std::printf(
+            "[ info ] %s %s: %d its fresh on s0, %d on the drifted system with s0's coarse "
+            "levels, %d fresh, %d after %s\n",
+            mat.name, smoothed ? "smoothed" : "piecewise-affine", r0.iterations, rs.iterations,
+            rf.iterations, ra.iterations, drift ? "the refresh" : "no refresh");
+      }
+    }
+  }
+  EXPECT_GT(triggered, 0);  // both branches of the rule were exercised
+  EXPECT_GT(quiet, 0);
+
+  // Without a drift, the interval alone: refreshes on solves 1, 4 and 7 of seven.
+  const ElasticSystem s = beam(kRubber, 25, 5, 0.2, jobs);
+  MultigridSettings st = settingsFor({64}, Smoother::GaussSeidel, 2, true);
+  st.coarseRefreshInterval = 3;
+  st.coarseRefreshSlack = 1000;
+  MultigridSolver mg;
+  ASSERT_TRUE(mg.setup(st, s.mesh.positions.data(), s.fixed.data(), s.A).ok());
+  std::string pattern;
+  for (int k = 0; k < 7; ++k) {
+    std::vector<double> x(s.b.size(), 0.0);
+    EXPECT_TRUE(mg.solve(s.A, s.b.data(), x.data(), 200, 1e-6, jobs).converged);
+    pattern += mg.stats().refreshed ? 'R' : '.';
+  }
+  EXPECT_EQ(pattern, "R..R..R");
 }
 
 TEST(Multigrid, IdenticalBitsForOneAndTwoThreads) {

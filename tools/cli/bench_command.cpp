@@ -4,7 +4,8 @@
 // linear solver runs a fixed number of PCG iterations so the configurations do equal solver
 // work and the differences are fracture's. Prints per-stage ms per step and the ratios.
 // `graphfrac bench multigrid`: per-stage ms and fps of the default multigrid and PCG
-// settings on the thesis's chapter-6 bodies at 4k, 28k, 35k and 160k tets.
+// settings on the thesis's chapter-6 bodies at 4k, 28k, 35k and 160k tets; --mg adds other
+// multigrid settings to the same run.
 // `graphfrac bench overhead`: what the World API costs on top of the solver: World::step of a
 // pure-deformation body against the raw integrator step it wraps, in alternating rounds on
 // one thread.
@@ -26,6 +27,7 @@
 #include <dirent.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -223,7 +225,13 @@ int benchMultigrid(int argc, char** argv) {
   int frames = 10;
   std::vector<int> threadCounts = {1, 2};
   std::string only;
+  // Extra multigrid settings (--mg JSON, repeatable: a solver.multigrid object) run beside the
+  // defaults, so a candidate and the default are timed in one run; --pcg 0 skips PCG.
+  std::vector<std::string> extra;
+  bool withPcg = true;
   for (int i = 2; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--mg")) extra.push_back(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--pcg")) withPcg = std::atoi(argv[i + 1]) != 0;
     if (!std::strcmp(argv[i], "--frames")) frames = std::max(1, std::atoi(argv[i + 1]));
     if (!std::strcmp(argv[i], "--threads")) {
       threadCounts.clear();
@@ -252,8 +260,14 @@ int benchMultigrid(int argc, char** argv) {
   std::printf(
       "case,solver,tets,threads,ms_frame,fps,speedup,ms_elements,ms_assembly,ms_solve,"
       "ms_fracture,linear_iterations,thesis_gpu_fps\n");
-  const char* solvers[][2] = {{"multigrid (default)", R"({"linear": "multigrid"})"},
-                              {"pcg (default)", R"({"linear": "pcg"})"}};
+  std::vector<std::array<std::string, 2>> solvers = {
+      {"multigrid (default)", R"({"linear": "multigrid"})"}};
+  if (withPcg) solvers.push_back({"pcg (default)", R"({"linear": "pcg"})"});
+  for (size_t k = 0; k < extra.size(); ++k) {
+    solvers.push_back({"multigrid (mg " + std::to_string(k + 1) + ")",
+                       R"({"linear": "multigrid", "multigrid": )" + extra[k] + "}"});
+    std::printf("# mg %zu: %s\n", k + 1, extra[k].c_str());
+  }
   for (const MgCase& c : kMgCases) {
     if (!only.empty() && only != c.name) continue;
     for (const auto& sv : solvers) {
@@ -292,10 +306,10 @@ int benchMultigrid(int argc, char** argv) {
         }
         const double ms = msSince(t0) / frames;
         if (firstMs == 0) firstMs = ms;
-        std::printf("%s,%s,%zu,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%s\n", c.name, sv[0],
-                    tets, jobs ? jobs->threadCount() : 1, ms, 1000 / ms, firstMs / ms,
-                    elements / frames, assembly / frames, solve / frames, fracture / frames,
-                    double(linear) / frames, c.thesisFps);
+        std::printf("%s,%s,%zu,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%s\n", c.name,
+                    sv[0].c_str(), tets, jobs ? jobs->threadCount() : 1, ms, 1000 / ms,
+                    firstMs / ms, elements / frames, assembly / frames, solve / frames,
+                    fracture / frames, double(linear) / frames, c.thesisFps);
         std::fflush(stdout);
       }
     }
@@ -790,6 +804,7 @@ int runBenchCommand(int argc, char** argv) {
         "usage: graphfrac bench fracture [--cells NX] [--steps S]\n"
         "  NX cells along a 1 m x 0.25 m x 0.25 m beam (NX/4 across; default 40: 24k tets)\n"
         "       graphfrac bench multigrid [--frames N] [--threads T1,T2,...] [--only CASE]\n"
+        "                                 [--mg MULTIGRID_JSON]... [--pcg 0|1]\n"
         "  ms per frame, per stage and 1 -> T speed-up (default threads 1,2, each in this run) of\n"
         "  the default multigrid and PCG settings on 4k, 28k,\n"
         "  35k and 160k tets, next to the thesis's GPU fps (table 6.2)\n"

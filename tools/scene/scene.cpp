@@ -81,8 +81,10 @@ constexpr FieldName kMaterialNames[] = {{"material.model", "model"},
                                         {"material.fibreDirection", "fibre.direction"},
                                         {"material.massDamping", "damping.mass"},
                                         {"material.stiffnessDamping", "damping.stiffness"}};
-constexpr FieldName kMultigridNames[] = {
-    {"smoother", "smoother"}, {"cycles", "cycles"}, {"coarseRefreshInterval", "refresh_interval"}};
+constexpr FieldName kMultigridNames[] = {{"smoother", "smoother"},
+                                         {"cycles", "cycles"},
+                                         {"coarseRefreshInterval", "refresh_interval"},
+                                         {"coarseRefreshSlack", "refresh_slack"}};
 constexpr FieldName kSolverNames[] = {
     {"newtonIterations", "newton_iterations"},        {"newtonTolerance", "newton_tolerance"},
     {"numericalDamping", "numerical_damping"},        {"linearSolver", "linear"},
@@ -499,7 +501,7 @@ std::vector<int32_t> readLevels(const json& v, const std::string& path) {
 MultigridSettings readMultigrid(const json& v, const std::string& path) {
   ObjReader o(v, path);
   o.keys({"levels", "smoother", "pre_sweeps", "post_sweeps", "mode", "cycles", "refresh_interval",
-          "crack_rebinding", "smoothed_prolongation"});
+          "refresh_slack", "crack_rebinding", "smoothed_prolongation"});
   MultigridSettings m;
   if (const json* x = o.find("levels")) m.levels = readLevels(*x, o.at("levels"));
   if (const json* x = o.find("smoother")) {
@@ -516,6 +518,9 @@ MultigridSettings readMultigrid(const json& v, const std::string& path) {
   if (const json* x = o.find("cycles")) m.cycles = readInteger(*x, o.at("cycles"));
   if (const json* x = o.find("refresh_interval")) {
     m.coarseRefreshInterval = readInteger(*x, o.at("refresh_interval"));
+  }
+  if (const json* x = o.find("refresh_slack")) {
+    m.coarseRefreshSlack = readInteger(*x, o.at("refresh_slack"));
   }
   if (const json* x = o.find("crack_rebinding")) {
     m.crackRebinding = readBool(*x, o.at("crack_rebinding"));

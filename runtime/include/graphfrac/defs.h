@@ -87,11 +87,24 @@ struct MultigridSettings {
   /// still 7-8 iterations at 175k tets, where the default's grow to 27-30), but P^T A P costs
   /// 20-70x the piecewise-affine product (12x12 blocks of basis functions that overlap their
   /// neighbours), so on the bodies of `graphfrac bench multigrid` (30k-160k tets, one thread)
-  /// a step takes 1.5-3x longer than with the default (docs/validation.md, issue 14). false:
+  /// a step takes 1.5-3x longer than with the default (docs/validation.md, issue 14); with
+  /// coarseRefreshInterval 30, which leaves the product out of most frames, the solve stage
+  /// still takes 1.6-2.2x the default's (GS 4+4: each V-cycle costs 2.5-4x). false:
   /// P = U, the thesis's prolongation (eq 6.6-6.8).
   bool smoothedProlongation = false;
-  /// Recompute the coarse operators A_{l+1} = P^T A_l P (eq 6.4) every this many solves.
+  /// Recompute the coarse operators A_{l+1} = P^T A_l P (eq 6.4) and the coarsest
+  /// factorisation at least every this many solves (and at the first solve after set-up).
+  /// With preconditionCG the V-cycle only preconditions CG: coarse operators of an earlier
+  /// matrix still give an SPD preconditioner, the fine smoother always sees the current
+  /// matrix, and CG converges to the current system's solution; a stale coarse level only
+  /// costs iterations (see coarseRefreshSlack). In "cycles" mode it changes what the fixed
+  /// cycles reach. Above 1, crack re-binding also waits for the next refresh, and a restored
+  /// snapshot replays only to the solver tolerance (not bit for bit). 1: every solve.
   int coarseRefreshInterval = 1;
+  /// With preconditionCG and coarseRefreshInterval > 1: refresh early, at the next solve, once
+  /// a solve took more MG-CG iterations than the first solve after the last refresh plus this
+  /// many (the matrix has drifted from the one the coarse operators were built from). >= 0.
+  int coarseRefreshSlack = 2;
   /// Re-bind vertices whose handle sits across a crack (SPEC §5) when edges break.
   bool crackRebinding = true;
   /// A body with fewer free (not gripped) nodes than this is solved by the sparse Cholesky

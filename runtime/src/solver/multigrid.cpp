@@ -106,6 +106,27 @@ struct MultigridSolver::Impl {
   std::vector<Level> levels;  // 0 = fine
   int32_t fineBlocks = -1;
   int solvesSinceRefresh = 0;
+  // MG-CG iterations of the first solve after the last refresh (-1: none yet) and of the last
+  // solve: the early-refresh test of coarseRefreshSlack.
+  int refreshIterations = -1;
+  int lastIterations = 0;
+  // Deferred crack re-binding (coarseRefreshInterval > 1): the broken state of the last
+  // rebind() call, applied with the next refresh. Until then the hierarchy of the previous
+  // binding preconditions CG (still SPD, so CG converges to the current system's solution); a
+  // crack that weakens it raises the iteration count, which brings the refresh forward.
+  std::vector<int32_t> pendingEdgeNodes;
+  std::vector<uint8_t> pendingBroken;
+  bool rebindPending = false;
+
+  void applyRebind() {
+    const auto t0 = Clock::now();
+    hierarchy.rebind(pendingEdgeNodes.data(), pendingBroken.data(),
+                     static_cast<int32_t>(pendingBroken.size()));
+    rebindPending = false;
+    patternsChanged = true;
+    needRefresh = true;
+    stats.rebindMs = msSince(t0);
+  }
   bool needRefresh = true;
   bool patternsChanged = true;
   std::vector<double> partials;
@@ -317,9 +338,14 @@ struct MultigridSolver::Impl {
   // solve.
   void prepare(const BlockSparseMatrix& A, JobSystem& jobs) {
     const auto t0 = Clock::now();
+    // Iteration counts are the same for any thread count, so this choice is deterministic.
+    const bool drifted = settings.preconditionCG && refreshIterations >= 0 &&
+                         lastIterations > refreshIterations + settings.coarseRefreshSlack;
+    const bool due = needRefresh || drifted || solvesSinceRefresh >= settings.coarseRefreshInterval;
+    if (due && rebindPending) applyRebind();
     if (patternsChanged) buildLevels(A);
     invertDiagonals<3>(0, A, jobs);
-    if (needRefresh || solvesSinceRefresh >= settings.coarseRefreshInterval) {
+    if (due) {
       refresh(A, jobs);
       needRefresh = false;
       solvesSinceRefresh = 0;
@@ -363,6 +389,10 @@ Result<void> MultigridSolver::setup(const MultigridSettings& settings, const dou
   s.fineBlocks = A.blockCount();
   s.buildLevels(A);
   s.needRefresh = true;
+  s.rebindPending = false;
+  s.solvesSinceRefresh = 0;
+  s.refreshIterations = -1;
+  s.lastIterations = 0;
   s.stats.setupMs = msSince(t0);
   return {};
 }
@@ -370,11 +400,11 @@ Result<void> MultigridSolver::setup(const MultigridSettings& settings, const dou
 void MultigridSolver::rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount) {
   Impl& s = *m_impl;
   if (!s.settings.crackRebinding || s.fineBlocks < 0) return;
-  const auto t0 = Clock::now();
-  s.hierarchy.rebind(edgeNodes, broken, edgeCount);
-  s.patternsChanged = true;
-  s.needRefresh = true;
-  s.stats.rebindMs = msSince(t0);
+  s.pendingEdgeNodes.assign(edgeNodes, edgeNodes + 2 * static_cast<size_t>(edgeCount));
+  s.pendingBroken.assign(broken, broken + edgeCount);
+  s.rebindPending = true;
+  s.stats.rebindMs = 0;
+  if (s.settings.coarseRefreshInterval <= 1) s.applyRebind();
 }
 
 bool MultigridSolver::ready(const BlockSparseMatrix& A) const {
@@ -447,6 +477,8 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
       prepareLevels, maxIterations, relativeTolerance, run);
   st.cycles = run.vCycles;
   st.iterations = s.settings.preconditionCG ? report.iterations : 0;
+  if (st.refreshed) s.refreshIterations = st.iterations;
+  s.lastIterations = st.iterations;
   st.smoothMs = times.smoothMs;
   st.transferMs = times.transferMs;
   st.coarseSolveMs = times.coarseSolveMs;

@@ -26,7 +26,7 @@ struct MultigridStats {
   double transferMs = 0;         ///< residuals, restriction and prolongation between levels
   double totalMs = 0;            ///< the whole solve
   double setupMs = 0;            ///< last setup()
-  double rebindMs = 0;           ///< last rebind()
+  double rebindMs = 0;           ///< last re-binding applied (deferred ones: by a solve)
   std::vector<int32_t> handles;  ///< per coarse level, coarsest first (as MultigridSettings)
   int iterations = 0;            ///< CG iterations of the last solve (0 when cycling alone)
   int cycles = 0;                ///< V-cycles of the last solve
@@ -49,7 +49,8 @@ class MultigridSolver {
   Result<void> setup(const MultigridSettings& settings, const double* restPositions,
                      const uint8_t* fixedNode, const BlockSparseMatrix& A);
   /// Crack re-binding after edges broke (edgeNodes: 2 per edge; broken: 1/0 per edge, the
-  /// full current state). No-op when settings.crackRebinding is false.
+  /// full current state). No-op when settings.crackRebinding is false. With
+  /// coarseRefreshInterval > 1 it is applied at the next refresh (the arrays are copied).
   void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount);
   /// Solves A x = b (A with the pattern given to setup). x holds the initial guess. With
   /// preconditionCG, flexible CG with one V-cycle per iteration up to maxIterations; else up to

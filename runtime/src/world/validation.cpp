@@ -75,6 +75,8 @@ Result<void> MultigridSettings::check() const {
   if (cycles < 1) return fail("cycles: must be >= 1, got ", std::to_string(cycles));
   if (coarseRefreshInterval < 1)
     return fail("coarseRefreshInterval: must be >= 1, got ", std::to_string(coarseRefreshInterval));
+  if (coarseRefreshSlack < 0)
+    return fail("coarseRefreshSlack: must be >= 0, got ", std::to_string(coarseRefreshSlack));
   if (directBelowNodes < 0)
     return fail("directBelowNodes: must be >= 0, got ", std::to_string(directBelowNodes));
   return {};
