@@ -319,6 +319,31 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
       nn, kNodeGrain,
       RigidStartStage{state.x.data(), state.v.data(), m_pieces.data(), m_pieceOfNode.data(), dt,
                       fullDt, m_x.data(), m_y.data(), damped ? m_dampRef.data() : nullptr});
+  // A piece of a cracked body is rubble or holds cracked elements, so I^-1 L of its loosely
+  // joined parts is no rigid spin, and its turn about the centre can press it into the
+  // ground: a shattered block (one piece, its fragments sharing damaged tets) started with
+  // 2.7 J of penalty energy where x_n had 6e-4 J, one Newton step only lowers the potential
+  // from there, and the contact impulses spun it from 6.6 to 52.6 rad/s (+7.8 E0; stability
+  // suite, Nu0p4999). Starting such a piece at x_n but keeping the turned target was no cure:
+  // the end spin then read the turn the solve had not made as the deformation's and doubled
+  // it every step (+8.8 E0 at 10 m/s). So a cracked body's piece that its turn presses deeper
+  // into a collider than x_n is stepped by plain backward Euler, as a thin piece is, which
+  // cannot gain energy. An intact body keeps its turn: a block rocking under another needs it
+  // (BodyContact.TwoBlocksComeToRestStacked).
+  if (ctx.colliderCount > 0 && m_fracture && m_fracture->brokenCount() > 0) {
+    m_piecePressed.resize(size_t(pieces));
+    exec.run(nn, kNodeGrain,
+             PiecePressTerms{state.x.data(), m_x.data(), m_pieces.data(), m_pieceOfNode.data(),
+                             ctx.colliders, ctx.colliderCount, m_swept, m_pieceTerms.data()});
+    segmentedReduce<MaxOp>(exec, m_pieceLists.view(), m_pieceTerms.data(), nn, 1,
+                           m_piecePartials.data(), m_pieceSums.data());
+    exec.run(pieces, kPieceGrain,
+             PiecePressedStage{m_pieceSums.data(), m_pieces.data(), m_piecePressed.data()});
+    if (exec.max(m_piecePressed.data(), pieces) > 0)
+      exec.run(nn, kNodeGrain,
+               PlainStepStage{state.x.data(), state.v.data(), m_pieces.data(), m_pieceOfNode.data(),
+                              dt, m_x.data(), m_y.data(), damped ? m_dampRef.data() : nullptr});
+  }
 }
 
 void Integrator::buildFriction(const FemModel& model, const FemState& state, const StepContext& ctx,

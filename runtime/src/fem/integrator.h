@@ -235,8 +235,9 @@ class Integrator {
   uint64_t m_piecesKey = kNoPieces;  // the fragments' version m_pieceLists belongs to
   std::vector<double> m_pieceTerms;  // per-node terms of the piece sums, kPieceSpinTerms arrays
   std::vector<double> m_pieceSums, m_piecePartials;
-  std::vector<double> m_y;        // inertia target of the step
-  std::vector<double> m_dampRef;  // what stiffness damping measures the motion from
+  std::vector<double> m_piecePressed;  // per piece, 1 when stepped by plain backward Euler
+  std::vector<double> m_y;             // inertia target of the step
+  std::vector<double> m_dampRef;       // what stiffness damping measures the motion from
 };
 
 }  // namespace gf::detail

@@ -29,6 +29,8 @@ struct RigidPiece {
   Vec3 contactNormal{0, 0, 0}, slide{0, 0, 0};
   double frictionForce = 0;
   bool fixed = false, rigid = false;
+  /// Taken out of the turning frame for this step (PiecePressedStage).
+  bool plainStep = false;
 };
 
 // A thin piece (a needle or a line of nodes: some axis has under kThinAxis of the largest
@@ -326,6 +328,71 @@ struct RigidStartStage {
       x[i3 + i] = start[i] + p.slide[i];
       y[i3 + i] = target[i];
       if (dampRef) dampRef[i3 + i] = start[i];
+    }
+  }
+};
+
+/// Per node of a free piece: how much deeper in the colliders Newton's start (the turned x_n
+/// plus the slide) lies than x_n, the largest over the colliders (0 if nowhere deeper).
+struct PiecePressTerms {
+  const double* xn = nullptr;
+  const double* x = nullptr;  ///< Newton's start
+  const RigidPiece* pieces = nullptr;
+  const int32_t* pieceOfNode = nullptr;
+  const ColliderData* colliders = nullptr;
+  int colliderCount = 0;
+  SweptContacts swept;
+  double* out = nullptr;
+
+  GF_HD void operator()(int32_t n) const {
+    double deeper = 0;
+    if (pieces[pieceOfNode[n]].rigid) {
+      const Vec3 xi = nodeVec3(x, n), xni = nodeVec3(xn, n);
+      for (int c = 0; c < colliderCount; ++c) {
+        Vec3 normal;
+        const double depth = swept.depth(colliders[c], c, n, xi, normal);
+        const double before = swept.depth(colliders[c], c, n, xni, normal);
+        const double excess = depth - (before > 0 ? before : 0.0);
+        if (excess > deeper) deeper = excess;
+      }
+    }
+    out[n] = deeper;
+  }
+};
+
+/// Piece s is stepped by plain backward Euler when its turned start lies deeper in a collider
+/// than x_n anywhere (sums: PiecePressTerms' per-piece maxima).
+struct PiecePressedStage {
+  const double* sums = nullptr;
+  RigidPiece* pieces = nullptr;
+  double* pressed = nullptr;  ///< per piece, 1 when so stepped
+
+  GF_HD void operator()(int32_t s) const {
+    RigidPiece& p = pieces[s];
+    p.plainStep = p.rigid && sums[s] > 0;
+    if (p.plainStep) p.rigid = false;
+    pressed[s] = p.plainStep ? 1.0 : 0.0;
+  }
+};
+
+/// The plain backward-Euler step's start x_n, inertia target x_n + dt v_n and stiffness
+/// damping reference x_n on the nodes of the pieces PiecePressedStage took out of the frame.
+struct PlainStepStage {
+  const double* xn = nullptr;
+  const double* vn = nullptr;
+  const RigidPiece* pieces = nullptr;
+  const int32_t* pieceOfNode = nullptr;
+  double dt = 0;
+  double* x = nullptr;
+  double* y = nullptr;
+  double* dampRef = nullptr;  ///< null without stiffness damping
+
+  GF_HD void operator()(int32_t n) const {
+    if (!pieces[pieceOfNode[n]].plainStep) return;
+    for (int64_t i = 3 * int64_t(n); i < 3 * int64_t(n) + 3; ++i) {
+      x[i] = xn[i];
+      y[i] = xn[i] + dt * vn[i];
+      if (dampRef) dampRef[i] = xn[i];
     }
   }
 };
