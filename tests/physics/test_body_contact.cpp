@@ -721,5 +721,79 @@ TEST(BodyContact, SameBitsForAnyThreadCount) {
   EXPECT_EQ(0, std::memcmp(serial.data(), four.data(), serial.size() * sizeof(double)));
 }
 
+// Many groups at once: a cut body whose upper piece is thrown onto its lower one (self contact
+// between fragments) beside two stacks of two blocks, so the broad phase, the hash, the pair
+// lists and the exchange's clusters (three of them) all run with several slots and groups.
+std::vector<double> manyGroupsState(JobSystem* jobs, int64_t* pairsOut, int32_t* fragmentsOut) {
+  WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, jobs, 1, {}};
+  Collider ground;
+  ground.friction = 0.5;
+  wd.colliders.push_back(ground);
+  World world(wd);
+  BodyDef cut;
+  cut.mesh = gen::box(0.1, 0.4, 0.1, 4, 16, 4);
+  cut.material = Material::stableNeoHookean(1e6, 0.3, 1000);
+  cut.material.stiffnessDamping = 0.02;
+  cut.fracture.enabled = true;
+  cut.fracture.strength = 1e9;  // only the cut breaks
+  cut.contact = true;
+  std::vector<BodyId> ids{world.createBody(cut).value()};
+  for (double x : {0.4, 0.8}) {
+    BodyDef lower, upper;
+    lower.mesh = movedBox(0.2, 0.2, 0.2, 4, 4, 4, {x, 0.01, 0});
+    upper.mesh = movedBox(0.15, 0.15, 0.15, 3, 3, 3, {x + 0.025, 0.25, 0.025});
+    for (BodyDef* d : {&lower, &upper}) {
+      d->material = Material::stableNeoHookean(2e5, 0.3, 1000);
+      d->contact = true;
+      ids.push_back(world.createBody(*d).value());
+    }
+  }
+  Blade blade;  // the plane y = 0.206, off the nodes
+  blade.vertices = {{-1, 0.206f, -1}, {1, 0.206f, -1}, {1, 0.206f, 1}, {-1, 0.206f, 1}};
+  blade.triangles = {0, 2, 1, 0, 3, 2};
+  EXPECT_TRUE(world.cut(ids[0], blade).ok());
+  EXPECT_TRUE(world.step(1.0 / 60).ok());
+  std::vector<double> v(world.velocities(ids[0]).begin(), world.velocities(ids[0]).end());
+  for (size_t n = 0; n < cut.mesh.nodeCount(); ++n)
+    if (cut.mesh.positions[3 * n + 1] > 0.21) {
+      v[3 * n] = 0.15;
+      v[3 * n + 1] = 2;
+    }
+  EXPECT_TRUE(world.setVelocities(ids[0], v).ok());
+  int64_t pairs = 0;
+  for (int s = 0; s < 45; ++s) {
+    EXPECT_TRUE(world.step(1.0 / 60).ok());
+    pairs += world.timings().contactPairs;
+  }
+  *pairsOut = pairs;
+  *fragmentsOut = world.fractureStats(ids[0]).fragments;
+  std::vector<double> out;
+  for (BodyId id : ids) {
+    const auto x = world.positions(id), vel = world.velocities(id);
+    out.insert(out.end(), x.begin(), x.end());
+    out.insert(out.end(), vel.begin(), vel.end());
+  }
+  return out;
+}
+
+TEST(BodyContact, SameBitsForAnyThreadCountWithManyBodiesAndFragments) {
+  ThreadPoolJobSystem pool2(2), pool4(4);
+  int64_t pairs[3] = {};
+  int32_t fragments[3] = {};
+  const std::vector<double> serial = manyGroupsState(nullptr, &pairs[0], &fragments[0]);
+  const std::vector<double> two = manyGroupsState(&pool2, &pairs[1], &fragments[1]);
+  const std::vector<double> four = manyGroupsState(&pool4, &pairs[2], &fragments[2]);
+  std::printf("many groups: %lld pairs, %d fragments of the cut body\n", (long long)pairs[0],
+              fragments[0]);
+  EXPECT_GT(pairs[0], 0);
+  EXPECT_GE(fragments[0], 2);
+  EXPECT_EQ(pairs[1], pairs[0]);
+  EXPECT_EQ(pairs[2], pairs[0]);
+  ASSERT_EQ(serial.size(), two.size());
+  ASSERT_EQ(serial.size(), four.size());
+  EXPECT_EQ(0, std::memcmp(serial.data(), two.data(), serial.size() * sizeof(double)));
+  EXPECT_EQ(0, std::memcmp(serial.data(), four.data(), serial.size() * sizeof(double)));
+}
+
 }  // namespace
 }  // namespace gf

@@ -711,11 +711,11 @@ int benchDebris(int argc, char** argv) {
 // 16 bodies on the ground, 0.3 m apart on a 4 x 4 grid: boxes of 0.1 m and `cells`^3 cells
 // (stacked false: apart, never touching), or the two blocks of BodyContact.TwoBlocksComeToRest-
 // Stacked (20 cm of 4^3 cells with 15 cm of 3^3 cells dropped on it) at each place.
-std::unique_ptr<World> contactWorld(int cells, bool stacked, bool contact) {
+std::unique_ptr<World> contactWorld(int cells, bool stacked, bool contact, JobSystem* jobs) {
   Collider ground;  // the plane y = 0
   ground.friction = 0.5;
   auto world =
-      std::make_unique<World>(WorldDef{glm::vec3(0, -9.81f, 0), g_backend, nullptr, 1, {ground}});
+      std::make_unique<World>(WorldDef{glm::vec3(0, -9.81f, 0), g_backend, jobs, 1, {ground}});
   BodyDef def;
   def.material = Material::stableNeoHookean(stacked ? 2e5 : 1e6, 0.3, 1000);
   def.material.stiffnessDamping = 0.02;
@@ -737,12 +737,16 @@ std::unique_ptr<World> contactWorld(int cells, bool stacked, bool contact) {
 }
 
 int benchContact(int argc, char** argv) {
-  int frames = 60, rounds = 5, cells = 4;
+  int frames = 60, rounds = 5, cells = 4, threads = 1;
   for (int i = 2; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--frames")) frames = std::max(1, std::atoi(argv[i + 1]));
     if (!std::strcmp(argv[i], "--rounds")) rounds = std::max(1, std::atoi(argv[i + 1]));
     if (!std::strcmp(argv[i], "--cells")) cells = std::max(1, std::atoi(argv[i + 1]));
+    if (!std::strcmp(argv[i], "--threads")) threads = std::max(1, std::atoi(argv[i + 1]));
   }
+  // One thread: the World's own serial jobs, as a game without a pool runs it.
+  std::unique_ptr<JobSystem> pool =
+      threads > 1 ? std::make_unique<ThreadPoolJobSystem>(threads) : nullptr;
   const double dt = 1.0 / 60;
   // No pairs: the same falling boxes with contact on and off, the best of `rounds` alternating
   // runs each (the same fall in both, so the solver work is equal).
@@ -750,7 +754,7 @@ int benchContact(int argc, char** argv) {
   int64_t pairsApart = 0;
   for (int r = 0; r < rounds; ++r)
     for (int on = 1; on >= 0; --on) {
-      std::unique_ptr<World> w = contactWorld(cells, false, on != 0);
+      std::unique_ptr<World> w = contactWorld(cells, false, on != 0, pool.get());
       if (!w) return kExitScene;
       (void)w->step(dt);  // warm-up: first-use allocations, the contact surfaces
       double contact = 0;
@@ -770,13 +774,14 @@ int benchContact(int argc, char** argv) {
         }
       }
     }
-  std::printf("# 16 boxes of %d tets falling apart onto the ground, %d frames, best of %d\n",
-              6 * cells * cells * cells, frames, rounds);
+  std::printf(
+      "# 16 boxes of %d tets falling apart onto the ground, %d frames, best of %d, %d thread(s)\n",
+      6 * cells * cells * cells, frames, rounds, threads);
   std::printf("case,ms_frame_contact_on,ms_frame_contact_off,ratio,ms_contact_stage,pairs\n");
   std::printf("apart,%.3f,%.3f,%.4f,%.4f,%lld\n", best[1], best[0], best[1] / best[0], contactMs,
               (long long)pairsApart);
   // Pairs: 16 stacks of two blocks at rest.
-  std::unique_ptr<World> w = contactWorld(cells, true, true);
+  std::unique_ptr<World> w = contactWorld(cells, true, true, pool.get());
   if (!w) return kExitScene;
   for (int f = 0; f < 120; ++f) (void)w->step(dt);  // they land and settle
   double contact = 0, total = 0;
@@ -822,7 +827,7 @@ int runBenchCommand(int argc, char** argv) {
         "  200 boxes of 48 and of 162 tets falling onto the ground against one box of the same\n"
         "  tets, ms per frame at 1 and 2 threads, and the OS threads of the process; S is\n"
         "  default, pcg, direct or multigrid (the multigrid at every size)\n"
-        "       graphfrac bench contact [--cells N] [--frames F] [--rounds R]\n"
+        "       graphfrac bench contact [--cells N] [--frames F] [--rounds R] [--threads T]\n"
         "  body-body contact: 16 boxes of N^3 cells (default 4) falling apart with contact on\n"
         "  and off (the ratio is the cost without pairs), then 16 stacks of two blocks at rest\n"
         "  (ms of the contact stage per pair)\n"

@@ -11,12 +11,16 @@
 //   has not separated the body are left to the damage model (no double counting), and a
 //   separated crack opens a layer of tets that span both fragments, whose outer faces meet.
 //   The surfaces are rebuilt only when the fragments change (their version).
-// - Broad phase, once per substep, serial in slot order (deterministic for any thread count):
-//   the groups (one per fragment of each taking part body) are boxed over their surface
-//   vertices at x_n and at x_n + dt v_n; only pairs of groups whose boxes overlap go on, so a
-//   scene in which no two surfaces come near spends an O(surface vertices) box pass. Then a
-//   sorted uniform grid over those groups' faces (each face's box over both positions, grown by
-//   the contact thickness) gives each vertex the faces of other groups near its path.
+// - Broad phase, once per substep, as executor stages (contact/contact_stages.h; the same bits
+//   for any thread count): the groups (one per fragment of each taking part body) are boxed
+//   over their surface vertices at x_n and at x_n + dt v_n (a segmented min and max); only
+//   groups whose boxes meet another's go on, so a scene in which no two surfaces come near
+//   spends an O(surface vertices) box pass. Then those groups' faces (each face's box over both
+//   positions, grown by the contact thickness) go into a spatial hash: the cells of each face
+//   by a count, a scan and a fill, radix-sorted by bucket; each vertex (and each feature edge)
+//   queries the cells of its path, meets every face once, counts its pairs, and after a scan
+//   writes them into its own slots, in face order. A node's half-spaces are its vertex-face
+//   pairs, then the edge-edge ones of its edges in edge order.
 // - Narrow phase, per (vertex, face): the point of the face nearest the vertex's predicted
 //   position x~ = x_n + dt v_n, with the face also at its predicted position. The pair is kept
 //   when the vertex lies over the face (its offset from the nearest point is along the normal,
@@ -62,7 +66,13 @@
 //   must be kept) that residual is counted in too, so its momentum is exact to round-off. In a
 //   cluster on a collider it is not (it cannot be told apart from the collider's own residual,
 //   and counting it made a resting stack jitter). A cluster holding a kinematic group (no free
-//   node) is left as it is.
+//   node) is left as it is. The clusters are found by stages too: every group takes the least
+//   label among the groups its half-spaces join it to, in either direction, until none changes
+//   (each group then holds its cluster's least group, the root of a union-find with the smaller
+//   root winning). A cluster's impulses are summed in slot, node and half-space order, and its
+//   groups' free masses (each in node order) in group order: the serial order of the loop this
+//   replaced, whose bits a resting stack is sensitive to (BodyContactStack dropped_30cm_60 slid
+//   off its seat with the sums in the executor's chunked order).
 #pragma once
 
 #include <array>
@@ -70,22 +80,29 @@
 #include <span>
 #include <vector>
 
+#include "contact/contact_hash.h"
+#include "contact/contact_stages.h"
 #include "fem/fem_body.h"
 #include "fem/integrator.h"
 #include "kernels/contact.h"
+#include "step/executor.h"
+#include "step/scan.h"
+#include "step/segments.h"
 
 namespace gf::detail {
 
-/// The faces of one body's mesh and the contact surface of its current fragments.
+/// The faces of one body's mesh and the contact surface of its current fragments, with the
+/// adjacency lists the contact stages read (rebuilt with the surface: only when the fragments
+/// change).
 class ContactSurface {
  public:
   /// Face table of the rest mesh (once per body).
   void init(const FemModel& model);
-  /// Contact faces and vertices for the fragment labels (null: one fragment), leaving out the
-  /// fragments flagged in `excluded` (null: none; 1 per fragment). Rebuilds only when `key`
-  /// differs from the last call's.
-  void update(const FemModel& model, const int32_t* nodeFragment, const uint8_t* excluded,
-              uint64_t key);
+  /// Contact faces and vertices for the fragment labels (null: one fragment; fragmentCount
+  /// of them), leaving out the fragments flagged in `excluded` (null: none; 1 per fragment).
+  /// Rebuilds only when `key` differs from the last call's.
+  void update(const FemModel& model, const int32_t* nodeFragment, int32_t fragmentCount,
+              const uint8_t* excluded, uint64_t key);
   /// 3 nodes per face, counter-clockwise seen from outside.
   std::span<const int32_t> faces() const { return m_faces; }
   /// Per contact face, per edge k (nodes k and k + 1): the contact face across it, -1 where
@@ -93,6 +110,17 @@ class ContactSurface {
   std::span<const int32_t> neighbours() const { return m_neighbours; }
   /// Nodes on some contact face, ascending.
   std::span<const int32_t> vertices() const { return m_vertices; }
+  /// Per node: its index in vertices(), -1 for none.
+  std::span<const int32_t> nodeVertex() const { return m_nodeVertex; }
+  /// Per vertex (vertexCount + 1 offsets): its faces, ascending.
+  std::span<const int32_t> vertexFaceStart() const { return m_vertexFaceStart; }
+  std::span<const int32_t> vertexFaces() const { return m_vertexFaces; }
+  /// Per vertex (vertexCount + 1 offsets): the face edges 3 f + k it ends, ascending.
+  std::span<const int32_t> vertexEdgeStart() const { return m_vertexEdgeStart; }
+  std::span<const int32_t> vertexEdges() const { return m_vertexEdges; }
+  /// The vertices, and the nodes, grouped by fragment (step/segments.h).
+  Segments vertexSegments() const { return m_vertexSegments.view(); }
+  Segments nodeSegments() const { return m_nodeSegments.view(); }
   /// Edge of a regular tet of the mesh's mean volume: the contact thickness's scale.
   double cellSize() const { return m_cellSize; }
 
@@ -100,8 +128,10 @@ class ContactSurface {
   std::vector<int32_t> m_faceNodes;     // 3 per mesh face, oriented away from m_faceOpposite[0]
   std::vector<int32_t> m_faceOpposite;  // 2 per face: the node opposite on each side, -1 none
   std::vector<int32_t> m_boundary;      // faces with one tet
-  std::vector<int32_t> m_faces, m_vertices, m_neighbours;
+  std::vector<int32_t> m_faces, m_vertices, m_neighbours, m_nodeVertex;
+  std::vector<int32_t> m_vertexFaceStart, m_vertexFaces, m_vertexEdgeStart, m_vertexEdges;
   std::vector<std::array<int32_t, 3>> m_edgeKeys;  // (lower node, higher node, face * 3 + k)
+  SegmentLists m_vertexSegments, m_nodeSegments;
   uint64_t m_key = ~uint64_t(0);
   double m_cellSize = 0;
 };
@@ -117,14 +147,15 @@ struct ContactBodyView {
 };
 
 /// The world's body-body and self contact: per substep, the half-spaces of every body's
-/// nodes (find) and, after the bodies stepped, the exact exchange of momentum (exchange).
+/// nodes (find) and, after the bodies stepped, the exact exchange of momentum (exchange), as
+/// stages on the executor.
 class BodyContact {
  public:
   /// Finds the contact pairs of the substep dt among `bodies` (one entry per slot; a null
   /// model: the slot takes no part) and fills each body's half-spaces; `stiffness` per unit
   /// mass [1/s^2] as a collider's, slipEps friction's smoothing length. Returns the pair count.
-  int64_t find(std::span<const ContactBodyView> bodies, double dt, double stiffness,
-               double slipEps);
+  int64_t find(const CpuExecutor& exec, std::span<const ContactBodyView> bodies, double dt,
+               double stiffness, double slipEps);
   /// The half-spaces of slot si for StepContext::bodyContacts (start null: none).
   HalfSpaceContacts halfSpaces(size_t si) const;
   /// Buffer for slot si's half-space impulses (Integrator::bodyContactImpulses), 3 each.
@@ -135,54 +166,48 @@ class BodyContact {
   /// Takes the mismatch of action and reaction off every cluster of touching groups (design
   /// note) by changing the velocities of their free nodes in `states` (one per slot, as given
   /// to find()).
-  void exchange(std::span<const ContactBodyView> bodies, std::span<FemState* const> states);
+  void exchange(const CpuExecutor& exec, std::span<FemState* const> states);
 
  private:
   struct Slot {
     std::vector<int32_t> start;  // nodeCount + 1
     std::vector<Vec3> point, normal;
-    std::vector<int32_t> partner;    // the group on the other side, per half-space
-    std::vector<double> muLambda;    // per half-space
-    std::vector<double> stiffness;   // per half-space [N/m]
-    std::vector<Vec3> faceMotion;    // per half-space
-    std::vector<Vec3> vertexNormal;  // per node (surface vertices of near groups only)
-    std::vector<double> impulse;     // 3 per half-space
+    std::vector<int32_t> partner;   // the group on the other side, per half-space
+    std::vector<double> muLambda;   // per half-space
+    std::vector<double> stiffness;  // per half-space [N/m]
+    std::vector<Vec3> faceMotion;   // per half-space
+    std::vector<double> impulse;    // 3 per half-space
     bool active = false;
     BodyContactBalance balance;
+    // Scratch of the stages.
+    std::vector<double> path;        // 6 per surface vertex
+    std::vector<Vec3> vertexNormal;  // per surface vertex
+    std::vector<int32_t> vertexStart, edgeStart, vertexWritten, edgeWritten;
+    std::vector<ContactHalfSpace> vertexPairs, edgePairs;
+    std::vector<uint8_t> hasContact;  // per node
   };
-  struct Pair {
-    int32_t node = 0, face = 0;  // face: its index in the other body's surface
-    int32_t partner = 0;         // group of the face
-    Vec3 point, normal, faceMotion;
-    double muLambda = 0, stiffness = 0;
-  };
-
-  // The faces of the grid (cell size h) whose cells meet box, into m_candidates.
-  void gatherFaces(const double* box, double h);
-  // The edge-edge half-spaces of slot si's feature edges, appended to m_pairs.
-  void edgePairs(std::span<const ContactBodyView> bodies, size_t si, double dt, double stiffness,
-                 double h);
 
   std::vector<Slot> m_bodies;
-  std::vector<int32_t> m_groupBase;  // per slot: its fragment 0's group
-  std::vector<int32_t> m_groupSlot;  // per group
-  std::vector<double> m_box;         // 6 per group
-  std::vector<double> m_groupThickness;
-  std::vector<uint8_t> m_near;                           // per group: its box overlaps another's
-  std::vector<std::pair<int32_t, int32_t>> m_nearLinks;  // (group, group whose box it meets)
-  std::vector<std::pair<uint64_t, int32_t>> m_grid;      // (cell, global face)
-  std::vector<int32_t> m_faceSlot, m_faceIndex;  // global face -> slot, index in its surface
-  std::vector<double> m_faceBox;                 // 6 per global face
-  std::vector<int32_t> m_hugeFaces;
-  std::vector<int32_t> m_candidates;
-  std::vector<Pair> m_pairs;
-  std::vector<int32_t> m_cluster;  // per group: union-find parent
-  std::vector<Vec3> m_clusterImpulse;
-  std::vector<double> m_clusterMass;
-  std::vector<uint8_t> m_clusterOk, m_clusterExternal;
-  std::vector<double> m_freeMass;  // per group
-  std::vector<Vec3> m_groupVelocity;
-  std::vector<double> m_groupMass;  // per group, for the edge-edge penalty
+  std::vector<ContactBody> m_table;  // per slot
+  std::vector<int32_t> m_faceBase;   // per slot
+  int32_t m_groups = 0;
+  std::vector<double> m_box;  // 6 per group
+  std::vector<int32_t> m_nearStart, m_nearLinks;
+  std::vector<double> m_lower, m_upper, m_partials, m_groupMass, m_groupFree;
+  std::vector<int32_t> m_faceSlot, m_chunkCount, m_chunkOffset;
+  std::vector<uint8_t> m_faceNear;
+  std::vector<double> m_faceNearCount, m_faceBox, m_faceExtent;
+  ContactHash m_hash;
+  ScanScratch m_scan;
+  // The exchange's.
+  std::vector<uint64_t> m_linkKeys, m_labelKeys;
+  std::vector<int32_t> m_linkValues, m_labelValues, m_label, m_nextLabel;
+  std::vector<double> m_changed;
+  std::vector<uint64_t> m_entryKeys;  // per node with half-spaces: its cluster
+  std::vector<int32_t> m_entryValues, m_entrySlot, m_entryNode;
+  std::vector<ContactSlotBalance> m_slotBalance;
+  std::vector<Vec3> m_clusterVelocity;
+  std::vector<uint8_t> m_clusterMoves;
   double m_slipEps = 0;
   int64_t m_pairCount = 0;
 };

@@ -13,6 +13,7 @@
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
 #include "kernels/split_point.h"
+#include "step/scan.h"
 
 namespace gf::detail {
 
@@ -264,50 +265,6 @@ struct EdgeCandidateStage {
     }
     stress[e] = best;
     tet[e] = bestTet;
-  }
-};
-
-/// Items per chunk of a compaction.
-constexpr int32_t kCompactChunk = 1024;
-
-/// The number of set flags in chunk c of a compaction.
-struct CompactCountStage {
-  const uint8_t* flag = nullptr;
-  int32_t count = 0;
-  int32_t* chunkCount = nullptr;
-
-  GF_HD void operator()(int32_t c) const {
-    const int32_t end = (c + 1) * kCompactChunk < count ? (c + 1) * kCompactChunk : count;
-    int32_t n = 0;
-    for (int32_t i = c * kCompactChunk; i < end; ++i) n += flag[i] ? 1 : 0;
-    chunkCount[c] = n;
-  }
-};
-
-/// One item: chunkOffset[c] = the set flags before chunk c (chunks + 1 entries).
-struct CompactOffsetStage {
-  const int32_t* chunkCount = nullptr;
-  int32_t chunks = 0;
-  int32_t* chunkOffset = nullptr;
-
-  GF_HD void operator()(int32_t) const {
-    chunkOffset[0] = 0;
-    for (int32_t c = 0; c < chunks; ++c) chunkOffset[c + 1] = chunkOffset[c] + chunkCount[c];
-  }
-};
-
-/// The indices of chunk c's set flags, in index order, at out[chunkOffset[c]..].
-struct CompactScatterStage {
-  const uint8_t* flag = nullptr;
-  int32_t count = 0;
-  const int32_t* chunkOffset = nullptr;
-  int32_t* out = nullptr;
-
-  GF_HD void operator()(int32_t c) const {
-    const int32_t end = (c + 1) * kCompactChunk < count ? (c + 1) * kCompactChunk : count;
-    int32_t o = chunkOffset[c];
-    for (int32_t i = c * kCompactChunk; i < end; ++i)
-      if (flag[i]) out[o++] = i;
   }
 };
 

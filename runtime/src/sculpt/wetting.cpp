@@ -90,49 +90,22 @@ WettingModel buildWettingModel(const FemModel& model, const WettingSettings& set
   return w;
 }
 
-void updateCrackBarriers(const FemModel& model, WettingModel& w, const int32_t* nodeFragment) {
+void updateCrackBarriers(const FemModel& model, WettingModel& w, const int32_t* nodeFragment,
+                         JobSystem& jobs) {
+  const CpuExecutor exec(jobs);
   const int32_t nt = model.tetCount, nf = int32_t(w.conductance.size());
-  // The fragment of most of each tet's nodes, the lowest on a tie.
-  std::vector<int32_t> owner(static_cast<size_t>(nt));
-  bool split = false;
-  for (int32_t t = 0; t < nt; ++t) {
-    std::array<int32_t, 4> frag{};
-    for (int k = 0; k < 4; ++k)
-      frag[size_t(k)] = nodeFragment[model.tets[4 * size_t(t) + size_t(k)]];
-    std::sort(frag.begin(), frag.end());
-    int32_t best = frag[0], bestCount = 0;
-    for (size_t i = 0; i < 4;) {
-      size_t j = i;
-      while (j < 4 && frag[j] == frag[i]) ++j;
-      if (int32_t(j - i) > bestCount) best = frag[i], bestCount = int32_t(j - i);
-      i = j;
-    }
-    owner[size_t(t)] = best;
-    split |= frag[0] != frag[3];
-  }
-  if (!split) {
+  w.owner.resize(size_t(nt));
+  w.split.resize(size_t(nt));
+  exec.run(nt, kTetGrain,
+           CrackOwnerStage{model.tets.data(), nodeFragment, w.owner.data(), w.split.data()});
+  if (!(exec.max(w.split.data(), nt) > 0)) {
     w.open.clear();
     return;
   }
-  w.open.assign(size_t(nf), 1.0);
-  for (int32_t f = 0; f < nf; ++f) {
-    const int32_t a = w.faceTets[2 * size_t(f)], b = w.faceTets[2 * size_t(f) + 1];
-    if (owner[size_t(a)] != owner[size_t(b)]) {
-      w.open[size_t(f)] = 0;
-      continue;
-    }
-    // The face's nodes: those of a that b shares.
-    int shared = 0, inside = 0;
-    for (int k = 0; k < 4; ++k) {
-      const int32_t n = model.tets[4 * size_t(a) + size_t(k)];
-      bool inB = false;
-      for (int m = 0; m < 4; ++m) inB |= model.tets[4 * size_t(b) + size_t(m)] == n;
-      if (!inB) continue;
-      ++shared;
-      inside += nodeFragment[n] == owner[size_t(a)];
-    }
-    w.open[size_t(f)] = shared == 3 ? inside / 3.0 : 0.0;
-  }
+  w.open.resize(size_t(nf));
+  exec.run(nf, kFaceGrain,
+           CrackOpenStage{model.tets.data(), nodeFragment, w.faceTets.data(), w.owner.data(),
+                          w.open.data()});
 }
 
 int32_t diffusionSubsteps(const WettingModel& w, double dt) {

@@ -48,14 +48,19 @@ struct WettingModel {
   std::vector<double> flux;           ///< scratch, one per face
   /// Per face, the share of G_f that passes between fragments (see Cracks); empty: all.
   std::vector<double> open;
+  /// Scratch of updateCrackBarriers, one per tet: its owning fragment, and 1 where its nodes
+  /// lie in more than one fragment.
+  std::vector<int32_t> owner;
+  std::vector<double> split;
 };
 
 /// The model of a body's rest mesh with these settings.
 WettingModel buildWettingModel(const FemModel& model, const WettingSettings& settings);
 
-/// Sets w.open from the fragment of every node (see Cracks in the file comment): O(tets), run
-/// at each step of a wetted body with broken edges.
-void updateCrackBarriers(const FemModel& model, WettingModel& w, const int32_t* nodeFragment);
+/// Sets w.open from the fragment of every node (see Cracks in the file comment): O(tets) in two
+/// stages, run at each step of a wetted body with broken edges.
+void updateCrackBarriers(const FemModel& model, WettingModel& w, const int32_t* nodeFragment,
+                         JobSystem& jobs);
 
 /// Diffusion substeps a step of dt takes (>= 1): the stability bound of the file comment.
 int32_t diffusionSubsteps(const WettingModel& w, double dt);
@@ -106,6 +111,64 @@ struct WaterBrushStage {
     double s = water[t] / capacity[t] + delta;
     s = s < 0 ? 0 : (s > 1 ? 1 : s);
     water[t] = s * capacity[t];
+  }
+};
+
+/// Tet t's owning fragment (that of most of its nodes, the lowest on a tie) and whether its
+/// nodes lie in more than one fragment (see Cracks in the file comment).
+struct CrackOwnerStage {
+  const int32_t* tets = nullptr;
+  const int32_t* nodeFragment = nullptr;
+  int32_t* owner = nullptr;
+  double* split = nullptr;
+
+  GF_HD void operator()(int32_t t) const {
+    int32_t frag[4];
+    for (int k = 0; k < 4; ++k) frag[k] = nodeFragment[tets[4 * int64_t(t) + k]];
+    for (int i = 1; i < 4; ++i)  // four entries: insertion sort
+      for (int j = i; j > 0 && frag[j - 1] > frag[j]; --j) {
+        const int32_t tmp = frag[j];
+        frag[j] = frag[j - 1];
+        frag[j - 1] = tmp;
+      }
+    int32_t best = frag[0], bestCount = 0;
+    for (int i = 0; i < 4;) {
+      int j = i;
+      while (j < 4 && frag[j] == frag[i]) ++j;
+      if (j - i > bestCount) best = frag[i], bestCount = j - i;
+      i = j;
+    }
+    owner[t] = best;
+    split[t] = frag[0] != frag[3] ? 1.0 : 0.0;
+  }
+};
+
+/// Face f's open share: 0 between tets of different owners, else the fraction of its three
+/// nodes that lie in their owner's fragment.
+struct CrackOpenStage {
+  const int32_t* tets = nullptr;
+  const int32_t* nodeFragment = nullptr;
+  const int32_t* faceTets = nullptr;
+  const int32_t* owner = nullptr;
+  double* open = nullptr;
+
+  GF_HD void operator()(int32_t f) const {
+    const int32_t a = faceTets[2 * int64_t(f)], b = faceTets[2 * int64_t(f) + 1];
+    if (owner[a] != owner[b]) {
+      open[f] = 0;
+      return;
+    }
+    // The face's nodes: those of a that b shares.
+    int shared = 0, inside = 0;
+    for (int k = 0; k < 4; ++k) {
+      const int32_t n = tets[4 * int64_t(a) + k];
+      bool inB = false;
+      for (int m = 0; m < 4; ++m) inB |= tets[4 * int64_t(b) + m] == n;
+      if (!inB) continue;
+      ++shared;
+      inside += nodeFragment[n] == owner[a];
+    }
+    open[f] = shared == 3 ? inside / 3.0 : 0.0;
   }
 };
 

@@ -169,7 +169,7 @@ void World::Impl::stepBody(size_t si, const detail::StepContext& ctx, JobSystem&
   }
 }
 
-int64_t World::Impl::findContacts(double h) {
+int64_t World::Impl::findContacts(const detail::CpuExecutor& exec, double h) {
   contactViews.assign(slots.size(), {});
   contactStates.assign(slots.size(), nullptr);
   for (size_t si = 0; si < slots.size(); ++si) {
@@ -195,14 +195,15 @@ int64_t World::Impl::findContacts(double h) {
       }
       key = (f.version() << 20) ^ uint64_t(b->rigid.size());
     }
-    b->contactSurface->update(
-        b->model, view.nodeFragment.empty() ? nullptr : view.nodeFragment.data(), excluded, key);
+    b->contactSurface->update(b->model,
+                              view.nodeFragment.empty() ? nullptr : view.nodeFragment.data(),
+                              view.fragmentCount, excluded, key);
     view.model = &b->model;
     view.state = &b->state;
     view.surface = b->contactSurface.get();
     contactStates[si] = &b->state;
   }
-  return bodyContact.find(contactViews, h, detail::kAutoContactStiffnessDt2 / (h * h),
+  return bodyContact.find(exec, contactViews, h, detail::kAutoContactStiffnessDt2 / (h * h),
                           kFrictionSlipSpeed * h);
 }
 
@@ -358,14 +359,14 @@ StepStatus World::step(double dt) {
     // Body contact is a half-space per node that each body's step sees as fixed, so the
     // bodies still step apart; the exchange after evens out their impulses.
     auto tc = detail::Clock::now();
-    w.timings.contactPairs += w.findContacts(h);
+    w.timings.contactPairs += w.findContacts(exec, h);
     w.timings.contactMs += detail::msSince(tc);
     for (uint32_t si : w.single) w.stepBody(si, ctx, *w.jobs);
     detail::forRanges(*w.jobs, uint32_t(w.batched.size()), 1, [&](uint32_t lo, uint32_t hi) {
       for (uint32_t k = lo; k < hi; ++k) w.stepBody(w.batched[k], ctx, serialJobs());
     });
     tc = detail::Clock::now();
-    w.bodyContact.exchange(w.contactViews, w.contactStates);
+    w.bodyContact.exchange(exec, w.contactStates);
     w.timings.contactMs += detail::msSince(tc);
     w.sumPullImpulses(h);
     // Events, flags and sums in slot order, whichever thread stepped the body.

@@ -16,6 +16,7 @@
 #include "fem/integrator.h"
 #include "fracture/fracture_body.h"
 #include "graphfrac/world.h"
+#include "sculpt/brush_stages.h"
 #include "sculpt/wetting.h"
 #include "surface/crack_surface.h"
 #include "surface/embedded_mesh.h"
@@ -115,6 +116,7 @@ struct BodyRecord {
   std::vector<double> saturation;
   // World::deform: the brushes whose kernel scales the velocities at the next step's end.
   std::vector<DeformBrush> deformBrushes;
+  std::vector<detail::DeformBrushData> deformBrushData;  // the stage's copy, per step
   // World::pull: per node, the summed stiffness [1/s^2] of the next step's pulls and the
   // stiffness-weighted sum of their targets (3 per node; both empty: no pull), the nodes pulled,
   // and the impulse the pulls gave the body over the current step, then World::pullForce.
@@ -240,7 +242,7 @@ struct World::Impl {
 
   // The substep's contact pairs (BodyContact::find) among the bodies that take part; returns
   // their count.
-  int64_t findContacts(double h);
+  int64_t findContacts(const detail::CpuExecutor& exec, double h);
 
   // Keeps a requested render surface in step with the body: topology only after fractures.
   void updateSurface(BodyRecord& b) {

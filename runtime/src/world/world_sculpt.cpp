@@ -5,7 +5,9 @@
 #include <string>
 
 #include "kernels/clay.h"
+#include "sculpt/brush_stages.h"
 #include "solver/vector_ops.h"
+#include "step/executor.h"
 #include "step/timing.h"
 #include "world/world_impl.h"
 
@@ -119,60 +121,45 @@ glm::dvec3 World::pullForce(BodyId id) const {
 }
 
 void World::Impl::prepareBrushes(double h) {
+  const detail::CpuExecutor exec(*jobs);
   for (Slot& s : slots) {
     BodyRecord* b = s.body.get();
     if (!b) continue;
     detail::FemState& st = b->state;
     b->pullImpulse = {0, 0, 0};
     if (!b->pulledNodes.empty()) {
-      // A spring of stiffness k per unit mass is the energy 1/2 m k |x - t|^2, which the
-      // incremental potential holds multiplied by h^2.
       st.tether.assign(size_t(b->model.nodeCount), 0.0);
       st.tetherTarget.assign(3 * size_t(b->model.nodeCount), 0.0);
-      for (int32_t n : b->pulledNodes) {
-        const size_t i = size_t(n);
-        if (st.fixedNode[i]) continue;  // prescribed by a grip
-        const double k = b->pullStiffness[i];
-        st.tether[i] = k * h * h;
-        for (size_t c = 0; c < 3; ++c) st.tetherTarget[3 * i + c] = b->pullTargetSum[3 * i + c] / k;
-      }
+      exec.run(int32_t(b->pulledNodes.size()), 256,
+               detail::PullTetherStage{b->pulledNodes.data(), st.fixedNode.data(),
+                                       b->pullStiffness.data(), b->pullTargetSum.data(), h,
+                                       st.tether.data(), st.tetherTarget.data()});
     }
     if (b->deformBrushes.empty()) continue;
     st.drag.assign(size_t(b->model.nodeCount), 0.0);
-    const std::vector<DeformBrush>& brushes = b->deformBrushes;
-    const double perSubstep = 1.0 / def.substeps;
-    detail::forRanges(*jobs, uint32_t(b->model.nodeCount), 256, [&](uint32_t lo, uint32_t hi) {
-      for (uint32_t n = lo; n < hi; ++n) {
-        if (st.fixedNode[n]) continue;  // prescribed by a grip
-        double g = 1;
-        for (const DeformBrush& br : brushes) {
-          const double dx = st.x[3 * n] - br.centre.x, dy = st.x[3 * n + 1] - br.centre.y,
-                       dz = st.x[3 * n + 2] - br.centre.z;
-          // Eq 7.7.
-          g *= clayDamping(std::sqrt(dx * dx + dy * dy + dz * dz), br.radius, br.k1, br.k2);
-        }
-        // A free node's velocity is scaled by g over the whole step: 1 / (1 + w) per substep.
-        // Far from the tool g underflows (exp(k2 r) overflows beyond k2 r = 709): a node held
-        // at 1e-6 of its velocity is as still as a frozen one, and w stays finite.
-        st.drag[n] = std::pow(std::max(g, kMinDeformKernel), -perSubstep) - 1;
-      }
-    });
+    b->deformBrushData.clear();
+    for (const DeformBrush& br : b->deformBrushes)
+      b->deformBrushData.push_back(
+          {Vec3{br.centre.x, br.centre.y, br.centre.z}, br.radius, br.k1, br.k2});
+    exec.run(b->model.nodeCount, 256,
+             detail::DeformDragStage{st.x.data(), st.fixedNode.data(), b->deformBrushData.data(),
+                                     int32_t(b->deformBrushData.size()), 1.0 / def.substeps,
+                                     kMinDeformKernel, st.drag.data()});
     b->deformBrushes.clear();
   }
 }
 
 void World::Impl::sumPullImpulses(double h) {
+  const detail::CpuExecutor exec(*jobs);
   for (Slot& s : slots) {
     BodyRecord* b = s.body.get();
     if (!b || b->state.tether.empty()) continue;
     const detail::FemState& st = b->state;
-    // What backward Euler gave each node over h: h times the spring force m w / h^2 (t - x).
-    for (int32_t n : b->pulledNodes) {
-      const size_t i = size_t(n);
-      const double c = st.nodeMass[i] * st.tether[i] / h;
-      b->pullImpulse += c * Vec3{st.tetherTarget[3 * i] - st.x[3 * i],
-                                 st.tetherTarget[3 * i + 1] - st.x[3 * i + 1],
-                                 st.tetherTarget[3 * i + 2] - st.x[3 * i + 2]};
+    detail::PullImpulseTerm term{b->pulledNodes.data(),  st.nodeMass.data(), st.tether.data(),
+                                 st.tetherTarget.data(), st.x.data(),        h};
+    for (int c = 0; c < 3; ++c) {
+      term.c = c;
+      b->pullImpulse[c] += exec.reduce<detail::SumOp>(int32_t(b->pulledNodes.size()), term);
     }
   }
 }
@@ -249,7 +236,7 @@ void World::Impl::advanceWater(double dt) {
     any = true;
     if (b->fracture && (b->fracture->brokenCount() > 0 || !b->wetting->open.empty()))
       detail::updateCrackBarriers(b->model, *b->wetting,
-                                  b->fracture->fragments().nodeFragment().data());
+                                  b->fracture->fragments().nodeFragment().data(), *jobs);
     detail::advanceWater(b->model, *b->wetting, b->state.water, b->state.x.data(), b->strokes, dt,
                          *jobs);
     b->strokes.clear();
