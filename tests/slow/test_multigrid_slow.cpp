@@ -173,10 +173,17 @@ TEST_P(MultigridSlow, ThirtyThousandTetBeam) {
   //   64/all GS 2+2 (the former default): 1.5x / 1.4x, 19 / 22 its, 41 / 51 ms (2)
   //   auto smoothed (28/224/all) GS 2+2: 3.4x / 2.0x, 9 / 12 its, 99 / 110 ms (42)
   //   auto smoothed GS 4+4: 5.4x / 3.1x, 7 / 8 its, 113 / 114 ms (45)
-  const std::vector<Setting> settings = {{{}, Smoother::GaussSeidel, 2, false},
-                                         {{64}, Smoother::GaussSeidel, 2, false},
-                                         {{}, Smoother::GaussSeidel, 2, true},
-                                         {{}, Smoother::GaussSeidel, 4, true}};
+  //   224/all smoothed GS 2+2: 3.8x / 2.1x, 9 / 12 its, 144 / 160 ms (47)
+  //   224/all smoothed GS 4+4: 7.0x / 3.4x, 7 / 8 its, 146 / 160 ms (47)
+  // One coarse level converges best, but its exact coarse solve is dear: the coarsest
+  // factorisation takes ~120 ms (10 for 28/224/all) and each V-cycle ~3 ms of transfers. In
+  // `graphfrac bench multigrid` (1 thread, refresh_interval 30) its solve stage still takes
+  // 1.25-1.8x the default's on the Charpy bar and the hanging sphere, 1.05x at 162k tets
+  // (issue 14), so it is recorded here, not the default.
+  const std::vector<Setting> settings = {
+      {{}, Smoother::GaussSeidel, 2, false},   {{64}, Smoother::GaussSeidel, 2, false},
+      {{}, Smoother::GaussSeidel, 2, true},    {{}, Smoother::GaussSeidel, 4, true},
+      {{224}, Smoother::GaussSeidel, 2, true}, {{224}, Smoother::GaussSeidel, 4, true}};
   for (const Setting& set : settings) {
     const Result m = run(s, set, &xc, jobs);
     print(mat.name, s.mesh.tetCount(), set, m);
