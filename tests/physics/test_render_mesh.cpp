@@ -1,14 +1,16 @@
 // Embedded render meshes (thesis sec 7.3.2): an affine motion of the tets is reproduced to
 // round-off, a bent beam's render surface stays on the deformed body, a shattered body's drawn
-// fragments are measured for closedness, a body without a render mesh keeps the tet surface
-// bit for bit, bad render meshes are refused with the field named, and the per-frame cost is
-// printed against the step's.
+// fragments are closed 2-manifolds that fill the render mesh's volume and nothing outside it
+// (the same bits at 1, 2 and 4 threads), a body without a render mesh keeps the tet surface bit
+// for bit, bad render meshes are refused with the field named, and the per-frame and per-fracture
+// costs are printed against the step's.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <map>
 #include <tuple>
 #include <vector>
@@ -255,10 +257,24 @@ TEST(RenderMesh, FollowsABentBeamWithinOneCell) {
   }
 }
 
-// The brittle bar of Fracture.MoreBrittleRegionsMakeMoreFragments (fig 4.19) with a render mesh
-// on its surface. Every triangle lies in one fragment; every vertex stays near its node;
-// fragments drawn only with crack faces are closed; the closure of the others is measured.
-TEST(RenderMesh, ShatteredBodyFragmentsAreMeasuredForClosure) {
+// Signed volume enclosed by the triangles of each fragment (divergence theorem; the origin's
+// choice cancels on a closed surface).
+std::map<int32_t, double> enclosedVolumes(const SurfaceView& s) {
+  std::map<int32_t, double> out;
+  for (size_t t = 0; t < s.indices.size() / 3; ++t) {
+    const uint32_t* id = &s.indices[3 * t];
+    glm::dvec3 p[3];
+    for (int k = 0; k < 3; ++k)
+      p[k] = glm::dvec3(s.positions[3 * size_t(id[k])], s.positions[3 * size_t(id[k]) + 1],
+                        s.positions[3 * size_t(id[k]) + 2]);
+    out[s.vertexFragment[id[0]]] += glm::dot(p[0], glm::cross(p[1], p[2])) / 6;
+  }
+  return out;
+}
+
+// The brittle bar of Fracture.MoreBrittleRegionsMakeMoreFragments (fig 4.19) with a closed
+// render mesh on its surface, at a resolution unrelated to the tets' (1/60 m against 1/40 m).
+BodyDef brittleBar() {
   BodyDef def;
   def.mesh = gen::box(1.0, 0.1, 0.1, 40, 4, 4);
   def.material = Material::stableNeoHookean(1e7, 0.2, 2500);
@@ -273,6 +289,26 @@ TEST(RenderMesh, ShatteredBodyFragmentsAreMeasuredForClosure) {
   left.velocity = glm::vec3(-0.05f, 0, 0);
   right.velocity = glm::vec3(0.05f, 0, 0);
   def.grips = {left, right};
+  return def;
+}
+
+// Pulls the brittle bar apart for `steps` steps, asking for its surface every frame as a game
+// would.
+void shatter(World& world, BodyId id, int steps) {
+  for (int s = 0; s < steps; ++s) {
+    (void)world.step(1.0 / 60);
+    (void)world.surface(id);
+  }
+}
+
+// After the brittle bar shatters, every fragment's drawn triangles are a closed 2-manifold
+// (each edge used once in each direction by that fragment's triangles) and every vertex stays
+// near its node. At rest positions the fragments' enclosed volumes add up to the render mesh's
+// (nothing drawn twice or missing), and each fragment's is its corner cells' (a quarter of each
+// of its nodes' tets: the render box is the tets' boundary) within its caps' area times a cell,
+// since the cut follows the render edges and a cap's fan stands for the cells' facets.
+TEST(RenderMesh, ShatteredBodyFragmentsAreClosedAndFillTheRenderVolume) {
+  const BodyDef def = brittleBar();
   World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
   const BodyId id = world.createBody(def).value();
 
@@ -283,10 +319,7 @@ TEST(RenderMesh, ShatteredBodyFragmentsAreMeasuredForClosure) {
     ASSERT_EQ(c.size(), 1u);
     EXPECT_EQ(c.begin()->second.openEdges, 0);
   }
-  for (int s = 0; s < 40; ++s) {
-    (void)world.step(1.0 / 60);
-    (void)world.surface(id);  // as a game would, every frame
-  }
+  shatter(world, id, 40);
   const FractureStats fs = world.fractureStats(id);
   const SurfaceView sv = world.surface(id);
   ASSERT_GT(fs.fragments, 2);
@@ -295,8 +328,9 @@ TEST(RenderMesh, ShatteredBodyFragmentsAreMeasuredForClosure) {
     for (int k = 1; k < 3; ++k)
       ASSERT_EQ(sv.vertexFragment[sv.indices[3 * t + size_t(k)]],
                 sv.vertexFragment[sv.indices[3 * t]]);
-  // A vertex follows its fragment: it stays within two cell diagonals of its node.
-  const double reach = 2 * std::sqrt(3.0) * 0.025;
+  // A vertex follows its fragment: it stays within two cell diagonals of its node (a cap's
+  // centre, at most half the bar's diagonal section from its rim, too).
+  const double cell = 0.025, reach = 2 * std::sqrt(3.0) * cell;
   double far = 0;
   for (size_t v = 0; v < sv.vertexNode.size(); ++v) {
     const glm::dvec3 p(sv.positions[3 * v], sv.positions[3 * v + 1], sv.positions[3 * v + 2]);
@@ -315,14 +349,200 @@ TEST(RenderMesh, ShatteredBodyFragmentsAreMeasuredForClosure) {
       closedCrackOnly += c.openEdges == 0 ? 1 : 0;
     }
   }
+
+  // The same topology at rest positions.
+  std::vector<double> rest(def.mesh.positions.begin(), def.mesh.positions.end());
+  ASSERT_TRUE(world.setPositions(id, rest).ok());
+  const SurfaceView atRest = world.surface(id);
+  ASSERT_EQ(atRest.indices.size(), sv.indices.size());
+  const std::map<int32_t, double> drawn = enclosedVolumes(atRest);
+  double volume = 0;
+  for (const auto& [f, v] : drawn) volume += v;
+  const double want = 1.0 * 0.1 * 0.1;
+  // Per fragment: its corner cells' volume and its caps' area.
+  const std::span<const int32_t> nodeFragment = world.nodeFragments(id);
+  std::map<int32_t, double> cells, capArea;
+  for (size_t t = 0; t < def.mesh.tetCount(); ++t) {
+    glm::dvec3 p[4];
+    for (int k = 0; k < 4; ++k) p[k] = at(def.mesh.positions, size_t(def.mesh.tets[4 * t + k]));
+    const double v = glm::dot(p[1] - p[0], glm::cross(p[2] - p[0], p[3] - p[0])) / 6;
+    for (int k = 0; k < 4; ++k) cells[nodeFragment[size_t(def.mesh.tets[4 * t + k])]] += v / 4;
+  }
+  for (size_t t = 0; t < atRest.indices.size() / 3; ++t) {
+    if (!atRest.crackMask[t]) continue;
+    const uint32_t* id3 = &atRest.indices[3 * t];
+    glm::dvec3 p[3];
+    for (int k = 0; k < 3; ++k)
+      p[k] =
+          glm::dvec3(atRest.positions[3 * size_t(id3[k])], atRest.positions[3 * size_t(id3[k]) + 1],
+                     atRest.positions[3 * size_t(id3[k]) + 2]);
+    capArea[atRest.vertexFragment[id3[0]]] += glm::length(glm::cross(p[1] - p[0], p[2] - p[0])) / 2;
+  }
+  double worst = 0;  // the largest |drawn - cells| / (cap area * cell) over the fragments
+  for (const auto& [f, v] : cells) {
+    const double d = std::abs((drawn.count(f) ? drawn.at(f) : 0.0) - v);
+    worst = std::max(worst, d / (capArea[f] * cell));
+  }
   std::printf(
       "shattered bar: %d fragments, %d broken edges; drawn: %zu triangles. Fragments "
       "with render triangles: %d, closed and 2-manifold %d (%d open edges in all); "
       "fragments of crack faces only: %d, closed %d; farthest vertex from its node %.3g "
-      "m\n",
+      "m; at rest: fragments' volume %.8g m^3 against the render mesh's %.8g (%.2e relative), "
+      "largest |fragment's volume - its cells'| = %.3f x its caps' area x a cell\n",
       fs.fragments, fs.brokenEdges, sv.indices.size() / 3, withRender, closedWithRender, openEdges,
-      crackOnly, closedCrackOnly, far);
+      crackOnly, closedCrackOnly, far, volume, want, (volume - want) / want, worst);
+  EXPECT_GT(withRender, 2);
+  EXPECT_EQ(closedWithRender, withRender);
   EXPECT_EQ(closedCrackOnly, crackOnly);
+  // Float positions: 1e-6 relative; caps shared by two fragments cancel.
+  EXPECT_NEAR(volume, want, 1e-6 * want);
+  EXPECT_LT(worst, 1.0);
+}
+
+// The brittle bar drawn with a render box over x in [0.15, 0.85] m only, so the box's ends lie
+// inside the tets and the fragments near the bar's ends are outside it. After it shatters,
+// fragments wholly outside the box draw nothing, the others are closed, and at rest nothing is
+// drawn outside the box and the drawn volumes add up to the box's.
+TEST(RenderMesh, ShatteredBodyDrawsOnlyWhatIsInsideItsRenderMesh) {
+  BodyDef def = brittleBar();
+  def.renderMesh = boxSurface(glm::dvec3(0.15, 0, 0), glm::dvec3(0.7, 0.1, 0.1), 42, 6, 6);
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  const BodyId id = world.createBody(def).value();
+  shatter(world, id, 40);
+  ASSERT_GT(world.fractureStats(id).fragments, 2);
+  const SurfaceView sv = world.surface(id);
+  int open = 0;
+  const auto c = closure(sv);
+  for (const auto& [f, fc] : c) open += fc.openEdges;
+  EXPECT_EQ(open, 0);
+
+  // Fragments whose nodes all lie outside the box, found from the nodes alone.
+  const std::span<const int32_t> nodeFragment = world.nodeFragments(id);
+  std::map<int32_t, bool> outside;
+  for (size_t n = 0; n < def.mesh.nodeCount(); ++n) {
+    const double X = def.mesh.positions[3 * n];
+    const bool out = X < 0.15 - 1e-9 || X > 0.85 + 1e-9;
+    auto [it, added] = outside.emplace(nodeFragment[n], out);
+    if (!added) it->second = it->second && out;
+  }
+  int outsideFragments = 0, outsideDrawn = 0;
+  for (const auto& [f, out] : outside)
+    if (out) {
+      ++outsideFragments;
+      outsideDrawn += c.count(f) ? 1 : 0;
+    }
+
+  std::vector<double> rest(def.mesh.positions.begin(), def.mesh.positions.end());
+  ASSERT_TRUE(world.setPositions(id, rest).ok());
+  const SurfaceView atRest = world.surface(id);
+  double lo = HUGE_VAL, hi = -HUGE_VAL, volume = 0;
+  for (size_t v = 0; v < atRest.positions.size() / 3; ++v) {
+    lo = std::min(lo, double(atRest.positions[3 * v]));
+    hi = std::max(hi, double(atRest.positions[3 * v]));
+  }
+  for (const auto& [f, v] : enclosedVolumes(atRest)) volume += v;
+  const double want = 0.7 * 0.1 * 0.1;
+  std::printf(
+      "bar drawn over x in [0.15, 0.85] m: %d fragments, %zu drawn, %d open edges; %d fragments "
+      "wholly outside the render mesh, %d of them drawn; at rest drawn x in [%.6f, %.6f], "
+      "volume %.8g m^3 against %.8g (%.2e relative)\n",
+      world.fractureStats(id).fragments, c.size(), open, outsideFragments, outsideDrawn, lo, hi,
+      volume, want, (volume - want) / want);
+  EXPECT_GT(outsideFragments, 0);
+  EXPECT_EQ(outsideDrawn, 0);
+  EXPECT_GT(c.size(), 2u);  // the box is cut between fragments
+  EXPECT_GT(lo, 0.15 - 1e-6);
+  EXPECT_LT(hi, 0.85 + 1e-6);
+  EXPECT_NEAR(volume, want, 1e-6 * want);
+}
+
+// A fragment that owns no render vertex and lies inside the render mesh (here one node in the
+// middle of a cube, all its edges broken) is drawn with its tet surface: closed, enclosing its
+// corner cells' volume (a quarter of each of its tets). The rest of the cube is one fragment
+// drawn with the whole render mesh.
+TEST(RenderMesh, InteriorFragmentWithoutRenderVerticesIsDrawnWithItsTetFaces) {
+  const TetMesh mesh = gen::box(0.1, 0.1, 0.1, 4, 4, 4);
+  const RenderMesh render = boxSurface(glm::dvec3(0), glm::dvec3(0.1), 6, 6, 6);
+  const detail::EmbeddedBinding b =
+      detail::EmbeddedBinding::bind(mesh, render, "renderMesh").value();
+  const detail::EdgeGraph graph =
+      detail::EdgeGraph::build(mesh.tets.data(), mesh.tetCount(), mesh.nodeCount());
+  std::vector<Mat3> restInverse(mesh.tetCount());
+  for (size_t t = 0; t < mesh.tetCount(); ++t) {
+    Vec3 P[4];
+    for (int k = 0; k < 4; ++k) {
+      const glm::dvec3 p = at(mesh.positions, size_t(mesh.tets[4 * t + size_t(k)]));
+      P[k] = {p.x, p.y, p.z};
+    }
+    restInverse[t] = inverse(fromColumns(P[1] - P[0], P[2] - P[0], P[3] - P[0]));
+  }
+  int32_t centre = -1;
+  for (size_t n = 0; n < mesh.nodeCount(); ++n)
+    if (glm::length(at(mesh.positions, n) - glm::dvec3(0.05)) < 1e-9) centre = int32_t(n);
+  ASSERT_GE(centre, 0);
+  double cells = 0;
+  for (size_t t = 0; t < mesh.tetCount(); ++t) {
+    glm::dvec3 p[4];
+    bool has = false;
+    for (int k = 0; k < 4; ++k) {
+      p[k] = at(mesh.positions, size_t(mesh.tets[4 * t + size_t(k)]));
+      has = has || mesh.tets[4 * t + size_t(k)] == centre;
+    }
+    if (has) cells += glm::dot(p[1] - p[0], glm::cross(p[2] - p[0], p[3] - p[0])) / 24;
+  }
+  std::vector<uint8_t> broken(size_t(graph.edgeCount), 0);
+  for (int32_t e = 0; e < graph.edgeCount; ++e)
+    broken[size_t(e)] =
+        graph.edgeNodes[2 * size_t(e)] == centre || graph.edgeNodes[2 * size_t(e) + 1] == centre;
+  std::vector<int32_t> fragment(mesh.nodeCount(), 0);
+  fragment[size_t(centre)] = 1;
+  detail::CrackSurface crack;
+  crack.init(mesh, graph);
+  detail::EmbeddedSurface surface;
+  surface.init(b, mesh, graph, restInverse.data());
+  surface.rebuild(broken.data(), fragment.data());
+  crack.setExtraFrameNodes(surface.frameNodes());
+  crack.rebuild(broken.data(), fragment.data(), mesh.positions.data());
+  surface.update(mesh.positions.data(), crack);
+
+  SurfaceView sv;
+  sv.positions = surface.positions();
+  sv.indices = surface.indices();
+  sv.crackMask = surface.crackFlags();
+  sv.vertexFragment = surface.vertexFragment();
+  const auto c = closure(sv);
+  const auto volumes = enclosedVolumes(sv);
+  ASSERT_EQ(c.size(), 2u);
+  ASSERT_EQ(c.count(1), 1u);
+  std::printf(
+      "interior fragment: %d triangles (%d render), %d open edges, volume %.6g m^3 against "
+      "%.6g; the rest: %d triangles, %d open edges, volume %.6g m^3\n",
+      c.at(1).triangles, c.at(1).renderTriangles, c.at(1).openEdges, volumes.at(1), cells,
+      c.at(0).triangles, c.at(0).openEdges, volumes.at(0));
+  EXPECT_EQ(c.at(1).renderTriangles, 0);
+  EXPECT_EQ(c.at(1).openEdges, 0);
+  EXPECT_EQ(c.at(0).openEdges, 0);
+  EXPECT_NEAR(volumes.at(1), cells, 1e-6 * cells);
+  EXPECT_NEAR(volumes.at(0), 1e-3, 1e-6 * 1e-3);
+}
+
+// The cut and capped render mesh of the shattered bar is the same bit for bit with 1, 2 and 4
+// threads.
+TEST(RenderMesh, ShatteredSurfaceDoesNotDependOnThreadCount) {
+  auto run = [](JobSystem* jobs) {
+    World world(WorldDef{glm::vec3(0), Backend::Cpu, jobs, 1, {}});
+    const BodyId id = world.createBody(brittleBar()).value();
+    shatter(world, id, 25);
+    EXPECT_GT(world.fractureStats(id).fragments, 2);
+    const SurfaceView sv = world.surface(id);
+    return std::make_pair(std::vector<float>(sv.positions.begin(), sv.positions.end()),
+                          std::vector<uint32_t>(sv.indices.begin(), sv.indices.end()));
+  };
+  ThreadPoolJobSystem pool2(2), pool4(4);
+  const auto one = run(nullptr), two = run(&pool2), four = run(&pool4);
+  ASSERT_FALSE(one.first.empty());
+  EXPECT_TRUE(one == two);
+  EXPECT_TRUE(one == four);
 }
 
 // A body without a render mesh shows its tet surface exactly as a CrackSurface built from the
@@ -447,6 +667,95 @@ TEST(RenderMesh, PerFrameCostAgainstTheStep) {
       100 * surfDrawn / stepDrawn);
   EXPECT_GT(vDrawn, 50000u);
   EXPECT_GT(stepDrawn, 0);
+
+  // Fracture: the brittle bar with a 1/240 m render mesh, pulled apart. On a step that broke
+  // edges the surface is cut and capped again (rebuild); on the others it only moves.
+  BodyDef brittle = brittleBar();
+  brittle.renderMesh = boxSurface(glm::dvec3(0), glm::dvec3(1, 0.1, 0.1), 240, 24, 24);
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  const BodyId id = world.createBody(brittle).value();
+  (void)world.surface(id);
+  double stepMs = 0, rebuildMs = 0, moveMs = 0;
+  int rebuilds = 0, moves = 0;
+  uint64_t version = world.surface(id).topologyVersion;
+  for (int s = 0; s < 40; ++s) {
+    const auto t0 = Clock::now();
+    (void)world.step(1.0 / 60);
+    const auto t1 = Clock::now();
+    const SurfaceView sv = world.surface(id);
+    const auto t2 = Clock::now();
+    stepMs += std::chrono::duration<double, std::milli>(t1 - t0).count();
+    const double ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
+    if (sv.topologyVersion != version) {
+      rebuildMs += ms;
+      ++rebuilds;
+    } else {
+      moveMs += ms;
+      ++moves;
+    }
+    version = sv.topologyVersion;
+  }
+  const SurfaceView sv = world.surface(id);
+  std::printf(
+      "shattering, %zu tets, render mesh of %zu vertices, 1 thread: step %.3f ms on average; "
+      "surface on the %d steps that broke edges (cut and capped again) %.3f ms = %.1f %% of "
+      "the step, on the %d others %.3f ms = %.1f %%; %zu drawn vertices, %d fragments at the "
+      "end\n",
+      brittle.mesh.tetCount(), brittle.renderMesh->vertexCount(), stepMs / 40, rebuilds,
+      rebuilds ? rebuildMs / rebuilds : 0.0,
+      rebuilds ? 100 * rebuildMs / rebuilds / (stepMs / 40) : 0.0, moves,
+      moves ? moveMs / moves : 0.0, moves ? 100 * moveMs / moves / (stepMs / 40) : 0.0,
+      sv.positions.size() / 3, world.fractureStats(id).fragments);
+  EXPECT_GT(rebuilds, 0);
+
+  // The rebuild's parts for the final state, on their own: the render mesh cut and capped, the
+  // tet surface (and its local maps) rebuilt, the first placement (which composes the buffers).
+  const detail::EmbeddedBinding binding =
+      detail::EmbeddedBinding::bind(brittle.mesh, *brittle.renderMesh, "renderMesh").value();
+  const detail::EdgeGraph graph = detail::EdgeGraph::build(
+      brittle.mesh.tets.data(), brittle.mesh.tetCount(), brittle.mesh.nodeCount());
+  std::vector<Mat3> restInverse(brittle.mesh.tetCount());
+  for (size_t t = 0; t < brittle.mesh.tetCount(); ++t) {
+    Vec3 P[4];
+    for (int k = 0; k < 4; ++k) {
+      const glm::dvec3 p = at(brittle.mesh.positions, size_t(brittle.mesh.tets[4 * t + size_t(k)]));
+      P[k] = {p.x, p.y, p.z};
+    }
+    restInverse[t] = inverse(fromColumns(P[1] - P[0], P[2] - P[0], P[3] - P[0]));
+  }
+  const std::span<const uint8_t> broken = world.brokenEdges(id);
+  const std::span<const int32_t> fragment = world.nodeFragments(id);
+  const std::span<const double> x = world.positions(id);
+  detail::CrackSurface crack;
+  crack.init(brittle.mesh, graph);
+  detail::EmbeddedSurface embedded;
+  embedded.init(binding, brittle.mesh, graph, restInverse.data());
+  // Processor time (one thread), not wall time: the parts are short and a shared machine's
+  // waits would swamp them.
+  const std::clock_t r0 = std::clock();
+  embedded.rebuild(broken.data(), fragment.data());
+  crack.setExtraFrameNodes(embedded.frameNodes());
+  const std::clock_t r1 = std::clock();
+  crack.rebuild(broken.data(), fragment.data(), x.data());
+  const std::clock_t r2 = std::clock();
+  embedded.update(x.data(), crack);
+  const std::clock_t r3 = std::clock();
+  // Once more, as on a later fracture step: the buffers keep their capacity.
+  const std::clock_t r4 = std::clock();
+  embedded.rebuild(broken.data(), fragment.data());
+  crack.setExtraFrameNodes(embedded.frameNodes());
+  const std::clock_t r5 = std::clock();
+  crack.rebuild(broken.data(), fragment.data(), x.data());
+  const std::clock_t r6 = std::clock();
+  embedded.update(x.data(), crack);
+  const std::clock_t r7 = std::clock();
+  auto ms = [](std::clock_t a, std::clock_t b) { return 1e3 * double(b - a) / CLOCKS_PER_SEC; };
+  std::printf(
+      "rebuild of the final state, processor time: render mesh cut and capped %.3f ms (%u caps, "
+      "%zu local maps asked for), tet surface %.3f ms, first placement %.3f ms; again: %.3f, "
+      "%.3f and %.3f ms\n",
+      ms(r0, r1), embedded.capCount(), embedded.frameNodes().size(), ms(r1, r2), ms(r2, r3),
+      ms(r4, r5), ms(r5, r6), ms(r6, r7));
 }
 
 }  // namespace

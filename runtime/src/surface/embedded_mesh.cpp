@@ -1,11 +1,12 @@
-// Render meshes embedded in the tets: binding at creation, copies per fragment at fracture,
-// positions every frame (see the design note in embedded_mesh.h).
+// Render meshes embedded in the tets: binding at creation, cut and capped per fragment at
+// fracture, positions every frame (see the design note in embedded_mesh.h).
 #include "surface/embedded_mesh.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <numbers>
 
 #include "kernels/contact.h"
 #include "mesh/mesh_internal.h"
@@ -21,6 +22,8 @@ inline Vec3 load(const double* p, size_t i) { return {p[3 * i], p[3 * i + 1], p[
 // A point counts as inside a tet when its weakest barycentric coordinate is above this (round-off
 // of points on shared faces).
 constexpr double kInsideTolerance = -1e-12;
+// A render edge is cut no closer than this fraction of its length to either end.
+constexpr double kMinCut = 0.05;
 // The grid has at most this many cells along an axis.
 constexpr int kMaxGridCells = 256;
 
@@ -225,11 +228,12 @@ void EmbeddedSurface::init(const EmbeddedBinding& binding, const TetMesh& rest,
   m_graph = &graph;
   m_restInverse = restInverse;
   m_frameMark.assign(rest.nodeCount(), 0);
+  m_nodeInside.assign(rest.nodeCount(), -1);
   m_composed = false;
 }
 
 uint32_t EmbeddedSurface::addCopy(int32_t source, int32_t tet, const double* w, unsigned group,
-                                  int32_t fragment) {
+                                  int32_t fragment, Vec3 rest, Vec3 restNormal, const float* uv) {
   const uint32_t id = uint32_t(m_vTet.size());
   const int32_t* n = &m_rest->tets[4 * size_t(tet)];
   m_vTet.push_back(tet);
@@ -238,6 +242,10 @@ uint32_t EmbeddedSurface::addCopy(int32_t source, int32_t tet, const double* w, 
   m_vGroup.push_back(uint8_t(group));
   m_vNode.push_back(n[strongest(w, group)]);
   m_vFragment.push_back(fragment);
+  m_vRest.insert(m_vRest.end(), {rest.x, rest.y, rest.z});
+  m_vRestNormal.insert(m_vRestNormal.end(), {restNormal.x, restNormal.y, restNormal.z});
+  if (!m_binding->uv.empty()) m_vUv.insert(m_vUv.end(), uv, uv + 2);
+  m_cutNext.push_back(-1);
   // A copy that follows only part of its tet needs the local maps of the nodes it follows.
   if (group != 15u)
     for (int k = 0; k < 4; ++k)
@@ -248,9 +256,91 @@ uint32_t EmbeddedSurface::addCopy(int32_t source, int32_t tet, const double* w, 
   return id;
 }
 
+uint32_t EmbeddedSurface::homeCopy(uint32_t v) {
+  if (m_homeCopy[v] < 0) {
+    const EmbeddedBinding& b = *m_binding;
+    const float* uv = b.uv.empty() ? nullptr : &b.uv[2 * size_t(v)];
+    m_homeCopy[v] =
+        int32_t(addCopy(int32_t(v), b.tet[v], &b.weight[4 * size_t(v)], m_homeGroup[v], m_home[v],
+                        load(b.rest.data(), v), load(b.restNormal.data(), v), uv));
+  }
+  return uint32_t(m_homeCopy[v]);
+}
+
+uint32_t EmbeddedSurface::pointCopy(Vec3 P, Vec3 N, const float* uv, uint32_t side) {
+  // Bound like the render vertex `side`: its tet (extrapolated) and its group.
+  const int32_t t = m_binding->tet[side];
+  double w[4];
+  barycentric(m_restInverse[t], load(m_rest->positions.data(), size_t(m_rest->tets[4 * size_t(t)])),
+              P, w);
+  return addCopy(-1, t, w, m_homeGroup[side], m_home[side], P, N, uv);
+}
+
+uint32_t EmbeddedSurface::cutCopy(uint32_t u, uint32_t v, int32_t fragment) {
+  const uint32_t lo = std::min(u, v), hi = std::max(u, v);
+  const uint64_t key = uint64_t(lo) << 32 | hi;
+  auto found = m_cut.find(key);
+  if (found == m_cut.end()) {
+    const EmbeddedBinding& b = *m_binding;
+    const Vec3 Plo = load(b.rest.data(), lo), Phi = load(b.rest.data(), hi);
+    // Where the boundary w_a = w_b between the two ends' cells crosses the edge, in the lower
+    // end's tet (a: its node of the largest weight; b: the other end's node of the largest
+    // weight among the tet's nodes in the other fragment).
+    double s = 0.5;
+    const int32_t t = b.tet[lo];
+    const int32_t* n = &m_rest->tets[4 * size_t(t)];
+    unsigned other = 0;
+    for (int k = 0; k < 4; ++k) other |= m_nodeFragment[n[k]] == m_home[hi] ? 1u << k : 0u;
+    if (other) {
+      const double* wl = &b.weight[4 * size_t(lo)];
+      double wh[4];
+      barycentric(m_restInverse[t], load(m_rest->positions.data(), size_t(n[0])), Phi, wh);
+      const int ka = strongest(wl, 15u), kb = strongest(wh, other);
+      const double dl = wl[ka] - wl[kb], dh = wh[ka] - wh[kb];
+      if (dl - dh > 0) s = dl / (dl - dh);
+    }
+    // Away from the ends, so no cut piece degenerates.
+    s = std::clamp(s, kMinCut, 1 - kMinCut);
+    const Vec3 P = (1 - s) * Plo + s * Phi;
+    Vec3 N = (1 - s) * load(b.restNormal.data(), lo) + s * load(b.restNormal.data(), hi);
+    N = norm(N) > 0 ? (1 / norm(N)) * N : load(b.restNormal.data(), lo);
+    float uv[2] = {0, 0};
+    if (!b.uv.empty())
+      for (int c = 0; c < 2; ++c)
+        uv[c] = float((1 - s) * double(b.uv[2 * size_t(lo) + size_t(c)]) +
+                      s * double(b.uv[2 * size_t(hi) + size_t(c)]));
+    const uint32_t cl = pointCopy(P, N, uv, lo);
+    const uint32_t ch = pointCopy(P, N, uv, hi);
+    found = m_cut.emplace(key, std::make_pair(cl, ch)).first;
+  }
+  return fragment == m_home[lo] ? found->second.first : found->second.second;
+}
+
+bool EmbeddedSurface::nodeInside(int32_t node) {
+  int8_t& inside = m_nodeInside[size_t(node)];
+  if (inside < 0) {
+    // Generalised winding number (solid angles, Van Oosterom and Strackee): 1 inside a closed
+    // mesh, 0 outside, and a robust in-between for open ones.
+    const EmbeddedBinding& b = *m_binding;
+    const Vec3 p = load(m_rest->positions.data(), size_t(node));
+    double omega = 0;
+    for (size_t t = 0; t < b.indices.size() / 3; ++t) {
+      const Vec3 A = load(b.rest.data(), b.indices[3 * t]) - p;
+      const Vec3 B = load(b.rest.data(), b.indices[3 * t + 1]) - p;
+      const Vec3 C = load(b.rest.data(), b.indices[3 * t + 2]) - p;
+      const double la = norm(A), lb = norm(B), lc = norm(C);
+      omega += 2 * std::atan2(dot(A, cross(B, C)),
+                              la * lb * lc + dot(A, B) * lc + dot(B, C) * la + dot(C, A) * lb);
+    }
+    inside = int8_t(omega >= 2 * std::numbers::pi ? 1 : 0);  // winding number >= 1/2
+  }
+  return inside == 1;
+}
+
 void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment) {
   const EmbeddedBinding& b = *m_binding;
   const size_t nv = b.tet.size();
+  m_nodeFragment = nodeFragment;
   auto joinedMask = [&](int32_t t) {
     const int32_t* te = &m_graph->tetEdges[6 * size_t(t)];
     unsigned m = 0;
@@ -258,8 +348,8 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
     return m;
   };
 
-  // Each vertex's own fragment and group: those of its tet's node of the largest weight, whose
-  // corner cell holds it.
+  // Each vertex's label and group: those of its tet's node of the largest weight, whose corner
+  // cell holds it.
   m_home.resize(nv);
   m_homeGroup.resize(nv);
   for (size_t v = 0; v < nv; ++v) {
@@ -270,87 +360,147 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   }
 
   m_homeCopy.assign(nv, -1);
-  m_otherCopy.clear();
+  m_cut.clear();
+  m_cutNext.clear();
   for (int32_t a : m_frameNodes) m_frameMark[size_t(a)] = 0;
   m_frameNodes.clear();
   m_vTet.clear();
   m_vSource.clear();
   m_vWeight.clear();
+  m_vRest.clear();
+  m_vRestNormal.clear();
+  m_vUv.clear();
   m_vGroup.clear();
   m_vNode.clear();
   m_vFragment.clear();
   m_renderIndices.clear();
 
+  // Marching triangles on the labels (design note: cutting the render triangles).
+  auto emit = [&](uint32_t a, uint32_t c1, uint32_t c2) {
+    m_renderIndices.insert(m_renderIndices.end(), {a, c1, c2});
+  };
   const size_t ntri = b.indices.size() / 3;
   for (size_t tri = 0; tri < ntri; ++tri) {
     const uint32_t* id = &b.indices[3 * tri];
-    int32_t f = m_home[id[0]];
-    if (m_home[id[1]] == m_home[id[2]]) f = m_home[id[1]];
-    for (int c = 0; c < 3; ++c) {
-      const uint32_t v = id[c];
-      const double* w = &b.weight[4 * size_t(v)];
-      if (m_home[v] == f) {
-        if (m_homeCopy[v] < 0)
-          m_homeCopy[v] = int32_t(addCopy(int32_t(v), b.tet[v], w, m_homeGroup[v], f));
-        m_renderIndices.push_back(uint32_t(m_homeCopy[v]));
-        continue;
+    const int32_t L[3] = {m_home[id[0]], m_home[id[1]], m_home[id[2]]};
+    if (L[0] == L[1] && L[1] == L[2]) {
+      // Copies are made in a fixed order (function arguments have none).
+      const uint32_t a = homeCopy(id[0]), b1 = homeCopy(id[1]), c = homeCopy(id[2]);
+      emit(a, b1, c);
+    } else if (L[0] == L[1] || L[1] == L[2] || L[0] == L[2]) {
+      // Vertex i alone on its side: a triangle there, a quad on the other side.
+      const int i = L[0] == L[1] ? 2 : L[0] == L[2] ? 1 : 0, j = (i + 1) % 3, k = (i + 2) % 3;
+      const uint32_t ijA = cutCopy(id[i], id[j], L[i]), ikA = cutCopy(id[i], id[k], L[i]);
+      const uint32_t ijB = cutCopy(id[i], id[j], L[j]), ikB = cutCopy(id[i], id[k], L[j]);
+      const uint32_t hi = homeCopy(id[i]), hj = homeCopy(id[j]), hk = homeCopy(id[k]);
+      emit(hi, ijA, ikA);
+      emit(ijB, hj, hk);
+      emit(ijB, hk, ikB);
+      m_cutNext[ijA] = int32_t(ikA);
+      m_cutNext[ikB] = int32_t(ijB);
+    } else {
+      // Three labels: a centre point and a quad per corner.
+      Vec3 P{}, N{};
+      float uv[2] = {0, 0};
+      for (int c = 0; c < 3; ++c) {
+        P += (1.0 / 3) * load(b.rest.data(), id[c]);
+        N += load(b.restNormal.data(), id[c]);
+        if (!b.uv.empty())
+          for (int d = 0; d < 2; ++d) uv[d] += b.uv[2 * size_t(id[c]) + size_t(d)] / 3;
       }
-      const uint64_t key = uint64_t(v) << 32 | uint32_t(f);
-      auto found = m_otherCopy.find(key);
-      if (found != m_otherCopy.end()) {
-        m_renderIndices.push_back(found->second);
-        continue;
+      N = norm(N) > 0 ? (1 / norm(N)) * N : load(b.restNormal.data(), id[0]);
+      for (int i = 0; i < 3; ++i) {
+        const int j = (i + 1) % 3, k = (i + 2) % 3;
+        const uint32_t c1 = cutCopy(id[i], id[j], L[i]), c2 = cutCopy(id[k], id[i], L[i]);
+        const uint32_t m = pointCopy(P, N, uv, id[i]), h = homeCopy(id[i]);
+        emit(h, c1, m);
+        emit(h, m, c2);
+        m_cutNext[c1] = int32_t(m);
+        m_cutNext[m] = int32_t(c2);
       }
-      // The copy follows the triangle's fragment: its tet's nodes there, if it has any...
-      const int32_t t = b.tet[v];
-      const int32_t* n = &m_rest->tets[4 * size_t(t)];
-      unsigned inF = 0;
-      for (int k = 0; k < 4; ++k) inF |= nodeFragment[n[k]] == f ? 1u << k : 0u;
-      uint32_t copy;
-      if (inF) {
-        copy = addCopy(int32_t(v), t, w, component(strongest(w, inF), joinedMask(t)), f);
-      } else {
-        // ...else the tet of a vertex of the triangle in that fragment, extrapolated.
-        int cu = 0;
-        while (m_home[id[cu]] != f) ++cu;
-        const uint32_t u = id[cu];
-        const int32_t tu = b.tet[u];
-        double wu[4];
-        barycentric(m_restInverse[tu],
-                    load(m_rest->positions.data(), size_t(m_rest->tets[4 * size_t(tu)])),
-                    load(b.rest.data(), v), wu);
-        copy = addCopy(int32_t(v), tu, wu, m_homeGroup[u], f);
-      }
-      m_otherCopy.emplace(key, copy);
-      m_renderIndices.push_back(copy);
     }
   }
+
+  // Cycles of cut segments, in copy order, become caps; chains (an open mesh's holes) stay open.
+  m_capStart.assign(1, 0);
+  m_capRim.clear();
+  m_openCuts = 0;
+  std::vector<uint8_t> seen(m_cutNext.size(), 0);
+  for (size_t c = 0; c < m_cutNext.size(); ++c) {
+    if (m_cutNext[c] < 0 || seen[c]) continue;
+    const size_t begin = m_capRim.size();
+    int32_t p = int32_t(c);
+    while (p >= 0 && !seen[size_t(p)]) {
+      seen[size_t(p)] = 1;
+      m_capRim.push_back(p);
+      p = m_cutNext[size_t(p)];
+    }
+    if (p == int32_t(c)) {
+      m_capStart.push_back(int32_t(m_capRim.size()));
+    } else {
+      m_capRim.resize(begin);
+      ++m_openCuts;
+    }
+  }
+
+  // Fragments without a render vertex: drawn with their tet faces when inside the render mesh.
+  const size_t nn = m_rest->nodeCount();
+  int32_t fragments = 0;
+  for (size_t n = 0; n < nn; ++n) fragments = std::max(fragments, nodeFragment[n] + 1);
+  std::vector<uint8_t> hasRender(size_t(fragments), 0);
+  for (size_t v = 0; v < nv; ++v) hasRender[size_t(m_home[v])] = 1;
+  m_crackDrawn.assign(size_t(fragments), 0);
+  std::vector<uint8_t> asked(size_t(fragments), 0);
+  for (size_t n = 0; n < nn; ++n) {
+    const size_t f = size_t(nodeFragment[n]);
+    if (hasRender[f] || asked[f]) continue;
+    asked[f] = 1;  // the fragment's lowest node stands for it
+    m_crackDrawn[f] = nodeInside(int32_t(n)) ? 1 : 0;
+  }
+  m_nodeFragment = nullptr;
   m_composed = false;
 }
 
 void EmbeddedSurface::compose(const CrackSurface& crack) {
-  const uint32_t ne = uint32_t(m_vTet.size());
+  const uint32_t ne = uint32_t(m_vTet.size()), ncap = capCount();
   const std::span<const uint32_t> ci = crack.indices();
   const std::span<const uint8_t> flags = crack.crackFlags();
+  const std::span<const int32_t> crackFragment = crack.vertexFragment();
   m_crackMap.assign(crack.vertexCount(), -1);
   m_crackFrom.clear();
   m_indices.assign(m_renderIndices.begin(), m_renderIndices.end());
   m_triCrack.assign(m_renderIndices.size() / 3, 0);
+  for (uint32_t c = 0; c < ncap; ++c) {
+    const int32_t b = m_capStart[c], e = m_capStart[c + 1];
+    for (int32_t k = b; k < e; ++k) {
+      const int32_t next = k + 1 < e ? k + 1 : b;
+      m_indices.insert(m_indices.end(),
+                       {ne + c, uint32_t(m_capRim[size_t(next)]), uint32_t(m_capRim[size_t(k)])});
+      m_triCrack.push_back(1);
+    }
+  }
   for (size_t t = 0; t < flags.size(); ++t) {
-    if (!flags[t]) continue;
+    const size_t f = size_t(crackFragment[ci[3 * t]]);
+    if (f >= m_crackDrawn.size() || !m_crackDrawn[f]) continue;
     for (int c = 0; c < 3; ++c) {
       const uint32_t cv = ci[3 * t + size_t(c)];
       if (m_crackMap[cv] < 0) {
-        m_crackMap[cv] = int32_t(ne + m_crackFrom.size());
+        m_crackMap[cv] = int32_t(ne + ncap + m_crackFrom.size());
         m_crackFrom.push_back(int32_t(cv));
       }
       m_indices.push_back(uint32_t(m_crackMap[cv]));
     }
-    m_triCrack.push_back(1);
+    m_triCrack.push_back(flags[t]);
   }
-  const size_t nv = ne + m_crackFrom.size();
+  const size_t nv = ne + ncap + m_crackFrom.size();
   m_vertexNode.assign(m_vNode.begin(), m_vNode.end());
   m_vertexFragment.assign(m_vFragment.begin(), m_vFragment.end());
+  for (uint32_t c = 0; c < ncap; ++c) {
+    // A centre goes with the node of its cap's first rim vertex.
+    const size_t r = size_t(m_capRim[size_t(m_capStart[c])]);
+    m_vertexNode.push_back(m_vNode[r]);
+    m_vertexFragment.push_back(m_vFragment[r]);
+  }
   for (int32_t cv : m_crackFrom) {
     m_vertexNode.push_back(crack.vertexNode()[size_t(cv)]);
     m_vertexFragment.push_back(crack.vertexFragment()[size_t(cv)]);
@@ -358,9 +508,7 @@ void EmbeddedSurface::compose(const CrackSurface& crack) {
   m_uv.clear();
   if (!m_binding->uv.empty()) {
     m_uv.assign(2 * nv, 0.0f);
-    for (uint32_t v = 0; v < ne; ++v)
-      for (int c = 0; c < 2; ++c)
-        m_uv[2 * size_t(v) + size_t(c)] = m_binding->uv[2 * size_t(m_vSource[v]) + size_t(c)];
+    std::copy(m_vUv.begin(), m_vUv.end(), m_uv.begin());
   }
   m_positions.resize(3 * nv);
   m_normals.resize(3 * nv);
@@ -374,19 +522,23 @@ void EmbeddedSurface::compose(const CrackSurface& crack) {
 void EmbeddedSurface::update(const double* x, const CrackSurface& crack, JobSystem* jobs) {
   if (!m_composed || crack.topologyVersion() != m_crackVersion) compose(crack);
   const CpuExecutor exec(jobs ? *jobs : serialJobs());
-  const EmbeddedBinding& b = *m_binding;
-  const int32_t ne = int32_t(m_vTet.size()), nc = int32_t(m_crackFrom.size());
+  const int32_t ne = int32_t(m_vTet.size()), ncap = int32_t(capCount()),
+                nc = int32_t(m_crackFrom.size());
   exec.run(ne, 256,
            EmbeddedVertexStage{x, m_rest->positions.data(), m_rest->tets.data(), m_restInverse,
-                               m_vTet.data(), m_vWeight.data(), m_vGroup.data(), m_vSource.data(),
-                               b.rest.data(), b.restNormal.data(), crack.nodeFrame().data(),
+                               m_vTet.data(), m_vWeight.data(), m_vGroup.data(), m_vRest.data(),
+                               m_vRestNormal.data(), crack.nodeFrame().data(),
                                crack.frameMaps().data(), m_positions.data(), m_normals.data()});
+  exec.run(
+      ncap, 64,
+      CapCenterStage{m_capStart.data(), m_capRim.data(), ne, m_positions.data(), m_normals.data()});
+  const size_t off = 3 * size_t(ne + ncap);
   exec.run(nc, 512,
            GatherVec3Stage{crack.positionsDouble().data(), m_crackFrom.data(),
-                           m_positions.data() + 3 * size_t(ne)});
-  exec.run(nc, 512,
-           GatherVec3Stage{crack.normalsDouble().data(), m_crackFrom.data(),
-                           m_normals.data() + 3 * size_t(ne)});
+                           m_positions.data() + off});
+  exec.run(
+      nc, 512,
+      GatherVec3Stage{crack.normalsDouble().data(), m_crackFrom.data(), m_normals.data() + off});
   const int32_t n3 = int32_t(m_positions.size());
   exec.run(n3, 2048, ToFloatStage{m_positions.data(), m_positionsF.data()});
   exec.run(n3, 2048, ToFloatStage{m_normals.data(), m_normalsF.data()});

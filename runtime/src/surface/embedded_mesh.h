@@ -14,23 +14,53 @@
 //   normals (smoothing groups, hard edges split at seams) and needs no adjacency pass; it is
 //   exact for affine motions. Its price is that F is constant per tet, so under bending the
 //   shading steps at tet faces where the artist's surface crosses them.
-// - Fracture. A vertex belongs to the corner cell of its tet's node with the largest weight
-//   (with midpoint splits that cell is exactly {w_a = max_k w_k}, crack_surface.h) and so to
-//   that node's fragment and to its group (the nodes of the tet joined to it over unbroken
-//   edges). A vertex whose group is the whole tet moves as above; one in a partial group moves
-//   like a partial CrackSurface vertex, through the group nodes' local maps, so it follows its
-//   side of the crack and not the mean of both. A triangle goes whole to the fragment of most
-//   of its vertices (ties: its first vertex's); a vertex of another fragment is duplicated for
-//   it and follows the triangle's fragment: the nodes of its tet in that fragment, or, when
-//   its tet has none, the tet of a vertex of the triangle that is in that fragment, by
-//   extrapolated barycentric coordinates. Triangles are not cut along the crack.
-// - Closing. The crack faces of the body's CrackSurface (the inner quads of unjoined edges) are
-//   appended as they are. They end at the tet boundary, not at the render mesh, so a fragment
-//   that has render triangles is not watertight at the crack's rim: the render triangles' open
-//   edges and the crack faces' open edges do not meet (tests/physics/test_render_mesh.cpp
-//   measures how many fragments are closed). Fragments made only of crack faces are closed.
-// - Cost: nothing until World::surface asks; then O(render vertices) per rendered frame plus the
-//   tet surface's own update (its crack faces are borrowed). rebuild() runs once per fracture.
+// - Fracture: labels. A rest point belongs to the corner cell of its tet's node with the largest
+//   weight (with midpoint splits that cell is exactly {w_a = max_k w_k}, crack_surface.h), and
+//   so to that node's fragment. Each render vertex gets that label and a copy in its fragment;
+//   the copy follows its group (the nodes of the tet joined to that node over unbroken edges):
+//   a whole tet carries it by interpolation as above, a partial group through the group nodes'
+//   local maps like a partial CrackSurface vertex, so it follows its side of the crack.
+// - Fracture: cutting the render triangles. Only separations are cut (fragments, not groups):
+//   a crack that has not separated the body is not drawn in a render mesh, since its slit would
+//   have to be cut out of the artist's surface too. A render edge whose ends have different
+//   labels is cut at one point, computed once for the edge (lower vertex first) where the
+//   boundary w_a = w_b between the two ends' cells crosses it in the lower end's tet (the edge
+//   midpoint when that tet has no node of the other label), kept at least 5 % of the edge from
+//   its ends. The point gets one copy per side, each bound like a vertex of that side (the
+//   tet of the edge's end on that side, extrapolated barycentric coordinates, its group), with
+//   rest normal and UV interpolated along the edge. A triangle with two labels is split along
+//   the segment between its two cut points (a triangle and a quad); one with three labels
+//   also gets a point at its centroid (one copy per label) and splits into three quads. This is
+//   marching triangles on the labels: every piece lies in one fragment, and the two pieces on
+//   either side of a cut segment share its end points' positions but not their copies.
+// - Fracture: closing. For each fragment, the cut segments of its pieces, taken in the pieces'
+//   orientation, chain into cycles: every cut point has one incoming and one outgoing segment
+//   per side on a 2-manifold render mesh, since each render edge has two triangles and each
+//   piece has one cut segment per cut point. Each cycle is closed by a cap, a fan of crack
+//   triangles (centre, c_k+1, c_k) around a centre vertex at the mean of the rim placed every
+//   frame, which uses the rim copies themselves, so each edge of the fragment's surface is used
+//   once in each direction: closed and 2-manifold. Where two fragments meet along a cycle, their
+//   caps are the same fan reversed and their enclosed volumes add up to the render mesh's; where
+//   three meet (a triangle with three labels on the way), each fragment caps its own cycle and
+//   the caps overlap or leave a gap near the triple line. The caps are not the tets' crack
+//   faces: they are a simple surface that closes the cut, flat for a planar cycle, and a fan
+//   over a strongly non-convex cycle folds over itself (still closed, with the right signed
+//   volume). Clipping the tets' crack facets to the inside of the render surface would put the
+//   caps on the cells' facets exactly, but needs a planar arrangement per facet (render
+//   triangles crossing it, shared points with the neighbouring facets) and is not done.
+//   Cap triangles are crack faces (crackFlags 1: the interior material; UV 0 at the centre);
+//   their rim vertices keep the render mesh's normal and UV, the centre takes the fan's normal.
+// - What cannot be closed. An open artist's mesh stays open at its own holes: a cut that runs
+//   into a hole ends in a chain, not a cycle, and is left uncapped. A fragment that owns no
+//   render vertex is drawn with its CrackSurface faces (closed, CrackSurface's design note) if
+//   one of its nodes is inside the render mesh at rest (generalised winding number >= 1/2),
+//   else not at all; such an interior fragment is also enclosed by its neighbours' caps, which
+//   do not know it is missing. The cut follows the render mesh's resolution: a fragment thinner
+//   than a render edge may own no render vertex.
+// - Cost: nothing until World::surface asks; then O(render vertices + caps) per rendered frame
+//   plus the tet surface's own update (its local maps and the faces of fragments drawn with
+//   them). rebuild() runs once per fracture step, O(render triangles) with one hash lookup per
+//   cut edge, plus a winding number (O(render triangles)) for each node first asked about.
 #pragma once
 
 #include <cstdint>
@@ -65,14 +95,14 @@ struct EmbeddedBinding {
                                       const std::string& field);
 };
 
-/// The drawn surface of a body with a render mesh: its triangles deformed with the tets, split
-/// by fragment, plus the crack faces of the body's CrackSurface.
+/// The drawn surface of a body with a render mesh: its triangles deformed with the tets, cut
+/// where fragments separate, and closed by caps over the cuts (see the design note).
 class EmbeddedSurface {
  public:
   /// All four must outlive this object. `restInverse` is Dm^-1 per tet of `rest`.
   void init(const EmbeddedBinding& binding, const TetMesh& rest, const EdgeGraph& graph,
             const Mat3* restInverse);
-  /// Recomputes the vertex copies and the render triangles' fragments from the broken flags
+  /// Recomputes the vertex copies, the cut render triangles and the caps from the broken flags
   /// (1 per edge) and node fragments. Then frameNodes() lists the nodes whose local maps the
   /// copies need: hand them to CrackSurface::setExtraFrameNodes before its rebuild().
   void rebuild(const uint8_t* broken, const int32_t* nodeFragment);
@@ -93,24 +123,35 @@ class EmbeddedSurface {
   std::span<const double> normalsDouble() const { return m_normals; }
   /// 2 per vertex when the render mesh has UVs (0, 0 on crack faces), else empty.
   std::span<const float> uvs() const { return m_uv; }
-  /// Render triangles first, then the crack faces; 3 vertex indices each.
+  /// Render triangles (cut pieces included) first, then the caps, then the faces of fragments
+  /// drawn with their CrackSurface faces; 3 vertex indices each.
   std::span<const uint32_t> indices() const { return m_indices; }
-  /// Per triangle: 1 for a crack face, 0 for a render-mesh triangle.
+  /// Per triangle: 1 for a crack face (caps included), 0 for a render-mesh triangle.
   std::span<const uint8_t> crackFlags() const { return m_triCrack; }
   /// Per vertex: the node of its group with the largest weight (crack vertices: CrackSurface's).
   std::span<const int32_t> vertexNode() const { return m_vertexNode; }
   /// Per vertex: its fragment (every triangle's vertices share it).
   std::span<const int32_t> vertexFragment() const { return m_vertexFragment; }
-  /// Vertices that are render-mesh copies (they come first; the rest are crack vertices).
+  /// Vertices bound to the tets: render-vertex copies and cut points (they come first; then
+  /// the caps' centres, then vertices taken from CrackSurface).
   uint32_t embeddedVertexCount() const { return uint32_t(m_vTet.size()); }
-  /// Per render-mesh copy: the render-mesh vertex it shows.
+  /// Number of caps closing the cuts.
+  uint32_t capCount() const { return uint32_t(m_capStart.size() - 1); }
+  /// Cuts that could not be closed (chains ending at a hole of an open render mesh).
+  uint32_t openCutCount() const { return m_openCuts; }
+  /// Per bound vertex: the render-mesh vertex it shows, or -1 for a cut point.
   std::span<const int32_t> vertexSource() const { return m_vSource; }
   /// Incremented whenever the triangles change.
   uint64_t topologyVersion() const { return m_topologyVersion; }
 
  private:
-  uint32_t addCopy(int32_t source, int32_t tet, const double* w, unsigned group, int32_t fragment);
+  uint32_t addCopy(int32_t source, int32_t tet, const double* w, unsigned group, int32_t fragment,
+                   Vec3 rest, Vec3 restNormal, const float* uv);
+  uint32_t homeCopy(uint32_t v);
+  uint32_t pointCopy(Vec3 P, Vec3 N, const float* uv, uint32_t side);
+  uint32_t cutCopy(uint32_t u, uint32_t v, int32_t fragment);
   void compose(const CrackSurface& crack);
+  bool nodeInside(int32_t node);
 
   const EmbeddedBinding* m_binding = nullptr;
   const TetMesh* m_rest = nullptr;
@@ -120,18 +161,30 @@ class EmbeddedSurface {
   // Per render vertex, from rebuild(): its fragment, its group and its copy in that fragment.
   std::vector<int32_t> m_home, m_homeCopy;
   std::vector<uint8_t> m_homeGroup;
-  std::unordered_map<uint64_t, uint32_t> m_otherCopy;  // (vertex, fragment) -> copy
+  // Cut render edges (lower vertex << 32 | upper) -> the copies of the cut point on the lower
+  // and the upper end's side.
+  std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> m_cut;
+  std::vector<int32_t> m_cutNext;  // per copy: the next copy along its fragment's cut, or -1
+  // Caps: rim copies (CSR), in the order the cut runs for the fragment.
+  std::vector<int32_t> m_capStart{0}, m_capRim;
+  uint32_t m_openCuts = 0;
+  // Fragments drawn with their CrackSurface faces (1 per fragment id), and per node whether it
+  // is inside the render mesh at rest (-1: not asked yet).
+  std::vector<uint8_t> m_crackDrawn;
+  std::vector<int8_t> m_nodeInside;
+  const int32_t* m_nodeFragment = nullptr;  // during rebuild()
   std::vector<uint8_t> m_frameMark;
   std::vector<int32_t> m_frameNodes;
 
   // Copies: the tet, weights and group mask that move them, and the render vertex they show.
   std::vector<int32_t> m_vTet, m_vSource;
-  std::vector<double> m_vWeight;
+  std::vector<double> m_vWeight, m_vRest, m_vRestNormal;
+  std::vector<float> m_vUv;
   std::vector<uint8_t> m_vGroup;
   std::vector<int32_t> m_vNode, m_vFragment;
   std::vector<uint32_t> m_renderIndices;
 
-  // The crack faces taken from CrackSurface: its vertex for each of ours after the copies.
+  // The faces taken from CrackSurface: its vertex for each of ours after the caps' centres.
   std::vector<int32_t> m_crackFrom, m_crackMap;
   uint64_t m_crackVersion = ~uint64_t(0);
   bool m_composed = false;

@@ -211,9 +211,8 @@ struct EmbeddedVertexStage {
   const int32_t* tet = nullptr;        ///< per vertex
   const double* weight = nullptr;      ///< 4 per vertex
   const uint8_t* group = nullptr;      ///< mask over the tet's local nodes
-  const int32_t* source = nullptr;     ///< per vertex: its render-mesh vertex
-  const double* rest = nullptr;        ///< 3 per render-mesh vertex
-  const double* restNormal = nullptr;  ///< 3 per render-mesh vertex, unit
+  const double* rest = nullptr;        ///< 3 per vertex: its rest position
+  const double* restNormal = nullptr;  ///< 3 per vertex, unit
   const int32_t* nodeFrame = nullptr;
   const double* frameR = nullptr;  ///< 9 per frame
   double* positions = nullptr;     ///< 3 per vertex
@@ -224,7 +223,7 @@ struct EmbeddedVertexStage {
     const int32_t* n = tets + 4 * int64_t(t);
     const double* w = weight + 4 * int64_t(v);
     const unsigned g = group[v];
-    const Vec3 N = loadVec3(restNormal, source[v]);
+    const Vec3 N = loadVec3(restNormal, v);
     Vec3 p{}, nn{};
     if (g == 15u) {
       Vec3 xe[4];
@@ -235,7 +234,7 @@ struct EmbeddedVertexStage {
       const Mat3 F = fromColumns(xe[1] - xe[0], xe[2] - xe[0], xe[3] - xe[0]) * restInverse[t];
       nn = cofactorTimes(F, N);
     } else {
-      const Vec3 P = loadVec3(rest, source[v]);
+      const Vec3 P = loadVec3(rest, v);
       int members = 0;
       for (int k = 0; k < 4; ++k) {
         if (!(g >> k & 1u)) continue;
@@ -265,6 +264,36 @@ struct GatherVec3Stage {
 
   GF_HD void operator()(int32_t i) const {
     for (int c = 0; c < 3; ++c) out[3 * int64_t(i) + c] = in[3 * int64_t(from[i]) + c];
+  }
+};
+
+/// The centre of a cap that closes a fragment's cut through the render mesh: the mean of its
+/// rim vertices (placed before this stage) and, as the normal of all its triangles, the unit
+/// area vector of its fan (center, rim[k + 1], rim[k]).
+struct CapCenterStage {
+  const int32_t* rimStart = nullptr;  ///< per cap, CSR into rim
+  const int32_t* rim = nullptr;       ///< rim vertices, in the order the cut runs for the fragment
+  int32_t firstCenter = 0;            ///< the vertex of cap 0's centre; the others follow
+  double* positions = nullptr;        ///< 3 per vertex
+  double* normals = nullptr;          ///< 3 per vertex
+
+  GF_HD void operator()(int32_t c) const {
+    const int32_t b = rimStart[c], e = rimStart[c + 1];
+    Vec3 m{};
+    for (int32_t k = b; k < e; ++k) m += loadVec3(positions, rim[k]);
+    m = (1.0 / double(e - b)) * m;
+    Vec3 area{};
+    for (int32_t k = b; k < e; ++k) {
+      const int32_t next = k + 1 < e ? k + 1 : b;
+      area += cross(loadVec3(positions, rim[next]) - m, loadVec3(positions, rim[k]) - m);
+    }
+    const double len = norm(area);
+    const Vec3 n = len > 0 ? (1.0 / len) * area : Vec3{0, 0, 1};
+    const int64_t v = int64_t(firstCenter) + c;
+    for (int i = 0; i < 3; ++i) {
+      positions[3 * v + i] = m[i];
+      normals[3 * v + i] = n[i];
+    }
   }
 };
 
