@@ -7,6 +7,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <ostream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "common/sim_helpers.h"
 
@@ -368,8 +373,13 @@ namespace {
 // by grips moving 0.5 m/s: it breaks and stays finite, and the fragments' kinetic energy is
 // bounded by what can feed it: the strain energy the bar holds at sigma_th (1/2 sigma^2 / E per
 // volume), the grips' speed and gravity over the run.
-double steelTearMaxKinetic(DamageModel model, int substeps, double* bound, int* fragments) {
+// shift > 0 moves every node's start by up to that fraction of its coordinates, a fixed
+// pseudo-random pattern per seed: a last-bit change of the kind round-off makes.
+double steelTearMaxKinetic(DamageModel model, int substeps, double* bound, int* fragments,
+                           double shift = 0, uint32_t seed = 0,
+                           LinearSolverKind solver = LinearSolverKind::Multigrid) {
   BodyDef def;
+  def.solver.linearSolver = solver;
   def.mesh = gen::box(0.2, 0.02, 0.02, 20, 2, 2);
   def.material = Material::stableNeoHookean(2.2e11, 0.28, 7700);
   def.fracture.enabled = true;
@@ -386,6 +396,16 @@ double steelTearMaxKinetic(DamageModel model, int substeps, double* bound, int* 
   World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, substeps, {}});
   auto id = world.createBody(def);
   EXPECT_TRUE(id.ok());
+  if (shift > 0) {
+    std::vector<double> x(def.mesh.positions);
+    uint64_t state = 0x9E3779B97F4A7C15ull * (seed + 1);
+    for (double& c : x) {
+      state = state * 6364136223846793005ull + 1442695040888963407ull;
+      const double u = double(state >> 11) * 0x1.0p-53;  // [0, 1)
+      c += (2 * u - 1) * shift * c;
+    }
+    EXPECT_TRUE(world.setPositions(id.value(), x).ok());
+  }
   double maxKe = 0;
   for (int s = 0; s < 60; ++s) {
     (void)world.step(1.0 / 60);
@@ -419,6 +439,80 @@ TEST(Fracture, SteelTornAtGameTimeStepStaysBounded) {
     EXPECT_LT(ke, bound);
   }
 }
+
+// The same tear from starts shifted by 1e-15..1e-12 of their coordinates (issue 19). A patch
+// that changed only the Hessians' round-off threw the projection model's fragments at 1.04e5 J;
+// from shifted starts the plain run did the same in 4 of 12 multigrid, 12 of 12 PCG and 12 of 12
+// direct-solver runs (up to 5e8 J): an open-crack Newton step thousands of metres long, of
+// which the line search accepted a fraction. CI runs two shifted starts per model and solver;
+// GF_FULL_VALIDATION=1 runs three shifts x four seeds.
+struct TearCase {
+  DamageModel model;
+  LinearSolverKind solver;
+  double shift;
+  uint32_t seed;
+};
+
+std::vector<TearCase> perturbedTearCases(bool directProjection) {
+  const bool full = std::getenv("GF_FULL_VALIDATION") != nullptr;
+  std::vector<std::pair<double, uint32_t>> starts;
+  if (full) {
+    for (double shift : {1e-15, 1e-13, 1e-12})
+      for (uint32_t seed = 0; seed < 4; ++seed) starts.push_back({shift, seed});
+  } else {
+    starts = {{1e-15, 0}, {1e-12, 3}};  // both threw the multigrid run before the fix
+  }
+  std::vector<TearCase> cases;
+  for (DamageModel model : {DamageModel::Projection, DamageModel::Degradation})
+    for (LinearSolverKind solver :
+         {LinearSolverKind::Multigrid, LinearSolverKind::PCG, LinearSolverKind::Direct}) {
+      const bool isDirectProjection =
+          model == DamageModel::Projection && solver == LinearSolverKind::Direct;
+      if (isDirectProjection != directProjection) continue;
+      for (auto [shift, seed] : starts) cases.push_back({model, solver, shift, seed});
+    }
+  return cases;
+}
+
+void PrintTo(const TearCase& c, std::ostream* os) {
+  *os << "model " << int(c.model) << ", solver " << int(c.solver) << ", shift " << c.shift
+      << ", seed " << c.seed;
+}
+
+class PerturbedSteelTear : public ::testing::TestWithParam<TearCase> {};
+
+TEST_P(PerturbedSteelTear, StaysBounded) {
+  const TearCase c = GetParam();
+  double bound = 0;
+  int fragments = 0;
+  const double ke = steelTearMaxKinetic(c.model, 1, &bound, &fragments, c.shift, c.seed, c.solver);
+  std::printf(
+      "steel tear, model %d, solver %d, start shifted %.0e (seed %u): %d fragments, max KE "
+      "%.3e J (bound %.3e J)\n",
+      int(c.model), int(c.solver), c.shift, c.seed, fragments, ke, bound);
+  EXPECT_GE(fragments, 2);
+  EXPECT_LT(ke, bound);
+}
+
+std::string tearName(const ::testing::TestParamInfo<TearCase>& info) {
+  const TearCase& c = info.param;
+  const char* solver = c.solver == LinearSolverKind::Multigrid ? "multigrid"
+                       : c.solver == LinearSolverKind::PCG     ? "pcg"
+                                                               : "direct";
+  return std::string(c.model == DamageModel::Projection ? "projection_" : "degradation_") + solver +
+         "_shift" + std::to_string(int(std::lround(-std::log10(c.shift)))) + "_seed" +
+         std::to_string(c.seed);
+}
+
+INSTANTIATE_TEST_SUITE_P(Fracture, PerturbedSteelTear,
+                         ::testing::ValuesIn(perturbedTearCases(false)), tearName);
+// Not yet: with the direct solver the projection model still reaches 154 J against the bound
+// of 108 J from every shifted start. The closed-crack retry keeps step 2 calm, but that step
+// ends holding ~7e4 J of elastic energy (likely in elements the grips' 8 mm jump overstrained
+// and the criterion, judged at x_n, has not broken yet); step 3's single Newton step turns it
+// into kinetic energy. See docs/validation.md.
+INSTANTIATE_TEST_SUITE_P(DISABLED_Fracture, PerturbedSteelTear,
+                         ::testing::ValuesIn(perturbedTearCases(true)), tearName);
 
 }  // namespace
 }  // namespace gf

@@ -563,7 +563,11 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   // the step built on the open crack's softness then overshoots into the closed crack's
   // stiffness (on steel at dt 50 ms no trial down to kMinLineSearchStep lowered E, and taking
   // that trial gained up to 0.5 E0 per run). Such an iteration is repeated once from the same
-  // point with the closed-crack Hessian, a majorant of psi's curvature.
+  // point with the closed-crack Hessian, a majorant of psi's curvature. So is one whose line
+  // search had to shorten the step at all: the open-crack Newton step was seen thousands of
+  // metres long, and a fraction of it that Armijo accepts (its slope is steep) still threw a
+  // torn steel bar's fragments at up to 5e8 J, decided by the last bits of the start (issue
+  // 19, tests/physics/test_fracture.cpp, docs/validation.md).
   bool closedRetryLeft = true;
   m_closedCrackHessian = false;
   bool retry = false;
@@ -700,7 +704,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       rep.elementsMs += msSince(t0);
       const bool cracked = m_fracture && m_fracture->damageModel() == kDamageProjection &&
                            m_fracture->brokenCount() > 0;
-      if (searchFailed && cracked && closedRetryLeft) {
+      if ((searchFailed || alpha < 1) && cracked && closedRetryLeft) {
         // The retry of the comment above, from where this iteration started.
         alpha = 0;
         finalPsiKnown = false;
