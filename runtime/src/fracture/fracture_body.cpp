@@ -68,7 +68,8 @@ Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem,
   fb->m_data.chi.assign(nt, 1.0);
   fb->m_stress.assign(6 * nt, 0.0);
   fb->m_nodeVolume = Fragments::nodeVolumes(fem.tets.data(), nt, fem.restPositions.data(), nn);
-  fb->m_data.fragments.build(fb->m_graph, fb->m_data.broken.data());
+  fb->m_data.fragments.build(CpuExecutor(jobs), fb->m_graph, fb->m_data.broken.data(),
+                             fb->m_fragmentScratch);
   const FractureSettings& fs = fem.fracture;
   if (fs.impurities.enabled || !fs.impurityMaps.empty()) {
     fb->m_data.hasImpurity = true;
@@ -186,7 +187,7 @@ void FractureBody::computeSplits(size_t first, const FemModel& fem, const FemSta
 }
 
 void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState& data,
-                               const double* x) {
+                               const double* x, JobSystem& jobs) {
   if (first == m_data.breaks.size()) return;
   std::sort(m_data.breaks.begin() + long(first), m_data.breaks.end(),
             [](const EdgeBreak& a, const EdgeBreak& b) { return a.edge < b.edge; });
@@ -215,10 +216,12 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState
                              m_data.strength);
   m_data.brokenCount += int32_t(m_data.breaks.size() - first);
   m_data.breakOrder.insert(m_data.breakOrder.end(), m_newEdges.begin(), m_newEdges.end());
-  if (m_data.fragments.update(m_graph, m_data.broken.data(), m_newEdges)) {
+  const CpuExecutor exec(jobs);
+  if (m_data.fragments.update(exec, m_graph, m_data.broken.data(), m_newEdges, m_fragmentScratch)) {
     const auto s = m_data.fragments.splits();
     m_data.splits.insert(m_data.splits.end(), s.begin(), s.end());
-    m_data.fragments.compute(m_nodeVolume, data.nodeMass, x, data.v.data(), m_data.props);
+    m_data.fragments.compute(exec, m_nodeVolume, data.nodeMass, x, data.v.data(), m_data.props,
+                             m_fragmentScratch);
   }
 }
 
@@ -234,7 +237,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
                    jobs);
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Cut));
     computeSplits(first, fem, data, x, jobs);
-    applyBreaks(first, fem, data, x);
+    applyBreaks(first, fem, data, x, jobs);
   }
   m_data.pendingCuts.clear();
   if (m_data.hasImpurity && !m_data.impurity.pendingPrecut.empty()) {
@@ -252,7 +255,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     m_data.impurity.pendingPrecut.clear();
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Cut));
     computeSplits(first, fem, data, x, jobs);
-    applyBreaks(first, fem, data, x);
+    applyBreaks(first, fem, data, x, jobs);
   }
 
   computeStresses(fem, data, x, !stressesReady, jobs);
@@ -284,7 +287,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     for (size_t i = first; i < m_data.breaks.size(); ++i)
       causes.push_back({m_data.breaks[i].edge, m_data.breakCause[i]});
     std::sort(causes.begin(), causes.end());
-    applyBreaks(first, fem, data, x);
+    applyBreaks(first, fem, data, x, jobs);
     for (size_t i = first; i < m_data.breaks.size(); ++i)
       m_data.breakCause[i] = causes[i - first].second;
   }

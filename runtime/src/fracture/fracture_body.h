@@ -138,7 +138,8 @@ class FractureBody {
   void computeSplits(size_t first, const FemModel& fem, const FemState& data, const double* x,
                      JobSystem& jobs);
   // Masks, chi and fragments after edges in m_data.breaks[first..] broke.
-  void applyBreaks(size_t first, const FemModel& fem, const FemState& data, const double* x);
+  void applyBreaks(size_t first, const FemModel& fem, const FemState& data, const double* x,
+                   JobSystem& jobs);
 
   // Fixed at creation.
   EdgeGraph m_graph;
@@ -154,6 +155,7 @@ class FractureBody {
   // Scratch: rewritten before every read.
   std::vector<double> m_stress;
   std::vector<int32_t> m_newEdges;
+  FragmentScratch m_fragmentScratch;
   CriterionWorkspace m_ws;
   CutWorkspace m_cutWs;
 };

@@ -6,19 +6,26 @@
 // - Ids are dense, 0..count()-1, and stable: when a fragment splits, the piece that holds the
 //   fragment's lowest node index keeps the old id and every other piece gets the next free id.
 //   build() numbers fragments by increasing lowest node (the piece with node 0 is fragment 0).
-// - update() is incremental. The batch of newly broken edges is applied one edge at a time
-//   (edges later in the batch still count as intact), so every step removes one edge and can
-//   only split one fragment in two. For each edge (a, b) still inside one fragment it runs
-//   two breadth-first searches over unbroken edges, one from a and one from b, one node at a
-//   time each. They stop as soon as they meet (a and b still connected: nothing to do) or one of
-//   them runs out of nodes (that search holds the whole smaller piece). A split therefore costs
-//   O(smaller piece), and a break that splits nothing costs O(the ball the searches covered).
-//   The one exception is the id rule: when the smaller piece holds the lowest node, it keeps the
-//   id and the larger rest is relabelled, O(rest).
-// - Node lists are a permutation of the nodes in which every fragment's nodes are contiguous
-//   (start and count per fragment); a split partitions the parent's range in place, so the
-//   lists are ranges of one array rather than CSR in id order. Order inside a range is
-//   unspecified.
+// - The components themselves come from the executor (surface/fragment_stages.h: min-label
+//   propagation with pointer jumping over unbroken edges, one source for the CPU and the
+//   device), each node labelled with the lowest node of its piece; build() numbers the roots
+//   by a scan. update() relabels only the fragments in which a newly broken edge may have split
+//   something (a bounded search from one end does not reach the other over unbroken edges), and
+//   nothing at all when no edge may have: most breaks leave their ends joined a few edges apart.
+// - update() keeps the ids of the sequential rule: the batch of newly broken edges is applied
+//   one edge at a time (edges later in the batch still count as intact), so each removal splits
+//   at most one fragment in two, and the new ids follow the order of the removals that split.
+//   Which removals split is found without replaying them on the node graph: the removal of the
+//   i-th edge separates its ends exactly when they are apart in the final pieces joined by the
+//   batch's later edges, so a union-find over the final pieces (the roots) that adds the batch
+//   edges back in reverse order finds every split and its two sides (each side named by its
+//   lowest node); walking those splits forwards gives each side that does not hold the lowest
+//   node the next id. This host pass costs O(batch), not O(nodes). The labelling costs the
+//   relabelled fragments' nodes times its rounds on every step that may split: on the CPU more
+//   than an incremental search would (docs/design.md, "Fragments"), in the form a device runs.
+// - Node lists hold every fragment's nodes in increasing index order (SegmentLists, rebuilt
+//   when the partition changes), and the per-fragment sums are segmented reductions over them
+//   in step/segments.h's fixed order: same bits for any thread count.
 #pragma once
 
 #include <cstddef>
@@ -27,6 +34,9 @@
 #include <vector>
 
 #include "mesh/edge_graph.h"
+#include "step/executor.h"
+#include "step/scan.h"
+#include "step/segments.h"
 
 namespace gf::detail {
 
@@ -46,27 +56,46 @@ struct FragmentSplit {
   int32_t parent = -1;
 };
 
+/// Scratch of the labelling and the sums, kept by the caller (not part of a snapshot) so that a
+/// step allocates nothing after warm-up.
+struct FragmentScratch {
+  std::vector<int32_t> label, next, rootId, flag, dsu;
+  std::vector<double> changed, terms, partials, sums;
+  std::vector<uint8_t> active, seen, maySplit;
+  std::vector<int32_t> batch;
+  std::vector<int32_t> mergeSide;  // per split found: the two sides' lowest nodes
+  ScanScratch scan;
+  int32_t rounds = 0;  ///< label rounds of the last build() or update()
+};
+
 /// Connected components of a body's nodes over unbroken edges, with stable ids.
 class Fragments {
  public:
-  /// Full computation from the broken flags (1 = broken, one per edge of `graph`). Fragments
-  /// are numbered by increasing lowest node index.
-  void build(const EdgeGraph& graph, const uint8_t* broken);
+  /// Full computation from the broken flags (1 = broken, one per edge of `graph`; null: none).
+  /// Fragments are numbered by increasing lowest node index.
+  void build(const CpuExecutor& exec, const EdgeGraph& graph, const uint8_t* broken,
+             FragmentScratch& scratch);
   /// Incremental update after the edges in `newlyBroken` were set in `broken` (all other flags
   /// unchanged since the last call). Entries that are not broken, repeated, or already between
   /// two fragments are ignored. Returns true when at least one fragment split; splits() then
   /// lists the new fragments.
+  bool update(const CpuExecutor& exec, const EdgeGraph& graph, const uint8_t* broken,
+              std::span<const int32_t> newlyBroken, FragmentScratch& scratch);
+  /// The same on the calling thread with scratch of its own (tests, tools).
+  void build(const EdgeGraph& graph, const uint8_t* broken);
   bool update(const EdgeGraph& graph, const uint8_t* broken, std::span<const int32_t> newlyBroken);
 
   /// Number of fragments (ids are 0..count()-1).
-  int32_t count() const { return static_cast<int32_t>(m_start.size()); }
+  int32_t count() const { return static_cast<int32_t>(m_minNode.size()); }
   /// Fragment id of every node.
   std::span<const int32_t> nodeFragment() const { return m_nodeFragment; }
-  /// Nodes of fragment `f`, in unspecified order.
+  /// Nodes of fragment `f`, in increasing index order.
   std::span<const int32_t> nodes(int32_t f) const {
-    return {m_order.data() + m_start[static_cast<size_t>(f)],
-            static_cast<size_t>(m_count[static_cast<size_t>(f)])};
+    const Segments s = m_lists.view();
+    return {s.order + s.start[f], static_cast<size_t>(s.start[f + 1] - s.start[f])};
   }
+  /// The node lists as segments of a reduction (one per fragment).
+  Segments segments() const { return m_lists.view(); }
   /// Lowest node index of fragment `f` (the node whose piece keeps `f` on a split).
   int32_t lowestNode(int32_t f) const { return m_minNode[static_cast<size_t>(f)]; }
   /// Fragments created by the last build() (none) or update(), in creation order.
@@ -76,8 +105,12 @@ class Fragments {
 
   /// Volume, mass, centre of mass and velocity of every fragment. `nodeVolume` and `nodeMass`
   /// hold one value per node (see nodeVolumes()); `x` and `v` are 3 per node. A fragment of
-  /// zero mass gets the plain mean of its nodes' positions and velocities. Reuses `out`'s
-  /// storage; O(nodes).
+  /// zero mass gets the plain mean of its nodes' positions and velocities. Each sum runs over
+  /// the fragment's nodes in step/segments.h's order. Reuses `out`'s storage; O(nodes).
+  void compute(const CpuExecutor& exec, std::span<const double> nodeVolume,
+               std::span<const double> nodeMass, const double* x, const double* v,
+               FragmentProperties& out, FragmentScratch& scratch) const;
+  /// The same on the calling thread.
   void compute(std::span<const double> nodeVolume, std::span<const double> nodeMass,
                const double* x, const double* v, FragmentProperties& out) const;
 
@@ -89,23 +122,16 @@ class Fragments {
                                          size_t nodeCount);
 
  private:
-  // Two interleaved searches from a and b; returns true and fills m_piece when they do not meet.
-  bool separatePiece(const EdgeGraph& graph, const uint8_t* broken, int32_t a, int32_t b);
-  void splitOff(int32_t f);
-  void nextEpoch();
+  // Labels the components of the fragments marked in s.active (null: all) into s.label.
+  void label(const CpuExecutor& exec, const EdgeGraph& graph, const uint8_t* broken,
+             const uint8_t* active, FragmentScratch& s) const;
+  // nodeFragment from s.label and s.rootId, then the node lists.
+  void assign(const CpuExecutor& exec, FragmentScratch& s);
 
   std::vector<int32_t> m_nodeFragment;
-  std::vector<int32_t> m_order;                      // nodes, each fragment's contiguous
-  std::vector<int32_t> m_position;                   // node -> index in m_order
-  std::vector<int32_t> m_start, m_count, m_minNode;  // per fragment
+  std::vector<int32_t> m_minNode;  // per fragment
+  SegmentLists m_lists;            // nodes by fragment, in index order
   std::vector<FragmentSplit> m_splits;
-  // Search state: m_mark[node] == m_epoch (search from a) or m_epoch + 1 (search from b).
-  std::vector<uint32_t> m_mark;
-  uint32_t m_epoch = 0;
-  uint32_t m_pieceMark = 0;
-  std::vector<int32_t> m_queueA, m_queueB;
-  std::vector<uint8_t> m_pending;  // per edge: in the current batch, not yet processed
-  const std::vector<int32_t>* m_piece = nullptr;
   uint64_t m_version = 0;
 };
 
