@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "common/union_find_labels.h"
 #include "gpu/fragment_labels.h"
 #include "graphfrac/jobs.h"
 #include "graphfrac/mesh.h"
@@ -22,23 +23,6 @@
 
 namespace gf {
 namespace {
-
-std::vector<int32_t> unionFind(const detail::EdgeGraph& g, const std::vector<uint8_t>& broken) {
-  std::vector<int32_t> parent(size_t(g.nodeCount));
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](int32_t a) {
-    while (parent[size_t(a)] != a) a = parent[size_t(a)] = parent[size_t(parent[size_t(a)])];
-    return a;
-  };
-  for (int32_t e = 0; e < g.edgeCount; ++e) {
-    if (broken[size_t(e)]) continue;
-    const int32_t a = find(g.edgeNodes[2 * size_t(e)]), b = find(g.edgeNodes[2 * size_t(e) + 1]);
-    if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);
-  }
-  std::vector<int32_t> label(parent.size());
-  for (int32_t u = 0; u < g.nodeCount; ++u) label[size_t(u)] = find(u);
-  return label;
-}
 
 struct MeshCase {
   const char* name;
@@ -62,7 +46,7 @@ TEST_P(FragmentBackend, LabelsMatchTheCpuAndAUnionFind) {
   for (int share : {0, 10, 40, 70, 95}) {
     std::vector<uint8_t> broken(size_t(g.edgeCount));
     for (auto& b : broken) b = int(rng() % 100) < share;
-    const std::vector<int32_t> truth = unionFind(g, broken);
+    const std::vector<int32_t> truth = test::unionFindLabels(g, broken);
 
     const size_t n = size_t(g.nodeCount);
     std::vector<int32_t> cpu(n), next(n), dev(n, -1);

@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/union_find_labels.h"
 #include "graphfrac/jobs.h"
 #include "mesh/edge_graph.h"
 #include "step/executor.h"
@@ -50,24 +51,6 @@ EdgeGraph makeGraph(int32_t n, std::vector<std::pair<int32_t, int32_t>> edges) {
     for (int k = 0; k < 2; ++k)
       g.nodeEdges[size_t(fill[size_t(g.edgeNodes[2 * size_t(e) + size_t(k)])]++)] = e;
   return g;
-}
-
-// Independent truth: union-find over unbroken edges, each node labelled with its set's least.
-std::vector<int32_t> unionFind(const EdgeGraph& g, const std::vector<uint8_t>& broken) {
-  std::vector<int32_t> parent(size_t(g.nodeCount));
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](int32_t a) {
-    while (parent[size_t(a)] != a) a = parent[size_t(a)] = parent[size_t(parent[size_t(a)])];
-    return a;
-  };
-  for (int32_t e = 0; e < g.edgeCount; ++e) {
-    if (broken[size_t(e)]) continue;
-    const int32_t a = find(g.edgeNodes[2 * size_t(e)]), b = find(g.edgeNodes[2 * size_t(e) + 1]);
-    if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);
-  }
-  std::vector<int32_t> label(parent.size());
-  for (int32_t u = 0; u < g.nodeCount; ++u) label[size_t(u)] = find(u);
-  return label;
 }
 
 struct Labelled {
@@ -140,7 +123,7 @@ TEST(FragmentLabels, MatchASerialUnionFindAtOneTwoAndFourThreads) {
   JobSystem* systems[] = {&serialJobs(), &two, &four};
   int components = 0, isolated = 0, maxRounds = 0;
   for (const RandomGraph& r : randomGraphs()) {
-    const std::vector<int32_t> truth = unionFind(r.graph, r.broken);
+    const std::vector<int32_t> truth = test::unionFindLabels(r.graph, r.broken);
     ASSERT_EQ(truth.size(), size_t(r.graph.nodeCount));
     const Labelled one = labelOnExecutor(serialJobs(), r.graph, r.broken);
     ASSERT_EQ(one.label, truth) << r.kind << ", " << r.graph.nodeCount << " nodes";
@@ -213,7 +196,7 @@ struct Sequential {
       intact[size_t(e)] = 0;
       std::vector<uint8_t> asBroken(intact.size());
       for (size_t i = 0; i < intact.size(); ++i) asBroken[i] = !intact[i];
-      const std::vector<int32_t> comp = unionFind(g, asBroken);
+      const std::vector<int32_t> comp = test::unionFindLabels(g, asBroken);
       const int32_t a = g.edgeNodes[2 * size_t(e)], b = g.edgeNodes[2 * size_t(e) + 1];
       if (comp[size_t(a)] == comp[size_t(b)]) continue;
       const int32_t f = fragment[size_t(a)];
@@ -247,7 +230,7 @@ TEST(FragmentLabels, UpdateKeepsTheIdsOfTheSequentialRule) {
     Fragments fr;
     fr.build(CpuExecutor(two), g, broken.data(), scratch);
     Sequential seq;
-    seq.fragment = unionFind(g, broken);
+    seq.fragment = test::unionFindLabels(g, broken);
     // Build numbers the roots in node order.
     std::vector<int32_t> rootId(size_t(n), -1);
     for (int32_t u = 0; u < n; ++u)

@@ -9,29 +9,12 @@
 #include <random>
 #include <vector>
 
+#include "common/union_find_labels.h"
 #include "mesh/edge_graph.h"
 #include "surface/fragments.h"
 
 namespace gf::detail {
 namespace {
-
-// Independent truth: union-find over unbroken edges, labels = smallest node of each set.
-std::vector<int32_t> unionFindLabels(const EdgeGraph& g, const std::vector<uint8_t>& broken) {
-  std::vector<int32_t> parent(static_cast<size_t>(g.nodeCount));
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](int32_t a) {
-    while (parent[size_t(a)] != a) a = parent[size_t(a)] = parent[size_t(parent[size_t(a)])];
-    return a;
-  };
-  for (int32_t e = 0; e < g.edgeCount; ++e) {
-    if (broken[size_t(e)]) continue;
-    int32_t a = find(g.edgeNodes[2 * size_t(e)]), b = find(g.edgeNodes[2 * size_t(e) + 1]);
-    if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);
-  }
-  std::vector<int32_t> label(parent.size());
-  for (int32_t v = 0; v < g.nodeCount; ++v) label[size_t(v)] = find(v);
-  return label;
-}
 
 // Same partition (labels equal up to a bijection) and the fragment count equals the number of
 // distinct truth labels.
@@ -98,7 +81,7 @@ TEST(Fragments, PlanarLayerSplitsBoxInTwo) {
   full.build(g, broken.data());
   for (const Fragments* fr : {&inc, &full}) {
     EXPECT_EQ(fr->count(), 2);
-    expectSamePartition(fr->nodeFragment(), unionFindLabels(g, broken), fr->count());
+    expectSamePartition(fr->nodeFragment(), test::unionFindLabels(g, broken), fr->count());
     expectConsistentLists(*fr, m.nodeCount());
     // Geometry: the piece of node 0 (x = 0) is exactly the nodes left of the plane.
     for (size_t v = 0; v < m.nodeCount(); ++v)
@@ -162,7 +145,7 @@ TEST(Fragments, IncrementalMatchesFullBuildUnderRandomBreaks) {
         const int32_t oldCount = inc.count();
 
         const bool split = inc.update(g, broken.data(), newly);
-        const std::vector<int32_t> truth = unionFindLabels(g, broken);
+        const std::vector<int32_t> truth = test::unionFindLabels(g, broken);
         expectSamePartition(inc.nodeFragment(), truth, inc.count());
         expectConsistentLists(inc, m.nodeCount());
         Fragments full;
