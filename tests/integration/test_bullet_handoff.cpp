@@ -253,6 +253,136 @@ TEST(BulletHandoff, BadApiUseReturnsErrorsAndChangesNothing) {
   EXPECT_LT(glm::length(after.linearVelocity), 1e-12);
 }
 
+// Kinetic energy and momenta of every handed-off piece as Bullet holds them.
+struct RigidTotals {
+  glm::dvec3 p{0}, L{0};
+  double kinetic = 0;
+};
+RigidTotals rigidTotals(const bullet::Bridge& bridge) {
+  RigidTotals t;
+  for (const bullet::RigidFragment& f : bridge.fragments()) {
+    const btRigidBody& rb = *f.rigidBody;
+    glm::dvec3 p, L, spin;
+    bulletMomenta(rb, p, L, spin);
+    const glm::dvec3 v = toGlm(rb.getLinearVelocity()), w = toGlm(rb.getAngularVelocity());
+    t.p += p;
+    t.L += L;
+    t.kinetic += 0.5 * (glm::dot(p, v) + glm::dot(spin, w));
+  }
+  return t;
+}
+
+// A bar cut in three and handed to Bullet (no gravity): from the FEM state just before the
+// hand-off to the Bullet state after its first step and over the next 0.1 s, momentum is
+// conserved and no kinetic energy appears, whatever the step. Apart: the pieces drift 4 cm
+// apart before they are handed off. Touching: they are handed off the step they are cut, face
+// to face (their node hulls a node spacing apart, wider than two margins). Pressed: the bar also
+// lies 3 mm deep in a frictionless Bullet floor the FEM body does not see (as a body pressed into
+// the floor by its contact's penalty is): each new hull starts penetrating it, and Bullet must push
+// it out without making it fly (Baumgarte's push, erp depth / h, grows as the step shrinks). The
+// bar translates only, so the pieces' inertias barely enter (but see the spin below).
+enum class Contact { Apart, Touching, Pressed };
+std::string contactName(Contact c) {
+  return c == Contact::Apart ? "apart" : c == Contact::Touching ? "touching" : "pressed";
+}
+struct HandoffCase {
+  int substeps;
+  Contact contact;
+};
+class HandoffEnergy : public ::testing::TestWithParam<HandoffCase> {};
+
+TEST_P(HandoffEnergy, ConservesMomentumAndGainsNoKineticEnergy) {
+  const HandoffCase c = GetParam();
+  const double h = 1.0 / 60 / c.substeps;
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  BodyDef def = breakableBox(0.3, 0.1, 0.1, 6, 2, 2);
+  def.material = Material::stableNeoHookean(1e7, 0.3, 1000);
+  const double depth = c.contact == Contact::Pressed ? 0.003 : 0;
+  for (size_t i = 1; i < def.mesh.positions.size(); i += 3) def.mesh.positions[i] -= depth;
+  const BodyId id = world.createBody(def).value();
+  const glm::dvec3 v0(1.0, 0, 0.3);
+  // spread: the pieces drift apart along the bar at this speed per metre from its middle.
+  const auto setVelocity = [&](double spread) {
+    const std::span<const double> x = world.positions(id);
+    std::vector<double> v(x.size());
+    for (size_t n = 0; n < x.size() / 3; ++n) {
+      const glm::dvec3 vn = v0 + glm::dvec3(spread * (x[3 * n] - 0.15), 0, 0);
+      for (int i = 0; i < 3; ++i) v[3 * n + i] = vn[i];
+    }
+    ASSERT_TRUE(world.setVelocities(id, v).ok());
+  };
+  setVelocity(0);
+  test::BulletWorld dyn(btVector3(0, 0, 0), /*withFloor=*/c.contact == Contact::Pressed);
+  if (dyn.floor) dyn.floor->setFriction(0);
+  bullet::Bridge bridge(world, dyn.world);
+  if (c.contact != Contact::Apart) {
+    ASSERT_TRUE(bridge.setPolicy(id, bullet::HandoffPolicy::EveryFragment).ok());
+  }
+  ASSERT_TRUE(world.cut(id, planeBlade(0.125)).ok());
+  ASSERT_TRUE(world.cut(id, planeBlade(0.225)).ok());
+  (void)world.step(h);
+  ASSERT_EQ(world.fractureStats(id).fragments, 3);
+  if (c.contact == Contact::Apart) {
+    setVelocity(0.4);  // the end pieces leave the middle one at 4 cm/s each, for 1 s
+    for (double t = 0; t < 1.0; t += h) (void)world.step(h);
+    ASSERT_TRUE(bridge.setPolicy(id, bullet::HandoffPolicy::EveryFragment).ok());
+    (void)world.step(h);
+  }
+  const BodyStats before = world.stats(id);
+  // The kinetic energy the hand-off gives the pieces (rigid motions carrying their momenta).
+  double given = 0;
+  for (int32_t f = 0; f < 3; ++f) {
+    const RigidFragmentInfo fi = world.fragmentInfo(id, f).value();
+    given += 0.5 * fi.mass * glm::dot(fi.linearVelocity, fi.linearVelocity) +
+             0.5 * glm::dot(fi.angularVelocity, fi.inertia * fi.angularVelocity);
+  }
+  ASSERT_EQ(bridge.handOffNewFragments(), 3);
+  dyn.world.stepSimulation(btScalar(h), 0);
+  bridge.syncFromDynamics();
+  const RigidTotals after = rigidTotals(bridge);
+  double most = after.kinetic;
+  for (double t = 0; t < 0.1; t += h) {
+    dyn.world.stepSimulation(btScalar(h), 0);
+    most = std::max(most, rigidTotals(bridge).kinetic);
+  }
+  bridge.syncFromDynamics();
+  double lowest = 1e300;
+  const std::span<const double> x = world.positions(id);
+  for (size_t n = 1; n < x.size(); n += 3) lowest = std::min(lowest, x[n]);
+  std::printf(
+      "%2d substeps, %-8s: kinetic %.6g J (FEM) -> %.6g J (hand-off) -> %.6g J (Bullet, "
+      "first step), at most %.6g J in 0.1 s; |dp|/|p| = %.2e (y: %.3g kg m/s); lowest "
+      "node %.4f m\n",
+      c.substeps, contactName(c.contact).c_str(), before.kineticEnergy, given, after.kinetic, most,
+      rel(after.p, before.linearMomentum), after.p.y - before.linearMomentum.y, lowest);
+  // The floor may push along y; it has no friction, so nothing else changes p.
+  glm::dvec3 p = after.p, pFem = before.linearMomentum;
+  if (c.contact == Contact::Pressed) p.y = pFem.y = 0;
+  EXPECT_LT(rel(p, pFem), 1e-5);
+  // Bullet adds nothing to what the hand-off gives.
+  EXPECT_LE(after.kinetic, given * (1 + 1e-5));
+  EXPECT_LE(most, given * (1 + 1e-5));
+  // The hand-off itself may give a little more than the FEM had: the pieces' centres of mass
+  // are their corner cells' (the continuum's), their momenta the lumped nodes', whose centre
+  // is up to a fraction of a cell away, so a translating end piece gets a spin (0.04-0.14 %
+  // here). Known, not fixed (Bullet would need the lumped centre and inertia).
+  EXPECT_LE(given, before.kineticEnergy * (1 + 2e-3));
+  // And a piece pressed into the floor is pushed out of it.
+  if (c.contact == Contact::Pressed) {
+    EXPECT_GT(lowest, 0);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Substeps, HandoffEnergy,
+    ::testing::Values(HandoffCase{1, Contact::Apart}, HandoffCase{64, Contact::Apart},
+                      HandoffCase{1, Contact::Touching}, HandoffCase{64, Contact::Touching},
+                      HandoffCase{1, Contact::Pressed}, HandoffCase{4, Contact::Pressed},
+                      HandoffCase{16, Contact::Pressed}, HandoffCase{64, Contact::Pressed}),
+    [](const ::testing::TestParamInfo<HandoffCase>& i) {
+      return std::to_string(i.param.substeps) + "_substeps_" + contactName(i.param.contact);
+    });
+
 // A body pulverised into single nodes puts at most kMaxRigidFragments pieces into Bullet, so
 // Bullet's pair count stays bounded (a glass bunny hit at 20 m/s once put 5016 overlapping
 // bodies and 5 million pairs into Bullet and ran out of memory); the rest stay FEM nodes and
@@ -286,9 +416,26 @@ TEST(BulletHandoff, PulverisedBodyPutsABoundedNumberOfPiecesIntoBullet) {
   EXPECT_EQ(bridge.fragments().size(), size_t(bullet::kMaxRigidFragments));
   EXPECT_LE(pairs, bullet::kMaxRigidFragments * (bullet::kMaxRigidFragments + 1) / 2);
   EXPECT_TRUE(test::stateFinite(world, id));
-  // The pieces left in the FEM world fall and are held by the floor collider.
+  // The pieces left in the FEM world fall and are held by the floor collider. A one-node
+  // piece in Bullet (a 0.1 mm margin) meets the floor only once inside it, up to a step's fall
+  // (2 cm at 2.4 m/s and 1/120 s), and Bullet's split impulse moves it out over some steps
+  // without throwing it (a Baumgarte push would: erp depth / h).
   const std::span<const double> x = world.positions(id);
-  for (size_t n = 1; n < x.size(); n += 3) EXPECT_GT(x[n], -0.02);
+  const std::span<const int32_t> fragmentOf = world.nodeFragments(id);
+  const auto lowest = [&](bool inBullet) {
+    double y = 1e300;
+    for (size_t n = 0; n < x.size() / 3; ++n)
+      if ((bridge.rigidBody(id, fragmentOf[n]) != nullptr) == inBullet)
+        y = std::min(y, x[3 * n + 1]);
+    return y;
+  };
+  const double femLowest = lowest(false), rigidLowest = lowest(true);
+  for (int s = 0; s < 30; ++s) (void)bridge.step(1.0 / 120);
+  std::printf("lowest node: %.4f m (FEM), %.4f m (Bullet), %.4f m (Bullet, 30 steps on)\n",
+              femLowest, rigidLowest, lowest(true));
+  EXPECT_GT(femLowest, -0.02);
+  EXPECT_GT(rigidLowest, -9.81 * 0.25 / 120 - 0.002);
+  EXPECT_GT(lowest(true), -0.002);
 }
 
 }  // namespace

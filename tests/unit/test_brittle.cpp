@@ -234,5 +234,36 @@ TEST(Brittle, EdgesStrongerThanThePlaneStressHold) {
       referenceEvents.size(), events.size(), reinforced, r.value()[0].tetsArrested);
 }
 
+// Sec 4.5.1.2: every plane runs to the boundary through the body's own material. The second
+// region is stressed to only 0.6 of the strength (it seeds because the criterion fired at the
+// first): it must still split the bar, not stop in its seed tet because it carried only its
+// own stress (the old rule, under which the demo's glass bunny only chipped).
+TEST(Brittle, APlaneSeededBelowTheStrengthStillRunsToTheBoundary) {
+  Body b = makeBody(gen::box(4, 1, 1, 16, 4, 4), 2);
+  const auto stress = uniaxial(b, {1, 0, 0}, [](double x) {
+    return 1.2e6 * std::exp(-(x - 1) * (x - 1) / 0.25) +
+           0.6e6 * std::exp(-(x - 3) * (x - 3) / 0.25);
+  });
+  std::vector<uint8_t> broken(b.graph.edgeCount, 0);
+  std::vector<EdgeBreak> events;
+  auto r = startBrittleCracks(b.model, b.graph, restView(b.mesh), b.model.strength.data(),
+                              stress.data(), broken, events, serialJobs());
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const std::vector<BrittleSeed>& seeds = r.value();
+  ASSERT_EQ(seeds.size(), 2u);
+  EXPECT_LT(seeds[1].principal, 0.7 * b.model.settings.strength);  // the weak region
+  EXPECT_NEAR(seeds[1].point.x, 3, 0.25);
+  EXPECT_EQ(seeds[1].carried, b.model.settings.strength);
+  std::printf(
+      "  weak plane: principal %.3g Pa (strength %.3g), %d tets cut, %d edges broken, "
+      "%d tets arrested\n",
+      seeds[1].principal, b.model.settings.strength, seeds[1].tetsCut, seeds[1].edgesBroken,
+      seeds[1].tetsArrested);
+  EXPECT_EQ(seeds[1].tetsArrested, 0);
+  EXPECT_EQ(seeds[0].tetsArrested, 0);
+  std::vector<int> label;
+  EXPECT_EQ(components(b.graph, broken, label), 3);  // two planes across the bar: three pieces
+}
+
 }  // namespace
 }  // namespace gf::detail

@@ -83,6 +83,11 @@ Result<std::vector<BrittleSeed>> startBrittleCracks(
     BrittleSeed seed;
     seed.tet = t;
     seed.principal = principal[size_t(t)];
+    // Sec 4.5.1.2: "each of these fracture surfaces propagates to the boundary". A region
+    // seeds because the criterion fired somewhere in the body, not because it reached the
+    // strength itself; carrying only its own stress, a plane seeded below the strength stops
+    // in its seed tet at the first edge of the body's own strength (the demo's bunny: 7 of 8).
+    seed.carried = std::max(seed.principal, model.settings.strength);
     seed.point = c;
     seed.normal = (1.0 / norm(direction[size_t(t)])) * direction[size_t(t)];
     seeds.push_back(seed);
@@ -121,7 +126,7 @@ Result<std::vector<BrittleSeed>> startBrittleCracks(
         if (positive[i] == positive[j]) continue;
         const int32_t edge = graph.tetEdges[6 * size_t(t) + k];
         // An edge stronger than the stress the plane carries holds, and arrests the crack.
-        if (strength[edge] > seed.principal) {
+        if (strength[edge] > seed.carried) {
           held = true;
           continue;
         }

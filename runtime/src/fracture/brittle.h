@@ -11,11 +11,13 @@
 // (nodes on both sides, a node on the plane counting as the positive side), breaking the
 // edges whose endpoints lie on opposite sides; the fill stops where the plane leaves the body,
 // so on a non-convex body a plane only cuts the sheet that contains its seed. Strength: a plane
-// carries its seed's maximum principal stress; an edge whose strength (per edge, as
-// World::setEdgeStrengths sets it) exceeds that holds, and the fill does not go on from a tet
-// in which an edge held, so the crack front stops there (a strong inclusion or a reinforced
-// seam arrests it). Planes do not stop at earlier cracks. Serial apart from the principal
-// stresses; events sorted by edge id.
+// carries its seed's maximum principal stress or the body's strength (settings.strength),
+// whichever is larger, so it runs to the boundary through the body's own material (the
+// thesis's rule) even from a region stressed below the strength; an edge whose strength (per
+// edge, as World::setEdgeStrengths sets it) exceeds that holds, and the fill does not go on
+// from a tet in which an edge held, so the crack front stops there (a strong inclusion or a
+// reinforced seam arrests it). Planes do not stop at earlier cracks. Serial apart from the
+// principal stresses; events sorted by edge id.
 #pragma once
 
 #include <cstdint>
@@ -40,11 +42,12 @@ struct BrittleOptions {
 struct BrittleSeed {
   int32_t tet = -1;          ///< Seed tet.
   double principal = 0;      ///< Its maximum principal stress [Pa].
+  double carried = 0;        ///< max(principal, settings.strength): edges above it hold [Pa].
   Vec3 point;                ///< Rest centroid of the seed tet: a point of the plane.
   Vec3 normal;               ///< Unit rest-space normal (maximum principal direction).
   int32_t tetsCut = 0;       ///< Tets the plane crossed.
   int32_t edgesBroken = 0;   ///< Edges this plane broke that were not broken before.
-  int32_t tetsArrested = 0;  ///< Cut tets where an edge stronger than `principal` held.
+  int32_t tetsArrested = 0;  ///< Cut tets where an edge stronger than `carried` held.
 };
 
 /// Starts up to model.settings.regions crack planes from the tets of highest maximum

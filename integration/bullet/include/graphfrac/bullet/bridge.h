@@ -61,7 +61,11 @@ struct RigidFragment {
 class Bridge {
  public:
   /// Both outlive the bridge. The bridge adds rigid bodies to `dynamics` and removes them again
-  /// in its destructor.
+  /// in its destructor. It sets `dynamics`' solver to resolve every penetration by the split
+  /// impulse (m_splitImpulse on, m_splitImpulsePenetrationThreshold = BT_LARGE_FLOAT): a piece
+  /// handed off inside the floor, a ball or its neighbours' hull margins is moved out without
+  /// being given velocity, so the hand-off adds no kinetic energy at any step size. A game that
+  /// sets those two fields back brings Bullet's Baumgarte push (erp depth / h) back.
   Bridge(World& world, btDiscreteDynamicsWorld& dynamics);
   ~Bridge();
   Bridge(const Bridge&) = delete;
