@@ -57,6 +57,7 @@ bool DeviceElementPass::run(bool withHessian, bool withStress) {
   s.grad = m_grad.data();
   s.hess = withHessian ? m_hess.data() : nullptr;
   s.stress = withStress ? m_stress.data() : nullptr;
+  s.svdCache = nullptr;  // m_host's would be a host pointer; the device pass keeps no cache
   launch(s, m_tetCount, nullptr);
   launch(detail::ChunkReduceStage<detail::SumOp>{{m_energy.data()}, m_tetCount, m_partials.data()},
          detail::sumChunks(m_tetCount), nullptr);

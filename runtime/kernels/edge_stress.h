@@ -135,9 +135,8 @@ GF_HD void apply6(const Mat<6, 6>& M, const double v[6], double y[6]) {
 /// rotation-variant SVD and P the full first Piola stress including the fibre term. It is
 /// rotation invariant, zero for a pure rotation, and equals the linear-elastic stress
 /// 2 mu eps + lambda tr(eps) I (eq 4.28) at small strain. For an isotropic model it is
-/// V diag(dpsi/ds) V^T.
-GF_HD Mat3 materialStress(const MaterialCoeffs& c, const Mat3& F) {
-  const Svd3 svd = svd3(F);
+/// V diag(dpsi/ds) V^T. svd must be svd3(F) (e.g. from an SVD cache, svd3.h).
+GF_HD Mat3 materialStress(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd) {
   Mat3 P;
   detail::isotropicEvaluate(c, svd, P, nullptr, false);
   if (c.fibreMu > 0) detail::addFibre(c, F, svd, P, nullptr, false);
@@ -147,6 +146,11 @@ GF_HD Mat3 materialStress(const MaterialCoeffs& c, const Mat3& F) {
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) s(i, j) = 0.5 * (rp(i, j) + rp(j, i));
   return s;
+}
+
+/// materialStress with the SVD of F computed here.
+GF_HD Mat3 materialStress(const MaterialCoeffs& c, const Mat3& F) {
+  return materialStress(c, F, svd3(F));
 }
 
 /// Normal stress N_k^T S N_k along each rest edge direction (eq 4.6-4.8); positive = tension.

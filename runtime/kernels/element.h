@@ -89,17 +89,18 @@ GF_HD void scatterElementDerivatives(const Mat<4, 3>& B, double volume, const Ma
 /// -grad) and, when hessian is non-null, d2E/dx2 = V D^T dPdF D with D = dvec(F)/dx,
 /// projected to PSD when projectPsd.
 /// When materialStress is non-null it also receives the material-frame (Biot) stress
-/// sym(R^T P) that drives fracture, from the same SVD.
+/// sym(R^T P) that drives fracture, from the same SVD. svdCache: the tet's SVD cache entry
+/// (svd3.h), or null; the results have the same bits either way.
 GF_HD double elementForces(const MaterialCoeffs& c, const Vec3 x[4], const Mat3& DmInv,
                            double volume, double grad[12], Mat12* hessian, bool projectPsd,
-                           Mat3* materialStress = nullptr) {
+                           Mat3* materialStress = nullptr, double* svdCache = nullptr) {
   const Mat3 F = deformationGradient(x, DmInv);
   const Mat<4, 3> B = shapeGradients(DmInv);
   Mat3 P;
   Mat9 dPdF;
-  Svd3 svd;
-  const double psi = evaluateMaterial(c, F, P, hessian != nullptr ? &dPdF : nullptr, projectPsd,
-                                      materialStress != nullptr ? &svd : nullptr);
+  const Svd3 svd = cachedSvd3(F, svdCache);
+  const double psi =
+      evaluateMaterialSvd(c, F, svd, P, hessian != nullptr ? &dPdF : nullptr, projectPsd);
   if (materialStress != nullptr) {
     const Mat3 rp = transpose(svd.U * transpose(svd.V)) * P;
     for (int i = 0; i < 3; ++i)
@@ -107,6 +108,15 @@ GF_HD double elementForces(const MaterialCoeffs& c, const Vec3 x[4], const Mat3&
   }
   detail::scatterElementDerivatives(B, volume, P, dPdF, grad, hessian);
   return volume * psi;
+}
+
+/// Element elastic energy V psi(F) alone, for passes that need no forces (line-search trials,
+/// the final energy): no stress, no shape gradients, no scatter. The same bits as
+/// elementForces' return value. svdCache as there.
+GF_HD double elementEnergy(const MaterialCoeffs& c, const Vec3 x[4], const Mat3& DmInv,
+                           double volume, double* svdCache = nullptr) {
+  const Mat3 F = deformationGradient(x, DmInv);
+  return volume * energyDensitySvd(c, F, cachedSvd3(F, svdCache));
 }
 
 }  // namespace gf

@@ -361,10 +361,9 @@ GF_HD Mat3 isotropicHessian(const MaterialCoeffs& c, Vec3 s) {
 /// Energy density psi(F) [J/m^3], P = dpsi/dF and, when dPdF is non-null, dP/dF, all from
 /// one SVD; the isotropic model plus the fibre term when fibreMu > 0. See
 /// firstPiolaAndHessian for projectPsd.
-GF_HD double evaluateMaterial(const MaterialCoeffs& c, const Mat3& F, Mat3& P, Mat9* dPdF,
-                              bool projectPsd, Svd3* svdOut = nullptr) {
-  const Svd3 svd = svd3(F);
-  if (svdOut != nullptr) *svdOut = svd;
+/// evaluateMaterial with svd = svd3(F) already known (e.g. from an SVD cache, svd3.h).
+GF_HD double evaluateMaterialSvd(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd, Mat3& P,
+                                 Mat9* dPdF, bool projectPsd) {
   double psi = detail::isotropicEvaluate(c, svd, P, dPdF, projectPsd);
   if (c.fibreMu > 0) {
     psi += detail::fibreEnergy(c, F, svd);
@@ -373,12 +372,24 @@ GF_HD double evaluateMaterial(const MaterialCoeffs& c, const Mat3& F, Mat3& P, M
   return psi;
 }
 
-/// Energy density psi(F) [J/m^3]: the isotropic model plus the fibre term when fibreMu > 0.
-GF_HD double energyDensity(const MaterialCoeffs& c, const Mat3& F) {
+GF_HD double evaluateMaterial(const MaterialCoeffs& c, const Mat3& F, Mat3& P, Mat9* dPdF,
+                              bool projectPsd, Svd3* svdOut = nullptr) {
   const Svd3 svd = svd3(F);
+  if (svdOut != nullptr) *svdOut = svd;
+  return evaluateMaterialSvd(c, F, svd, P, dPdF, projectPsd);
+}
+
+/// energyDensity with svd = svd3(F) already known: psi alone, no stress. The same operations
+/// as evaluateMaterial's psi, so the same bits.
+GF_HD double energyDensitySvd(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd) {
   double psi = isotropicEnergy(c, svd.s);
   if (c.fibreMu > 0) psi += detail::fibreEnergy(c, F, svd);
   return psi;
+}
+
+/// Energy density psi(F) [J/m^3]: the isotropic model plus the fibre term when fibreMu > 0.
+GF_HD double energyDensity(const MaterialCoeffs& c, const Mat3& F) {
+  return energyDensitySvd(c, F, svd3(F));
 }
 
 /// First Piola-Kirchhoff stress P = dpsi/dF.

@@ -139,4 +139,53 @@ GF_HD Svd3 svd3(const Mat3& F) {
   return r;
 }
 
+/// Doubles per entry of an SVD cache (one entry per tet, in the body's step state): the key F
+/// (9, row-major) and svd3 of it (U 9, s 3, V 9).
+constexpr int kSvdCacheStride = 30;
+
+/// Makes `entry` (kSvdCacheStride doubles) a valid cache entry: the key F = 0 with its SVD.
+/// Zero-filled memory is not one (its U and V are not rotations).
+GF_HD void initSvdCacheEntry(double* entry) {
+  const Svd3 r = svd3(Mat3{});
+  for (int k = 0; k < 9; ++k) {
+    entry[k] = 0;
+    entry[9 + k] = r.U.m[k];
+    entry[21 + k] = r.V.m[k];
+  }
+  entry[18] = r.s.x;
+  entry[19] = r.s.y;
+  entry[20] = r.s.z;
+}
+
+/// svd3(F) through a per-tet cache entry (kSvdCacheStride doubles; null: plain svd3): the
+/// stored result when the stored key is F to the bit, else svd3(F), stored with F as the new
+/// key. svd3 is a pure function of F's bits, so the result is bit-identical to svd3(F) either
+/// way. The key test is value equality with equal signs, which is bit equality for every
+/// double but NaN; a NaN never matches, so it is recomputed (a miss is always exact).
+GF_HD Svd3 cachedSvd3(const Mat3& F, double* entry) {
+  if (entry == nullptr) return svd3(F);
+  bool same = true;
+  for (int k = 0; k < 9; ++k)
+    same = same && entry[k] == F.m[k] && copysign(1.0, entry[k]) == copysign(1.0, F.m[k]);
+  Svd3 r;
+  if (same) {
+    for (int k = 0; k < 9; ++k) {
+      r.U.m[k] = entry[9 + k];
+      r.V.m[k] = entry[21 + k];
+    }
+    r.s = Vec3{entry[18], entry[19], entry[20]};
+    return r;
+  }
+  r = svd3(F);
+  for (int k = 0; k < 9; ++k) {
+    entry[k] = F.m[k];
+    entry[9 + k] = r.U.m[k];
+    entry[21 + k] = r.V.m[k];
+  }
+  entry[18] = r.s.x;
+  entry[19] = r.s.y;
+  entry[20] = r.s.z;
+  return r;
+}
+
 }  // namespace gf

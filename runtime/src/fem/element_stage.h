@@ -38,7 +38,10 @@ GF_HD MaterialCoeffs tetCoeffs(const MaterialCoeffs& body, const Vec3* fibreDir,
 /// Energy, gradient, PSD Hessian and criterion stress of every tet at x (SPEC §1; damaged
 /// tets eq 4.25-4.27 or 4.32-4.33). Nullable inputs: fibreDir (no fibre field), tetMask (no
 /// fracture), edgeMatrix/edgeMatrixInverse (no projection model: identity), rigidTet (no
-/// detached fragment), tetLame (no water). Nullable outputs: hess, stress.
+/// detached fragment), tetLame (no water). Nullable outputs: grad (an energy-only pass: no
+/// forces computed, then hess must be null too), hess, stress. svdCache (nullable, scratch of
+/// the body's step state): undamaged tets take svd3(F) from it when F is the one it holds
+/// (svd3.h), so a pass at a state an earlier pass saw does no SVD; same bits either way.
 struct ElementStage {
   const int32_t* tets = nullptr;      ///< 4 per tet
   const double* x = nullptr;          ///< 3 per node
@@ -57,13 +60,34 @@ struct ElementStage {
   double* grad = nullptr;           ///< 12 per tet
   double* hess = nullptr;           ///< 144 per tet
   double* stress = nullptr;  ///< 6 per tet (Voigt), undamaged tets only: FractureBody does the rest
+  double* svdCache = nullptr;  ///< kSvdCacheStride per tet (svd3.h), read and written
   /// Projection damage: Hessians with every crack closed, a majorant (damagedElementForces).
   bool closedCrackHessian = false;
 
   GF_HD void operator()(int32_t t) const {
-    double* g = grad + 12 * int64_t(t);
+    if (grad == nullptr && stress == nullptr) {
+      energy[t] = evaluateEnergy(t);
+      return;
+    }
+    double local[12];
+    double* g = grad ? grad + 12 * int64_t(t) : local;
     Mat12* h = hess ? reinterpret_cast<Mat12*>(hess + 144 * int64_t(t)) : nullptr;
     energy[t] = evaluate(t, g, h);
+  }
+
+  /// Tet t's energy alone: the same bits as evaluate's return value.
+  GF_HD double evaluateEnergy(int32_t t) const {
+    if (rigidTet && rigidTet[t]) return 0;
+    Vec3 xe[4];
+    tetCorners(tets, x, t, xe);
+    const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t, tetLame);
+    const uint8_t mask = tetMask ? tetMask[t] : 0;
+    if (mask == 0)
+      return elementEnergy(c, xe, restInverse[t], restVolume[t],
+                           svdCache ? svdCache + kSvdCacheStride * int64_t(t) : nullptr);
+    // Damaged tets are few: their forces are computed and dropped.
+    double g[12];
+    return evaluate(t, g, nullptr);
   }
 
   /// Tet t's energy, its gradient into g (12, node-major; -g are the element's nodal forces)
@@ -84,7 +108,8 @@ struct ElementStage {
     if (mask == 0) {
       Mat3 S;
       const double e = elementForces(c, xe, restInverse[t], restVolume[t], g, h,
-                                     /*projectPsd=*/true, stress ? &S : nullptr);
+                                     /*projectPsd=*/true, stress ? &S : nullptr,
+                                     svdCache ? svdCache + kSvdCacheStride * int64_t(t) : nullptr);
       if (stress) toVoigt(S, stress + 6 * int64_t(t));
       return e;
     }

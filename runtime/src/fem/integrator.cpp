@@ -68,6 +68,8 @@ Integrator::Integrator(const FemModel& model) {
   m_elemEnergy.resize(nt);
   m_elemGrad.resize(12 * nt);
   m_elemHess.resize(144 * nt);
+  m_svdCache.resize(kSvdCacheStride * nt);
+  for (size_t t = 0; t < nt; ++t) initSvdCacheEntry(m_svdCache.data() + kSvdCacheStride * t);
   for (auto* v : {&m_elasticGrad, &m_grad, &m_x, &m_y, &m_dx, &m_rhs, &m_tmp, &m_diff, &m_kdiff})
     v->assign(3 * nn, 0.0);
   m_contactHess.resize(nn);
@@ -136,9 +138,11 @@ ElementStage Integrator::elementStage(const FemModel& model, const FemState& sta
 }
 
 double Integrator::elementPass(const FemModel& model, const FemState& state, const double* x,
-                               bool withHessian, JobSystem& jobs) {
-  ElementStage stage = elementStage(model, state, x, m_elemEnergy.data(), m_elemGrad.data(),
-                                    withHessian ? m_elemHess.data() : nullptr, m_stressOut);
+                               bool withGradient, bool withHessian, JobSystem& jobs) {
+  ElementStage stage =
+      elementStage(model, state, x, m_elemEnergy.data(), withGradient ? m_elemGrad.data() : nullptr,
+                   withGradient && withHessian ? m_elemHess.data() : nullptr, m_stressOut);
+  stage.svdCache = m_svdCache.data();
   stage.closedCrackHessian = m_closedCrackHessian;
   const CpuExecutor exec(jobs);
   exec.run(model.tetCount, kElementGrain, stage);
@@ -155,7 +159,7 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
                                         bool withGradient, bool withHessian, JobSystem& jobs) {
   const double dt = ctx.dt, dt2 = dt * dt;
   const double r1 = state.material.massDamping, r2 = state.material.stiffnessDamping;
-  const double psi = elementPass(model, state, x, withHessian, jobs);
+  const double psi = elementPass(model, state, x, withGradient, withHessian, jobs);
   m_lastPsi = psi;
   if (withGradient) gatherGradient(model, jobs);
 
@@ -589,7 +593,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     rep.elementsMs += msSince(t0);
     if (fusedFracture) {
       t0 = Clock::now();
-      const int32_t broke = m_fracture->detect(model, state, m_x.data(), jobs);
+      const int32_t broke =
+          m_fracture->detect(model, state, m_x.data(), jobs, true, m_svdCache.data());
       rep.fractureMs += msSince(t0);
       if (broke > 0) {
         t0 = Clock::now();
@@ -733,7 +738,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   if (!converged) rep.flags |= kStepNotConverged;
   double psi = 0;
   if (!finalStepNegligible)
-    psi = finalPsiKnown ? m_lastPsi : elementPass(model, state, m_x.data(), false, jobs);
+    psi = finalPsiKnown ? m_lastPsi : elementPass(model, state, m_x.data(), false, false, jobs);
   return psi;
 }
 
@@ -803,10 +808,13 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   // Body contact likewise, and its momentum exchange reads the backward-Euler impulses.
   if (ctx.bodyContacts.start) theta = 1;
 
-  // Moving grips shift the start point away from x_n, so fracture is judged on x_n first.
+  // Moving grips shift the start point away from x_n, so fracture is judged on x_n first. After
+  // a backward-Euler step that was not rolled back, x_n is where that step's last element pass
+  // looked, so its tets take their SVDs from the cache; anywhere else they miss and are computed.
   if (m_fracture && state.movingGrips) {
     const auto tf = Clock::now();
-    m_fracture->detect(model, state, state.x.data(), jobs, /*stressesReady=*/false);
+    m_fracture->detect(model, state, state.x.data(), jobs, /*stressesReady=*/false,
+                       m_svdCache.data());
     rep.fractureMs += msSince(tf);
   }
   StepContext inner = ctx;

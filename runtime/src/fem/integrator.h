@@ -134,9 +134,10 @@ class Integrator {
                             JobSystem& jobs, std::vector<double>& out);
 
  private:
-  // Per-element pass: energies, gradients and (optionally) PSD Hessians into the buffers.
+  // Per-element pass: energies and, when asked, gradients and PSD Hessians into the buffers
+  // (an energy-only pass leaves m_elemGrad as it was). Reads and fills m_svdCache.
   double elementPass(const FemModel& model, const FemState& state, const double* x,
-                     bool withHessian, JobSystem& jobs);
+                     bool withGradient, bool withHessian, JobSystem& jobs);
   // Node gradient of the elastic energy from the element gradients (deterministic gather).
   void gatherGradient(const FemModel& model, JobSystem& jobs);
   // Incremental potential at x (scaled by 1, see header comment); fills m_grad when asked.
@@ -194,6 +195,11 @@ class Integrator {
   ElementGather m_gather;
   std::vector<int32_t> m_nodeRefStart, m_nodeRef;  // node -> elem*4 + corner
   std::vector<double> m_elemEnergy, m_elemGrad, m_elemHess;
+  // Per tet, the F of the last element pass or criterion that evaluated it and svd3 of it
+  // (kSvdCacheStride, svd3.h): a pass at a state seen before (the next step's start, where
+  // the criterion and the first Newton pass look; a repeated iteration) does no SVD there.
+  // Keyed by F's bits, so anything that moved a node or changed Fp since simply misses.
+  std::vector<double> m_svdCache;
   std::vector<double> m_elasticGrad;     // dPsi/dx per node
   std::vector<double> m_grad;            // gradient of the incremental potential
   std::vector<Mat3> m_contactHess;       // per node

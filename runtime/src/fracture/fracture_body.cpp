@@ -112,7 +112,8 @@ void FractureBody::setStrengths(std::vector<double> strength) {
 }
 
 CriterionStressStage FractureBody::stressStage(const FemModel& fem, const FemState& data,
-                                               const double* x, bool undamagedToo) {
+                                               const double* x, bool undamagedToo,
+                                               double* svdCache) {
   CriterionStressStage s;
   s.tets = fem.tets.data();
   s.x = x;
@@ -126,12 +127,13 @@ CriterionStressStage FractureBody::stressStage(const FemModel& fem, const FemSta
   s.degradation = m_damageModel == 1;
   s.undamagedToo = undamagedToo;
   s.stress = m_stress.data();
+  s.svdCache = svdCache;
   return s;
 }
 
 void FractureBody::computeStresses(const FemModel& fem, const FemState& data, const double* x,
-                                   bool undamagedToo, JobSystem& jobs) {
-  CpuExecutor(jobs).run(fem.tetCount, kTetGrain, stressStage(fem, data, x, undamagedToo));
+                                   bool undamagedToo, double* svdCache, JobSystem& jobs) {
+  CpuExecutor(jobs).run(fem.tetCount, kTetGrain, stressStage(fem, data, x, undamagedToo, svdCache));
 }
 
 ElementStage bodyElementStage(const FemModel& fem, const FemState& data,
@@ -226,7 +228,7 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState
 }
 
 int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const double* x,
-                             JobSystem& jobs, bool stressesReady) {
+                             JobSystem& jobs, bool stressesReady, double* svdCache) {
   m_data.breaks.clear();
   m_data.breakCause.clear();
   m_data.splits.clear();
@@ -258,7 +260,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     applyBreaks(first, fem, data, x, jobs);
   }
 
-  computeStresses(fem, data, x, !stressesReady, jobs);
+  computeStresses(fem, data, x, !stressesReady, svdCache, jobs);
   size_t first = m_data.breaks.size();
   const int32_t n = evaluateCriterion(m_model, m_graph, m_data.strength.data(), m_stress.data(),
                                       m_data.broken, m_data.breaks, m_ws, jobs, x);

@@ -72,8 +72,10 @@ class FractureBody {
   /// material-frame stress of every undamaged tet at x (the integrator's first element pass writes
   /// it); damaged tets are evaluated here. Fills breaks() and splits(); returns the number of edges
   /// broken. With stressesReady false, the stresses of undamaged tets are computed here too.
+  /// svdCache (kSvdCacheStride per tet, or null): the integrator's SVD cache, read for the tets
+  /// whose F the last element pass saw and written for the others (svd3.h).
   int32_t detect(const FemModel& fem, const FemState& data, const double* x, JobSystem& jobs,
-                 bool stressesReady = true);
+                 bool stressesReady = true, double* svdCache = nullptr);
   /// 6 per tet (Voigt), written by the element pass.
   double* stressBuffer() { return m_stress.data(); }
 
@@ -130,10 +132,10 @@ class FractureBody {
  private:
   // Completes m_stress at x: damaged tets (scaled or zero), and undamaged ones when asked.
   void computeStresses(const FemModel& fem, const FemState& data, const double* x,
-                       bool undamagedToo, JobSystem& jobs);
+                       bool undamagedToo, double* svdCache, JobSystem& jobs);
   // The stage that does it, writing into m_stress.
   CriterionStressStage stressStage(const FemModel& fem, const FemState& data, const double* x,
-                                   bool undamagedToo);
+                                   bool undamagedToo, double* svdCache = nullptr);
   // The split points of m_data.breaks[first..] (SplitPoint::ForceRatio), before they apply.
   void computeSplits(size_t first, const FemModel& fem, const FemState& data, const double* x,
                      JobSystem& jobs);

@@ -48,12 +48,18 @@ struct CriterionStressStage {
   bool degradation = false;  ///< damage model of eq 4.32-4.33 (else projection)
   bool undamagedToo = false;
   double* stress = nullptr;
+  /// kSvdCacheStride per tet, or null: the element pass's SVD cache (svd3.h). A tet whose F is
+  /// the one the last element pass saw (the step ended where the criterion now looks) takes
+  /// its SVD from there; same bits either way.
+  double* svdCache = nullptr;
 
   GF_HD Mat3 intactStress(int32_t t) const {
     Vec3 xe[4];
     tetCorners(tets, x, t, xe);
     const MaterialCoeffs c = tetCoeffs(coeffs, fibreDir, t, tetLame);
-    return materialStress(c, deformationGradient(xe, restInverse[t]));
+    const Mat3 F = deformationGradient(xe, restInverse[t]);
+    return materialStress(
+        c, F, cachedSvd3(F, svdCache ? svdCache + kSvdCacheStride * int64_t(t) : nullptr));
   }
 
   GF_HD void operator()(int32_t t) const {
