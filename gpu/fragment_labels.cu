@@ -26,8 +26,8 @@ bool DeviceFragmentLabels::label(const uint8_t* broken, int32_t* label, int32_t&
   if (!m_broken.upload(broken, size_t(m_edges))) return fail("uploading the broken flags");
   const detail::FragmentGraphView graph{m_nodes, m_edgeNodes.data(), m_nodeEdgeStart.data(),
                                         m_nodeEdges.data(), broken ? m_broken.data() : nullptr};
-  rounds = detail::labelComponents(m_exec, graph, nullptr, nullptr, nullptr, m_label.data(),
-                                   m_next.data(), m_changed.data());
+  rounds = detail::labelComponents(m_exec, graph, nullptr, m_nodes, m_label.data(), m_next.data(),
+                                   m_changed.data());
   if (m_exec.takeFailure() || !synchronize()) return fail("labelling");
   return m_label.download(label, size_t(m_nodes)) || fail("reading the labels");
 }

@@ -54,8 +54,8 @@ TEST_P(FragmentBackend, LabelsMatchTheCpuAndAUnionFind) {
     const detail::FragmentGraphView view{g.nodeCount, g.edgeNodes.data(), g.nodeEdgeStart.data(),
                                          g.nodeEdges.data(), broken.data()};
     const int32_t cpuRounds =
-        detail::labelComponents(detail::CpuExecutor(jobs), view, nullptr, nullptr, nullptr,
-                                cpu.data(), next.data(), changed.data());
+        detail::labelComponents(detail::CpuExecutor(jobs), view, nullptr, g.nodeCount, cpu.data(),
+                                next.data(), changed.data());
     int32_t devRounds = -1;
     ASSERT_TRUE(device.label(broken.data(), dev.data(), devRounds)) << device.error();
     EXPECT_EQ(cpu, truth) << share << " % broken";

@@ -24,6 +24,7 @@
 // `graphfrac bench haptic`: the cost of a haptic sample against the surface size
 // (bench_haptic.cpp).
 // `graphfrac bench peer`: graphfrac beside Bullet's deformable FEM (bench_peer.cpp).
+// `graphfrac bench fragments`: fragment labelling on recorded break steps (bench_fragments.cpp).
 #include <dirent.h>
 
 #include <algorithm>
@@ -50,9 +51,10 @@
 
 namespace gf::cli {
 
-int benchXfem(int argc, char** argv);    // bench_xfem.cpp
-int benchHaptic(int argc, char** argv);  // bench_haptic.cpp
-int benchPeer(int argc, char** argv);    // bench_peer.cpp
+int benchXfem(int argc, char** argv);       // bench_xfem.cpp
+int benchHaptic(int argc, char** argv);     // bench_haptic.cpp
+int benchPeer(int argc, char** argv);       // bench_peer.cpp
+int benchFragments(int argc, char** argv);  // bench_fragments.cpp
 
 namespace {
 
@@ -845,6 +847,10 @@ int runBenchCommand(int argc, char** argv) {
         "  per step, error against the static reference, and the stable range over E and dt; a "
         "Bullet\n"
         "  run is stopped after S s for one step (default 2) or for the run (default 120)\n"
+        "       graphfrac bench fragments [--cells N] [--rounds R] [--threads T]\n"
+        "  ms per break step of keeping the fragments (update, then compute when they split) on\n"
+        "  recorded break sequences of a cube of N^3 cells (default 16 and 32: 24k and 192k\n"
+        "  tets): a random shatter and a crack plane; a checksum of the final partition\n"
         "Every mode takes --backend auto|cpu|cuda (default cpu) for its worlds.");
     return argc < 2 ? kExitUsage : kExitOk;
   }
@@ -878,6 +884,7 @@ int runBenchCommand(int argc, char** argv) {
   if (!std::strcmp(argv[1], "xfem")) return benchXfem(argc, argv);
   if (!std::strcmp(argv[1], "haptic")) return benchHaptic(argc, argv);
   if (!std::strcmp(argv[1], "peer")) return benchPeer(argc, argv);
+  if (!std::strcmp(argv[1], "fragments")) return benchFragments(argc, argv);
   std::fprintf(stderr, "graphfrac bench: unknown benchmark '%s'\n", argv[1]);
   return kExitUsage;
 }

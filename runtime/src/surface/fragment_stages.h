@@ -12,8 +12,10 @@
 // bits for any thread count or launch shape. A round that changes nothing leaves every tree of
 // depth one (shortcut) and equal labels across every unbroken edge (hooking), so each node
 // holds its component's least node, which never moves: the canonical root that Fragments maps
-// to its stable ids. Nodes of fragments in which no break may have split anything
-// (FragmentMaySplitStage) keep their fragment's lowest node as label and are skipped.
+// to its stable ids. A labelling runs over a list of nodes that is a union of whole components
+// (every node on a build; on an update only the small sides that breaks cut off, found by
+// bounded two-sided searches from each break's ends, FragmentMaySplitStage, or whole fragments
+// where a search could not tell), so its cost follows the region the breaks touch.
 #pragma once
 
 #include <cstdint>
@@ -45,33 +47,41 @@ GF_HD void atomicMinLabel(int32_t* p, int32_t v) {
 #endif
 }
 
-/// Node u's first label (in both buffers): itself when its fragment is relabelled (`active`
-/// null: every node), else its fragment's lowest node, which is already its root.
+/// *p = v, safe against concurrent stores of the same value.
+GF_HD void atomicStoreLabel(int32_t* p, int32_t v) {
+#if defined(__CUDA_ARCH__)
+  *reinterpret_cast<volatile int32_t*>(p) = v;
+#else
+  __atomic_store_n(p, v, __ATOMIC_RELAXED);
+#endif
+}
+
+/// Item k of a node list (null: the identity).
+GF_HD int32_t listedNode(const int32_t* nodes, int32_t k) { return nodes ? nodes[k] : k; }
+
+/// A listed node's first label (in both buffers): itself.
 struct FragmentLabelInitStage {
-  const uint8_t* active = nullptr;           ///< per fragment
-  const int32_t* nodeFragment = nullptr;     ///< with active
-  const int32_t* fragmentMinNode = nullptr;  ///< with active
+  const int32_t* nodes = nullptr;
   int32_t* label = nullptr;
   int32_t* next = nullptr;
 
-  GF_HD void operator()(int32_t u) const {
-    const int32_t l = !active || active[nodeFragment[u]] ? u : fragmentMinNode[nodeFragment[u]];
-    label[u] = l;
-    next[u] = l;
+  GF_HD void operator()(int32_t k) const {
+    const int32_t u = listedNode(nodes, k);
+    label[u] = u;
+    next[u] = u;
   }
 };
 
-/// One round's hooking and shortcutting from node u: reads `label` (the last round's), lowers
-/// entries of `next` (equal to `label` on entry) by atomicMinLabel only.
+/// One round's hooking and shortcutting from listed node u: reads `label` (the last round's),
+/// lowers entries of `next` (equal to `label` on entry) by atomicMinLabel only.
 struct FragmentLabelHookStage {
   FragmentGraphView graph;
-  const uint8_t* active = nullptr;  ///< per fragment, as in FragmentLabelInitStage
-  const int32_t* nodeFragment = nullptr;
+  const int32_t* nodes = nullptr;
   const int32_t* label = nullptr;
   int32_t* next = nullptr;
 
-  GF_HD void operator()(int32_t u) const {
-    if (active && !active[nodeFragment[u]]) return;
+  GF_HD void operator()(int32_t k) const {
+    const int32_t u = listedNode(nodes, k);
     const int32_t p = label[u];
     const int32_t gp = label[p];
     // Least grandparent over u's unbroken neighbours (INT32_MAX: none).
@@ -89,93 +99,254 @@ struct FragmentLabelHookStage {
   }
 };
 
-/// Ends a round: changed[u] says whether u's label moved; label = next, so both buffers hold
-/// the round's result.
+/// Ends a round: changed[k] says whether listed node u's label moved; label = next, so both
+/// buffers hold the round's result.
 struct FragmentLabelSyncStage {
+  const int32_t* nodes = nullptr;
   const int32_t* next = nullptr;
   int32_t* label = nullptr;
   double* changed = nullptr;
 
-  GF_HD void operator()(int32_t u) const {
+  GF_HD void operator()(int32_t k) const {
+    const int32_t u = listedNode(nodes, k);
     const int32_t l = next[u];
-    changed[u] = l != label[u] ? 1.0 : 0.0;
+    changed[k] = l != label[u] ? 1.0 : 0.0;
     label[u] = l;
   }
 };
 
-/// Labels every node with the least node of its component over unbroken edges (see the design
-/// note); `next` and `changed` are scratch of nodeCount items. Fragments not marked in `active`
-/// (null: all relabelled) keep their lowest node. Returns the number of rounds that changed a
-/// label. Exec is CpuExecutor or gpu::Executor; every pointer is in its memory.
+/// Labels every listed node (`nodes`, `count` distinct nodes; null: nodes 0..count-1) with the
+/// least node of its component over unbroken edges (see the design note). The list must be a
+/// union of whole components: no unbroken edge leaves it, so nothing outside it is read or
+/// written. `next` holds a node's worth of scratch like `label`, `changed` one per listed node.
+/// Returns the number of rounds that changed a label. Exec is CpuExecutor or gpu::Executor;
+/// every pointer is in its memory.
 template <class Exec>
-int32_t labelComponents(const Exec& exec, const FragmentGraphView& graph, const uint8_t* active,
-                        const int32_t* nodeFragment, const int32_t* fragmentMinNode, int32_t* label,
-                        int32_t* next, double* changed) {
-  const int32_t n = graph.nodeCount;
-  exec.run(n, 1024, FragmentLabelInitStage{active, nodeFragment, fragmentMinNode, label, next});
+int32_t labelComponents(const Exec& exec, const FragmentGraphView& graph, const int32_t* nodes,
+                        int32_t count, int32_t* label, int32_t* next, double* changed) {
+  exec.run(count, 1024, FragmentLabelInitStage{nodes, label, next});
   int32_t rounds = 0;
   for (;;) {
-    exec.run(n, 256, FragmentLabelHookStage{graph, active, nodeFragment, label, next});
-    exec.run(n, 1024, FragmentLabelSyncStage{next, label, changed});
-    if (!(exec.template reduce<MaxOp>(n, ArrayTerm{changed}) > 0)) break;
+    exec.run(count, 256, FragmentLabelHookStage{graph, nodes, label, next});
+    exec.run(count, 1024, FragmentLabelSyncStage{nodes, next, label, changed});
+    if (!(exec.template reduce<MaxOp>(count, ArrayTerm{changed}) > 0)) break;
     ++rounds;
   }
   return rounds;
 }
 
-/// Nodes a FragmentMaySplitStage search expands, and the slots of its visited set (open
-/// addressing, a power of two, at most a quarter full).
+/// Nodes each side of a FragmentMaySplitStage search may reach, and the slots of its visited
+/// set (open addressing, a power of two, at most half full: both sides' nodes fit).
 constexpr int32_t kFragmentSearchNodes = 512;
 constexpr int32_t kFragmentSearchSlots = 2048;
 
-/// Batch edge i (a, b): whether its removal may have split a fragment. A breadth-first search
-/// from a over unbroken edges, bounded to kFragmentSearchNodes nodes in fixed-size local
-/// arrays, looks for b: found, a and b stay connected in the final graph, so no removal order
-/// splits them (0); not found within the bound, maybe (1). Only fragments with a possible split
-/// are labelled. Around a crack front the ends of a new break are usually a few edges apart.
-struct FragmentMaySplitStage {
-  FragmentGraphView graph;
-  const int32_t* batch = nullptr;
-  uint8_t* maySplit = nullptr;
+/// What the removal of a batch edge does under the sequential rule (FragmentMaySplitStage).
+enum FragmentSplitStatus : uint8_t {
+  kFragmentJoined = 0,     ///< its ends stay joined: no split
+  kFragmentSmallSide = 1,  ///< a split, and one side (at most kFragmentSearchNodes) is known
+  kFragmentUnknown = 2,    ///< the bounded search could not tell
+};
 
-  // Adds u to the visited set; false when it was there.
-  GF_HD static bool visit(int32_t* slots, int32_t u) {
-    uint32_t h = (uint32_t(u) * 2654435761u) & uint32_t(kFragmentSearchSlots - 1);
-    while (slots[h] >= 0) {
-      if (slots[h] == u) return false;
-      h = (h + 1) & uint32_t(kFragmentSearchSlots - 1);
-    }
-    slots[h] = u;
-    return true;
+/// Open-addressing set of visited nodes with the side each was reached from, in fixed-size
+/// local arrays (no allocation inside a kernel). It starts at kMinSlots and doubles, re-adding
+/// the searches' queues (which hold every visited node), so a search that meets after a few
+/// nodes clears a few slots, not the whole table; at most half full.
+struct FragmentVisitedSet {
+  static constexpr int32_t kMinSlots = 64;
+  int32_t slots[kFragmentSearchSlots];
+  uint8_t side[kFragmentSearchSlots];
+  int32_t size = 0, count = 0;
+
+  GF_HD void reset(int32_t slotCount) {
+    size = slotCount;
+    count = 0;
+    for (int32_t k = 0; k < size; ++k) slots[k] = -1;
   }
+  GF_HD uint32_t home(int32_t u) const {
+    // Fibonacci hashing keeps the high bits, which mix all of u's bits.
+    return uint32_t((uint64_t(uint32_t(u)) * 11400714819323198485ull) >> 40) & uint32_t(size - 1);
+  }
+  GF_HD void insert(int32_t u, uint8_t from) {
+    uint32_t h = home(u);
+    while (slots[h] >= 0) h = (h + 1) & uint32_t(size - 1);
+    slots[h] = u;
+    side[h] = from;
+    ++count;
+  }
+  // Adds u from `from`; returns -1 when it was new, else the side that reached it first.
+  // queue[s][0 .. length[s]) are every node visited so far, from side s.
+  GF_HD int32_t visit(int32_t u, uint8_t from, const int32_t* const* queue, const int32_t* length) {
+    uint32_t h = home(u);
+    while (slots[h] >= 0) {
+      if (slots[h] == u) return side[h];
+      h = (h + 1) & uint32_t(size - 1);
+    }
+    if (2 * (count + 1) > size && size < kFragmentSearchSlots) {
+      reset(2 * size);
+      for (uint8_t s = 0; s < 2; ++s)
+        for (int32_t k = 0; k < length[s]; ++k) insert(queue[s][k], s);
+    }
+    insert(u, from);
+    return -1;
+  }
+};
+
+/// The graph in which batch edge i is removed under the sequential rule: the final broken
+/// flags, but the batch's later edges (batchOrder[f] > i) still intact.
+struct FragmentSequentialGraph {
+  FragmentGraphView graph;
+  const int32_t* batchOrder = nullptr;  ///< per edge: its position in the batch, -1 if none
+
+  GF_HD bool passable(int32_t f, int32_t i) const { return !graph.broken[f] || batchOrder[f] > i; }
+  GF_HD int32_t other(int32_t f, int32_t u) const {
+    const int32_t p = graph.edgeNodes[2 * int64_t(f)], q = graph.edgeNodes[2 * int64_t(f) + 1];
+    return p == u ? q : p;
+  }
+};
+
+/// Batch edge i (a, b): whether its removal splits its fragment under the sequential rule,
+/// that is whether a and b are apart once the batch's edges 0..i are gone and its later ones
+/// still stand. Two breadth-first searches, from a and from b, advance one node in turn (as the
+/// old serial search did), each bounded to kFragmentSearchNodes nodes: when they meet, joined;
+/// when one runs out of nodes first, its nodes are the whole smaller side of a split (the side
+/// seed and size are written); when a bound is hit first, unknown. Around a crack front a
+/// break's ends are joined a few edges away, often through a later edge of the same batch.
+struct FragmentMaySplitStage {
+  FragmentSequentialGraph g;
+  const int32_t* batch = nullptr;
+  uint8_t* status = nullptr;
+  int32_t* sideSeed = nullptr;  ///< for kFragmentSmallSide: the end whose side ran out
+  int32_t* sideSize = nullptr;  ///< and its node count
 
   GF_HD void operator()(int32_t i) const {
     const int32_t e = batch[i];
-    const int32_t a = graph.edgeNodes[2 * int64_t(e)], b = graph.edgeNodes[2 * int64_t(e) + 1];
-    int32_t queue[kFragmentSearchNodes];
-    int32_t slots[kFragmentSearchSlots];
-    for (int32_t k = 0; k < kFragmentSearchSlots; ++k) slots[k] = -1;
-    int32_t head = 0, tail = 0;
-    queue[tail++] = a;
-    visit(slots, a);
-    maySplit[i] = 1;
-    while (head < tail) {
-      const int32_t u = queue[head++];
-      for (int32_t s = graph.nodeEdgeStart[u]; s < graph.nodeEdgeStart[u + 1]; ++s) {
-        const int32_t f = graph.nodeEdges[s];
-        if (graph.broken[f]) continue;
-        const int32_t p = graph.edgeNodes[2 * int64_t(f)], q = graph.edgeNodes[2 * int64_t(f) + 1];
-        const int32_t w = p == u ? q : p;
-        if (w == b) {
-          maySplit[i] = 0;
+    const int32_t ends[2] = {g.graph.edgeNodes[2 * int64_t(e)],
+                             g.graph.edgeNodes[2 * int64_t(e) + 1]};
+    int32_t queue[2][kFragmentSearchNodes];
+    const int32_t* queues[2] = {queue[0], queue[1]};
+    FragmentVisitedSet visited;
+    visited.reset(FragmentVisitedSet::kMinSlots);
+    int32_t head[2] = {0, 0}, tail[2] = {1, 1};
+    for (uint8_t side = 0; side < 2; ++side) {
+      queue[side][0] = ends[side];
+      visited.insert(ends[side], side);
+    }
+    for (uint8_t side = 0;; side ^= 1) {
+      if (head[side] == tail[side]) {
+        status[i] = kFragmentSmallSide;
+        sideSeed[i] = ends[side];
+        sideSize[i] = tail[side];
+        return;
+      }
+      const int32_t u = queue[side][head[side]++];
+      for (int32_t s = g.graph.nodeEdgeStart[u]; s < g.graph.nodeEdgeStart[u + 1]; ++s) {
+        const int32_t f = g.graph.nodeEdges[s];
+        if (!g.passable(f, i)) continue;
+        const int32_t w = g.other(f, u);
+        const int32_t seen = visited.visit(w, side, queues, tail);
+        if (seen < 0) {
+          if (tail[side] == kFragmentSearchNodes) {
+            status[i] = kFragmentUnknown;
+            return;
+          }
+          queue[side][tail[side]++] = w;
+        } else if (seen != side) {
+          status[i] = kFragmentJoined;
           return;
         }
-        if (!visit(slots, w)) continue;
-        if (tail == kFragmentSearchNodes) return;
-        queue[tail++] = w;
       }
     }
   }
+};
+
+/// Small side j: the nodes reachable from seed[j] in batch edge edgeIndex[j]'s sequential graph
+/// (FragmentMaySplitStage found them to be at most kFragmentSearchNodes), in breadth-first
+/// order into out[offset[j]] onwards.
+struct FragmentSideStage {
+  FragmentSequentialGraph g;
+  const int32_t* edgeIndex = nullptr;
+  const int32_t* seed = nullptr;
+  const int32_t* offset = nullptr;
+  int32_t* out = nullptr;
+
+  GF_HD void operator()(int32_t j) const {
+    const int32_t i = edgeIndex[j];
+    int32_t* queue = out + offset[j];
+    const int32_t size = offset[j + 1] - offset[j];
+    FragmentVisitedSet visited;
+    visited.reset(FragmentVisitedSet::kMinSlots);
+    int32_t tail = 1;
+    queue[0] = seed[j];
+    visited.insert(seed[j], 0);
+    const int32_t* queues[2] = {queue, nullptr};
+    int32_t lengths[2] = {0, 0};
+    for (int32_t head = 0; head < tail; ++head) {
+      const int32_t u = queue[head];
+      for (int32_t s = g.graph.nodeEdgeStart[u]; s < g.graph.nodeEdgeStart[u + 1]; ++s) {
+        const int32_t f = g.graph.nodeEdges[s];
+        if (!g.passable(f, i)) continue;
+        const int32_t w = g.other(f, u);
+        lengths[0] = tail;
+        if (visited.visit(w, 0, queues, lengths) < 0 && tail < size) queue[tail++] = w;
+      }
+    }
+  }
+};
+
+/// Region entry k (node region[k]) claims its node: owner[u] becomes the least entry holding u
+/// (owner is INT32_MAX where unclaimed), so one entry per node survives de-duplication.
+struct FragmentRegionClaimStage {
+  const int32_t* region = nullptr;
+  int32_t* owner = nullptr;
+  GF_HD void operator()(int32_t k) const { atomicMinLabel(&owner[region[k]], k); }
+};
+
+/// keep[k] = 1 for the entry that owns its node; an owner that is its fragment's lowest node
+/// flags the fragment (its lowest node leaves with a small side: relabel it whole).
+struct FragmentRegionKeepStage {
+  const int32_t* region = nullptr;
+  const int32_t* owner = nullptr;
+  const int32_t* nodeFragment = nullptr;
+  const int32_t* fragmentMinNode = nullptr;
+  uint8_t* holdsMin = nullptr;  ///< per fragment
+  int32_t* keep = nullptr;
+
+  GF_HD void operator()(int32_t k) const {
+    const int32_t u = region[k];
+    const bool mine = owner[u] == k;
+    keep[k] = mine ? 1 : 0;
+    if (mine && fragmentMinNode[nodeFragment[u]] == u) holdsMin[nodeFragment[u]] = 1;
+  }
+};
+
+/// Entry k's node into out[position[k]] when kept and its fragment is relabelled by regions
+/// (mode 1); every entry's owner back to INT32_MAX afterwards is FragmentRegionReleaseStage.
+struct FragmentRegionCompactStage {
+  const int32_t* region = nullptr;
+  const int32_t* keep = nullptr;
+  const int32_t* position = nullptr;
+  int32_t* out = nullptr;
+  GF_HD void operator()(int32_t k) const {
+    if (keep[k]) out[position[k]] = region[k];
+  }
+};
+
+/// keep[k] cleared where entry k's fragment is not relabelled by regions after all.
+struct FragmentRegionModeStage {
+  const int32_t* region = nullptr;
+  const int32_t* nodeFragment = nullptr;
+  const uint8_t* mode = nullptr;  ///< per fragment: 1 = by regions
+  int32_t* keep = nullptr;
+  GF_HD void operator()(int32_t k) const {
+    if (mode[nodeFragment[region[k]]] != 1) keep[k] = 0;
+  }
+};
+
+/// Releases entry k's node (owner back to INT32_MAX; several entries may store it at once).
+struct FragmentRegionReleaseStage {
+  const int32_t* region = nullptr;
+  int32_t* owner = nullptr;
+  GF_HD void operator()(int32_t k) const { atomicStoreLabel(&owner[region[k]], 0x7fffffff); }
 };
 
 /// 1 for a root (a node that is its own label), else 0: scanned, the roots' ids by lowest node.
@@ -185,23 +356,16 @@ struct FragmentRootFlagStage {
   GF_HD void operator()(int32_t u) const { flag[u] = label[u] == u ? 1 : 0; }
 };
 
-/// At a root u (its own label): its fragment before the update, the id it keeps unless a split
-/// gives it a new one.
-struct FragmentRootOldIdStage {
-  const int32_t* label = nullptr;
-  const int32_t* nodeFragment = nullptr;
-  int32_t* rootId = nullptr;
-  GF_HD void operator()(int32_t u) const {
-    if (label[u] == u) rootId[u] = nodeFragment[u];
-  }
-};
-
-/// Node u's fragment: its root's id (rootId indexed by node, meaningful at roots).
+/// Listed node u's fragment: its root's id (rootId indexed by node, meaningful at roots).
 struct FragmentAssignStage {
+  const int32_t* nodes = nullptr;
   const int32_t* label = nullptr;
   const int32_t* rootId = nullptr;
   int32_t* nodeFragment = nullptr;
-  GF_HD void operator()(int32_t u) const { nodeFragment[u] = rootId[label[u]]; }
+  GF_HD void operator()(int32_t k) const {
+    const int32_t u = listedNode(nodes, k);
+    nodeFragment[u] = rootId[label[u]];
+  }
 };
 
 /// Number of per-node terms of a fragment's sums (FragmentTermStage).

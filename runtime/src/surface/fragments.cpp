@@ -24,19 +24,19 @@ int32_t findRoot(std::vector<int32_t>& parent, int32_t a) {
 }  // namespace
 
 void Fragments::label(const CpuExecutor& exec, const EdgeGraph& graph, const uint8_t* broken,
-                      const uint8_t* active, FragmentScratch& s) const {
-  const size_t n = size_t(graph.nodeCount);
-  s.label.resize(n);
-  s.next.resize(n);
-  s.changed.resize(n);
-  s.rounds = labelComponents(exec, graphView(graph, broken), active, m_nodeFragment.data(),
-                             m_minNode.data(), s.label.data(), s.next.data(), s.changed.data());
+                      const int32_t* nodes, int32_t count, FragmentScratch& s) const {
+  s.label.resize(size_t(graph.nodeCount));
+  s.next.resize(size_t(graph.nodeCount));
+  s.changed.resize(size_t(count));
+  s.rounds = labelComponents(exec, graphView(graph, broken), nodes, count, s.label.data(),
+                             s.next.data(), s.changed.data());
 }
 
-void Fragments::assign(const CpuExecutor& exec, FragmentScratch& s) {
-  const int32_t n = int32_t(m_nodeFragment.size());
-  exec.run(n, 1024, FragmentAssignStage{s.label.data(), s.rootId.data(), m_nodeFragment.data()});
-  m_lists.build(m_nodeFragment.data(), n, count());
+void Fragments::assign(const CpuExecutor& exec, const int32_t* nodes, int32_t count,
+                       FragmentScratch& s) {
+  exec.run(count, 1024,
+           FragmentAssignStage{nodes, s.label.data(), s.rootId.data(), m_nodeFragment.data()});
+  m_lists.build(m_nodeFragment.data(), int32_t(m_nodeFragment.size()), this->count());
   ++m_version;
 }
 
@@ -45,13 +45,13 @@ void Fragments::build(const CpuExecutor& exec, const EdgeGraph& graph, const uin
   const int32_t n = graph.nodeCount;
   m_nodeFragment.assign(size_t(n), 0);
   m_splits.clear();
-  label(exec, graph, broken, nullptr, s);
+  label(exec, graph, broken, nullptr, n, s);
   // Roots numbered in node order: ids follow the lowest node of each component.
   s.rootId.resize(size_t(n) + 1);
   exec.run(n, 1024, FragmentRootFlagStage{s.label.data(), s.rootId.data()});
   const int32_t roots = exclusiveScan(exec, s.rootId.data(), n, s.rootId.data(), s.scan);
   m_minNode.resize(size_t(roots));
-  assign(exec, s);
+  assign(exec, nullptr, n, s);
   // Each list is in index order, so its first node is the lowest.
   const Segments seg = m_lists.view();
   for (int32_t f = 0; f < roots; ++f) m_minNode[size_t(f)] = seg.order[seg.start[f]];
@@ -60,11 +60,11 @@ void Fragments::build(const CpuExecutor& exec, const EdgeGraph& graph, const uin
 bool Fragments::update(const CpuExecutor& exec, const EdgeGraph& graph, const uint8_t* broken,
                        std::span<const int32_t> newlyBroken, FragmentScratch& s) {
   m_splits.clear();
+  s.rounds = 0;
   const int32_t n = graph.nodeCount;
   // The batch in order: broken edges inside one fragment, each at its first listing (an edge
   // between two fragments broke before; a repeat is already applied).
   s.seen.resize(size_t(graph.edgeCount), 0);
-  s.active.assign(size_t(count()), 0);
   s.batch.clear();
   for (int32_t e : newlyBroken) {
     if (e < 0 || e >= graph.edgeCount || !broken[e] || s.seen[size_t(e)]) continue;
@@ -76,31 +76,110 @@ bool Fragments::update(const CpuExecutor& exec, const EdgeGraph& graph, const ui
   }
   for (int32_t e : s.batch) s.seen[size_t(e)] = 0;
   if (s.batch.empty()) return false;
-  // Only fragments with a batch edge whose ends may have parted are relabelled; most breaks
-  // leave their ends joined a few edges apart, and a batch of only those splits none.
   const int32_t batchSize = int32_t(s.batch.size());
-  s.maySplit.resize(size_t(batchSize));
-  exec.run(batchSize, 16,
-           FragmentMaySplitStage{graphView(graph, broken), s.batch.data(), s.maySplit.data()});
-  bool any = false;
-  for (int32_t i = 0; i < batchSize; ++i)
-    if (s.maySplit[size_t(i)]) {
-      s.active[size_t(m_nodeFragment[size_t(graph.edgeNodes[2 * size_t(s.batch[size_t(i)])])])] = 1;
-      any = true;
-    }
-  s.rounds = 0;
-  if (!any) return false;
+  auto fragmentOf = [&](int32_t i) {
+    return m_nodeFragment[size_t(graph.edgeNodes[2 * size_t(s.batch[size_t(i)])])];
+  };
 
-  label(exec, graph, broken, s.active.data(), s);
+  // Which removals split, by searches in each removal's own graph (later batch edges intact).
+  s.batchOrder.resize(size_t(graph.edgeCount), -1);
+  for (int32_t i = 0; i < batchSize; ++i) s.batchOrder[size_t(s.batch[size_t(i)])] = i;
+  const FragmentSequentialGraph sequential{graphView(graph, broken), s.batchOrder.data()};
+  s.status.resize(size_t(batchSize));
+  s.sideSeed.resize(size_t(batchSize));
+  s.sideSize.resize(size_t(batchSize));
+  // Most searches meet within a few nodes: items in ranges of 16.
+  exec.run(batchSize, 16,
+           FragmentMaySplitStage{sequential, s.batch.data(), s.status.data(), s.sideSeed.data(),
+                                 s.sideSize.data()});
+  // Per fragment: 0 nothing split, 1 relabelled in the small sides only, 2 relabelled whole
+  // (a search could not tell).
+  s.mode.assign(size_t(count()), 0);
+  bool any = false;
+  for (int32_t i = 0; i < batchSize; ++i) {
+    uint8_t& mode = s.mode[size_t(fragmentOf(i))];
+    if (s.status[size_t(i)] == kFragmentUnknown) mode = 2;
+    if (s.status[size_t(i)] == kFragmentSmallSide && mode == 0) mode = 1;
+    any = any || s.status[size_t(i)] != kFragmentJoined;
+  }
+  if (!any) {
+    for (int32_t e : s.batch) s.batchOrder[size_t(e)] = -1;
+    return false;
+  }
+
+  // The small sides of fragments relabelled by sides. Every piece that leaves such a fragment
+  // lies in a small side, and the nodes in none stay together with the fragment's lowest node
+  // (design note), so the sides' union, de-duplicated, is the whole region to relabel unless it
+  // holds the lowest node.
+  s.sideEdge.clear();
+  s.sideStart.assign(1, 0);
+  s.relabel.clear();
+  for (int32_t i = 0; i < batchSize; ++i)
+    if (s.status[size_t(i)] == kFragmentSmallSide && s.mode[size_t(fragmentOf(i))] == 1) {
+      s.sideEdge.push_back(i);
+      s.sideStart.push_back(s.sideStart.back() + s.sideSize[size_t(i)]);
+    }
+  const int32_t sides = int32_t(s.sideEdge.size());
+  for (int32_t j = 0; j < sides; ++j)
+    s.sideSeed[size_t(j)] = s.sideSeed[size_t(s.sideEdge[size_t(j)])];
+  const int32_t total = s.sideStart.back();
+  s.region.resize(size_t(total));
+  exec.run(sides, 1,
+           FragmentSideStage{sequential, s.sideEdge.data(), s.sideSeed.data(), s.sideStart.data(),
+                             s.region.data()});
+  for (int32_t e : s.batch) s.batchOrder[size_t(e)] = -1;
+  s.owner.resize(size_t(n), std::numeric_limits<int32_t>::max());
+  s.holdsMin.assign(size_t(count()), 0);
+  s.keep.resize(size_t(total) + 1);
+  exec.run(total, 256, FragmentRegionClaimStage{s.region.data(), s.owner.data()});
+  exec.run(total, 256,
+           FragmentRegionKeepStage{s.region.data(), s.owner.data(), m_nodeFragment.data(),
+                                   m_minNode.data(), s.holdsMin.data(), s.keep.data()});
+  for (int32_t j = 0; j < sides; ++j) {
+    const int32_t f = m_nodeFragment[size_t(s.sideSeed[size_t(j)])];
+    if (s.holdsMin[size_t(f)]) s.mode[size_t(f)] = 2;
+  }
+  exec.run(total, 256,
+           FragmentRegionModeStage{s.region.data(), m_nodeFragment.data(), s.mode.data(),
+                                   s.keep.data()});
+  s.position.resize(size_t(total) + 1);
+  const int32_t regionNodes = exclusiveScan(exec, s.keep.data(), total, s.position.data(), s.scan);
+  int32_t listed = regionNodes;
+  for (int32_t i = 0; i < batchSize; ++i) {
+    const int32_t f = fragmentOf(i);
+    if (s.mode[size_t(f)] != 2) continue;
+    s.mode[size_t(f)] = 3;  // listed once
+    s.relabel.push_back(f);
+    listed += int32_t(nodes(f).size());
+  }
+  s.nodes.resize(size_t(listed));
+  exec.run(total, 256,
+           FragmentRegionCompactStage{s.region.data(), s.keep.data(), s.position.data(),
+                                      s.nodes.data()});
+  exec.run(total, 256, FragmentRegionReleaseStage{s.region.data(), s.owner.data()});
+  int32_t* tail = s.nodes.data() + regionNodes;
+  for (int32_t f : s.relabel) tail = std::copy(nodes(f).begin(), nodes(f).end(), tail);
+
+  // Ends outside the relabelled nodes stay with their fragment's lowest node.
+  s.label.resize(size_t(n));
+  for (int32_t e : s.batch)
+    for (int k = 0; k < 2; ++k) {
+      const int32_t u = graph.edgeNodes[2 * size_t(e) + size_t(k)];
+      s.label[size_t(u)] = m_minNode[size_t(m_nodeFragment[size_t(u)])];
+    }
+  label(exec, graph, broken, s.nodes.data(), listed, s);
 
   // Adding the batch back in reverse over the final pieces: a join of two sets is a removal
   // that split them (design note). Sets are named by their lowest node, their union's is the
-  // lower of the two, so a side's name is its lowest node.
+  // lower of the two, so a side's name is its lowest node. Every piece of a fragment that
+  // split holds an end of the batch, so the ends' roots are all the roots there are.
   s.dsu.resize(size_t(n));
+  s.rootId.resize(size_t(n));
   for (int32_t e : s.batch)
     for (int k = 0; k < 2; ++k) {
       const int32_t r = s.label[size_t(graph.edgeNodes[2 * size_t(e) + size_t(k)])];
       s.dsu[size_t(r)] = r;
+      s.rootId[size_t(r)] = m_nodeFragment[size_t(r)];  // the id it keeps unless split off
     }
   s.mergeSide.clear();
   for (size_t i = s.batch.size(); i-- > 0;) {
@@ -114,9 +193,6 @@ bool Fragments::update(const CpuExecutor& exec, const EdgeGraph& graph, const ui
   }
   if (s.mergeSide.empty()) return false;
 
-  // Every root keeps its old fragment's id unless a split below gives it a new one.
-  s.rootId.resize(size_t(n));
-  exec.run(n, 1024, FragmentRootOldIdStage{s.label.data(), m_nodeFragment.data(), s.rootId.data()});
   // The splits forwards: the side without the lowest node takes the next id, its parent the id
   // of the side that keeps it (the whole group's at that moment).
   for (size_t k = s.mergeSide.size(); k > 0; k -= 2) {
@@ -126,7 +202,7 @@ bool Fragments::update(const CpuExecutor& exec, const EdgeGraph& graph, const ui
     s.rootId[size_t(other)] = created;
     m_minNode.push_back(other);
   }
-  assign(exec, s);
+  assign(exec, s.nodes.data(), listed, s);
   return true;
 }
 

@@ -9,9 +9,16 @@
 // - The components themselves come from the executor (surface/fragment_stages.h: min-label
 //   propagation with pointer jumping over unbroken edges, one source for the CPU and the
 //   device), each node labelled with the lowest node of its piece; build() numbers the roots
-//   by a scan. update() relabels only the fragments in which a newly broken edge may have split
-//   something (a bounded search from one end does not reach the other over unbroken edges), and
-//   nothing at all when no edge may have: most breaks leave their ends joined a few edges apart.
+//   by a scan. update() relabels only around the new breaks. For each batch edge, two bounded
+//   searches from its ends, taking turns one node at a time in the graph its removal sees (the
+//   batch's later edges still intact), tell whether the removal splits (FragmentMaySplitStage):
+//   joined (most breaks: their ends meet a few edges away, often through a later edge of the
+//   batch), split with the side that ran out of nodes first known whole (at most 512 nodes), or
+//   unknown. Where every split of a fragment has a known small side, only the union of those
+//   sides is relabelled: each piece that leaves the fragment lies in one, and the nodes in none
+//   stay in one piece with the fragment's lowest node (by induction over the removals: a split
+//   cuts a small side off the piece it lies in). A fragment with an unknown break, or whose
+//   lowest node lies in a small side (the rest then changes id), is relabelled whole.
 // - update() keeps the ids of the sequential rule: the batch of newly broken edges is applied
 //   one edge at a time (edges later in the batch still count as intact), so each removal splits
 //   at most one fragment in two, and the new ids follow the order of the removals that split.
@@ -20,9 +27,9 @@
 //   batch's later edges, so a union-find over the final pieces (the roots) that adds the batch
 //   edges back in reverse order finds every split and its two sides (each side named by its
 //   lowest node); walking those splits forwards gives each side that does not hold the lowest
-//   node the next id. This host pass costs O(batch), not O(nodes). The labelling costs the
-//   relabelled fragments' nodes times its rounds on every step that may split: on the CPU more
-//   than an incremental search would (docs/design.md, "Fragments"), in the form a device runs.
+//   node the next id. This host pass costs O(batch), not O(nodes). Assigning the new ids
+//   touches only the relabelled nodes; the node lists are still rebuilt whole (O(nodes)) on a
+//   step that split.
 // - Node lists hold every fragment's nodes in increasing index order (SegmentLists, rebuilt
 //   when the partition changes), and the per-fragment sums are segmented reductions over them
 //   in step/segments.h's fixed order: same bits for any thread count.
@@ -61,8 +68,13 @@ struct FragmentSplit {
 struct FragmentScratch {
   std::vector<int32_t> label, next, rootId, flag, dsu;
   std::vector<double> changed, terms, partials, sums;
-  std::vector<uint8_t> active, seen, maySplit;
+  std::vector<uint8_t> seen, status, mode, holdsMin;
   std::vector<int32_t> batch;
+  std::vector<int32_t> batchOrder;  // per edge: position in the batch; -1 between calls
+  std::vector<int32_t> sideSeed, sideSize, sideEdge, sideStart;
+  std::vector<int32_t> region, owner, keep, position;  // owner: INT32_MAX between calls
+  std::vector<int32_t> nodes;                          // the nodes relabelled by the last update()
+  std::vector<int32_t> relabel;                        // fragments relabelled whole
   std::vector<int32_t> mergeSide;  // per split found: the two sides' lowest nodes
   ScanScratch scan;
   int32_t rounds = 0;  ///< label rounds of the last build() or update()
@@ -122,11 +134,11 @@ class Fragments {
                                          size_t nodeCount);
 
  private:
-  // Labels the components of the fragments marked in s.active (null: all) into s.label.
+  // Labels the components of the listed nodes (null: all count nodes) into s.label.
   void label(const CpuExecutor& exec, const EdgeGraph& graph, const uint8_t* broken,
-             const uint8_t* active, FragmentScratch& s) const;
-  // nodeFragment from s.label and s.rootId, then the node lists.
-  void assign(const CpuExecutor& exec, FragmentScratch& s);
+             const int32_t* nodes, int32_t count, FragmentScratch& s) const;
+  // nodeFragment of the listed nodes from s.label and s.rootId, then the node lists.
+  void assign(const CpuExecutor& exec, const int32_t* nodes, int32_t count, FragmentScratch& s);
 
   std::vector<int32_t> m_nodeFragment;
   std::vector<int32_t> m_minNode;  // per fragment
