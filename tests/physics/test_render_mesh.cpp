@@ -545,6 +545,293 @@ TEST(RenderMesh, ShatteredSurfaceDoesNotDependOnThreadCount) {
   EXPECT_TRUE(one == four);
 }
 
+// A bar 0.4 x 0.1 x 0.1 m (cells 0.025 x 0.0125 x 0.0125 m) with a notch: a blade on the plane
+// x = 0.204 m breaks every edge it crosses at y >= 0.049 m, the upper half of the section, so
+// the body stays one fragment. Drawn with a render mesh of 0.01 m edges, at rest the surface is
+// closed and 2-manifold and encloses the render box's volume; then the half right of the crack
+// is turned rigidly by 0.1 rad about the crack front (the line x = 0.204, y = 0.05), which
+// opens the crack by 0.1 rad x the height above the front. Each pair of drawn vertices that
+// coincide at rest and follow opposite sides must then be as far apart as the two sides'
+// motions carry that rest point (within the opening's change over a cell, near the front where
+// the local maps mix both sides), the surface stays closed, and no render triangle above the
+// front stretches (one spanning the crack would by the opening).
+TEST(RenderMesh, PartlyCrackedBarShowsItsOpeningCrack) {
+  const double xc = 0.204, yf = 0.05, angle = 0.1, cell = 0.025;
+  auto notched = [&](World& world) {
+    BodyDef def;
+    def.mesh = gen::box(0.4, 0.1, 0.1, 16, 8, 8);
+    def.material = Material::stableNeoHookean(1e7, 0.3, 1000);
+    def.fracture.enabled = true;
+    def.fracture.strength = 1e12;  // only the blade breaks edges
+    def.renderMesh = boxSurface(glm::dvec3(0), glm::dvec3(0.4, 0.1, 0.1), 40, 10, 10);
+    const BodyId id = world.createBody(def).value();
+    Blade blade;
+    blade.vertices = {
+        {float(xc), 0.049f, -1}, {float(xc), 1, -1}, {float(xc), 1, 1}, {float(xc), 0.049f, 1}};
+    blade.triangles = {0, 1, 2, 0, 2, 3};
+    EXPECT_TRUE(world.cut(id, blade).ok());
+    (void)world.step(1.0 / 60);  // applies the cut
+    EXPECT_TRUE(world.setPositions(id, def.mesh.positions).ok());
+    return std::make_pair(id, def);
+  };
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  const auto made = notched(world);
+  const BodyId id = made.first;
+  const BodyDef& def = made.second;
+  const FractureStats fs = world.fractureStats(id);
+  ASSERT_GT(fs.brokenEdges, 0);
+  ASSERT_EQ(fs.fragments, 1);
+
+  // At rest: closed, 2-manifold, the render box's volume.
+  const SurfaceView rest = world.surface(id);
+  const std::vector<float> restPos(rest.positions.begin(), rest.positions.end());
+  const std::vector<uint32_t> restIdx(rest.indices.begin(), rest.indices.end());
+  const auto c0 = closure(rest);
+  ASSERT_EQ(c0.size(), 1u);
+  // The crack faces fold along the front: every cap's centre (its triangles' first vertex) lies
+  // near the front line's middle (x = 0.2125 m, where the corner cells of the node layers
+  // x = 0.2 and 0.225 m meet and so the graph's crack is drawn; y = z = 0.05 m): within a render
+  // edge (0.01 m) in x, within a cell (0.0125 m) in y and z.
+  int crackTriangles = 0;
+  double centreOff = 0;
+  for (size_t t = 0; t < rest.crackMask.size(); ++t) {
+    if (!rest.crackMask[t]) continue;
+    ++crackTriangles;
+    const glm::dvec3 m(restPos[3 * size_t(restIdx[3 * t])], restPos[3 * size_t(restIdx[3 * t]) + 1],
+                       restPos[3 * size_t(restIdx[3 * t]) + 2]);
+    centreOff = std::max({centreOff, std::abs(m.x - 0.2125) / 0.01, std::abs(m.y - yf) / 0.0125,
+                          std::abs(m.z - 0.05) / 0.0125});
+  }
+  double volume = 0;
+  for (const auto& [f, v] : enclosedVolumes(rest)) volume += v;
+  const double want = 0.4 * 0.1 * 0.1;
+
+  // Open the crack: the right side turned about the front.
+  const double ca = std::cos(angle), sa = std::sin(angle);
+  auto turn = [&](glm::dvec3 p) {
+    const double dx = p.x - xc, dy = p.y - yf;
+    return glm::dvec3(xc + ca * dx + sa * dy, yf - sa * dx + ca * dy, p.z);
+  };
+  std::vector<double> x(def.mesh.positions.size());
+  for (size_t n = 0; n < def.mesh.nodeCount(); ++n) {
+    const glm::dvec3 X = at(def.mesh.positions, n);
+    const glm::dvec3 p = X.x < xc ? X : turn(X);
+    for (int c = 0; c < 3; ++c) x[3 * n + size_t(c)] = p[c];
+  }
+  ASSERT_TRUE(world.setPositions(id, x).ok());
+  const SurfaceView sv = world.surface(id);
+  ASSERT_TRUE(std::equal(sv.indices.begin(), sv.indices.end(), restIdx.begin(), restIdx.end()));
+  const auto c1 = closure(sv);
+  auto pos = [](std::span<const float> p, size_t v) {
+    return glm::dvec3(p[3 * v], p[3 * v + 1], p[3 * v + 2]);
+  };
+
+  // Pairs of drawn vertices at one rest point that follow opposite sides above the front.
+  std::map<std::tuple<float, float, float>, std::vector<uint32_t>> byRest;
+  for (uint32_t v = 0; v < restPos.size() / 3; ++v)
+    byRest[{restPos[3 * v], restPos[3 * v + 1], restPos[3 * v + 2]}].push_back(v);
+  int pairs = 0;
+  double widest = 0, worst = 0;
+  for (const auto& [key, vs] : byRest)
+    for (size_t i = 0; i < vs.size(); ++i)
+      for (size_t j = i + 1; j < vs.size(); ++j) {
+        const glm::dvec3 Na = at(def.mesh.positions, size_t(sv.vertexNode[vs[i]]));
+        const glm::dvec3 Nb = at(def.mesh.positions, size_t(sv.vertexNode[vs[j]]));
+        if ((Na.x < xc) == (Nb.x < xc) || std::min(Na.y, Nb.y) < yf - 1e-9) continue;
+        const glm::dvec3 P = pos(restPos, vs[i]);
+        const double gap = glm::length(pos(sv.positions, vs[i]) - pos(sv.positions, vs[j]));
+        const double truth = glm::length(turn(P) - P);
+        ++pairs;
+        widest = std::max(widest, gap);
+        worst = std::max(worst, std::abs(gap - truth));
+      }
+
+  // Render triangles wholly above the front by a cell keep their edge lengths.
+  double stretch = 0;
+  int above = 0;
+  for (size_t t = 0; t < restIdx.size() / 3; ++t) {
+    if (sv.crackMask[t]) continue;
+    const uint32_t* id3 = &restIdx[3 * t];
+    bool high = true;
+    for (int k = 0; k < 3; ++k) high = high && restPos[3 * size_t(id3[k]) + 1] > yf + cell;
+    if (!high) continue;
+    ++above;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = id3[k], b = id3[(k + 1) % 3];
+      stretch =
+          std::max(stretch, std::abs(glm::length(pos(sv.positions, a) - pos(sv.positions, b)) -
+                                     glm::length(pos(restPos, a) - pos(restPos, b))));
+    }
+  }
+  std::printf(
+      "notched bar: %d broken edges, %d fragment; drawn %zu triangles (%d crack faces, their "
+      "fans' centres off the front's middle by %.2f of the allowance), %d open edges at rest, %d "
+      "opened; at "
+      "rest volume %.8g m^3 against %.8g (%.2e relative). Opened by "
+      "%.2f rad: %d vertex pairs across the crack, widest gap %.4f m (the nodes' opening at the "
+      "top: %.4f m), largest |gap - the sides' motion| %.3g m (a cell's change of the opening: "
+      "%.3g m); %d render triangles above the front, largest change of an edge's length %.3g m\n",
+      fs.brokenEdges, fs.fragments, restIdx.size() / 3, crackTriangles, centreOff,
+      c0.begin()->second.openEdges, c1.begin()->second.openEdges, volume, want,
+      (volume - want) / want, angle, pairs, widest, 2 * std::sin(angle / 2) * (0.1 - yf), worst,
+      angle * cell, above, stretch);
+  EXPECT_EQ(c0.begin()->second.openEdges, 0);
+  EXPECT_EQ(c1.size(), 1u);
+  EXPECT_EQ(c1.begin()->second.openEdges, 0);
+  EXPECT_GT(crackTriangles, 0);
+  EXPECT_LT(centreOff, 1.0);
+  EXPECT_NEAR(volume, want, 1e-6 * want);
+  // At least one pair per render edge crossing the crack on the top face.
+  EXPECT_GE(pairs, 10);
+  EXPECT_GT(widest, 0.8 * 2 * std::sin(angle / 2) * (0.1 - yf));
+  EXPECT_LT(worst, angle * cell);
+  EXPECT_GT(above, 0);
+  EXPECT_LT(stretch, 1e-5);
+
+  // The same bits at 1, 2 and 4 threads.
+  ThreadPoolJobSystem pool2(2), pool4(4);
+  for (JobSystem* jobs : {static_cast<JobSystem*>(&pool2), static_cast<JobSystem*>(&pool4)}) {
+    World other(WorldDef{glm::vec3(0), Backend::Cpu, jobs, 1, {}});
+    const BodyId oid = notched(other).first;
+    ASSERT_TRUE(other.setPositions(oid, x).ok());
+    const SurfaceView o = other.surface(oid);
+    EXPECT_TRUE(std::equal(o.positions.begin(), o.positions.end(), sv.positions.begin(),
+                           sv.positions.end()));
+    EXPECT_TRUE(
+        std::equal(o.indices.begin(), o.indices.end(), sv.indices.begin(), sv.indices.end()));
+  }
+}
+
+// Cracks that have not separated the body, at angles and render resolutions unrelated to the
+// tets: a blade plane tilted about two axes breaks what it crosses down to a slanted front that
+// ends inside the bar, so the cut crosses tets obliquely and ends in render triangles at any
+// place. The drawn surface is closed and 2-manifold and, at rest, encloses the render mesh's
+// volume; opened, it shows the opening above the front and no render triangle spans it.
+TEST(RenderMesh, ObliquePartialCracksAreClosed) {
+  struct Case {
+    double tiltX, tiltZ, depth;  // the blade's tilts [rad]; its lowest y at z = 0.05 [m]
+    int nx, ny, nz;              // render mesh resolution
+  };
+  const Case cases[] = {
+      {0.3, 0.2, 0.045, 37, 9, 11}, {-0.5, 0.4, 0.06, 23, 7, 5}, {0.15, -0.6, 0.03, 61, 13, 17}};
+  for (const Case& c : cases) {
+    BodyDef def;
+    def.mesh = gen::box(0.4, 0.1, 0.1, 16, 8, 8);
+    def.material = Material::stableNeoHookean(1e7, 0.3, 1000);
+    def.fracture.enabled = true;
+    def.fracture.strength = 1e12;
+    def.renderMesh = boxSurface(glm::dvec3(0), glm::dvec3(0.4, 0.1, 0.1), c.nx, c.ny, c.nz);
+    World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+    const BodyId id = world.createBody(def).value();
+    // The blade: a quad in its plane through (0.203, depth, 0.05), x = 0.203 + tan(tiltX)
+    // (y - depth) + tan(tiltZ) (z - 0.05), from y = depth up and across all z.
+    auto X = [&](double y, double z) {
+      return float(0.203 + std::tan(c.tiltX) * (y - c.depth) + std::tan(c.tiltZ) * (z - 0.05));
+    };
+    Blade blade;
+    blade.vertices = {{X(c.depth, -1), float(c.depth), -1},
+                      {X(1, -1), 1, -1},
+                      {X(1, 1), 1, 1},
+                      {X(c.depth, 1), float(c.depth), 1}};
+    blade.triangles = {0, 1, 2, 0, 2, 3};
+    ASSERT_TRUE(world.cut(id, blade).ok());
+    (void)world.step(1.0 / 60);
+    ASSERT_TRUE(world.setPositions(id, def.mesh.positions).ok());
+    const FractureStats fs = world.fractureStats(id);
+    const SurfaceView sv = world.surface(id);
+    const auto cl = closure(sv);
+    int open = 0, crackTriangles = 0;
+    for (const auto& [f, fc] : cl) open += fc.openEdges;
+    for (uint8_t m : sv.crackMask) crackTriangles += m;
+    double volume = 0;
+    for (const auto& [f, v] : enclosedVolumes(sv)) volume += v;
+    const double want = 0.4 * 0.1 * 0.1;
+    std::printf(
+        "oblique partial crack (tilts %.2f, %.2f rad, lowest at y = %.3f m; render %dx%dx%d): %d "
+        "broken edges, %d fragment(s); %zu drawn triangles, %d crack faces, %d open edges; at "
+        "rest volume %.2e relative\n",
+        c.tiltX, c.tiltZ, c.depth, c.nx, c.ny, c.nz, fs.brokenEdges, fs.fragments,
+        sv.indices.size() / 3, crackTriangles, open, (volume - want) / want);
+    EXPECT_GT(fs.brokenEdges, 0);
+    EXPECT_EQ(fs.fragments, 1);
+    EXPECT_EQ(cl.size(), 1u);
+    EXPECT_GT(crackTriangles, 0);
+    EXPECT_EQ(open, 0);
+    EXPECT_NEAR(volume, want, 1e-6 * want);
+
+    // Open it: the far side turned by 0.1 rad about the front line (the blade's lowest edge).
+    // Vertex pairs across the crack part as the two sides carry their rest point, and render
+    // triangles more than two cells above the front keep their edge lengths (each side moves
+    // rigidly there; one spanning the crack would stretch by the opening).
+    const std::vector<float> restPos(sv.positions.begin(), sv.positions.end());
+    const std::vector<uint32_t> restIdx(sv.indices.begin(), sv.indices.end());
+    const glm::dvec3 p0(0.203, c.depth, 0.05),
+        axis = glm::normalize(glm::dvec3(std::tan(c.tiltZ), 0, 1));
+    const double angle = -0.1, cellY = 0.0125;
+    auto far = [&](glm::dvec3 P) { return P.x > double(X(P.y, P.z)); };
+    auto turn = [&](glm::dvec3 P) {
+      const glm::dvec3 r = P - p0;
+      return p0 + r * std::cos(angle) + glm::cross(axis, r) * std::sin(angle) +
+             axis * glm::dot(axis, r) * (1 - std::cos(angle));
+    };
+    std::vector<double> x(def.mesh.positions.size());
+    for (size_t n = 0; n < def.mesh.nodeCount(); ++n) {
+      const glm::dvec3 P = at(def.mesh.positions, n), q = far(P) ? turn(P) : P;
+      for (int k = 0; k < 3; ++k) x[3 * n + size_t(k)] = q[k];
+    }
+    ASSERT_TRUE(world.setPositions(id, x).ok());
+    const SurfaceView opened = world.surface(id);
+    ASSERT_TRUE(
+        std::equal(opened.indices.begin(), opened.indices.end(), restIdx.begin(), restIdx.end()));
+    auto pos = [](std::span<const float> p, size_t v) {
+      return glm::dvec3(p[3 * v], p[3 * v + 1], p[3 * v + 2]);
+    };
+    std::map<std::tuple<float, float, float>, std::vector<uint32_t>> byRest;
+    for (uint32_t v = 0; v < restPos.size() / 3; ++v)
+      byRest[{restPos[3 * v], restPos[3 * v + 1], restPos[3 * v + 2]}].push_back(v);
+    int pairs = 0;
+    double widest = 0, worst = 0, stretch = 0;
+    for (const auto& [key, vs] : byRest)
+      for (size_t i = 0; i < vs.size(); ++i)
+        for (size_t j = i + 1; j < vs.size(); ++j) {
+          const glm::dvec3 Na = at(def.mesh.positions, size_t(opened.vertexNode[vs[i]]));
+          const glm::dvec3 Nb = at(def.mesh.positions, size_t(opened.vertexNode[vs[j]]));
+          if (far(Na) == far(Nb) || std::min(Na.y, Nb.y) < c.depth + cellY) continue;
+          const glm::dvec3 P = pos(restPos, vs[i]);
+          const double gap =
+              glm::length(pos(opened.positions, vs[i]) - pos(opened.positions, vs[j]));
+          ++pairs;
+          widest = std::max(widest, gap);
+          worst = std::max(worst, std::abs(gap - glm::length(turn(P) - P)));
+        }
+    int above = 0;
+    for (size_t t = 0; t < restIdx.size() / 3; ++t) {
+      if (opened.crackMask[t]) continue;
+      const uint32_t* id3 = &restIdx[3 * t];
+      bool high = true;
+      for (int k = 0; k < 3; ++k)
+        high = high && restPos[3 * size_t(id3[k]) + 1] > c.depth + 2 * cellY;
+      if (!high) continue;
+      ++above;
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t a = id3[k], b = id3[(k + 1) % 3];
+        stretch = std::max(
+            stretch, std::abs(glm::length(pos(opened.positions, a) - pos(opened.positions, b)) -
+                              glm::length(pos(restPos, a) - pos(restPos, b))));
+      }
+    }
+    std::printf(
+        "  opened by %.2f rad: %d vertex pairs across the crack a cell above the front, widest "
+        "gap %.4f m, largest |gap - the sides' motion| %.3g m; %d render triangles two cells "
+        "above the front, largest change of an edge's length %.3g m\n",
+        -angle, pairs, widest, worst, above, stretch);
+    EXPECT_GT(pairs, 0);
+    EXPECT_LT(worst, -angle * 0.025);
+    EXPECT_GT(above, 0);
+    EXPECT_LT(stretch, 1e-5);
+  }
+}
+
 // A body without a render mesh shows its tet surface exactly as a CrackSurface built from the
 // same state, also when a body with a render mesh shares its world.
 TEST(RenderMesh, BodyWithoutRenderMeshKeepsTheTetSurfaceBitForBit) {

@@ -245,7 +245,6 @@ uint32_t EmbeddedSurface::addCopy(int32_t source, int32_t tet, const double* w, 
   m_vRest.insert(m_vRest.end(), {rest.x, rest.y, rest.z});
   m_vRestNormal.insert(m_vRestNormal.end(), {restNormal.x, restNormal.y, restNormal.z});
   if (!m_binding->uv.empty()) m_vUv.insert(m_vUv.end(), uv, uv + 2);
-  m_cutNext.push_back(-1);
   // A copy that follows only part of its tet needs the local maps of the nodes it follows.
   if (group != 15u)
     for (int k = 0; k < 4; ++k)
@@ -276,7 +275,7 @@ uint32_t EmbeddedSurface::pointCopy(Vec3 P, Vec3 N, const float* uv, uint32_t si
   return addCopy(-1, t, w, m_homeGroup[side], m_home[side], P, N, uv);
 }
 
-uint32_t EmbeddedSurface::cutCopy(uint32_t u, uint32_t v, int32_t fragment) {
+uint32_t EmbeddedSurface::cutCopy(uint32_t u, uint32_t v, uint32_t side) {
   const uint32_t lo = std::min(u, v), hi = std::max(u, v);
   const uint64_t key = uint64_t(lo) << 32 | hi;
   auto found = m_cut.find(key);
@@ -285,12 +284,17 @@ uint32_t EmbeddedSurface::cutCopy(uint32_t u, uint32_t v, int32_t fragment) {
     const Vec3 Plo = load(b.rest.data(), lo), Phi = load(b.rest.data(), hi);
     // Where the boundary w_a = w_b between the two ends' cells crosses the edge, in the lower
     // end's tet (a: its node of the largest weight; b: the other end's node of the largest
-    // weight among the tet's nodes in the other fragment).
+    // weight among the tet's nodes on the other side: in the other fragment, or, within one
+    // fragment, outside the lower end's group).
     double s = 0.5;
     const int32_t t = b.tet[lo];
     const int32_t* n = &m_rest->tets[4 * size_t(t)];
     unsigned other = 0;
-    for (int k = 0; k < 4; ++k) other |= m_nodeFragment[n[k]] == m_home[hi] ? 1u << k : 0u;
+    if (m_home[lo] != m_home[hi]) {
+      for (int k = 0; k < 4; ++k) other |= m_nodeFragment[n[k]] == m_home[hi] ? 1u << k : 0u;
+    } else {
+      other = ~unsigned(m_homeGroup[lo]) & 15u;
+    }
     if (other) {
       const double* wl = &b.weight[4 * size_t(lo)];
       double wh[4];
@@ -313,7 +317,56 @@ uint32_t EmbeddedSurface::cutCopy(uint32_t u, uint32_t v, int32_t fragment) {
     const uint32_t ch = pointCopy(P, N, uv, hi);
     found = m_cut.emplace(key, std::make_pair(cl, ch)).first;
   }
-  return fragment == m_home[lo] ? found->second.first : found->second.second;
+  return side == lo ? found->second.first : found->second.second;
+}
+
+bool EmbeddedSurface::apart(uint32_t u, uint32_t v) const {
+  if (m_home[u] != m_home[v]) return true;
+  const int32_t a = m_homeNode[u], c = m_homeNode[v];
+  // A tet holds its nodes pairwise joined by its edges, so two nodes can be in different groups
+  // of a tet only when the edge between them is broken: most edges end here.
+  if (a == c || !m_nodeCracked[size_t(a)] || !m_nodeCracked[size_t(c)]) return false;
+  // Within a fragment the groups that move the copies decide: the two ends' cell nodes are
+  // apart when an end's tet holds the other's cell node outside its group. A tet whose nodes
+  // are all joined (a lone broken edge) sees nothing apart, so a crack is cut only where it
+  // splits tets, as the copies move.
+  const std::vector<int32_t>& tets = m_rest->tets;
+  bool shared = false;
+  for (const auto& [w, node] : {std::pair{u, c}, std::pair{v, a}}) {
+    const int32_t* n = &tets[4 * size_t(m_binding->tet[w])];
+    for (int k = 0; k < 4; ++k)
+      if (n[k] == node) {
+        if (!(m_homeGroup[w] >> k & 1u)) return true;
+        shared = true;
+      }
+  }
+  if (shared) return false;
+  // A render edge that leaves both ends' tets: the nodes are on one side when an unbroken path
+  // of at most two graph edges joins them (through a node of a tet they both touch), which
+  // holds across a crack only near its front, where the two sides are still joined.
+  const EdgeGraph& g = *m_graph;
+  auto other = [&](int32_t e, int32_t n) {
+    return g.edgeNodes[2 * size_t(e)] == n ? g.edgeNodes[2 * size_t(e) + 1]
+                                           : g.edgeNodes[2 * size_t(e)];
+  };
+  for (int32_t i = g.nodeEdgeStart[a]; i < g.nodeEdgeStart[a + 1]; ++i) {
+    const int32_t ea = g.nodeEdges[i];
+    if (m_broken[ea]) continue;
+    const int32_t m = other(ea, a);
+    if (m == c) return false;
+    for (int32_t j = g.nodeEdgeStart[c]; j < g.nodeEdgeStart[c + 1]; ++j) {
+      const int32_t ec = g.nodeEdges[j];
+      if (!m_broken[ec] && other(ec, c) == m) return false;
+    }
+  }
+  return true;
+}
+
+unsigned EmbeddedSurface::joinedMask(int32_t t) const {
+  const int32_t* te = &m_graph->tetEdges[6 * size_t(t)];
+  unsigned m = 0;
+  for (int j = 0; j < 6; ++j) m |= m_broken[te[j]] ? 0u : 1u << j;
+  return m;
 }
 
 bool EmbeddedSurface::nodeInside(int32_t node) {
@@ -341,27 +394,30 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   const EmbeddedBinding& b = *m_binding;
   const size_t nv = b.tet.size();
   m_nodeFragment = nodeFragment;
-  auto joinedMask = [&](int32_t t) {
-    const int32_t* te = &m_graph->tetEdges[6 * size_t(t)];
-    unsigned m = 0;
-    for (int j = 0; j < 6; ++j) m |= broken[te[j]] ? 0u : 1u << j;
-    return m;
-  };
+  m_broken = broken;
+  m_nodeCracked.assign(m_rest->nodeCount(), 0);
+  for (int32_t e = 0; e < m_graph->edgeCount; ++e)
+    if (broken[e]) {
+      m_nodeCracked[size_t(m_graph->edgeNodes[2 * size_t(e)])] = 1;
+      m_nodeCracked[size_t(m_graph->edgeNodes[2 * size_t(e) + 1])] = 1;
+    }
 
   // Each vertex's label and group: those of its tet's node of the largest weight, whose corner
   // cell holds it.
   m_home.resize(nv);
   m_homeGroup.resize(nv);
+  m_homeNode.resize(nv);
   for (size_t v = 0; v < nv; ++v) {
     const int32_t t = b.tet[v];
     const int k = strongest(&b.weight[4 * v], 15u);
-    m_home[v] = nodeFragment[m_rest->tets[4 * size_t(t) + size_t(k)]];
+    m_homeNode[v] = m_rest->tets[4 * size_t(t) + size_t(k)];
+    m_home[v] = nodeFragment[m_homeNode[v]];
     m_homeGroup[v] = uint8_t(component(k, joinedMask(t)));
   }
 
   m_homeCopy.assign(nv, -1);
   m_cut.clear();
-  m_cutNext.clear();
+  m_segments.clear();
   for (int32_t a : m_frameNodes) m_frameMark[size_t(a)] = 0;
   m_frameNodes.clear();
   m_vTet.clear();
@@ -375,31 +431,45 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   m_vFragment.clear();
   m_renderIndices.clear();
 
-  // Marching triangles on the labels (design note: cutting the render triangles).
+  // Marching triangles on the cut edges (design note: cutting the render triangles). Each
+  // piece's side of a cut, in the piece's orientation, is a segment of its side's rim.
   auto emit = [&](uint32_t a, uint32_t c1, uint32_t c2) {
     m_renderIndices.insert(m_renderIndices.end(), {a, c1, c2});
   };
+  auto rim = [&](uint32_t from, uint32_t to) { m_segments.push_back({from, to}); };
   const size_t ntri = b.indices.size() / 3;
   for (size_t tri = 0; tri < ntri; ++tri) {
     const uint32_t* id = &b.indices[3 * tri];
-    const int32_t L[3] = {m_home[id[0]], m_home[id[1]], m_home[id[2]]};
-    if (L[0] == L[1] && L[1] == L[2]) {
+    // cut[i]: the edge from corner i to corner i + 1.
+    const bool cut[3] = {apart(id[0], id[1]), apart(id[1], id[2]), apart(id[2], id[0])};
+    const int cuts = int(cut[0]) + int(cut[1]) + int(cut[2]);
+    if (cuts == 0) {
       // Copies are made in a fixed order (function arguments have none).
       const uint32_t a = homeCopy(id[0]), b1 = homeCopy(id[1]), c = homeCopy(id[2]);
       emit(a, b1, c);
-    } else if (L[0] == L[1] || L[1] == L[2] || L[0] == L[2]) {
+    } else if (cuts == 1) {
+      // The crack ends in this triangle: its cut edge ij opens towards corner k, where the two
+      // sides meet (the front, design note).
+      const int i = cut[0] ? 0 : cut[1] ? 1 : 2, j = (i + 1) % 3, k = (i + 2) % 3;
+      const uint32_t ijA = cutCopy(id[i], id[j], id[i]), ijB = cutCopy(id[i], id[j], id[j]);
+      const uint32_t hi = homeCopy(id[i]), hj = homeCopy(id[j]), hk = homeCopy(id[k]);
+      emit(hi, ijA, hk);
+      emit(ijB, hj, hk);
+      rim(ijA, hk);
+      rim(hk, ijB);
+    } else if (cuts == 2) {
       // Vertex i alone on its side: a triangle there, a quad on the other side.
-      const int i = L[0] == L[1] ? 2 : L[0] == L[2] ? 1 : 0, j = (i + 1) % 3, k = (i + 2) % 3;
-      const uint32_t ijA = cutCopy(id[i], id[j], L[i]), ikA = cutCopy(id[i], id[k], L[i]);
-      const uint32_t ijB = cutCopy(id[i], id[j], L[j]), ikB = cutCopy(id[i], id[k], L[j]);
+      const int i = !cut[1] ? 0 : !cut[2] ? 1 : 2, j = (i + 1) % 3, k = (i + 2) % 3;
+      const uint32_t ijA = cutCopy(id[i], id[j], id[i]), ikA = cutCopy(id[i], id[k], id[i]);
+      const uint32_t ijB = cutCopy(id[i], id[j], id[j]), ikB = cutCopy(id[i], id[k], id[k]);
       const uint32_t hi = homeCopy(id[i]), hj = homeCopy(id[j]), hk = homeCopy(id[k]);
       emit(hi, ijA, ikA);
       emit(ijB, hj, hk);
       emit(ijB, hk, ikB);
-      m_cutNext[ijA] = int32_t(ikA);
-      m_cutNext[ikB] = int32_t(ijB);
+      rim(ijA, ikA);
+      rim(ikB, ijB);
     } else {
-      // Three labels: a centre point and a quad per corner.
+      // Three sides: a centre point and a quad per corner.
       Vec3 P{}, N{};
       float uv[2] = {0, 0};
       for (int c = 0; c < 3; ++c) {
@@ -411,35 +481,66 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
       N = norm(N) > 0 ? (1 / norm(N)) * N : load(b.restNormal.data(), id[0]);
       for (int i = 0; i < 3; ++i) {
         const int j = (i + 1) % 3, k = (i + 2) % 3;
-        const uint32_t c1 = cutCopy(id[i], id[j], L[i]), c2 = cutCopy(id[k], id[i], L[i]);
+        const uint32_t c1 = cutCopy(id[i], id[j], id[i]), c2 = cutCopy(id[k], id[i], id[i]);
         const uint32_t m = pointCopy(P, N, uv, id[i]), h = homeCopy(id[i]);
         emit(h, c1, m);
         emit(h, m, c2);
-        m_cutNext[c1] = int32_t(m);
-        m_cutNext[m] = int32_t(c2);
+        rim(c1, m);
+        rim(m, c2);
       }
     }
   }
 
-  // Cycles of cut segments, in copy order, become caps; chains (an open mesh's holes) stay open.
+  // The rim segments split into cycles, each capped; a walk that returns to a vertex already on
+  // it closes a cycle there, so a vertex on two cycles (two crack ends in its star) gets two
+  // caps. Chains that end (an open mesh's holes) stay open.
   m_capStart.assign(1, 0);
   m_capRim.clear();
   m_openCuts = 0;
-  std::vector<uint8_t> seen(m_cutNext.size(), 0);
-  for (size_t c = 0; c < m_cutNext.size(); ++c) {
-    if (m_cutNext[c] < 0 || seen[c]) continue;
-    const size_t begin = m_capRim.size();
-    int32_t p = int32_t(c);
-    while (p >= 0 && !seen[size_t(p)]) {
-      seen[size_t(p)] = 1;
-      m_capRim.push_back(p);
-      p = m_cutNext[size_t(p)];
-    }
-    if (p == int32_t(c)) {
-      m_capStart.push_back(int32_t(m_capRim.size()));
-    } else {
-      m_capRim.resize(begin);
-      ++m_openCuts;
+  const size_t ncopy = m_vTet.size(), nseg = m_segments.size();
+  // Segments by their first copy (counting sort, in emission order), in buffers that keep
+  // their capacity.
+  std::vector<int32_t>& outStart = m_outStart;
+  std::vector<int32_t>& out = m_out;
+  std::vector<int32_t>& nextOut = m_nextOut;
+  std::vector<int32_t>& onPath = m_onPath;
+  std::vector<int32_t>& path = m_path;
+  outStart.assign(ncopy + 1, 0);
+  out.resize(nseg);
+  for (const auto& sg : m_segments) ++outStart[sg.first + 1];
+  for (size_t c = 0; c < ncopy; ++c) outStart[c + 1] += outStart[c];
+  nextOut.assign(outStart.begin(), outStart.end() - 1);
+  for (size_t g = 0; g < nseg; ++g) out[size_t(nextOut[m_segments[g].first]++)] = int32_t(g);
+  nextOut.assign(outStart.begin(), outStart.end() - 1);  // per copy: its first unused segment
+  onPath.assign(ncopy, -1);
+  for (size_t c = 0; c < ncopy; ++c) {
+    while (nextOut[c] < outStart[c + 1]) {
+      path.assign(1, int32_t(c));
+      onPath[c] = 0;
+      for (;;) {
+        const int32_t p = path.back();
+        if (nextOut[size_t(p)] == outStart[size_t(p) + 1]) {
+          // Stuck before closing: an open chain.
+          ++m_openCuts;
+          break;
+        }
+        const int32_t q = int32_t(m_segments[size_t(out[size_t(nextOut[size_t(p)]++)])].second);
+        if (onPath[size_t(q)] < 0) {
+          onPath[size_t(q)] = int32_t(path.size());
+          path.push_back(q);
+          continue;
+        }
+        // Back at q: path[onPath[q]..] is a cycle.
+        const size_t from = size_t(onPath[size_t(q)]);
+        for (size_t k = from; k < path.size(); ++k) {
+          m_capRim.push_back(path[k]);
+          if (k > from) onPath[size_t(path[k])] = -1;
+        }
+        m_capStart.push_back(int32_t(m_capRim.size()));
+        path.resize(from + 1);
+        if (from == 0 && nextOut[size_t(q)] == outStart[size_t(q) + 1]) break;
+      }
+      for (int32_t p : path) onPath[size_t(p)] = -1;
     }
   }
 
@@ -458,6 +559,7 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
     m_crackDrawn[f] = nodeInside(int32_t(n)) ? 1 : 0;
   }
   m_nodeFragment = nullptr;
+  m_broken = nullptr;
   m_composed = false;
 }
 
@@ -529,9 +631,9 @@ void EmbeddedSurface::update(const double* x, const CrackSurface& crack, JobSyst
                                m_vTet.data(), m_vWeight.data(), m_vGroup.data(), m_vRest.data(),
                                m_vRestNormal.data(), crack.nodeFrame().data(),
                                crack.frameMaps().data(), m_positions.data(), m_normals.data()});
-  exec.run(
-      ncap, 64,
-      CapCenterStage{m_capStart.data(), m_capRim.data(), ne, m_positions.data(), m_normals.data()});
+  exec.run(ncap, 64,
+           CapCenterStage{m_capStart.data(), m_capRim.data(), m_vSource.data(), ne,
+                          m_positions.data(), m_normals.data()});
   const size_t off = 3 * size_t(ne + ncap);
   exec.run(nc, 512,
            GatherVec3Stage{crack.positionsDouble().data(), m_crackFrom.data(),

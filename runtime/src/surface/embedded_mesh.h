@@ -20,36 +20,65 @@
 //   the copy follows its group (the nodes of the tet joined to that node over unbroken edges):
 //   a whole tet carries it by interpolation as above, a partial group through the group nodes'
 //   local maps like a partial CrackSurface vertex, so it follows its side of the crack.
-// - Fracture: cutting the render triangles. Only separations are cut (fragments, not groups):
-//   a crack that has not separated the body is not drawn in a render mesh, since its slit would
-//   have to be cut out of the artist's surface too. A render edge whose ends have different
-//   labels is cut at one point, computed once for the edge (lower vertex first) where the
-//   boundary w_a = w_b between the two ends' cells crosses it in the lower end's tet (the edge
-//   midpoint when that tet has no node of the other label), kept at least 5 % of the edge from
-//   its ends. The point gets one copy per side, each bound like a vertex of that side (the
-//   tet of the edge's end on that side, extrapolated barycentric coordinates, its group), with
-//   rest normal and UV interpolated along the edge. A triangle with two labels is split along
-//   the segment between its two cut points (a triangle and a quad); one with three labels
-//   also gets a point at its centroid (one copy per label) and splits into three quads. This is
-//   marching triangles on the labels: every piece lies in one fragment, and the two pieces on
-//   either side of a cut segment share its end points' positions but not their copies.
-// - Fracture: closing. For each fragment, the cut segments of its pieces, taken in the pieces'
-//   orientation, chain into cycles: every cut point has one incoming and one outgoing segment
-//   per side on a 2-manifold render mesh, since each render edge has two triangles and each
-//   piece has one cut segment per cut point. Each cycle is closed by a cap, a fan of crack
-//   triangles (centre, c_k+1, c_k) around a centre vertex at the mean of the rim placed every
-//   frame, which uses the rim copies themselves, so each edge of the fragment's surface is used
-//   once in each direction: closed and 2-manifold. Where two fragments meet along a cycle, their
-//   caps are the same fan reversed and their enclosed volumes add up to the render mesh's; where
-//   three meet (a triangle with three labels on the way), each fragment caps its own cycle and
-//   the caps overlap or leave a gap near the triple line. The caps are not the tets' crack
-//   faces: they are a simple surface that closes the cut, flat for a planar cycle, and a fan
-//   over a strongly non-convex cycle folds over itself (still closed, with the right signed
-//   volume). Clipping the tets' crack facets to the inside of the render surface would put the
-//   caps on the cells' facets exactly, but needs a planar arrangement per facet (render
-//   triangles crossing it, shared points with the neighbouring facets) and is not done.
-//   Cap triangles are crack faces (crackFlags 1: the interior material; UV 0 at the centre);
-//   their rim vertices keep the render mesh's normal and UV, the centre takes the fan's normal.
+// - Fracture: which render edges are cut. A render edge is cut when its ends lie on different
+//   sides of a crack: in different fragments, or, within one fragment, when an end's tet holds
+//   the other end's cell node outside its own group. The groups are what move the copies, so
+//   an edge is cut exactly where its ends would be carried apart: a crack that has not
+//   separated the body (a notch, a torn but attached flap) is drawn as soon as it splits tets,
+//   and a lone broken edge whose tets stay joined is not (nothing would open). A render edge
+//   whose ends' tets hold neither cell node (an edge across a face diagonal the tets do not
+//   have, or one longer than a cell) is cut when no unbroken path of at most two graph edges
+//   joins the two cell nodes: across a crack such a path exists only near its front. The rule
+//   needs a render mesh about as fine as the cells where a crack has not separated the body:
+//   an edge spanning more than two cells is cut wherever its cell nodes are not joined within
+//   two edges and both touch a broken edge (a slit whose sides move together: extra triangles,
+//   nothing seen).
+// - Fracture: cutting the render triangles. A cut render edge is cut at one point, computed
+//   once for the edge (lower vertex first) where the boundary w_a = w_b between the two ends'
+//   cells crosses it in the lower end's tet (b: among that tet's nodes in the other fragment,
+//   or, within a fragment, outside the lower end's group; the edge midpoint when there is
+//   none), kept at least 5 % of the edge from its ends. The point gets one copy per side, each
+//   bound like a vertex of that side (the tet of the edge's end on that side, extrapolated
+//   barycentric coordinates, its group), with rest normal and UV interpolated along the edge.
+//   A triangle with two cut edges is split along the segment between their cut points (a
+//   triangle and a quad); one with three also gets a point at its centroid (one copy per
+//   corner) and splits into three quads. For fragment labels this is marching triangles; the
+//   local rule adds the crack front: a triangle with one cut edge ij is where a crack ends, and
+//   splits into (i, p_i, k) and (p_j, j, k), so the two sides open from the edge and meet at
+//   the third corner k, a whole render vertex that follows its own group.
+// - Fracture: closing. Each piece's side along a cut, in the piece's orientation, is a rim
+//   segment (p_i -> k -> p_j through a front corner). On a 2-manifold render mesh every vertex
+//   has as many incoming as outgoing segments (each render edge has two triangles and each
+//   piece one segment per cut point), so the segments split into cycles; a walk that comes back
+//   to a vertex already on it closes a cycle there, so a front corner on two cycles gets a cap
+//   in each. Each cycle is closed by a cap, a fan of crack triangles (centre, c_k+1, c_k) around
+//   a centre vertex placed every frame, which uses the rim copies themselves, so each edge of
+//   the surface is used once in each direction: closed and 2-manifold. Where two fragments meet
+//   along a cycle, their caps are the same fan reversed and their enclosed volumes add up to the
+//   render mesh's; where three meet (a triangle with three labels on the way), each fragment
+//   caps its own cycle and the caps overlap or leave a gap near the triple line; likewise where
+//   an unseparated crack in one fragment runs into its cut with another, whose cycles then
+//   differ (closed, but their caps no longer cancel exactly; not seen in the tests). The centre is
+//   the mean of the rim, or, when the rim has front corners (a crack that has not separated
+//   the body), the mean of those: such a cycle runs along one side of the crack from front to
+//   front and back along the other, so its fan is two crack faces, one per side, that fold
+//   along the crack front (through the front corners and the centre between them) like the
+//   faces of the real crack, and at rest, with both sides in the same place, it encloses no
+//   volume. This was chosen over stopping the cut at the last broken edge (which leaves the
+//   pieces' boundary open where the crack ends inside a render triangle) and over tracing the
+//   front through the tets (the exact front, at the cost of clipping cells): it needs no data
+//   beyond the cut, is closed by construction, and for a straight front the fold lies on it
+//   (RenderMesh.PartlyCrackedBarShowsItsOpeningCrack: within a render edge and a cell). Its price:
+//   a front that curves strongly is drawn as the fan's fold through the mean of its ends, and the
+//   centre's one normal is shared by both faces (the fan's area vector, which for an opening crack
+//   points out of the gap), so the crack faces' shading there is approximate. The caps are not the
+//   tets' crack faces: they are a simple surface that closes the cut, flat for a planar cycle, and
+//   a fan over a strongly non-convex cycle folds over itself (still closed, with the right signed
+//   volume). Clipping the tets' crack facets to the inside of the render surface would put the caps
+//   on the cells' facets exactly, but needs a planar arrangement per facet (render triangles
+//   crossing it, shared points with the neighbouring facets) and is not done. Cap triangles are
+//   crack faces (crackFlags 1: the interior material; UV 0 at the centre); their rim vertices keep
+//   the render mesh's normal and UV, the centre takes the fan's normal.
 // - What cannot be closed. An open artist's mesh stays open at its own holes: a cut that runs
 //   into a hole ends in a chain, not a cycle, and is left uncapped. A fragment that owns no
 //   render vertex is drawn with its CrackSurface faces (closed, CrackSurface's design note) if
@@ -59,8 +88,13 @@
 //   than a render edge may own no render vertex.
 // - Cost: nothing until World::surface asks; then O(render vertices + caps) per rendered frame
 //   plus the tet surface's own update (its local maps and the faces of fragments drawn with
-//   them). rebuild() runs once per fracture step, O(render triangles) with one hash lookup per
-//   cut edge, plus a winding number (O(render triangles)) for each node first asked about.
+//   them). rebuild() runs once per fracture step, O(render triangles): a side test per
+//   triangle edge (a few table reads; it looks further, at the two cell nodes' graph edges,
+//   only where both touch broken edges and neither end's tet holds the other's), one hash
+//   lookup per cut edge, a counting sort and a walk over the rim segments, plus a winding
+//   number (O(render triangles)) for each node first asked about. Measured in
+//   RenderMesh.PerFrameCostAgainstTheStep: the unseparated-crack rule adds about 0.5 ms to a
+//   1.4 ms rebuild of a 24k-vertex render mesh on a shattered bar (docs/design.md).
 #pragma once
 
 #include <cstdint>
@@ -96,7 +130,8 @@ struct EmbeddedBinding {
 };
 
 /// The drawn surface of a body with a render mesh: its triangles deformed with the tets, cut
-/// where fragments separate, and closed by caps over the cuts (see the design note).
+/// where a crack splits tets (between fragments, or within one where a crack has not yet
+/// separated the body), and closed by caps over the cuts (see the design note).
 class EmbeddedSurface {
  public:
   /// All four must outlive this object. `restInverse` is Dm^-1 per tet of `rest`.
@@ -149,7 +184,9 @@ class EmbeddedSurface {
                    Vec3 rest, Vec3 restNormal, const float* uv);
   uint32_t homeCopy(uint32_t v);
   uint32_t pointCopy(Vec3 P, Vec3 N, const float* uv, uint32_t side);
-  uint32_t cutCopy(uint32_t u, uint32_t v, int32_t fragment);
+  uint32_t cutCopy(uint32_t u, uint32_t v, uint32_t side);
+  bool apart(uint32_t u, uint32_t v) const;
+  unsigned joinedMask(int32_t t) const;
   void compose(const CrackSurface& crack);
   bool nodeInside(int32_t node);
 
@@ -159,12 +196,14 @@ class EmbeddedSurface {
   const Mat3* m_restInverse = nullptr;
 
   // Per render vertex, from rebuild(): its fragment, its group and its copy in that fragment.
-  std::vector<int32_t> m_home, m_homeCopy;
+  std::vector<int32_t> m_home, m_homeCopy, m_homeNode;
   std::vector<uint8_t> m_homeGroup;
   // Cut render edges (lower vertex << 32 | upper) -> the copies of the cut point on the lower
   // and the upper end's side.
   std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> m_cut;
-  std::vector<int32_t> m_cutNext;  // per copy: the next copy along its fragment's cut, or -1
+  // Rim segments (from, to copy): each piece's side along a cut, in the piece's orientation.
+  std::vector<std::pair<uint32_t, uint32_t>> m_segments;
+  std::vector<int32_t> m_outStart, m_out, m_nextOut, m_onPath, m_path;  // their walk, rebuild()
   // Caps: rim copies (CSR), in the order the cut runs for the fragment.
   std::vector<int32_t> m_capStart{0}, m_capRim;
   uint32_t m_openCuts = 0;
@@ -173,6 +212,8 @@ class EmbeddedSurface {
   std::vector<uint8_t> m_crackDrawn;
   std::vector<int8_t> m_nodeInside;
   const int32_t* m_nodeFragment = nullptr;  // during rebuild()
+  const uint8_t* m_broken = nullptr;        // during rebuild()
+  std::vector<uint8_t> m_nodeCracked;       // per node: 1 when one of its edges is broken
   std::vector<uint8_t> m_frameMark;
   std::vector<int32_t> m_frameNodes;
 

@@ -267,21 +267,33 @@ struct GatherVec3Stage {
   }
 };
 
-/// The centre of a cap that closes a fragment's cut through the render mesh: the mean of its
-/// rim vertices (placed before this stage) and, as the normal of all its triangles, the unit
-/// area vector of its fan (center, rim[k + 1], rim[k]).
+/// The centre of a cap that closes a cut through the render mesh: the mean of its rim's front
+/// vertices (whole render vertices, where a crack that has not separated the body ends and its
+/// two sides meet) when it has any, else of all its rim vertices (placed before this stage);
+/// and, as the normal of all its triangles, the unit area vector of its fan (center,
+/// rim[k + 1], rim[k]).
 struct CapCenterStage {
   const int32_t* rimStart = nullptr;  ///< per cap, CSR into rim
   const int32_t* rim = nullptr;       ///< rim vertices, in the order the cut runs for the fragment
+  const int32_t* source = nullptr;    ///< per vertex: >= 0 for a front vertex, < 0 otherwise
   int32_t firstCenter = 0;            ///< the vertex of cap 0's centre; the others follow
   double* positions = nullptr;        ///< 3 per vertex
   double* normals = nullptr;          ///< 3 per vertex
 
   GF_HD void operator()(int32_t c) const {
     const int32_t b = rimStart[c], e = rimStart[c + 1];
-    Vec3 m{};
-    for (int32_t k = b; k < e; ++k) m += loadVec3(positions, rim[k]);
-    m = (1.0 / double(e - b)) * m;
+    // The two crack faces of an unseparated crack meet at its front, so the fan folds there.
+    Vec3 m{}, front{};
+    int32_t fronts = 0;
+    for (int32_t k = b; k < e; ++k) {
+      const Vec3 p = loadVec3(positions, rim[k]);
+      m += p;
+      if (source[rim[k]] >= 0) {
+        front += p;
+        ++fronts;
+      }
+    }
+    m = fronts > 0 ? (1.0 / double(fronts)) * front : (1.0 / double(e - b)) * m;
     Vec3 area{};
     for (int32_t k = b; k < e; ++k) {
       const int32_t next = k + 1 < e ? k + 1 : b;
