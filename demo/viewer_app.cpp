@@ -30,6 +30,7 @@
 #include "demo_app.h"
 #include "scene/bullet_scene.h"
 #include "scene_drawing.h"
+#include "viewer_panel.h"
 
 namespace gf::demo {
 namespace {
@@ -51,7 +52,9 @@ constexpr const char* kUsage =
     "options:\n"
     "  --script FILE              scripted input, one command a line: frame N drag X Y X2 Y2\n"
     "                             [FRAMES], frame N cut X1 Y1 X2 Y2, frame N key K, frame N\n"
-    "                             screenshot PATH, frame N quit (pixels of the picture)\n"
+    "                             screenshot PATH, frame N panel PATH (the panel's\n"
+    "                             text), frame N scene NAME|PATH, frame N quit (pixels of\n"
+    "                             the picture)\n"
     "  --frames N                 exit after N frames\n"
     "  --size WxH                 window size (default 960x540)\n"
     "  --renderer auto|vulkan|gl  back end of the off-screen renderer (default auto)\n"
@@ -100,33 +103,6 @@ std::string parseArgs(int argc, char** argv, ViewerOptions& o, bool& help) {
   return {};
 }
 
-/// The scene files next to `scene` (its directory's *.json), sorted, for the scene picker.
-std::vector<std::string> siblingScenes(const std::string& scene) {
-  std::vector<std::string> out;
-  std::error_code ec;
-  const fs::path dir = fs::path(scene).parent_path();
-  for (const fs::directory_entry& e :
-       fs::directory_iterator(dir.empty() ? fs::path(".") : dir, ec)) {
-    if (e.path().extension() == ".json") out.push_back(e.path().string());
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-const char* modelName(MaterialModel m) {
-  switch (m) {
-    case MaterialModel::Corotated:
-      return "corotated";
-    case MaterialModel::StVK:
-      return "StVK";
-    case MaterialModel::NeoHookean:
-      return "Neo-Hookean";
-    case MaterialModel::StableNeoHookean:
-      return "stable Neo-Hookean";
-  }
-  return "?";
-}
-
 /// Orbit camera: the eye on a sphere about the target, so dragging never rolls the picture.
 struct Orbit {
   glm::dvec3 target{0};
@@ -163,25 +139,6 @@ struct Orbit {
   }
 };
 
-/// Sum over the bodies as `graphfrac run` counts them (demo_app.cpp's Totals).
-struct Totals {
-  int64_t brokenEdges = 0, edgeCount = 0, fragments = 0;
-};
-Totals totals(const scene::BulletScene& sim) {
-  Totals t;
-  for (size_t i = 0; i < sim.bodyCount(); ++i) {
-    const FractureStats f = sim.world().fractureStats(sim.body(i));
-    if (f.edgeCount > 0) {
-      t.brokenEdges += f.brokenEdges;
-      t.edgeCount += f.edgeCount;
-      t.fragments += f.fragments;
-    } else {
-      t.fragments += 1;
-    }
-  }
-  return t;
-}
-
 /// A thrown ball: a Bullet rigid sphere registered with the bridge, so it pushes the bodies
 /// and they push back.
 struct Ball {
@@ -217,6 +174,8 @@ class Viewer {
   Result<void> advance(std::optional<double> wallSeconds);
   Result<void> render();
   void panel();
+  /// What the panel shows now (viewer_panel.h).
+  PanelFigures figures() const;
 
   const Image& image() const { return m_image; }
   bool hasScene() const { return m_sim != nullptr; }
@@ -229,8 +188,10 @@ class Viewer {
   }
   bool usesGlRenderer() const { return m_renderer->description().rfind("OpenGL", 0) == 0; }
   std::string summary() const;
-  /// A scene picked in the panel, loaded between frames.
+  /// A scene picked in the panel or by a script, loaded between frames.
   std::optional<std::string> pendingScene;
+  /// Picks a scene as the panel's list does: `name` through resolveScene over that list.
+  void pickScene(const std::string& name) { pendingScene = resolveScene(name, m_sceneFiles); }
   bool quit = false;
 
  private:
@@ -244,6 +205,9 @@ class Viewer {
   int m_width, m_height;
   std::string m_scenePath;
   std::vector<std::string> m_sceneFiles;
+  /// Why the last scene picked did not load (the running one is the one before); empty after a
+  /// load that worked. Shown in the panel and the overlay until the next load.
+  std::string m_loadError;
   scene::Scene m_scene;
   std::unique_ptr<scene::BulletScene> m_sim;
   std::unique_ptr<SceneDrawing> m_drawing;
@@ -304,10 +268,18 @@ void Viewer::unload() {
 }
 
 Result<void> Viewer::load(const std::string& path) {
+  // Everything that can fail about the scene happens before the running one is touched.
   Result<scene::Scene> loaded = scene::loadScene(path);
-  if (!loaded) return loaded.error();
+  if (!loaded) {
+    m_loadError = loaded.error().message;
+    return loaded.error();
+  }
   Result<std::unique_ptr<scene::BulletScene>> sim = scene::BulletScene::create(loaded.value());
-  if (!sim) return sim.error();
+  if (!sim) {
+    m_loadError = sim.error().message;
+    return sim.error();
+  }
+  m_loadError.clear();
   // A renderer keeps its buffers per slot, and a new scene's slot i is another mesh whose
   // topology version may well equal the old one's: so a new renderer, not stale buffers.
   const bool reload = m_sim != nullptr;
@@ -584,7 +556,7 @@ Result<void> Viewer::render() {
   FrameOptions fo;
   fo.shadows = true;
   if (m_overlay) {
-    const Totals t = totals(*m_sim);
+    const PanelFigures t = figures();
     char line[160];
     std::snprintf(line, sizeof line, "%s  frame %d  t %.2f s  sim %.0f ms%s", m_scene.name.c_str(),
                   m_sim->frame(), m_sim->frame() * m_scene.dt, m_simMs, m_paused ? "  paused" : "");
@@ -592,6 +564,7 @@ Result<void> Viewer::render() {
     std::snprintf(line, sizeof line, "broken edges %lld  fragments %lld",
                   static_cast<long long>(t.brokenEdges), static_cast<long long>(t.fragments));
     fo.overlay.emplace_back(line);
+    if (!m_loadError.empty()) fo.overlay.push_back("not loaded: " + m_loadError);
   }
   Result<FrameStats> r = m_renderer->render(m_meshes, m_orbit.camera(), fo, m_image);
   if (!r) return fail("graphfrac-viewer: ", r.error().message);
@@ -610,6 +583,11 @@ void Viewer::panel() {
     }
     ImGui::EndCombo();
   }
+  if (!m_loadError.empty()) {
+    ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1.0f, 0.45f, 0.35f, 1.0f));
+    ImGui::TextWrapped("not loaded: %s", m_loadError.c_str());
+    ImGui::PopStyleColor();
+  }
   if (ImGui::Button(m_paused ? "run" : "pause")) onKey(GLFW_KEY_SPACE);
   ImGui::SameLine();
   if (ImGui::Button("step")) onKey(GLFW_KEY_S);
@@ -622,42 +600,32 @@ void Viewer::panel() {
   ImGui::SameLine();
   ImGui::Checkbox("strain", &m_strain);
   ImGui::Separator();
-  ImGui::Text("frame %d  t %.3f s  dt %.4g s", m_sim->frame(), m_sim->frame() * m_scene.dt,
-              m_scene.dt);
-  const scene::FrameTimings& t = m_sim->timings();
-  ImGui::Text("frame %.1f ms: world %.1f, Bullet %.1f", t.totalMs, t.world.totalMs, t.bulletMs);
-  ImGui::Text("  elements %.1f  assembly %.1f  solve %.1f", t.world.elementsMs, t.world.assemblyMs,
-              t.world.solveMs);
-  ImGui::Text("  fracture %.1f  contact %.1f  surface %.1f", t.world.fractureMs, t.world.contactMs,
-              t.world.surfaceMs);
-  ImGui::Text("solver: %d Newton, %d linear iterations, residual %.2e",
-              m_lastStatus.newtonIterations, m_lastStatus.linearIterations, m_lastStatus.residual);
-  if (!m_lastStatus.ok()) ImGui::TextWrapped("step: %s", m_lastStatus.message.c_str());
-  const Totals tot = totals(*m_sim);
-  ImGui::Text("fragments %lld, broken edges %lld of %lld, handed to Bullet %zu",
-              static_cast<long long>(tot.fragments), static_cast<long long>(tot.brokenEdges),
-              static_cast<long long>(tot.edgeCount), m_sim->handedOff());
-  ImGui::Separator();
-  if (m_picked && *m_picked < m_scene.bodies.size()) {
-    const scene::SceneBody& b = m_scene.bodies[*m_picked];
-    const Material& m = b.def.material;
-    ImGui::Text("picked: %s (%s)", b.name.c_str(), modelName(m.model));
-    ImGui::Text("  E %.3g Pa  nu %.3g  rho %.4g kg/m^3", m.youngsModulus, m.poissonRatio,
-                m.density);
-    if (b.def.fracture.enabled)
-      ImGui::Text("  strength %.3g Pa  R_d %.3g", b.def.fracture.strength, b.def.fracture.radius);
+  const PanelFigures f = figures();
+  for (const std::string& line : panelLines(f)) {
+    if (line.empty())
+      ImGui::Separator();
+    else if (line.rfind("step: ", 0) == 0)  // a solver's message can be long
+      ImGui::TextWrapped("%s", line.c_str());
     else
-      ImGui::Text("  no fracture");
-  } else {
-    ImGui::TextDisabled("left-drag a body to pull it and see its material");
+      ImGui::TextUnformatted(line.c_str());
   }
+  if (!f.picked) ImGui::TextDisabled("left-drag a body to pull it and see its material");
   ImGui::TextDisabled("%s", m_renderer->description().c_str());
   ImGui::End();
 }
 
+PanelFigures Viewer::figures() const {
+  std::optional<PickedMaterial> picked;
+  if (m_picked && *m_picked < m_scene.bodies.size()) {
+    const scene::SceneBody& b = m_scene.bodies[*m_picked];
+    picked = PickedMaterial{b.name, b.def.material, b.def.fracture};
+  }
+  return panelFigures(*m_sim, m_scene.dt, m_lastStatus, std::move(picked));
+}
+
 std::string Viewer::summary() const {
   if (!m_sim || !m_renderer) return "graphfrac-viewer: no scene running\n";
-  const Totals t = totals(*m_sim);
+  const PanelFigures t = figures();
   char text[768];
   std::snprintf(text, sizeof text,
                 "graphfrac-viewer: %s: %d steps, %d drags, %d cuts, %d balls\n"
@@ -667,6 +635,18 @@ std::string Viewer::summary() const {
                 m_renderer->description().c_str(), static_cast<long long>(t.fragments),
                 static_cast<long long>(t.brokenEdges), static_cast<long long>(t.edgeCount));
   std::string out = text;
+  // The bodies the world holds now, so a script that switched scenes can see which ones.
+  const World& world = m_sim->world();
+  for (size_t i = 0; i < m_sim->bodyCount(); ++i) {
+    const BodyId id = m_sim->body(i);
+    const Result<TetMesh> mesh = world.currentMesh(id);
+    std::snprintf(text, sizeof text, "  body %s: %lld tets, %zu nodes\n",
+                  i < m_scene.bodies.size() ? m_scene.bodies[i].name.c_str() : "?",
+                  mesh ? static_cast<long long>(mesh.value().tetCount()) : -1LL,
+                  world.positions(id).size() / 3);
+    out += text;
+  }
+  if (!m_loadError.empty()) out += "  not loaded: " + m_loadError + "\n";
   if (m_opt.validation) {
     std::snprintf(text, sizeof text,
                   "  validation: %zu messages from the Vulkan validation layers\n",
@@ -864,12 +844,14 @@ int run(const ViewerOptions& opt) {
   for (int frame = 1; !viewer.quit; ++frame) {
     glfwPollEvents();
     if (glfwWindowShouldClose(window.handle())) break;
+    for (const ScriptCommand& c : script)
+      if (c.frame == frame && c.kind == ScriptCommand::Kind::Scene) viewer.pickScene(c.path);
     if (viewer.pendingScene) {
       const std::string path = *viewer.pendingScene;
       viewer.pendingScene.reset();
       activeDrags.clear();
       // A scene that does not load leaves the current one running (load changes nothing
-      // then), unless the renderer could not be made again.
+      // then but the error the panel shows), unless the renderer could not be made again.
       if (Result<void> r = viewer.load(path); !r) {
         std::fprintf(stderr, "%s\n", r.error().message.c_str());
         if (!viewer.hasScene()) {
@@ -898,6 +880,15 @@ int run(const ViewerOptions& opt) {
       if (c.kind == ScriptCommand::Kind::Screenshot) {
         if (Result<void> w = writePng(c.path, viewer.image()); !w) {
           std::fprintf(stderr, "graphfrac-viewer: %s\n", w.error().message.c_str());
+          status = 1;
+        }
+      }
+      if (c.kind == ScriptCommand::Kind::Panel) {
+        std::ofstream out(c.path);
+        for (const std::string& line : panelLines(viewer.figures())) out << line << '\n';
+        if (!out) {
+          std::fprintf(stderr, "graphfrac-viewer: %s: cannot write the panel's text\n",
+                       c.path.c_str());
           status = 1;
         }
       }

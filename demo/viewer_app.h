@@ -8,6 +8,7 @@
 
 #include <glm/vec3.hpp>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -17,16 +18,19 @@
 namespace gf::demo {
 
 /// One line of a --script file: `frame N drag X Y X2 Y2 [FRAMES]`, `frame N cut X1 Y1 X2 Y2`,
-/// `frame N key K`, `frame N screenshot PATH`, `frame N quit` (pixel coordinates of the
-/// picture, frames counted from 1; '#' starts a comment).
+/// `frame N key K`, `frame N scene NAME|PATH`, `frame N screenshot PATH`, `frame N panel PATH`
+/// (the panel's text, viewer_panel.h, after that frame's step), `frame N quit` (pixel
+/// coordinates of the picture, frames counted from 1; '#' starts a comment). A scene command
+/// does what picking in the panel does: the scene is loaded before that frame's input and step;
+/// NAME is a file of the panel's list (the current scene's folder), with or without `.json`.
 struct ScriptCommand {
-  enum class Kind { Drag, Cut, Key, Screenshot, Quit };
+  enum class Kind { Drag, Cut, Key, Scene, Screenshot, Panel, Quit };
   int frame = 1;
   Kind kind = Kind::Quit;
   double x1 = 0, y1 = 0, x2 = 0, y2 = 0;
   int frames = 10;   ///< Drag: frames the button is held, moving from (x1, y1) to (x2, y2).
   int key = 0;       ///< Key: the GLFW key code.
-  std::string path;  ///< Screenshot.
+  std::string path;  ///< Screenshot, Panel: the file written; Scene: the scene's name or path.
 };
 
 /// Parses a script; errors name `source`, the line and the reason. Sorted by frame (stable).
@@ -52,6 +56,13 @@ struct StrokeBlade {
 };
 StrokeBlade strokeBlade(const Camera& camera, int width, int height, double x1, double y1,
                         double x2, double y2);
+
+/// The scene picker's list: the *.json files in `scene`'s folder, sorted (empty if unreadable).
+std::vector<std::string> siblingScenes(const std::string& scene);
+
+/// The file a picked or scripted scene name stands for: a bare name (no folder) that is an
+/// entry of `offered` by file name or by stem is that entry; anything else is a path as given.
+std::string resolveScene(const std::string& name, std::span<const std::string> offered);
 
 struct ViewerOptions {
   std::string scene;

@@ -38,13 +38,17 @@ Result<std::vector<ScriptCommand>> parseScript(std::string_view text, const std:
       std::string name;
       if (!(words >> name) || (c.key = scriptKey(name)) == 0)
         return error("key needs a letter, a digit, space, left, right, up or down");
-    } else if (verb == "screenshot") {
-      c.kind = ScriptCommand::Kind::Screenshot;
-      if (!(words >> c.path)) return error("screenshot needs a path");
+    } else if (verb == "scene") {
+      c.kind = ScriptCommand::Kind::Scene;
+      if (!(words >> c.path)) return error("scene needs a scene's name or path");
+    } else if (verb == "screenshot" || verb == "panel") {
+      c.kind = verb == "panel" ? ScriptCommand::Kind::Panel : ScriptCommand::Kind::Screenshot;
+      if (!(words >> c.path)) return error(verb + " needs a path");
     } else if (verb == "quit") {
       c.kind = ScriptCommand::Kind::Quit;
     } else {
-      return error("unknown command '" + verb + "' (drag, cut, key, screenshot, quit)");
+      return error("unknown command '" + verb +
+                   "' (drag, cut, key, scene, screenshot, panel, quit)");
     }
     std::string extra;
     words.clear();

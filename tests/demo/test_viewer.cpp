@@ -21,7 +21,10 @@
 
 #include "common/temp_dir.h"
 #include "renderer.h"
+#include "scene/bullet_scene.h"
+#include "scene/scene.h"
 #include "viewer_app.h"
+#include "viewer_panel.h"
 
 extern char** environ;
 
@@ -36,11 +39,12 @@ TEST(ViewerScript, ParsesEveryCommandAndSortsByFrame) {
       "\n"
       "frame 3 cut 1.5 2 3 4\n"
       "frame 3 key space\n"
-      "frame 4 screenshot out/a.png\n",
+      "frame 4 screenshot out/a.png\n"
+      "frame 6 scene block\n",
       "s.txt");
   ASSERT_TRUE(r) << r.error().message;
   const std::vector<ScriptCommand>& c = r.value();
-  ASSERT_EQ(c.size(), 5u);
+  ASSERT_EQ(c.size(), 6u);
   EXPECT_EQ(c[0].kind, ScriptCommand::Kind::Drag);
   EXPECT_EQ(c[0].frame, 2);
   EXPECT_EQ(c[0].frames, 5);
@@ -50,12 +54,29 @@ TEST(ViewerScript, ParsesEveryCommandAndSortsByFrame) {
   EXPECT_EQ(c[2].kind, ScriptCommand::Kind::Key);
   EXPECT_EQ(c[2].key, scriptKey("space"));
   EXPECT_EQ(c[3].path, "out/a.png");
-  EXPECT_EQ(c[4].kind, ScriptCommand::Kind::Quit);
+  EXPECT_EQ(c[4].kind, ScriptCommand::Kind::Scene);
+  EXPECT_EQ(c[4].path, "block");
+  EXPECT_EQ(c[5].kind, ScriptCommand::Kind::Quit);
+}
+
+TEST(ViewerScript, SceneNamesResolveToThePickersEntries) {
+  const std::vector<std::string> offered = {"s/bar.json", "s/block.json"};
+  EXPECT_EQ(resolveScene("block", offered), "s/block.json");
+  EXPECT_EQ(resolveScene("block.json", offered), "s/block.json");
+  // Not an entry, or a path: as given (the load then says what is wrong with it).
+  EXPECT_EQ(resolveScene("blocks", offered), "blocks");
+  EXPECT_EQ(resolveScene("t/block.json", offered), "t/block.json");
+  // The picker offers the scene's folder, sorted.
+  const std::vector<std::string> here =
+      siblingScenes(GF_SOURCE_DIR "/tests/data/scenes/viewer/bar.json");
+  ASSERT_GE(here.size(), 2u);
+  EXPECT_TRUE(std::is_sorted(here.begin(), here.end()));
+  EXPECT_EQ(resolveScene("block", here), GF_SOURCE_DIR "/tests/data/scenes/viewer/block.json");
 }
 
 TEST(ViewerScript, ErrorsNameTheLine) {
   for (const char* bad : {"frame 0 quit", "frame 2 drag 1 2 3", "frame 2 key F1", "frame 2 jump",
-                          "frame 2 quit now", "quit", "frame 2 drag 1 2 3 4 0"}) {
+                          "frame 2 quit now", "quit", "frame 2 drag 1 2 3 4 0", "frame 2 scene"}) {
     Result<std::vector<ScriptCommand>> r = parseScript(std::string("\n") + bad + "\n", "s.txt");
     ASSERT_FALSE(r) << bad;
     EXPECT_NE(r.error().message.find("s.txt:2: "), std::string::npos) << r.error().message;
@@ -94,6 +115,7 @@ TEST(ViewerGeometry, StrokeBladeHoldsBothRays) {
 // ---- the executable under Xvfb ----
 
 constexpr const char* kScene = GF_SOURCE_DIR "/tests/data/scenes/viewer/bar.json";
+constexpr const char* kOtherScene = GF_SOURCE_DIR "/tests/data/scenes/viewer/block.json";
 constexpr int kWidth = 320, kHeight = 180;
 
 struct ViewerRun {
@@ -104,13 +126,13 @@ struct ViewerRun {
 /// Runs `xvfb-run -a graphfrac-viewer SCENE --size 320x180 --script SCRIPT args...`, its
 /// stdout and stderr to a file.
 ViewerRun runViewer(const test::TempDir& dir, const std::string& name, const std::string& script,
-                    const std::vector<std::string>& extra = {}) {
+                    const std::vector<std::string>& extra = {}, const std::string& scene = kScene) {
   const std::string scriptPath = (dir.path / (name + ".txt")).string();
   std::ofstream(scriptPath) << script;
   const std::string log = (dir.path / (name + ".log")).string();
   std::vector<std::string> args = {
       "xvfb-run", "-a",      GF_VIEWER_EXE,
-      kScene,     "--size",  std::to_string(kWidth) + "x" + std::to_string(kHeight),
+      scene,      "--size",  std::to_string(kWidth) + "x" + std::to_string(kHeight),
       "--script", scriptPath};
   args.insert(args.end(), extra.begin(), extra.end());
   std::vector<char*> argv;
@@ -245,6 +267,304 @@ TEST_F(ViewerUnderXvfb, DragAndCutChangeThePictureWhereTheBodyIs) {
   EXPECT_GT(s.pixels, 20);
   EXPECT_LE(s.x0, 160);
   EXPECT_GE(s.x1, 160);
+}
+
+/// Changed pixels (as changedPixels counts them) with y in [y0, y1).
+int changedInRows(const Image& a, const Image& b, int y0, int y1) {
+  int n = 0;
+  for (int y = std::max(y0, 0); y < std::min(y1, a.height); ++y)
+    for (int x = 0; x < a.width; ++x) {
+      const size_t i = 4 * (size_t(y) * size_t(a.width) + size_t(x));
+      for (int k = 0; k < 3; ++k)
+        if (std::abs(int(a.rgba[i + k]) - int(b.rgba[i + k])) > 24) {
+          ++n;
+          break;
+        }
+    }
+  return n;
+}
+
+/// Mean red and blue of `image` over the pixels where `a` and `b` differ (as changedPixels).
+struct RedBlue {
+  double red = 0, blue = 0;
+  int pixels = 0;
+};
+RedBlue meanRedBlue(const Image& image, const Image& a, const Image& b) {
+  RedBlue m;
+  for (size_t i = 0; i + 3 < a.rgba.size(); i += 4) {
+    int d = 0;
+    for (size_t k = 0; k < 3; ++k)
+      d = std::max(d, std::abs(int(a.rgba[i + k]) - int(b.rgba[i + k])));
+    if (d <= 24) continue;
+    m.red += image.rgba[i];
+    m.blue += image.rgba[i + 2];
+    ++m.pixels;
+  }
+  if (m.pixels > 0) {
+    m.red /= m.pixels;
+    m.blue /= m.pixels;
+  }
+  return m;
+}
+
+// The C and O keys against the same frame without them. The overlay is text in a box at the
+// top left (two lines at 320 px: rows 4..32), so turning it on changes those rows only. The
+// strain colours change the bar only, and follow --strain: the resting bar's strain is far
+// below 0.05, so it is drawn at the map's blue end, and far above 1e-6, so it is drawn red.
+TEST_F(ViewerUnderXvfb, StrainColoursAndOverlayChangeThePicture) {
+  test::TempDir dir("viewer_toggles");
+  const std::string plain = (dir.path / "plain.png").string();
+  const std::string overlay = (dir.path / "overlay.png").string();
+  const std::string strain = (dir.path / "strain.png").string();
+  const std::string strained = (dir.path / "strained.png").string();
+  const ViewerRun none =
+      runViewer(dir, "none", "frame 1 key o\nframe 20 screenshot " + plain + "\nframe 20 quit\n");
+  if (!usable(none)) GTEST_SKIP() << m_skip;
+  ASSERT_EQ(none.status, 0) << none.output;
+  // The overlay is on by default; pressing O twice leaves it on.
+  const ViewerRun text = runViewer(
+      dir, "overlay",
+      "frame 1 key o\nframe 2 key o\nframe 20 screenshot " + overlay + "\nframe 20 quit\n");
+  ASSERT_EQ(text.status, 0) << text.output;
+  const ViewerRun low =
+      runViewer(dir, "strain",
+                "frame 1 key o\nframe 1 key c\nframe 20 screenshot " + strain + "\nframe 20 quit\n",
+                {"--strain", "0.05"});
+  ASSERT_EQ(low.status, 0) << low.output;
+  const ViewerRun high = runViewer(
+      dir, "strained",
+      "frame 1 key o\nframe 1 key c\nframe 20 screenshot " + strained + "\nframe 20 quit\n",
+      {"--strain", "1e-6"});
+  ASSERT_EQ(high.status, 0) << high.output;
+
+  Result<Image> a = readPng(plain), o = readPng(overlay), c = readPng(strain),
+                h = readPng(strained);
+  ASSERT_TRUE(a && o && c && h);
+  const Changed t = changedPixels(a.value(), o.value());
+  std::printf("overlay: %d pixels changed in x %d..%d, y %d..%d\n", t.pixels, t.x0, t.x1, t.y0,
+              t.y1);
+  EXPECT_GT(t.pixels, 300);
+  EXPECT_GE(t.x0, 4);
+  EXPECT_GE(t.y0, 4);
+  EXPECT_LT(t.y1, 32);
+
+  const Changed s = changedPixels(a.value(), c.value());
+  const Changed sh = changedPixels(a.value(), h.value());
+  std::printf("strain: %d / %d pixels changed in x %d..%d, y %d..%d (--strain 0.05 / 1e-6)\n",
+              s.pixels, sh.pixels, s.x0, s.x1, s.y0, s.y1);
+  EXPECT_GT(s.pixels, 500);
+  // The bar lies in x 96..224, y 73..107; its colour changes, not its shadow or the floor.
+  EXPECT_GE(s.x0, 90);
+  EXPECT_LE(s.x1, 230);
+  EXPECT_GE(s.y0, 60);
+  EXPECT_LE(s.y1, 115);
+  const RedBlue blue = meanRedBlue(c.value(), a.value(), c.value());
+  const RedBlue red = meanRedBlue(h.value(), a.value(), h.value());
+  std::printf(
+      "strain: mean red %.1f blue %.1f over %d px (0.05); red %.1f blue %.1f over %d px "
+      "(1e-6)\n",
+      blue.red, blue.blue, blue.pixels, red.red, red.blue, red.pixels);
+  EXPECT_GT(blue.blue, blue.red + 30);
+  EXPECT_GT(red.red, red.blue + 30);
+}
+
+// A scene picked by a script (as in the panel's list) replaces the running one: its bodies are
+// the world's, and the picture is the one a viewer started on that scene shows after as many
+// steps. A scene that does not load leaves the running one as it was, with the error shown.
+TEST_F(ViewerUnderXvfb, PickingASceneShowsItsBodies) {
+  test::TempDir dir("viewer_scenes");
+  const std::string bar9 = (dir.path / "bar9.png").string();
+  const std::string bar10 = (dir.path / "bar10.png").string();
+  const std::string block5 = (dir.path / "block5.png").string();
+  const std::string picked9 = (dir.path / "picked9.png").string();
+  const std::string broken9 = (dir.path / "broken9.png").string();
+  const std::string broken10 = (dir.path / "broken10.png").string();
+  const ViewerRun bar =
+      runViewer(dir, "bar",
+                "frame 1 key o\nframe 9 screenshot " + bar9 +
+                    "\nframe 10 key o\nframe 10 screenshot " + bar10 + "\nframe 10 quit\n");
+  if (!usable(bar)) GTEST_SKIP() << m_skip;
+  ASSERT_EQ(bar.status, 0) << bar.output;
+  const ViewerRun block =
+      runViewer(dir, "block", "frame 1 key o\nframe 5 screenshot " + block5 + "\nframe 5 quit\n",
+                {}, kOtherScene);
+  ASSERT_EQ(block.status, 0) << block.output;
+  // Loaded before frame 5's step, so the viewer's frame 9 is the block's 5th step.
+  const ViewerRun picked = runViewer(
+      dir, "picked",
+      "frame 1 key o\nframe 5 scene block\nframe 9 screenshot " + picked9 + "\nframe 9 quit\n");
+  ASSERT_EQ(picked.status, 0) << picked.output;
+  const std::string brokenScene = (dir.path / "broken.json").string();
+  {
+    std::ifstream in(kScene);
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string json = text.str();
+    const size_t at = json.find("\"E\": 2e5");
+    ASSERT_NE(at, std::string::npos);
+    json.replace(at, 8, "\"E\": -2e5");
+    std::ofstream(brokenScene) << json;
+  }
+  const ViewerRun broken =
+      runViewer(dir, "broken",
+                "frame 1 key o\nframe 5 scene " + brokenScene + "\nframe 9 screenshot " + broken9 +
+                    "\nframe 10 key o\nframe 10 screenshot " + broken10 + "\nframe 10 quit\n");
+  ASSERT_EQ(broken.status, 0) << broken.output;
+
+  // The bodies: the summary lists what the world holds, against the scene files' meshes.
+  Result<scene::Scene> barScene = scene::loadScene(kScene);
+  Result<scene::Scene> blockScene = scene::loadScene(kOtherScene);
+  ASSERT_TRUE(barScene && blockScene);
+  const long long barTets =
+      static_cast<long long>(barScene.value().bodies.at(0).def.mesh.tetCount());
+  const long long blockTets =
+      static_cast<long long>(blockScene.value().bodies.at(0).def.mesh.tetCount());
+  ASSERT_NE(barTets, blockTets);
+  std::printf("bodies: bar %lld tets, block %lld tets\n%s", barTets, blockTets,
+              picked.output.c_str());
+  EXPECT_EQ(summaryValue(bar.output, "body bar: "), barTets) << bar.output;
+  EXPECT_EQ(summaryValue(picked.output, "body block: "), blockTets) << picked.output;
+  EXPECT_EQ(picked.output.find("body bar: "), std::string::npos) << picked.output;
+  EXPECT_NE(picked.output.find("graphfrac-viewer: viewer_block: "), std::string::npos)
+      << picked.output;
+
+  // The picture: the block's own, not the bar's.
+  Result<Image> a = readPng(bar9), b = readPng(block5), p = readPng(picked9);
+  ASSERT_TRUE(a && b && p);
+  const Changed fromBar = changedPixels(a.value(), p.value());
+  const Changed fromBlock = changedPixels(b.value(), p.value());
+  std::printf("picked: %d pixels differ from the bar's frame 9, %d from the block's frame 5\n",
+              fromBar.pixels, fromBlock.pixels);
+  EXPECT_GT(fromBar.pixels, 500);
+  EXPECT_LE(fromBlock.pixels, 5);
+
+  // The scene that does not load: the error names the file and the field; the bar runs on as
+  // if nothing was picked, and the overlay shows the error on a line of its own below its two.
+  std::printf("broken:\n%s", broken.output.c_str());
+  EXPECT_NE(broken.output.find(brokenScene), std::string::npos) << broken.output;
+  EXPECT_NE(broken.output.find("not loaded: "), std::string::npos) << broken.output;
+  EXPECT_EQ(summaryValue(broken.output, "body bar: "), barTets) << broken.output;
+  EXPECT_NE(broken.output.find("graphfrac-viewer: viewer_bar: 10 steps"), std::string::npos)
+      << broken.output;
+  Result<Image> k9 = readPng(broken9), a10 = readPng(bar10), k10 = readPng(broken10);
+  ASSERT_TRUE(k9 && a10 && k10);
+  EXPECT_EQ(changedPixels(a.value(), k9.value()).pixels, 0);
+  const int errorRows = changedInRows(a10.value(), k10.value(), 32, 44);
+  std::printf("broken: %d pixels of the overlay's third line differ\n", errorRows);
+  EXPECT_GT(errorRows, 100);
+}
+
+/// The lines of a file.
+std::vector<std::string> readLines(const std::string& path) {
+  std::vector<std::string> lines;
+  std::ifstream in(path);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+/// The first line that starts with `prefix`, or "".
+std::string lineStarting(const std::vector<std::string>& lines, const std::string& prefix) {
+  for (const std::string& l : lines)
+    if (l.rfind(prefix, 0) == 0) return l;
+  return {};
+}
+
+// The panel's text (written by the script's `panel` command, the lines the panel draws) against
+// the world's own figures: the same scene stepped as many times in this process gives the
+// solver's iterations and residual and the fracture counts; the picked body's material is the
+// scene file's; the timings' parts add up to no more than their whole.
+TEST_F(ViewerUnderXvfb, PanelShowsTheWorldsFigures) {
+  test::TempDir dir("viewer_panel");
+  const std::string before = (dir.path / "before.txt").string();
+  const std::string after = (dir.path / "after.txt").string();
+  const ViewerRun r =
+      runViewer(dir, "panel",
+                "frame 4 panel " + before + "\nframe 5 drag 160 80 160 80 2\nframe 8 panel " +
+                    after + "\nframe 8 quit\n");
+  if (!usable(r)) GTEST_SKIP() << m_skip;
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::vector<std::string> p4 = readLines(before), p8 = readLines(after);
+  for (const std::string& l : p4) std::printf("panel: %s\n", l.c_str());
+  for (const std::string& l : p8) std::printf("panel after the drag: %s\n", l.c_str());
+
+  Result<scene::Scene> loaded = scene::loadScene(kScene);
+  ASSERT_TRUE(loaded) << loaded.error().message;
+  const scene::Scene& sc = loaded.value();
+  Result<std::unique_ptr<scene::BulletScene>> made = scene::BulletScene::create(sc);
+  ASSERT_TRUE(made) << made.error().message;
+  scene::BulletScene& sim = *made.value();
+  StepStatus last;
+  for (int i = 0; i < 4; ++i) last = sim.step();
+  ASSERT_TRUE(last.ok()) << last.message;
+  ASSERT_GT(last.newtonIterations, 0);
+  const FractureStats fs = sim.world().fractureStats(sim.body(0));
+
+  int frame = 0;
+  double t = 0, dt = 0;
+  ASSERT_EQ(
+      std::sscanf(lineStarting(p4, "frame ").c_str(), "frame %d t %lf s dt %lf s", &frame, &t, &dt),
+      3);
+  EXPECT_EQ(frame, 4);
+  EXPECT_NEAR(dt, sc.dt, 5e-4 * sc.dt);  // printed to 4 digits
+  EXPECT_NEAR(t, 4 * sc.dt, 5e-4);
+
+  int newton = -1, linear = -1;
+  double residual = -1;
+  ASSERT_EQ(std::sscanf(lineStarting(p4, "solver: ").c_str(),
+                        "solver: %d Newton, %d linear iterations, residual %le", &newton, &linear,
+                        &residual),
+            3);
+  EXPECT_EQ(newton, last.newtonIterations);
+  EXPECT_EQ(linear, last.linearIterations);
+  EXPECT_NEAR(residual, last.residual, 5e-3 * last.residual);  // printed to 3 digits
+
+  long long fragments = -1, broken = -1, edges = -1;
+  size_t handed = 99;
+  ASSERT_EQ(std::sscanf(lineStarting(p4, "fragments ").c_str(),
+                        "fragments %lld, broken edges %lld of %lld, handed to Bullet %zu",
+                        &fragments, &broken, &edges, &handed),
+            4);
+  EXPECT_EQ(fragments, fs.fragments);
+  EXPECT_EQ(broken, fs.brokenEdges);
+  EXPECT_EQ(edges, fs.edgeCount);
+  EXPECT_EQ(handed, sim.handedOff());
+
+  double total = -1, world = -1, bullet = -1, elements = -1, assembly = -1, solve = -1,
+         fracture = -1, contact = -1, surface = -1;
+  // The first "frame" line is the step count, the second the frame's timings.
+  ASSERT_GE(p4.size(), 2u);
+  ASSERT_EQ(
+      std::sscanf(p4[1].c_str(), "frame %lf ms: world %lf, Bullet %lf", &total, &world, &bullet),
+      3);
+  ASSERT_EQ(std::sscanf(lineStarting(p4, "  elements ").c_str(),
+                        "  elements %lf assembly %lf solve %lf", &elements, &assembly, &solve),
+            3);
+  ASSERT_EQ(std::sscanf(lineStarting(p4, "  fracture ").c_str(),
+                        "  fracture %lf contact %lf surface %lf", &fracture, &contact, &surface),
+            3);
+  EXPECT_GT(total, 0);
+  EXPECT_LE(world + bullet, total + 0.1 + 1e-9);  // each printed to 0.05 ms
+  EXPECT_LE(elements + assembly + solve + fracture + contact, world + 0.25 + 1e-9);
+  EXPECT_GT(world, 0);
+
+  // Nothing picked before the drag; the bar's material after it.
+  EXPECT_EQ(lineStarting(p4, "picked: "), "");
+  const scene::SceneBody& bar = sc.bodies.at(0);
+  EXPECT_EQ(lineStarting(p8, "picked: "),
+            "picked: " + bar.name + " (" + materialModelName(bar.def.material.model) + ")");
+  double E = -1, nu = -1, rho = -1, strength = -1, radius = -1;
+  ASSERT_EQ(
+      std::sscanf(lineStarting(p8, "  E ").c_str(), "  E %lf Pa nu %lf rho %lf", &E, &nu, &rho), 3);
+  EXPECT_NEAR(E, bar.def.material.youngsModulus, 5e-3 * bar.def.material.youngsModulus);
+  EXPECT_NEAR(nu, bar.def.material.poissonRatio, 5e-3 * bar.def.material.poissonRatio);
+  EXPECT_NEAR(rho, bar.def.material.density, 5e-4 * bar.def.material.density);
+  ASSERT_TRUE(bar.def.fracture.enabled);
+  ASSERT_EQ(std::sscanf(lineStarting(p8, "  strength ").c_str(), "  strength %lf Pa R_d %lf",
+                        &strength, &radius),
+            2);
+  EXPECT_NEAR(strength, bar.def.fracture.strength, 5e-3 * bar.def.fracture.strength);
+  EXPECT_NEAR(radius, bar.def.fracture.radius, 1e-9 + 5e-3 * bar.def.fracture.radius);
+  std::sscanf(lineStarting(p8, "frame ").c_str(), "frame %d", &frame);
+  EXPECT_EQ(frame, 8);
 }
 
 // Every input the viewer has, with the Vulkan validation layers on: they report nothing and
