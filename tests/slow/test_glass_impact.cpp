@@ -4,7 +4,7 @@
 // sees the impact stress only when it is short against the time the elastic wave needs to
 // cross the body (0.3 m / 6 km/s = 50 us here): in 0.25 ms steps this bunny shatters on the
 // ball; in 1 ms steps it stays whole (scenes/glass_bunny.json, not spinning and landing
-// differently, breaks in two at 1 ms). docs/validation.md has the figures.
+// differently, breaks into 91 fragments at 1 ms). docs/validation.md has the figures.
 #include <gtest/gtest.h>
 
 #include <cmath>
