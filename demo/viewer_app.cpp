@@ -8,11 +8,8 @@
 #include <graphfrac/bullet/bridge.h>
 
 #define GLFW_INCLUDE_NONE
-#include <GL/gl.h>
 #include <GLFW/glfw3.h>
 #include <imgui.h>
-#include <imgui_impl_glfw.h>
-#include <imgui_impl_opengl2.h>
 
 #include <algorithm>
 #include <chrono>
@@ -47,17 +44,21 @@ constexpr const char* kUsage =
     "       orbit; wheel to zoom; middle-drag (or X + left-drag) to draw a blade that cuts\n"
     "       every body it crosses when released\n"
     "keys:  space pause, S single step, R reset, 1-4 slow motion (1x, 2x, 4x, 8x slower),\n"
-    "       O overlay, C strain colours, B throw a ball, arrows orbit, Esc quit\n"
+    "       O overlay, C strain colours, H panel, B throw a ball, arrows orbit, Esc quit\n"
     "\n"
     "options:\n"
     "  --script FILE              scripted input, one command a line: frame N drag X Y X2 Y2\n"
     "                             [FRAMES], frame N cut X1 Y1 X2 Y2, frame N key K, frame N\n"
-    "                             screenshot PATH, frame N panel PATH (the panel's\n"
-    "                             text), frame N scene NAME|PATH, frame N quit (pixels of\n"
-    "                             the picture)\n"
+    "                             screenshot PATH (the renderer's picture), frame N window\n"
+    "                             PATH (the window as presented, panel included), frame N\n"
+    "                             panel PATH (the panel's text), frame N scene NAME|PATH,\n"
+    "                             frame N quit (pixels of the picture)\n"
     "  --frames N                 exit after N frames\n"
     "  --size WxH                 window size (default 960x540)\n"
     "  --renderer auto|vulkan|gl  back end of the off-screen renderer (default auto)\n"
+    "  --present auto|vulkan|gl   how the window shows the picture: a Vulkan swapchain, or\n"
+    "                             OpenGL; auto takes Vulkan where a device presents to the\n"
+    "                             window, else GL (the summary says which and why)\n"
     "  --validation               Vulkan validation layers on; exit 1 if they report anything\n"
     "  --strain MAX               the strain shown red by the colour map (default 0.05)\n"
     "  -h, --help                 this text\n"
@@ -91,6 +92,10 @@ std::string parseArgs(int argc, char** argv, ViewerOptions& o, bool& help) {
       std::string value;
       if (!a.value(value) || !parseRendererKind(value, o.renderer))
         return "--renderer needs auto, vulkan or gl";
+    } else if (arg == "--present") {
+      std::string value;
+      if (!a.value(value) || !parsePresentKind(value, o.present))
+        return "--present needs auto, vulkan or gl";
     } else if (a.isOption()) {
       return "unknown option '" + arg + "'";
     } else if (o.scene.empty()) {
@@ -174,6 +179,7 @@ class Viewer {
   Result<void> advance(std::optional<double> wallSeconds);
   Result<void> render();
   void panel();
+  bool panelShown() const { return m_panelShown; }
   /// What the panel shows now (viewer_panel.h).
   PanelFigures figures() const;
 
@@ -220,6 +226,7 @@ class Viewer {
 
   // Clock and controls.
   bool m_paused = false, m_stepOnce = false, m_overlay = true, m_strain = false;
+  bool m_panelShown = true;
   int m_slowPower = 0;  ///< Slow motion 2^power.
   double m_clock = 0;   ///< Clock time not yet stepped [s].
   StepStatus m_lastStatus;
@@ -324,6 +331,9 @@ void Viewer::onKey(int key) {
       break;
     case GLFW_KEY_C:
       m_strain = !m_strain;
+      break;
+    case GLFW_KEY_H:
+      m_panelShown = !m_panelShown;
       break;
     case GLFW_KEY_B:
       throwBall();
@@ -656,52 +666,13 @@ std::string Viewer::summary() const {
   return out;
 }
 
-/// The window, ImGui and the texture the picture is shown with, torn down in reverse.
-class Window {
- public:
-  ~Window() {
-    if (m_imgui) {
-      ImGui_ImplOpenGL2_Shutdown();
-      ImGui_ImplGlfw_Shutdown();
-      ImGui::DestroyContext();
-    }
-    if (m_window) {
-      glfwMakeContextCurrent(m_window);
-      if (m_texture) glDeleteTextures(1, &m_texture);
-      glfwDestroyWindow(m_window);
-    }
-    if (m_glfw) glfwTerminate();
-  }
-  bool open(int width, int height, bool eglContext, Viewer& viewer);
-  GLFWwindow* handle() const { return m_window; }
-  /// Shows the picture full-window behind the panel.
-  void present(const Image& image, Viewer& viewer);
-
- private:
-  bool m_glfw = false, m_imgui = false;
-  GLFWwindow* m_window = nullptr;
-  GLuint m_texture = 0;
-  int m_texWidth = 0, m_texHeight = 0;
-};
-
 Viewer* viewerOf(GLFWwindow* w) { return static_cast<Viewer*>(glfwGetWindowUserPointer(w)); }
 
-bool Window::open(int width, int height, bool eglContext, Viewer& viewer) {
-  glfwSetErrorCallback(
-      [](int code, const char* text) { std::fprintf(stderr, "GLFW error %d: %s\n", code, text); });
-  if (!glfwInit()) return false;
-  m_glfw = true;
-  glfwWindowHint(GLFW_RESIZABLE, GLFW_FALSE);  // the renderer's size is fixed at creation
-  // The GL renderer makes its EGL context current in each render; glvnd lets one thread switch
-  // between EGL contexts but not between an EGL and a GLX one, so the window's is EGL too then.
-  if (eglContext) glfwWindowHint(GLFW_CONTEXT_CREATION_API, GLFW_EGL_CONTEXT_API);
-  m_window = glfwCreateWindow(width, height, "graphfrac-viewer", nullptr, nullptr);
-  if (!m_window) return false;
-  glfwMakeContextCurrent(m_window);
-  glfwSwapInterval(1);
-  glfwSetWindowUserPointer(m_window, &viewer);
-  // Ours first: ImGui's backend chains to the callbacks installed before it.
-  glfwSetKeyCallback(m_window, [](GLFWwindow* w, int key, int, int action, int) {
+/// GLFW's input to the viewer's handlers, unless the panel takes it. Installed before ImGui's
+/// GLFW backend, which chains to the callbacks it finds.
+void installInput(GLFWwindow* window, Viewer& viewer) {
+  glfwSetWindowUserPointer(window, &viewer);
+  glfwSetKeyCallback(window, [](GLFWwindow* w, int key, int, int action, int) {
     Viewer& v = *viewerOf(w);
     if (key == GLFW_KEY_X) v.xHeld = action != GLFW_RELEASE;
     if (action != GLFW_PRESS &&
@@ -710,7 +681,7 @@ bool Window::open(int width, int height, bool eglContext, Viewer& viewer) {
     if (ImGui::GetCurrentContext() && ImGui::GetIO().WantCaptureKeyboard) return;
     v.onKey(key);
   });
-  glfwSetMouseButtonCallback(m_window, [](GLFWwindow* w, int button, int action, int) {
+  glfwSetMouseButtonCallback(window, [](GLFWwindow* w, int button, int action, int) {
     if (action == GLFW_PRESS && ImGui::GetCurrentContext() && ImGui::GetIO().WantCaptureMouse)
       return;
     double x = 0, y = 0;
@@ -718,57 +689,11 @@ bool Window::open(int width, int height, bool eglContext, Viewer& viewer) {
     viewerOf(w)->onMouseButton(button, action == GLFW_PRESS, x, y);
   });
   glfwSetCursorPosCallback(
-      m_window, [](GLFWwindow* w, double x, double y) { viewerOf(w)->onMouseMove(x, y); });
-  glfwSetScrollCallback(m_window, [](GLFWwindow* w, double, double dy) {
+      window, [](GLFWwindow* w, double x, double y) { viewerOf(w)->onMouseMove(x, y); });
+  glfwSetScrollCallback(window, [](GLFWwindow* w, double, double dy) {
     if (ImGui::GetCurrentContext() && ImGui::GetIO().WantCaptureMouse) return;
     viewerOf(w)->onScroll(dy);
   });
-  IMGUI_CHECKVERSION();
-  ImGui::CreateContext();
-  ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini next to wherever it was started
-  ImGui::StyleColorsDark();
-  ImGui_ImplGlfw_InitForOpenGL(m_window, true);
-  ImGui_ImplOpenGL2_Init();
-  m_imgui = true;
-  return true;
-}
-
-void Window::present(const Image& image, Viewer& viewer) {
-  // The renderer may have made its own context current.
-  glfwMakeContextCurrent(m_window);
-  if (!m_texture) {
-    glGenTextures(1, &m_texture);
-    glBindTexture(GL_TEXTURE_2D, m_texture);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-  }
-  glBindTexture(GL_TEXTURE_2D, m_texture);
-  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-  if (image.width != m_texWidth || image.height != m_texHeight) {
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, image.width, image.height, 0, GL_RGBA,
-                 GL_UNSIGNED_BYTE, image.rgba.data());
-    m_texWidth = image.width;
-    m_texHeight = image.height;
-  } else {
-    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, image.width, image.height, GL_RGBA, GL_UNSIGNED_BYTE,
-                    image.rgba.data());
-  }
-  ImGui_ImplOpenGL2_NewFrame();
-  ImGui_ImplGlfw_NewFrame();
-  ImGui::NewFrame();
-  // The picture's rows are top to bottom, as ImGui's texture coordinates are.
-  const ImVec2 size = ImGui::GetIO().DisplaySize;
-  ImGui::GetBackgroundDrawList()->AddImage(
-      reinterpret_cast<ImTextureID>(static_cast<uintptr_t>(m_texture)), ImVec2(0, 0), size);
-  viewer.panel();
-  ImGui::Render();
-  int fbw = 0, fbh = 0;
-  glfwGetFramebufferSize(m_window, &fbw, &fbh);
-  glViewport(0, 0, fbw, fbh);
-  glClearColor(0, 0, 0, 1);
-  glClear(GL_COLOR_BUFFER_BIT);
-  ImGui_ImplOpenGL2_RenderDrawData(ImGui::GetDrawData());
-  glfwSwapBuffers(m_window);
 }
 
 Result<std::vector<ScriptCommand>> readScript(const std::string& path) {
@@ -831,12 +756,26 @@ int run(const ViewerOptions& opt) {
     std::fprintf(stderr, "%s\n", r.error().message.c_str());
     return 1;
   }
-  Window window;
-  if (!window.open(opt.width, opt.height, viewer.usesGlRenderer(), viewer)) {
+  WindowOptions wo;
+  wo.width = opt.width;
+  wo.height = opt.height;
+  wo.kind = opt.present;
+  wo.validation = opt.validation;
+  wo.eglContext = viewer.usesGlRenderer();
+  wo.installInput = [&viewer](GLFWwindow* w) { installInput(w, viewer); };
+  bool noDisplay = false;
+  Result<std::unique_ptr<ViewerWindow>> opened = openViewerWindow(wo, noDisplay);
+  if (noDisplay) {
     std::fprintf(stderr, "graphfrac-viewer: no display: cannot open a window (DISPLAY=%s)\n",
                  std::getenv("DISPLAY") ? std::getenv("DISPLAY") : "");
     return kViewerNoDisplay;
   }
+  if (!opened) {
+    std::fprintf(stderr, "graphfrac-viewer: --present %s is not available: %s\n",
+                 opt.present == PresentKind::Gl ? "gl" : "vulkan", opened.error().message.c_str());
+    return 1;
+  }
+  ViewerWindow& window = *opened.value();
   const bool fixedClock = !opt.script.empty() || opt.frames.has_value();
   std::vector<const ScriptCommand*> activeDrags;
   auto last = Clock::now();
@@ -894,12 +833,37 @@ int run(const ViewerOptions& opt) {
       }
       if (c.kind == ScriptCommand::Kind::Quit) viewer.quit = true;
     }
-    window.present(viewer.image(), viewer);
+    const auto windowShot = std::find_if(script.begin(), script.end(), [&](const auto& c) {
+      return c.frame == frame && c.kind == ScriptCommand::Kind::Window;
+    });
+    Image contents;
+    if (Result<void> r = window.present(
+            viewer.image(),
+            [&viewer] {
+              if (viewer.panelShown()) viewer.panel();
+            },
+            windowShot != script.end() ? &contents : nullptr);
+        !r) {
+      std::fprintf(stderr, "graphfrac-viewer: present: %s\n", r.error().message.c_str());
+      status = 1;
+      break;
+    }
+    for (const ScriptCommand& c : script) {
+      if (c.frame != frame || c.kind != ScriptCommand::Kind::Window) continue;
+      if (Result<void> w = writePng(c.path, contents); !w) {
+        std::fprintf(stderr, "graphfrac-viewer: %s\n", w.error().message.c_str());
+        status = 1;
+      }
+    }
     if (opt.frames && frame >= *opt.frames) break;
   }
   std::fputs(viewer.summary().c_str(), stdout);
+  std::printf("  present:    %s\n", window.description().c_str());
   if (opt.validation) {
-    const std::vector<std::string> msgs = viewer.validationMessages();
+    std::vector<std::string> msgs = viewer.validationMessages();
+    for (std::string& m : window.validationMessages()) msgs.push_back(std::move(m));
+    std::printf("  validation: %zu messages from the window's Vulkan device\n",
+                window.validationMessages().size());
     for (size_t i = 0; i < msgs.size() && i < 10; ++i)
       std::fprintf(stderr, "  validation: %s\n", msgs[i].c_str());
     if (!msgs.empty()) status = 1;

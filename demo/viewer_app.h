@@ -1,7 +1,8 @@
 // graphfrac-viewer: a scene in a window to play with. Each frame the off-screen renderer of the
 // demo (renderer.h, whichever back end createRenderer gives) draws the scene into an image that
-// is shown as a texture behind a Dear ImGui panel, in a GLFW window with an OpenGL context; the
-// same path works under Xvfb with Mesa, which is how CI drives it with scripted input.
+// the window (viewer_window.h: a Vulkan swapchain, or OpenGL where Vulkan cannot present) shows
+// behind a Dear ImGui panel; both work under Xvfb with Mesa, which is how CI drives the viewer
+// with scripted input.
 #pragma once
 
 #include <graphfrac/status.h>
@@ -14,23 +15,26 @@
 #include <vector>
 
 #include "renderer.h"
+#include "viewer_window.h"
 
 namespace gf::demo {
 
 /// One line of a --script file: `frame N drag X Y X2 Y2 [FRAMES]`, `frame N cut X1 Y1 X2 Y2`,
-/// `frame N key K`, `frame N scene NAME|PATH`, `frame N screenshot PATH`, `frame N panel PATH`
-/// (the panel's text, viewer_panel.h, after that frame's step), `frame N quit` (pixel
-/// coordinates of the picture, frames counted from 1; '#' starts a comment). A scene command
+/// `frame N key K`, `frame N scene NAME|PATH`, `frame N screenshot PATH` (the renderer's
+/// picture), `frame N window PATH` (the window's pixels as presented, panel included),
+/// `frame N panel PATH` (the panel's text, viewer_panel.h, after that frame's step), `frame N quit`
+/// (pixel coordinates of the picture, frames counted from 1; '#' starts a comment). A scene command
 /// does what picking in the panel does: the scene is loaded before that frame's input and step;
 /// NAME is a file of the panel's list (the current scene's folder), with or without `.json`.
 struct ScriptCommand {
-  enum class Kind { Drag, Cut, Key, Scene, Screenshot, Panel, Quit };
+  enum class Kind { Drag, Cut, Key, Scene, Screenshot, Window, Panel, Quit };
   int frame = 1;
   Kind kind = Kind::Quit;
   double x1 = 0, y1 = 0, x2 = 0, y2 = 0;
-  int frames = 10;   ///< Drag: frames the button is held, moving from (x1, y1) to (x2, y2).
-  int key = 0;       ///< Key: the GLFW key code.
-  std::string path;  ///< Screenshot, Panel: the file written; Scene: the scene's name or path.
+  int frames = 10;  ///< Drag: frames the button is held, moving from (x1, y1) to (x2, y2).
+  int key = 0;      ///< Key: the GLFW key code.
+  std::string
+      path;  ///< Screenshot, Window, Panel: the file written; Scene: the scene's name or path.
 };
 
 /// Parses a script; errors name `source`, the line and the reason. Sorted by frame (stable).
@@ -70,13 +74,15 @@ struct ViewerOptions {
   std::optional<int> frames;  ///< --frames N: exit after N frames.
   int width = 960, height = 540;
   RendererKind renderer = RendererKind::Auto;
+  PresentKind present = PresentKind::Auto;  ///< --present: the window's presenter.
   bool validation = false;
   double strainMax = 0.05;  ///< The strain shown red when the colour map is on (C).
 };
 
-/// The executable: parses argv, opens the window, runs, prints a summary on exit. Exit codes:
-/// 0 ok, 1 failure (including validation messages with --validation), 2 usage, 77 no display
-/// (GLFW could not open a window: the tests skip on it).
+/// The executable: parses argv, opens the window, runs, prints a summary on exit (with the
+/// presenter: `present: vulkan` or `present: gl (why not vulkan)`). Exit codes: 0 ok, 1
+/// failure (including validation messages with --validation, and a --present that is not
+/// available), 2 usage, 77 no display (GLFW could not open a window: the tests skip on it).
 int viewerMain(int argc, char** argv);
 
 /// viewerMain's exit code when no window can be opened.

@@ -41,14 +41,16 @@ Result<std::vector<ScriptCommand>> parseScript(std::string_view text, const std:
     } else if (verb == "scene") {
       c.kind = ScriptCommand::Kind::Scene;
       if (!(words >> c.path)) return error("scene needs a scene's name or path");
-    } else if (verb == "screenshot" || verb == "panel") {
-      c.kind = verb == "panel" ? ScriptCommand::Kind::Panel : ScriptCommand::Kind::Screenshot;
+    } else if (verb == "screenshot" || verb == "panel" || verb == "window") {
+      c.kind = verb == "panel"    ? ScriptCommand::Kind::Panel
+               : verb == "window" ? ScriptCommand::Kind::Window
+                                  : ScriptCommand::Kind::Screenshot;
       if (!(words >> c.path)) return error(verb + " needs a path");
     } else if (verb == "quit") {
       c.kind = ScriptCommand::Kind::Quit;
     } else {
       return error("unknown command '" + verb +
-                   "' (drag, cut, key, scene, screenshot, panel, quit)");
+                   "' (drag, cut, key, scene, screenshot, window, panel, quit)");
     }
     std::string extra;
     words.clear();

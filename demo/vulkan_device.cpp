@@ -74,6 +74,10 @@ const char* vkResultName(VkResult r) {
     GF_VK_NAME(VK_ERROR_INVALID_EXTERNAL_HANDLE)
     GF_VK_NAME(VK_ERROR_FRAGMENTATION)
     GF_VK_NAME(VK_ERROR_INVALID_OPAQUE_CAPTURE_ADDRESS)
+    GF_VK_NAME(VK_SUBOPTIMAL_KHR)
+    GF_VK_NAME(VK_ERROR_OUT_OF_DATE_KHR)
+    GF_VK_NAME(VK_ERROR_SURFACE_LOST_KHR)
+    GF_VK_NAME(VK_ERROR_NATIVE_WINDOW_IN_USE_KHR)
 #undef GF_VK_NAME
     default:
       return "unknown VkResult";
@@ -107,9 +111,15 @@ VKAPI_ATTR VkBool32 VKAPI_CALL VulkanDevice::onMessage(
 }
 
 Result<void> VulkanDevice::create(bool validation) {
-  GF_TRY(createInstance(validation));
-  GF_TRY(pickDevice());
-  return createDevice();
+  GF_TRY(createInstance(validation, {}));
+  return createDevice({}, {});
+}
+
+Result<void> VulkanDevice::createDevice(
+    std::span<const char* const> deviceExtensions,
+    const std::function<bool(VkPhysicalDevice, uint32_t)>& familyOk) {
+  GF_TRY(pickDevice(familyOk));
+  return makeDevice(deviceExtensions);
 }
 
 std::string VulkanDevice::name() const {
@@ -130,9 +140,9 @@ VulkanDevice::~VulkanDevice() {
   }
 }
 
-Result<void> VulkanDevice::createInstance(bool validation) {
+Result<void> VulkanDevice::createInstance(bool validation, std::span<const char* const> wanted) {
   const char* kLayer = "VK_LAYER_KHRONOS_validation";
-  std::vector<const char*> layers, extensions;
+  std::vector<const char*> layers, extensions(wanted.begin(), wanted.end());
   bool syncValidation = false;
   if (validation) {
     uint32_t count = 0;
@@ -204,7 +214,8 @@ Result<void> VulkanDevice::createInstance(bool validation) {
   return {};
 }
 
-Result<void> VulkanDevice::pickDevice() {
+Result<void> VulkanDevice::pickDevice(
+    const std::function<bool(VkPhysicalDevice, uint32_t)>& familyOk) {
   uint32_t count = 0;
   GF_VK(vkEnumeratePhysicalDevices, (m_instance, &count, nullptr));
   std::vector<VkPhysicalDevice> devices(count);
@@ -230,8 +241,11 @@ Result<void> VulkanDevice::pickDevice() {
     vkGetPhysicalDeviceQueueFamilyProperties(d, &n, families.data());
     family = n;
     for (uint32_t i = 0; i < n && family == n; ++i)
-      if (families[i].queueFlags & VK_QUEUE_GRAPHICS_BIT) family = i;
-    if (family == n) return reject("no graphics queue");
+      if ((families[i].queueFlags & VK_QUEUE_GRAPHICS_BIT) && (!familyOk || familyOk(d, i)))
+        family = i;
+    if (family == n)
+      return reject(familyOk ? "no graphics queue that presents to the window"
+                             : "no graphics queue");
     depth = VK_FORMAT_UNDEFINED;
     for (VkFormat c : {VK_FORMAT_D32_SFLOAT, VK_FORMAT_X8_D24_UNORM_PACK32,
                        VK_FORMAT_D24_UNORM_S8_UINT, VK_FORMAT_D32_SFLOAT_S8_UINT}) {
@@ -282,7 +296,7 @@ Result<void> VulkanDevice::pickDevice() {
   return {};
 }
 
-Result<void> VulkanDevice::createDevice() {
+Result<void> VulkanDevice::makeDevice(std::span<const char* const> deviceExtensions) {
   const float priority = 1.0f;
   auto queue = vkInfo<VkDeviceQueueCreateInfo>(VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO);
   queue.queueFamilyIndex = m_queueFamily;
@@ -294,6 +308,8 @@ Result<void> VulkanDevice::createDevice() {
   info.queueCreateInfoCount = 1;
   info.pQueueCreateInfos = &queue;
   info.pEnabledFeatures = &features;
+  info.enabledExtensionCount = uint32_t(deviceExtensions.size());
+  info.ppEnabledExtensionNames = deviceExtensions.data();
   GF_VK(vkCreateDevice, (m_physical, &info, nullptr, &m_device));
   vkGetDeviceQueue(m_device, m_queueFamily, 0, &m_queue);
 

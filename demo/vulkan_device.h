@@ -6,7 +6,9 @@
 #include <graphfrac/status.h>
 #include <vulkan/vulkan.h>
 
+#include <functional>
 #include <mutex>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -66,6 +68,16 @@ class VulkanDevice {
   /// overrides) and creates the logical device with one graphics queue. With `validation`, the
   /// Khronos validation layer is on and its warnings and errors are collected.
   Result<void> create(bool validation);
+  /// create() in two halves for a window: the instance with `extensions` too (the surface ones),
+  /// then, once the caller made its surface on instance(), the device whose queue family also
+  /// passes `familyOk` (presents to it), created with `deviceExtensions`.
+  Result<void> createInstance(bool validation, std::span<const char* const> extensions);
+  Result<void> createDevice(std::span<const char* const> deviceExtensions,
+                            const std::function<bool(VkPhysicalDevice, uint32_t)>& familyOk);
+
+  VkInstance instance() const { return m_instance; }
+  VkPhysicalDevice physicalDevice() const { return m_physical; }
+  uint32_t queueFamily() const { return m_queueFamily; }
 
   VkDevice device() const { return m_device; }
   VkQueue queue() const { return m_queue; }
@@ -103,9 +115,8 @@ class VulkanDevice {
                                                   VkDebugUtilsMessageTypeFlagsEXT type,
                                                   const VkDebugUtilsMessengerCallbackDataEXT* data,
                                                   void* user);
-  Result<void> createInstance(bool validation);
-  Result<void> pickDevice();
-  Result<void> createDevice();
+  Result<void> pickDevice(const std::function<bool(VkPhysicalDevice, uint32_t)>& familyOk);
+  Result<void> makeDevice(std::span<const char* const> deviceExtensions);
   Result<uint32_t> memoryType(uint32_t bits, VkMemoryPropertyFlags required,
                               VkMemoryPropertyFlags preferred) const;
   Result<void> makeBuffer(VkDeviceSize size, VkBufferUsageFlags usage,

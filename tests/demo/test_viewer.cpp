@@ -40,11 +40,12 @@ TEST(ViewerScript, ParsesEveryCommandAndSortsByFrame) {
       "frame 3 cut 1.5 2 3 4\n"
       "frame 3 key space\n"
       "frame 4 screenshot out/a.png\n"
-      "frame 6 scene block\n",
+      "frame 6 scene block\n"
+      "frame 7 window out/w.png\n",
       "s.txt");
   ASSERT_TRUE(r) << r.error().message;
   const std::vector<ScriptCommand>& c = r.value();
-  ASSERT_EQ(c.size(), 6u);
+  ASSERT_EQ(c.size(), 7u);
   EXPECT_EQ(c[0].kind, ScriptCommand::Kind::Drag);
   EXPECT_EQ(c[0].frame, 2);
   EXPECT_EQ(c[0].frames, 5);
@@ -56,7 +57,9 @@ TEST(ViewerScript, ParsesEveryCommandAndSortsByFrame) {
   EXPECT_EQ(c[3].path, "out/a.png");
   EXPECT_EQ(c[4].kind, ScriptCommand::Kind::Scene);
   EXPECT_EQ(c[4].path, "block");
-  EXPECT_EQ(c[5].kind, ScriptCommand::Kind::Quit);
+  EXPECT_EQ(c[5].kind, ScriptCommand::Kind::Window);
+  EXPECT_EQ(c[5].path, "out/w.png");
+  EXPECT_EQ(c[6].kind, ScriptCommand::Kind::Quit);
 }
 
 TEST(ViewerScript, SceneNamesResolveToThePickersEntries) {
@@ -598,6 +601,144 @@ TEST_F(ViewerUnderXvfb, ValidationLayersReportNothing) {
   EXPECT_EQ(summaryCount(r.output, "balls"), 1) << r.output;
   EXPECT_TRUE(readPng(shot));
 #endif
+}
+
+// ---- presentation: the Vulkan swapchain and the GL fallback ----
+
+/// The summary's "present:" value ("vulkan", "gl (why)"), or "" when it has none.
+std::string presentLine(const std::string& output) {
+  const std::string key = "  present:    ";
+  const size_t at = output.find(key);
+  if (at == std::string::npos) return "";
+  const size_t end = output.find('\n', at);
+  return output.substr(at + key.size(), end - at - key.size());
+}
+
+/// Pixels whose RGB differ at all.
+int differingPixels(const Image& a, const Image& b) {
+  if (a.width != b.width || a.height != b.height) return -1;
+  int n = 0;
+  for (size_t i = 0; i < a.rgba.size(); i += 4)
+    n += a.rgba[i] != b.rgba[i] || a.rgba[i + 1] != b.rgba[i + 1] || a.rgba[i + 2] != b.rgba[i + 2];
+  return n;
+}
+
+// The script of the presentation tests: a drag and a cut of the bar, the overlay off (its sim ms
+// is wall-clock time), the panel hidden (H) for a window capture at frame 20 and shown again for
+// one at frame 24.
+std::string presentScript(const test::TempDir& dir, const std::string& tag) {
+  const auto file = [&](const char* what) { return (dir.path / (tag + what)).string(); };
+  return "frame 1 key o\n"
+         "frame 3 drag 160 80 120 40 6\n"
+         "frame 10 cut 150 30 150 140\n"
+         "frame 19 key h\n"
+         "frame 20 screenshot " +
+         file("_shot.png") + "\nframe 20 window " + file("_window.png") +
+         "\nframe 22 key h\n"
+         "frame 24 screenshot " +
+         file("_shot24.png") + "\nframe 24 window " + file("_panel.png") + "\nframe 24 quit\n";
+}
+
+// The default under Xvfb, with the validation layers on for the renderer's and the window's
+// Vulkan devices: the window presents through the swapchain, the layers say nothing, and the
+// swapchain image read back just before it is presented is the renderer's picture, pixel for
+// pixel with the panel hidden (no scaling, no colour change, no rows flipped) and with the panel
+// over part of it when shown. A swapchain image that the picture was not copied into fails the
+// first comparison.
+TEST_F(ViewerUnderXvfb, PresentsThroughAVulkanSwapchainByDefault) {
+#if !defined(GF_DEMO_HAS_VULKAN)
+  GTEST_SKIP() << "built without Vulkan";
+#else
+  test::TempDir dir("viewer_present_vulkan");
+  const ViewerRun r = runViewer(dir, "vk", presentScript(dir, "vk"), {"--validation"});
+  if (!usable(r)) GTEST_SKIP() << m_skip;
+  if (r.output.find("renderer:   Vulkan") == std::string::npos)
+    GTEST_SKIP() << "no Vulkan device with validation layers here: " << r.output;
+  std::printf("%s", r.output.c_str());
+  ASSERT_EQ(r.status, 0) << r.output;
+  // A device renders with Vulkan here, so a window system that Vulkan presents to is expected.
+  EXPECT_EQ(presentLine(r.output), "vulkan") << r.output;
+  EXPECT_NE(r.output.find("validation: 0 messages from the Vulkan validation layers"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("validation: 0 messages from the window's Vulkan device"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("validation: error"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("validation: warning"), std::string::npos) << r.output;
+
+  Result<Image> shot = readPng((dir.path / "vk_shot.png").string());
+  Result<Image> window = readPng((dir.path / "vk_window.png").string());
+  Result<Image> shot24 = readPng((dir.path / "vk_shot24.png").string());
+  Result<Image> panel = readPng((dir.path / "vk_panel.png").string());
+  ASSERT_TRUE(shot && window && shot24 && panel);
+  ASSERT_EQ(window.value().width, kWidth);
+  ASSERT_EQ(window.value().height, kHeight);
+  EXPECT_EQ(differingPixels(shot.value(), window.value()), 0);
+  // The panel covers part of the window, not all of it: the rest is still the picture.
+  const int underPanel = differingPixels(shot24.value(), panel.value());
+  EXPECT_GT(underPanel, kWidth * kHeight / 50);
+  EXPECT_LT(underPanel, kWidth * kHeight);
+#endif
+}
+
+// Presentation does not change the picture: the same drag and cut presented with Vulkan and
+// with GL give identical screenshots, and both windows show them unchanged (the panel hidden).
+TEST_F(ViewerUnderXvfb, VulkanAndGlPresentTheSamePicture) {
+#if !defined(GF_DEMO_HAS_VULKAN)
+  GTEST_SKIP() << "built without Vulkan";
+#else
+  test::TempDir dir("viewer_present_both");
+  const ViewerRun vk = runViewer(dir, "vk", presentScript(dir, "vk"), {"--present", "vulkan"});
+  if (!usable(vk)) GTEST_SKIP() << m_skip;
+  if (vk.status == 1 && vk.output.find("--present vulkan is not available") != std::string::npos)
+    GTEST_SKIP() << "no Vulkan device presents here: " << vk.output;
+  ASSERT_EQ(vk.status, 0) << vk.output;
+  const ViewerRun gl = runViewer(dir, "gl", presentScript(dir, "gl"), {"--present", "gl"});
+  ASSERT_EQ(gl.status, 0) << gl.output;
+  EXPECT_EQ(presentLine(vk.output), "vulkan") << vk.output;
+  EXPECT_EQ(presentLine(gl.output), "gl") << gl.output;
+  EXPECT_EQ(summaryCount(vk.output, "drags"), 1) << vk.output;
+  EXPECT_EQ(summaryCount(vk.output, "cuts"), 1) << vk.output;
+  EXPECT_EQ(summaryCount(gl.output, "cuts"), 1) << gl.output;
+  for (const char* what : {"_shot.png", "_window.png", "_shot24.png"}) {
+    Result<Image> a = readPng((dir.path / (std::string("vk") + what)).string());
+    Result<Image> b = readPng((dir.path / (std::string("gl") + what)).string());
+    ASSERT_TRUE(a && b) << what;
+    EXPECT_EQ(differingPixels(a.value(), b.value()), 0) << what;
+  }
+  Result<Image> glShot = readPng((dir.path / "gl_shot.png").string());
+  Result<Image> glWindow = readPng((dir.path / "gl_window.png").string());
+  ASSERT_TRUE(glShot && glWindow);
+  EXPECT_EQ(differingPixels(glShot.value(), glWindow.value()), 0);
+#endif
+}
+
+// Without a Vulkan driver (the loader pointed at none): auto falls back to GL and says why, and
+// a forced --present vulkan fails with the reason instead of running.
+TEST_F(ViewerUnderXvfb, WithoutVulkanAutoFallsBackToGlAndForcedVulkanFails) {
+  test::TempDir dir("viewer_present_novulkan");
+  const std::string none = (dir.path / "no_icd.json").string();
+  const char* old = std::getenv("VK_ICD_FILENAMES");
+  const std::string saved = old ? old : "";
+  setenv("VK_ICD_FILENAMES", none.c_str(), 1);
+  const ViewerRun fallback =
+      runViewer(dir, "auto", "frame 3 quit\n", {"--renderer", "gl", "--present", "auto"});
+  const ViewerRun forced =
+      runViewer(dir, "forced", "frame 3 quit\n", {"--renderer", "gl", "--present", "vulkan"});
+  if (old)
+    setenv("VK_ICD_FILENAMES", saved.c_str(), 1);
+  else
+    unsetenv("VK_ICD_FILENAMES");
+  if (!usable(fallback)) GTEST_SKIP() << m_skip;
+  ASSERT_EQ(fallback.status, 0) << fallback.output;
+  const std::string line = presentLine(fallback.output);
+  EXPECT_EQ(line.rfind("gl (", 0), 0u) << fallback.output;
+  EXPECT_GT(line.size(), std::string("gl ()").size()) << fallback.output;
+  EXPECT_EQ(forced.status, 1) << forced.output;
+  EXPECT_NE(forced.output.find("--present vulkan is not available: "), std::string::npos)
+      << forced.output;
+  EXPECT_EQ(presentLine(forced.output), "") << forced.output;
 }
 
 }  // namespace
