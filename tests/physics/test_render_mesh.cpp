@@ -545,6 +545,62 @@ TEST(RenderMesh, ShatteredSurfaceDoesNotDependOnThreadCount) {
   EXPECT_TRUE(one == four);
 }
 
+glm::dvec3 pos(std::span<const float> p, size_t v) {
+  return glm::dvec3(p[3 * v], p[3 * v + 1], p[3 * v + 2]);
+}
+
+// Drawn vertices that share a rest point and follow opposite sides of a crack (sideOf their
+// nodes' rest positions differ), both nodes at or above minY: how many pairs, their widest gap
+// in `opened`, and the largest difference between a gap and `truth` of the rest point.
+struct CrackPairs {
+  int pairs = 0;
+  double widest = 0, worst = 0;
+};
+template <class Side, class Truth>
+CrackPairs crackPairs(std::span<const float> restPos, const SurfaceView& opened,
+                      std::span<const double> nodes, double minY, Side sideOf, Truth truth) {
+  std::map<std::tuple<float, float, float>, std::vector<uint32_t>> byRest;
+  for (uint32_t v = 0; v < restPos.size() / 3; ++v)
+    byRest[{restPos[3 * v], restPos[3 * v + 1], restPos[3 * v + 2]}].push_back(v);
+  CrackPairs r;
+  for (const auto& [key, vs] : byRest)
+    for (size_t i = 0; i < vs.size(); ++i)
+      for (size_t j = i + 1; j < vs.size(); ++j) {
+        const glm::dvec3 Na = at(nodes, size_t(opened.vertexNode[vs[i]]));
+        const glm::dvec3 Nb = at(nodes, size_t(opened.vertexNode[vs[j]]));
+        if (sideOf(Na) == sideOf(Nb) || std::min(Na.y, Nb.y) < minY) continue;
+        const double gap = glm::length(pos(opened.positions, vs[i]) - pos(opened.positions, vs[j]));
+        ++r.pairs;
+        r.widest = std::max(r.widest, gap);
+        r.worst = std::max(r.worst, std::abs(gap - truth(pos(restPos, vs[i]))));
+      }
+  return r;
+}
+
+// Render triangles (not crack faces) whose corners all lie above minY at rest: how many, and the
+// largest change of an edge's length in `opened`.
+std::pair<int, double> stretchAbove(std::span<const float> restPos,
+                                    std::span<const uint32_t> restIdx, const SurfaceView& opened,
+                                    double minY) {
+  int above = 0;
+  double stretch = 0;
+  for (size_t t = 0; t < restIdx.size() / 3; ++t) {
+    if (opened.crackMask[t]) continue;
+    const uint32_t* id3 = &restIdx[3 * t];
+    bool high = true;
+    for (int k = 0; k < 3; ++k) high = high && restPos[3 * size_t(id3[k]) + 1] > minY;
+    if (!high) continue;
+    ++above;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = id3[k], b = id3[(k + 1) % 3];
+      stretch = std::max(stretch,
+                         std::abs(glm::length(pos(opened.positions, a) - pos(opened.positions, b)) -
+                                  glm::length(pos(restPos, a) - pos(restPos, b))));
+    }
+  }
+  return {above, stretch};
+}
+
 // A bar 0.4 x 0.1 x 0.1 m (cells 0.025 x 0.0125 x 0.0125 m) with a notch: a blade on the plane
 // x = 0.204 m breaks every edge it crosses at y >= 0.049 m, the upper half of the section, so
 // the body stays one fragment. Drawn with a render mesh of 0.01 m edges, at rest the surface is
@@ -622,47 +678,14 @@ TEST(RenderMesh, PartlyCrackedBarShowsItsOpeningCrack) {
   const SurfaceView sv = world.surface(id);
   ASSERT_TRUE(std::equal(sv.indices.begin(), sv.indices.end(), restIdx.begin(), restIdx.end()));
   const auto c1 = closure(sv);
-  auto pos = [](std::span<const float> p, size_t v) {
-    return glm::dvec3(p[3 * v], p[3 * v + 1], p[3 * v + 2]);
-  };
-
   // Pairs of drawn vertices at one rest point that follow opposite sides above the front.
-  std::map<std::tuple<float, float, float>, std::vector<uint32_t>> byRest;
-  for (uint32_t v = 0; v < restPos.size() / 3; ++v)
-    byRest[{restPos[3 * v], restPos[3 * v + 1], restPos[3 * v + 2]}].push_back(v);
-  int pairs = 0;
-  double widest = 0, worst = 0;
-  for (const auto& [key, vs] : byRest)
-    for (size_t i = 0; i < vs.size(); ++i)
-      for (size_t j = i + 1; j < vs.size(); ++j) {
-        const glm::dvec3 Na = at(def.mesh.positions, size_t(sv.vertexNode[vs[i]]));
-        const glm::dvec3 Nb = at(def.mesh.positions, size_t(sv.vertexNode[vs[j]]));
-        if ((Na.x < xc) == (Nb.x < xc) || std::min(Na.y, Nb.y) < yf - 1e-9) continue;
-        const glm::dvec3 P = pos(restPos, vs[i]);
-        const double gap = glm::length(pos(sv.positions, vs[i]) - pos(sv.positions, vs[j]));
-        const double truth = glm::length(turn(P) - P);
-        ++pairs;
-        widest = std::max(widest, gap);
-        worst = std::max(worst, std::abs(gap - truth));
-      }
-
+  const CrackPairs cp = crackPairs(
+      restPos, sv, def.mesh.positions, yf - 1e-9, [&](glm::dvec3 N) { return N.x < xc; },
+      [&](glm::dvec3 P) { return glm::length(turn(P) - P); });
+  const int pairs = cp.pairs;
+  const double widest = cp.widest, worst = cp.worst;
   // Render triangles wholly above the front by a cell keep their edge lengths.
-  double stretch = 0;
-  int above = 0;
-  for (size_t t = 0; t < restIdx.size() / 3; ++t) {
-    if (sv.crackMask[t]) continue;
-    const uint32_t* id3 = &restIdx[3 * t];
-    bool high = true;
-    for (int k = 0; k < 3; ++k) high = high && restPos[3 * size_t(id3[k]) + 1] > yf + cell;
-    if (!high) continue;
-    ++above;
-    for (int k = 0; k < 3; ++k) {
-      const uint32_t a = id3[k], b = id3[(k + 1) % 3];
-      stretch =
-          std::max(stretch, std::abs(glm::length(pos(sv.positions, a) - pos(sv.positions, b)) -
-                                     glm::length(pos(restPos, a) - pos(restPos, b))));
-    }
-  }
+  const auto [above, stretch] = stretchAbove(restPos, restIdx, sv, yf + cell);
   std::printf(
       "notched bar: %d broken edges, %d fragment; drawn %zu triangles (%d crack faces, their "
       "fans' centres off the front's middle by %.2f of the allowance), %d open edges at rest, %d "
@@ -783,43 +806,11 @@ TEST(RenderMesh, ObliquePartialCracksAreClosed) {
     const SurfaceView opened = world.surface(id);
     ASSERT_TRUE(
         std::equal(opened.indices.begin(), opened.indices.end(), restIdx.begin(), restIdx.end()));
-    auto pos = [](std::span<const float> p, size_t v) {
-      return glm::dvec3(p[3 * v], p[3 * v + 1], p[3 * v + 2]);
-    };
-    std::map<std::tuple<float, float, float>, std::vector<uint32_t>> byRest;
-    for (uint32_t v = 0; v < restPos.size() / 3; ++v)
-      byRest[{restPos[3 * v], restPos[3 * v + 1], restPos[3 * v + 2]}].push_back(v);
-    int pairs = 0;
-    double widest = 0, worst = 0, stretch = 0;
-    for (const auto& [key, vs] : byRest)
-      for (size_t i = 0; i < vs.size(); ++i)
-        for (size_t j = i + 1; j < vs.size(); ++j) {
-          const glm::dvec3 Na = at(def.mesh.positions, size_t(opened.vertexNode[vs[i]]));
-          const glm::dvec3 Nb = at(def.mesh.positions, size_t(opened.vertexNode[vs[j]]));
-          if (far(Na) == far(Nb) || std::min(Na.y, Nb.y) < c.depth + cellY) continue;
-          const glm::dvec3 P = pos(restPos, vs[i]);
-          const double gap =
-              glm::length(pos(opened.positions, vs[i]) - pos(opened.positions, vs[j]));
-          ++pairs;
-          widest = std::max(widest, gap);
-          worst = std::max(worst, std::abs(gap - glm::length(turn(P) - P)));
-        }
-    int above = 0;
-    for (size_t t = 0; t < restIdx.size() / 3; ++t) {
-      if (opened.crackMask[t]) continue;
-      const uint32_t* id3 = &restIdx[3 * t];
-      bool high = true;
-      for (int k = 0; k < 3; ++k)
-        high = high && restPos[3 * size_t(id3[k]) + 1] > c.depth + 2 * cellY;
-      if (!high) continue;
-      ++above;
-      for (int k = 0; k < 3; ++k) {
-        const uint32_t a = id3[k], b = id3[(k + 1) % 3];
-        stretch = std::max(
-            stretch, std::abs(glm::length(pos(opened.positions, a) - pos(opened.positions, b)) -
-                              glm::length(pos(restPos, a) - pos(restPos, b))));
-      }
-    }
+    const CrackPairs cp = crackPairs(restPos, opened, def.mesh.positions, c.depth + cellY, far,
+                                     [&](glm::dvec3 P) { return glm::length(turn(P) - P); });
+    const int pairs = cp.pairs;
+    const double widest = cp.widest, worst = cp.worst;
+    const auto [above, stretch] = stretchAbove(restPos, restIdx, opened, c.depth + 2 * cellY);
     std::printf(
         "  opened by %.2f rad: %d vertex pairs across the crack a cell above the front, widest "
         "gap %.4f m, largest |gap - the sides' motion| %.3g m; %d render triangles two cells "
