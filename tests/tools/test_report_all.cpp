@@ -183,6 +183,63 @@ TEST(ReportAll, RegionsSpliceBackByteForByte) {
   EXPECT_EQ(body(spliced, "thesis"), body(text, "thesis"));
 }
 
+// `--only lab --reuse` writes the lab regions from the files a `graphfrac report lab` left and
+// nothing else: every other region keeps its old body, the hand-written text its bytes. The
+// tables come from the files: the committed run's (docs/reports/lab), whose first Charpy row's
+// absorbed energy must appear in the Charpy table as the CSV has it, to two decimals.
+TEST(ReportAll, OnlyLabReuseRewritesTheLabRegionsFromTheFilesAlone) {
+  gf::test::TempDir dir("report_all_only_lab");
+  const fs::path results = dir.path / "docs" / "RESULTS.md", out = dir.path / "out";
+  fs::create_directories(results.parent_path());
+  const std::string before = page();
+  write(results, before);
+  // Missing files: an error naming the file and the command that makes it; the page unchanged.
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(
+      reportAll({"--only", "lab", "--reuse", "--results", results.string(), "--out", out.string()}),
+      gf::cli::kExitOutput);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("brazilian.csv is missing"), std::string::npos) << err;
+  EXPECT_NE(err.find("graphfrac report lab --out"), std::string::npos) << err;
+  EXPECT_EQ(read(results), before);
+  EXPECT_EQ(reportAll({"--reuse", "--results", results.string()}), gf::cli::kExitUsage);
+  EXPECT_EQ(reportAll({"--only", "bench", "--results", results.string()}), gf::cli::kExitUsage);
+  EXPECT_EQ(reportAll({"--only"}), gf::cli::kExitUsage);
+
+  const fs::path committed = fs::path(GF_SOURCE_DIR) / "docs" / "reports" / "lab";
+  fs::create_directories(out / "lab");
+  for (const char* f : {"brazilian.csv", "impact.csv", "charpy.svg", "izod.svg", "brazilian.svg"})
+    fs::copy_file(committed / f, out / "lab" / f);
+  EXPECT_EQ(
+      reportAll({"--only", "lab", "--reuse", "--results", results.string(), "--out", out.string()}),
+      gf::cli::kExitOk);
+  const std::string after = read(results);
+  EXPECT_EQ(skeleton(after), skeleton(before)) << "a hand-written byte changed";
+  for (const std::string& r : kRegions) {
+    const bool lab = r.rfind("lab-", 0) == 0;
+    EXPECT_EQ(body(after, r) == body(before, r), !lab) << r;
+  }
+  EXPECT_FALSE(fs::exists(out / "logs")) << "--reuse runs nothing, so it logs nothing";
+
+  // The Charpy table's first brittle row carries impact.csv's absorbed energy.
+  const std::string csv = read(out / "lab" / "impact.csv");
+  std::vector<std::string> rows = lines(csv);
+  ASSERT_GE(rows.size(), 2u);
+  std::vector<std::string> head, first;
+  for (auto* v : {&head, &first}) {
+    std::stringstream ss(rows[v == &head ? 0 : 1]);
+    for (std::string c; std::getline(ss, c, ',');) v->push_back(c);
+  }
+  double absorbed = -1;
+  for (size_t i = 0; i < head.size() && i < first.size(); ++i)
+    if (head[i] == "absorbed_energy_J") absorbed = std::strtod(first[i].c_str(), nullptr);
+  ASSERT_GE(absorbed, 0);
+  char want[32];
+  std::snprintf(want, sizeof want, "| %.2f", absorbed);
+  const std::string charpy = body(after, "lab-charpy");
+  EXPECT_NE(charpy.find(want), std::string::npos) << want << " not in\n" << charpy;
+}
+
 // The quick form end to end: about a minute on two cores.
 TEST(ReportAll, QuickFormFillsEveryRegionAndKeepsTheHandWrittenText) {
   gf::test::TempDir dir("report_all_quick");

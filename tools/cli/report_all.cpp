@@ -58,7 +58,7 @@ namespace fs = std::filesystem;
 
 constexpr const char* kAllUsage =
     "usage: graphfrac report all [--quick] [--out DIR] [--results FILE] [--scenes DIR]\n"
-    "                            [--stability-bin PATH]\n"
+    "                            [--stability-bin PATH] [--only lab [--reuse]]\n"
     "\n"
     "Runs every measurement of docs/RESULTS.md and rewrites the file's generated regions, the\n"
     "lines between <!-- report:NAME:begin --> and <!-- report:NAME:end -->; every other line is\n"
@@ -83,6 +83,9 @@ constexpr const char* kAllUsage =
     "meshes with the impacts stopped 0.5 mm past contact, 2 frames of error against time, the\n"
     "4k-tet benchmark case, the stability suite's reduced form, the Bullet comparison on its\n"
     "smallest meshes for 0.25 s per run (not at all without Bullet).\n"
+    "--only lab runs the lab part alone and rewrites only its own regions (lab-*; header and\n"
+    "thesis describe a full run and are kept); with --reuse it runs nothing and reads the\n"
+    "files that `graphfrac report lab --out DIR/lab` left.\n"
     "Exit: 0; 1 usage; 2 a scene could not be loaded; 3 a part failed or flagged a step (its\n"
     "region says so; error against time's capped solver settings flag by design and do not\n"
     "count); 4 FILE has a bad marker or cannot be written (it is then unchanged).\n";
@@ -94,7 +97,9 @@ const std::vector<std::string> kRegions = {
 
 struct Options {
   bool quick = false;
+  bool reuse = false;  // --reuse: read the part's files instead of running it (needs --only)
   std::string out, results = "docs/RESULTS.md", scenes = "scenes", stabilityBin;
+  std::string only;  // "lab" or empty (every part)
 };
 
 std::string fmt(const char* f, double v) {
@@ -466,7 +471,15 @@ std::string labAcceptanceRegion(const fs::path& dir, const Part& part) {
     const size_t r = discRows[size_t(res)];
     if (strength) {
       const double ratio = b.num(r, "ratio");
-      return cell(std::abs(ratio - 1) <= 0.15, fmt("%+.1f %%", 100 * (ratio - 1)));
+      std::string detail = fmt("%+.1f %%", 100 * (ratio - 1));
+      // The coarse disc's run at another jaw rate (the report's rate check) follows it.
+      if (res == 0 && b.rows.size() > 1 && b.num(1, "jaw_speed_m_s") != b.num(0, "jaw_speed_m_s")) {
+        const double other = b.num(1, "ratio");
+        detail +=
+            fmt(" (%+.1f %% at ", 100 * (other - 1)) + fmt("%.3g m/s)", b.num(1, "jaw_speed_m_s"));
+        return cell(std::abs(ratio - 1) <= 0.15 && std::abs(other - 1) <= 0.15, detail);
+      }
+      return cell(std::abs(ratio - 1) <= 0.15, detail);
     }
     const double d = b.num(r, "first_break_from_centre_over_D");
     return cell(b.num(r, "broken_edges") > 0 && d <= 0.2, fmt("%.3f D", d));
@@ -961,6 +974,14 @@ int reportAll(int argc, char** argv) {
     }
     if (a == "--quick") {
       opt.quick = true;
+    } else if (a == "--reuse") {
+      opt.reuse = true;
+    } else if (a == "--only") {
+      if (i + 1 >= argc || std::string(argv[i + 1]) != "lab") {
+        std::fprintf(stderr, "graphfrac report all: --only: expected lab\n\n%s", kAllUsage);
+        return kExitUsage;
+      }
+      opt.only = argv[++i];
     } else if (a == "--out" || a == "--results" || a == "--scenes" || a == "--stability-bin") {
       if (i + 1 >= argc || !*argv[i + 1]) {
         std::fprintf(stderr, "graphfrac report all: %s: expected a path\n\n%s", a.c_str(),
@@ -975,6 +996,10 @@ int reportAll(int argc, char** argv) {
       std::fprintf(stderr, "graphfrac report all: unknown argument %s\n\n%s", a.c_str(), kAllUsage);
       return kExitUsage;
     }
+  }
+  if (opt.reuse && opt.only.empty()) {
+    std::fprintf(stderr, "graphfrac report all: --reuse: needs --only lab\n\n%s", kAllUsage);
+    return kExitUsage;
   }
   // The markers first: a page that cannot take the results stops the run before it starts.
   Result<std::string> page = readFile(opt.results);
@@ -993,7 +1018,7 @@ int reportAll(int argc, char** argv) {
   const fs::path out(opt.out), resultsDir = fs::path(opt.results).parent_path(),
                                logs = out / "logs";
   std::error_code ec;
-  fs::create_directories(logs, ec);
+  if (!opt.reuse) fs::create_directories(logs, ec);  // --reuse runs nothing, so logs nothing
   if (ec) {
     std::fprintf(stderr, "graphfrac report all: cannot create %s: %s\n", logs.string().c_str(),
                  ec.message().c_str());
@@ -1013,75 +1038,96 @@ int reportAll(int argc, char** argv) {
   std::vector<std::string> labArgs{
       "report", "lab", "--out", (out / "lab").string(), "--scenes", (scenes / "lab").string()};
   if (opt.quick) labArgs.insert(labArgs.end(), {"--quick", "--stop-after", "0.5"});
-  runPart(lab, runLabReport, labArgs, logs / "lab.log");
+  if (opt.reuse) {
+    // The files must be there: a region built from nothing would say "not generated".
+    lab.command = commandLine(labArgs);
+    for (const char* f : {"brazilian.csv", "impact.csv"})
+      if (!fs::exists(out / "lab" / f)) {
+        std::fprintf(stderr, "graphfrac report all: --reuse: %s is missing (run `%s` first)\n",
+                     (out / "lab" / f).string().c_str(), lab.command.c_str());
+        return kExitOutput;
+      }
+    lab.exit = 0;
+    lab.note = "its files reused";
+  } else {
+    runPart(lab, runLabReport, labArgs, logs / "lab.log");
+  }
+  const bool all = opt.only.empty();
 
   // The hanging sphere: table 6.1's volume gain and table 6.2's 35k-tet case in one scene.
   const fs::path evtDir = out / "hanging_sphere";
-  std::vector<std::string> evtArgs{
-      "report", "error-vs-time", (scenes / "hanging_sphere.json").string(),
-      "--out",  evtDir.string(), "--threads",
-      "1"};
-  if (opt.quick)
-    evtArgs.insert(evtArgs.end(),
-                   {"--frames", "2", "--levels", "50/all", "--cycles", "2", "--pcg-caps", "30"});
-  else
-    evtArgs.insert(evtArgs.end(), {"--levels", "50/all,256/all"});
-  runPart(evt, runReportCommand, evtArgs, logs / "error_vs_time.log");
+  if (all) {
+    std::vector<std::string> evtArgs{
+        "report", "error-vs-time", (scenes / "hanging_sphere.json").string(),
+        "--out",  evtDir.string(), "--threads",
+        "1"};
+    if (opt.quick)
+      evtArgs.insert(evtArgs.end(),
+                     {"--frames", "2", "--levels", "50/all", "--cycles", "2", "--pcg-caps", "30"});
+    else
+      evtArgs.insert(evtArgs.end(), {"--levels", "50/all,256/all"});
+    runPart(evt, runReportCommand, evtArgs, logs / "error_vs_time.log");
 
-  // bench multigrid: the thesis's chapter-6 bodies (4k to 160k tets), a fixed list.
-  std::vector<std::string> benchArgs{"bench", "multigrid", "--frames", opt.quick ? "2" : "10"};
-  if (opt.quick) benchArgs.insert(benchArgs.end(), {"--only", "hinged beam", "--threads", "1"});
-  runPart(bench, runBenchCommand, benchArgs, out / "bench_multigrid.csv");
+    // bench multigrid: the thesis's chapter-6 bodies (4k to 160k tets), a fixed list.
+    std::vector<std::string> benchArgs{"bench", "multigrid", "--frames", opt.quick ? "2" : "10"};
+    if (opt.quick) benchArgs.insert(benchArgs.end(), {"--only", "hinged beam", "--threads", "1"});
+    runPart(bench, runBenchCommand, benchArgs, out / "bench_multigrid.csv");
 
-  std::string looked;
-  const std::string stabBin = findStabilityBinary(opt, looked);
-  if (stabBin.empty()) {
-    stab.note = "gf_stability_tests was not found (looked for " + looked +
-                "); build it with `cmake --build --preset release --target gf_stability_tests` or "
-                "name it with --stability-bin";
-  } else {
-    stab.command = std::string(opt.quick ? "" : "GF_FULL_VALIDATION=1 ") +
-                   "GF_STABILITY_CSV=" + (out / "stability.csv").string() + " " + stabBin;
-    std::printf("report all: %s ...\n", stab.command.c_str());
-    std::fflush(stdout);
-    const auto ts = std::chrono::steady_clock::now();
-    std::string error;
-    stab.exit =
-        runStability(stabBin, out / "stability.csv", logs / "stability.log", !opt.quick, error);
-    stab.seconds = secondsSince(ts);
-    if (stab.exit < 0)
-      stab.note = error;
-    else if (stab.exit != 0)
-      stab.note = "a run failed: " + (logs / "stability.log").string();
-    std::printf("report all:   exit %d after %.1f s\n", stab.exit, stab.seconds);
-  }
+    std::string looked;
+    const std::string stabBin = findStabilityBinary(opt, looked);
+    if (stabBin.empty()) {
+      stab.note =
+          "gf_stability_tests was not found (looked for " + looked +
+          "); build it with `cmake --build --preset release --target gf_stability_tests` or "
+          "name it with --stability-bin";
+    } else {
+      stab.command = std::string(opt.quick ? "" : "GF_FULL_VALIDATION=1 ") +
+                     "GF_STABILITY_CSV=" + (out / "stability.csv").string() + " " + stabBin;
+      std::printf("report all: %s ...\n", stab.command.c_str());
+      std::fflush(stdout);
+      const auto ts = std::chrono::steady_clock::now();
+      std::string error;
+      stab.exit =
+          runStability(stabBin, out / "stability.csv", logs / "stability.log", !opt.quick, error);
+      stab.seconds = secondsSince(ts);
+      if (stab.exit < 0)
+        stab.note = error;
+      else if (stab.exit != 0)
+        stab.note = "a run failed: " + (logs / "stability.log").string();
+      std::printf("report all:   exit %d after %.1f s\n", stab.exit, stab.seconds);
+    }
 
-  if (opt.quick && !kHasBullet) {
-    peer.note =
-        "this graphfrac was built without Bullet's soft bodies, and --quick skips the "
-        "comparison then";
-  } else {
-    // The quick form: the smallest meshes and a quarter second per run, sweep included.
-    std::vector<std::string> peerArgs{"bench", "peer"};
-    if (opt.quick) peerArgs.insert(peerArgs.end(), {"--cells", "1", "--seconds", "0.25"});
-    runPart(peer, runBenchCommand, peerArgs, out / "peer.csv");
-  }
+    if (opt.quick && !kHasBullet) {
+      peer.note =
+          "this graphfrac was built without Bullet's soft bodies, and --quick skips the "
+          "comparison then";
+    } else {
+      // The quick form: the smallest meshes and a quarter second per run, sweep included.
+      std::vector<std::string> peerArgs{"bench", "peer"};
+      if (opt.quick) peerArgs.insert(peerArgs.end(), {"--cells", "1", "--seconds", "0.25"});
+      runPart(peer, runBenchCommand, peerArgs, out / "peer.csv");
+    }
+  }  // all parts
   const double seconds = secondsSince(t0);
 
   std::map<std::string, std::string> regions;
   std::vector<Part> parts{lab, evt, bench, stab, peer};
-  regions["header"] = headerRegion(opt, parts, commandLine(selfArgs), seconds);
-  regions["thesis"] = thesisRegion(opt, out, evtDir);
+  // --only: the header and the thesis's table describe a full run (the latter reads every
+  // part's files), and the other parts' regions stay as they are.
+  if (all) regions["header"] = headerRegion(opt, parts, commandLine(selfArgs), seconds);
+  if (all) regions["thesis"] = thesisRegion(opt, out, evtDir);
   regions["lab-brazilian"] = labBrazilianRegion(out / "lab", resultsDir, lab);
   regions["lab-charpy"] = labImpactRegion(out / "lab", resultsDir, lab, "charpy", stopMm);
   regions["lab-izod"] = labImpactRegion(out / "lab", resultsDir, lab, "izod", stopMm);
   regions["lab-acceptance"] = labAcceptanceRegion(out / "lab", lab);
-  regions["error-vs-time"] = errorVsTimeRegion(evtDir, resultsDir, evt);
-  regions["bench"] =
-      benchRegion(out / "bench_multigrid.csv", out / "bench_multigrid.svg", resultsDir, bench);
-  regions["stability"] = stabilityRegion(out / "stability.csv", stab);
-  regions["peer-time"] = peerRegion(out / "peer.csv", peer, false);
-  regions["peer-range"] = peerRegion(out / "peer.csv", peer, true);
+  if (all) {
+    regions["error-vs-time"] = errorVsTimeRegion(evtDir, resultsDir, evt);
+    regions["bench"] =
+        benchRegion(out / "bench_multigrid.csv", out / "bench_multigrid.svg", resultsDir, bench);
+    regions["stability"] = stabilityRegion(out / "stability.csv", stab);
+    regions["peer-time"] = peerRegion(out / "peer.csv", peer, false);
+    regions["peer-range"] = peerRegion(out / "peer.csv", peer, true);
+  }
 
   // The page again: it may have been edited during a long run; its markers are checked again.
   Result<std::string> now = readFile(opt.results);
@@ -1119,6 +1165,7 @@ int reportAll(int argc, char** argv) {
   // normal outcome. The Bullet comparison is left out of --quick on purpose without Bullet.
   for (size_t i = 0; i < parts.size(); ++i) {
     const Part& p = parts[i];
+    if (!all && i > 0) continue;  // --only lab: the others were not asked for
     if (p.exit == kExitOk || (&p == &parts[1] && p.exit == kExitFlagged) ||
         (&p == &parts[4] && p.exit < 0))
       continue;

@@ -333,13 +333,17 @@ Result<ImpactResult> runImpact(const scene::Scene& sc, const ImpactSetup& setup)
       r.peakLoad = load;
       r.displacementAtPeak = disp;
     }
-    if (r.displacementAtFracture < 0 && !world.fractureEvents().empty() && ligamentCut() >= 0.9) {
-      r.displacementAtFracture = disp;
-      r.energyToFracture = 0.5 * setup.strikerMass * (glm::dot(v0, v0) - glm::dot(v, v));
-    }
-    if (r.displacementAtSplit < 0 && r.displacementAtFracture >= 0) {
+    // Fragments change only when edges break.
+    if (r.displacementAtSplit < 0 && !world.fractureEvents().empty()) {
       const std::vector<double> shares = fragmentShares(world.nodeFragments(id));
       if (shares.size() > 1 && shares[1] >= kSplitShare) r.displacementAtSplit = disp;
+    }
+    // A bar in two pieces is cut through whatever share of the two planes' edges broke: a
+    // crack plane may step from one side of the notch's node column to the other.
+    if (r.displacementAtFracture < 0 && !world.fractureEvents().empty() &&
+        (ligamentCut() >= 0.9 || r.displacementAtSplit >= 0)) {
+      r.displacementAtFracture = disp;
+      r.energyToFracture = 0.5 * setup.strikerMass * (glm::dot(v0, v0) - glm::dot(v, v));
     }
     // Done: the striker went its distance or stopped, or it has thrown the halves (it is given
     // another half millimetre to do so, which the absorbed energy includes).

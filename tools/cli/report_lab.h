@@ -80,7 +80,8 @@ struct ImpactResult {
   double strikerSpeed = 0;        ///< Initial [m/s].
   double peakLoad = 0;            ///< Largest load before the fracture [N].
   double displacementAtPeak = 0;  ///< Striker travel since contact at the peak [m].
-  /// Striker travel when 90 % of the ligament's edges were broken (-1: never) [m].
+  /// Striker travel when 90 % of the ligament's edges were broken or the bar split, whichever
+  /// came first (-1: never) [m].
   double displacementAtFracture = -1;
   double energyToFracture = -1;        ///< Striker kinetic energy lost by then [J] (-1: never).
   double displacementAtSplit = -1;     ///< Striker travel when the bar fell in two (-1: never) [m].
