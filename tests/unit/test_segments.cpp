@@ -1,11 +1,14 @@
-// The segmented reduction (step/segments.h) behind the free pieces' sums and the compaction
-// behind the fracture criterion's candidate list (fracture/fracture_stages.h): same bits for
-// any thread count, and each segment summed exactly as the executor sums an array.
+// The segmented reduction (step/segments.h) behind the free pieces' sums, the lists it runs over
+// (built by stages, against a plain counting sort) and the compaction behind the fracture
+// criterion's candidate list (fracture/fracture_stages.h): same bits for any thread count, and
+// each segment summed exactly as the executor sums an array.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "fracture/fracture_stages.h"
@@ -47,7 +50,8 @@ TEST(SegmentedReduce, EachSegmentSumsLikeTheExecutorAndBitsDoNotDependOnThreads)
   }
   key[4321] = 1;
   SegmentLists lists;
-  lists.build(key.data(), items, segments);
+  ScanScratch scratch;
+  lists.build(CpuExecutor(serialJobs()), key.data(), items, segments, scratch);
   const std::vector<double> values = randomValues(size_t(components) * items, 3);
 
   ThreadPoolJobSystem one(1), four(4);
@@ -72,10 +76,85 @@ TEST(SegmentedReduce, OneSegmentIsTheExecutorsSum) {
   const int32_t items = 5000;
   const std::vector<double> values = randomValues(items, 11);
   SegmentLists lists;
-  lists.build(nullptr, items, 1);
+  ScanScratch scratch;
+  lists.build(CpuExecutor(serialJobs()), nullptr, items, 1, scratch);
   ThreadPoolJobSystem four(4);
   const double expect = CpuExecutor(four).sum(values.data(), items);
   EXPECT_EQ(segmentedSums(four, lists, values, items, 1)[0], expect);
+}
+
+// The lists as a plain counting sort builds them: each segment's items in index order, its
+// chunks, and the chunks mapped back (the serial code the stages replaced).
+struct CountingSortLists {
+  std::vector<int32_t> start, order, chunkStart, chunkSegment;
+};
+
+CountingSortLists countingSort(const std::vector<int32_t>& key, int32_t segments) {
+  CountingSortLists c;
+  std::vector<std::vector<int32_t>> bucket(static_cast<size_t>(segments));
+  for (int32_t i = 0; i < int32_t(key.size()); ++i) bucket[size_t(key[size_t(i)])].push_back(i);
+  c.start.push_back(0);
+  c.chunkStart.push_back(0);
+  for (int32_t s = 0; s < segments; ++s) {
+    const auto& b = bucket[size_t(s)];
+    c.order.insert(c.order.end(), b.begin(), b.end());
+    c.start.push_back(int32_t(c.order.size()));
+    const int32_t chunks = (int32_t(b.size()) + kSumChunk - 1) / kSumChunk;
+    c.chunkStart.push_back(c.chunkStart.back() + chunks);
+    c.chunkSegment.insert(c.chunkSegment.end(), size_t(chunks), s);
+  }
+  return c;
+}
+
+void expectLists(const Segments& v, const CountingSortLists& c, bool identity, const char* what) {
+  ASSERT_EQ(v.count + 1, int32_t(c.start.size())) << what;
+  ASSERT_EQ(v.chunks, int32_t(c.chunkSegment.size())) << what;
+  EXPECT_EQ(std::vector<int32_t>(v.start, v.start + v.count + 1), c.start) << what;
+  EXPECT_EQ(std::vector<int32_t>(v.chunkStart, v.chunkStart + v.count + 1), c.chunkStart) << what;
+  EXPECT_EQ(std::vector<int32_t>(v.chunkSegment, v.chunkSegment + v.chunks), c.chunkSegment)
+      << what;
+  if (identity)
+    EXPECT_EQ(v.order, nullptr) << what;
+  else
+    EXPECT_EQ(std::vector<int32_t>(v.order, v.order + c.order.size()), c.order) << what;
+}
+
+TEST(SegmentLists, StagesGroupLikeACountingSortOnAnyThreadCount) {
+  // Segment counts that take no radix pass (1), one (2, 200), two (1000) and three (70000),
+  // with empty segments (more segments than items in the last cases) and skewed keys.
+  struct Case {
+    int32_t items, segments;
+  };
+  std::mt19937 rng(17);
+  ThreadPoolJobSystem one(1), two(2), four(4);
+  for (const Case& k : {Case{5000, 1}, Case{3000, 2}, Case{20000, 200}, Case{7001, 1000},
+                        Case{40000, 70000}, Case{0, 3}, Case{1, 4}}) {
+    std::vector<int32_t> key(size_t(k.items));
+    for (int32_t& x : key) {
+      const uint32_t r = rng();
+      // Half the items in a few large segments, the rest spread over all of them.
+      x = int32_t(r % 2 ? (r >> 1) % uint32_t(std::min(k.segments, 3))
+                        : (r >> 1) % uint32_t(k.segments));
+    }
+    const CountingSortLists truth = countingSort(key, k.segments);
+    const std::string what =
+        std::to_string(k.items) + " items, " + std::to_string(k.segments) + " segments";
+    for (JobSystem* jobs : {static_cast<JobSystem*>(&one), static_cast<JobSystem*>(&two),
+                            static_cast<JobSystem*>(&four)}) {
+      SegmentLists lists;
+      ScanScratch scratch;
+      lists.build(CpuExecutor(*jobs), key.data(), k.items, k.segments, scratch);
+      expectLists(lists.view(), truth, false, what.c_str());
+      // Rebuilt with the same scratch (a later split): the same lists again.
+      lists.build(CpuExecutor(*jobs), key.data(), k.items, k.segments, scratch);
+      expectLists(lists.view(), truth, false, what.c_str());
+    }
+  }
+  // No keys: one segment of every item in index order.
+  SegmentLists lists;
+  ScanScratch scratch;
+  lists.build(CpuExecutor(serialJobs()), nullptr, 3000, 1, scratch);
+  expectLists(lists.view(), countingSort(std::vector<int32_t>(3000, 0), 1), true, "no keys");
 }
 
 TEST(Compaction, ListsTheFlaggedIndicesInOrder) {

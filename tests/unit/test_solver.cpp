@@ -230,7 +230,7 @@ TEST(BlockSparse, GatherMatchesNaiveScatterAndSpmvMatchesDense) {
   const Eigen::VectorXd yRef = 3 * ref * Eigen::VectorXd::Map(x.data(), x.size());
   EXPECT_LE(relError(y, yRef), 1e-14);
 
-  s.A.setZero();
+  s.A.setZero(jobs);
   for (double v : s.A.values) ASSERT_EQ(v, 0.0);
 }
 
@@ -644,7 +644,7 @@ TEST(Solvers, DISABLED_SolverTiming) {
   const std::vector<double> ke = elasticElementMatrices(g, lambda, mu);
   for (int threads : {1, 2}) {
     gf::ThreadPoolJobSystem jobs(threads);
-    A.setZero();
+    A.setZero(jobs);
     auto t0 = Clock::now();
     gf::detail::gatherElementBlocks(gather, ke.data(), 1.0, A, jobs);
     const double tGather = std::chrono::duration<double>(Clock::now() - t0).count();

@@ -130,9 +130,13 @@ void ContactSurface::update(const FemModel& model, const int32_t* nodeFragment,
   std::vector<int32_t> vertexFragment;
   if (nodeFragment)
     for (int32_t n : m_vertices) vertexFragment.push_back(nodeFragment[n]);
-  m_vertexSegments.build(nodeFragment ? vertexFragment.data() : nullptr, V,
-                         nodeFragment ? fragmentCount : 1);
-  m_nodeSegments.build(nodeFragment, model.nodeCount, nodeFragment ? fragmentCount : 1);
+  // Built when the fragments change, on the calling thread.
+  const CpuExecutor serial(serialJobs());
+  ScanScratch scratch;
+  m_vertexSegments.build(serial, nodeFragment ? vertexFragment.data() : nullptr, V,
+                         nodeFragment ? fragmentCount : 1, scratch);
+  m_nodeSegments.build(serial, nodeFragment, model.nodeCount, nodeFragment ? fragmentCount : 1,
+                       scratch);
 }
 
 int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyView> bodies,

@@ -7,10 +7,12 @@
 #include <span>
 #include <utility>
 
+#include "fem/piece_merge.h"
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
 #include "kernels/tet_inertia.h"
+#include "solver/vector_stages.h"
 #include "step/executor.h"
 #include "step/timing.h"
 
@@ -235,31 +237,7 @@ bool Integrator::enteredUnseenContact(const FemModel& model, const FemState& sta
   return CpuExecutor(jobs).reduce<MaxOp>(model.nodeCount, unseen) > 0;
 }
 
-int32_t Integrator::mergePiecesSharingTets(const FemModel& model, std::vector<int32_t>& pieceOf,
-                                           int32_t count) {
-  // Union-find over the pieces, each root the smallest id of its set, then the roots numbered
-  // in increasing order: the result depends on the partition only.
-  std::vector<int32_t> root(static_cast<size_t>(count));
-  for (int32_t p = 0; p < count; ++p) root[size_t(p)] = p;
-  auto find = [&root](int32_t p) {
-    while (root[size_t(p)] != p) p = root[size_t(p)] = root[size_t(root[size_t(p)])];
-    return p;
-  };
-  for (int32_t t = 0; t < model.tetCount; ++t)
-    for (int a = 1; a < 4; ++a) {
-      const int32_t p = find(pieceOf[size_t(model.tets[4 * size_t(t)])]);
-      const int32_t q = find(pieceOf[size_t(model.tets[4 * size_t(t) + a])]);
-      if (p != q) root[size_t(std::max(p, q))] = std::min(p, q);
-    }
-  std::vector<int32_t> number(static_cast<size_t>(count), -1);
-  int32_t merged = 0;
-  for (int32_t p = 0; p < count; ++p)
-    if (find(p) == p) number[size_t(p)] = merged++;
-  for (int32_t& p : pieceOf) p = number[size_t(find(p))];
-  return merged;
-}
-
-void Integrator::groupPieces(const FemModel& model) {
+void Integrator::groupPieces(const FemModel& model, const CpuExecutor& exec) {
   const size_t nn = size_t(model.nodeCount);
   const Fragments* fragments = m_fracture ? &m_fracture->fragments() : nullptr;
   if (fragments && fragments->nodeFragment().size() != nn) fragments = nullptr;
@@ -274,12 +252,23 @@ void Integrator::groupPieces(const FemModel& model) {
     // compression), so fragments that share a tet are one mechanical system: their forces on
     // each other have moments, and a frame per fragment whose angular momentum ignored them
     // gave them energy (up to 1e4 E0 in the stability suite). Such fragments turn as one piece.
-    if (m_fracture->damageModel() == kDamageProjection)
-      count = mergePiecesSharingTets(model, m_pieceOfNode, count);
-    m_pieceLists.build(m_pieceOfNode.data(), model.nodeCount, count);
+    if (m_fracture->damageModel() == kDamageProjection && count > 1) {
+      const size_t c = size_t(count), chunks = size_t(pieceMergeChunks(count));
+      for (auto* v : {&m_mergeLabel, &m_mergeNext}) v->resize(c);
+      m_mergeRootId.resize(c + 1);
+      m_mergeChanged.resize(c);
+      m_mergeChunkSum.resize(chunks);
+      m_mergeChunkOffset.resize(chunks + 1);
+      const PieceMergeScratch scratch{m_mergeLabel.data(),    m_mergeNext.data(),
+                                      m_mergeChanged.data(),  m_mergeRootId.data(),
+                                      m_mergeChunkSum.data(), m_mergeChunkOffset.data()};
+      count = mergePiecesSharingTets(exec, model.tets.data(), model.tetCount, m_pieceOfNode.data(),
+                                     model.nodeCount, count, scratch);
+    }
+    m_pieceLists.build(exec, m_pieceOfNode.data(), model.nodeCount, count, m_pieceScan);
   } else {
     m_pieceOfNode.assign(nn, 0);
-    m_pieceLists.build(nullptr, model.nodeCount, count);
+    m_pieceLists.build(exec, nullptr, model.nodeCount, count, m_pieceScan);
   }
   m_pieces.resize(size_t(count));
   m_pieceTerms.resize(kPieceSpinTerms * nn);
@@ -302,7 +291,7 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
   if (damped) m_dampRef = state.x;
   m_rigidPieces = model.solver.corotatedInertia;
   if (!m_rigidPieces) return;
-  groupPieces(model);
+  groupPieces(model, exec);
   // Per piece (a fragment, or the whole body): mass, centre, momentum, angular momentum and
   // inertia of its lumped nodes, each a per-node term summed per piece. A piece holding a
   // prescribed node moves as plain backward Euler says.
@@ -607,12 +596,12 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     t0 = Clock::now();
     if (it == 0 && r2 > 0) {
       if (m_dampK.n == 0) m_dampK = m_A;
-      m_dampK.setZero();
+      m_dampK.setZero(jobs);
       gatherElementBlocks(m_gather, m_elemHess.data(), 1.0, m_dampK, jobs);
       m_dampKValid = true;
       E += dampingTerm(state, m_dampRef.data(), m_x.data(), dt, true, jobs);
     }
-    m_A.setZero();
+    m_A.setZero(jobs);
     gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs);
     if (r2 > 0)
       exec.run(int32_t(m_A.values.size()), 4096,
@@ -635,7 +624,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       exec.run(n3i, kNodeGrain,
                FreeDifferenceStage{m_y.data(), m_x.data(), state.fixedNode.data(), m_dx.data()});
     else
-      std::fill(m_dx.begin(), m_dx.end(), 0.0);
+      exec.run(n3i, kNodeGrain, FillStage{0.0, m_dx.data()});
     // The iterative solvers stop at a residual relative to the right-hand side. Started on the
     // turned body, that is only the deformation's share, far below what the same motion gives
     // the plain step (its rhs holds the spin's momentum), and the same relative tolerance would

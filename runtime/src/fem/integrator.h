@@ -149,12 +149,9 @@ class Integrator {
   // fullDt is the whole step when the solve covers only ctx.dt, theta of it.
   void predictRigidMotion(const FemModel& model, const FemState& state, const StepContext& ctx,
                           double fullDt, JobSystem& jobs);
-  // Groups the nodes by the pieces of the step's start when the fragments changed.
-  void groupPieces(const FemModel& model);
-  // Joins the pieces (pieceOf: per node, ids below count) that share a tet; returns the new
-  // count, ids numbered by their smallest old id.
-  static int32_t mergePiecesSharingTets(const FemModel& model, std::vector<int32_t>& pieceOf,
-                                        int32_t count);
+  // Groups the nodes by the pieces of the step's start when the fragments changed (stages:
+  // fem/piece_merge.h, step/segments.h).
+  void groupPieces(const FemModel& model, const CpuExecutor& exec);
   // m_pieceSums = the first `components` arrays of m_pieceTerms summed per piece.
   void sumPerPiece(const FemModel& model, const CpuExecutor& exec, int components);
   // The end-of-step velocities of free pieces in that frame.
@@ -237,6 +234,11 @@ class Integrator {
   std::vector<RigidPiece> m_pieces;
   std::vector<int32_t> m_pieceOfNode;  // the piece of each node at the step's start
   SegmentLists m_pieceLists;           // the nodes grouped by piece
+  // Scratch of the piece grouping (fem/piece_merge.h, step/segments.h).
+  std::vector<int32_t> m_mergeLabel, m_mergeNext, m_mergeRootId, m_mergeChunkSum,
+      m_mergeChunkOffset;
+  std::vector<double> m_mergeChanged;
+  ScanScratch m_pieceScan;
   static constexpr uint64_t kNoPieces = ~uint64_t(0);
   uint64_t m_piecesKey = kNoPieces;  // the fragments' version m_pieceLists belongs to
   std::vector<double> m_pieceTerms;  // per-node terms of the piece sums, kPieceSpinTerms arrays

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 
+#include "solver/vector_stages.h"
 #include "step/executor.h"
 
 namespace gf::detail {
@@ -63,7 +64,9 @@ int32_t BlockSparseMatrix::find(int32_t r, int32_t c) const {
   return (it != last && *it == c) ? static_cast<int32_t>(it - col.data()) : -1;
 }
 
-void BlockSparseMatrix::setZero() { std::fill(values.begin(), values.end(), 0.0); }
+void BlockSparseMatrix::setZero(JobSystem& jobs) {
+  CpuExecutor(jobs).run(int32_t(values.size()), 4096, FillStage{0.0, values.data()});
+}
 
 void BlockSparseMatrix::multiply(const double* x, double* y, JobSystem& jobs) const {
   CpuExecutor(jobs).run(n, kRowGrain, SpmvStage{view(), x, y});

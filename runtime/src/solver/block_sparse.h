@@ -47,8 +47,8 @@ struct BlockSparseMatrix {
   const double* block(int32_t k) const { return values.data() + 9 * static_cast<size_t>(k); }
   /// The matrix as the stages read it (valid until the pattern or the values are reallocated).
   BlockMatrixView view() const { return {n, rowStart.data(), col.data(), values.data()}; }
-  /// Zeroes every value, keeping the pattern.
-  void setZero();
+  /// Zeroes every value, keeping the pattern (a stage: it runs every Newton iteration).
+  void setZero(JobSystem& jobs);
   /// y = A x over 3 n scalars; parallel over block rows. x and y must not alias.
   void multiply(const double* x, double* y, JobSystem& jobs) const;
 };

@@ -97,6 +97,7 @@ struct ScanScratch {
   std::vector<int32_t> chunkSum, chunkOffset, histogram;
   std::vector<uint64_t> keys;
   std::vector<int32_t> values;
+  std::vector<uint64_t> sortKeys;  // a sort's own keys (SegmentLists)
 };
 
 /// out[i] = counts[0] + ... + counts[i - 1] for i in [0, count] (out holds count + 1; it may be

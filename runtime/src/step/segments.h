@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "step/reduce.h"
+#include "step/scan.h"
 
 namespace gf::detail {
 
@@ -77,31 +78,85 @@ void segmentedReduce(const Exec& exec, const Segments& seg, const double* values
   exec.run(seg.count, 64, SegmentTotalStage<Op>{seg, partials, components, out});
 }
 
-/// The lists behind a Segments view, built on the host when the grouping changes (for the
-/// pieces of a body: only on steps where it split).
+/// Item i's key widened for the radix sort, with its index as the value it carries.
+struct SegmentKeyStage {
+  const int32_t* key = nullptr;
+  uint64_t* keys = nullptr;
+  int32_t* values = nullptr;
+
+  GF_HD void operator()(int32_t i) const {
+    keys[i] = uint64_t(uint32_t(key[i]));
+    values[i] = i;
+  }
+};
+
+/// Boundary j in [0, items] of the items sorted by key: start[s] = j for every segment s after
+/// the key before it and up to the key after it (keys -1 before the first item and `segments`
+/// after the last), so each of the segments + 1 starts is written once, empty segments
+/// included. sortedKeys null: every item in the last segment.
+struct SegmentStartStage {
+  const uint64_t* sortedKeys = nullptr;
+  int32_t items = 0, segments = 0;
+  int32_t* start = nullptr;  ///< segments + 1
+
+  GF_HD int32_t keyAt(int32_t j) const {
+    if (j < 0) return -1;
+    if (j >= items) return segments;
+    return sortedKeys ? int32_t(sortedKeys[j]) : segments - 1;
+  }
+  GF_HD void operator()(int32_t j) const {
+    const int32_t to = keyAt(j);
+    for (int32_t s = keyAt(j - 1) + 1; s <= to; ++s) start[s] = j;
+  }
+};
+
+/// Segment s's chunk count, scanned into the segments' first chunks.
+struct SegmentChunkCountStage {
+  const int32_t* start = nullptr;
+  int32_t* chunks = nullptr;
+  GF_HD void operator()(int32_t s) const { chunks[s] = sumChunks(start[s + 1] - start[s]); }
+};
+
+/// Segment s's chunks mapped back to it.
+struct SegmentChunkFillStage {
+  const int32_t* chunkStart = nullptr;
+  int32_t* chunkSegment = nullptr;
+  GF_HD void operator()(int32_t s) const {
+    for (int32_t c = chunkStart[s]; c < chunkStart[s + 1]; ++c) chunkSegment[c] = s;
+  }
+};
+
+/// The lists behind a Segments view, built on the executor when the grouping changes (for the
+/// pieces of a body: only on steps where it split): a stable radix sort of the items by key
+/// (step/scan.h), the segments' starts from the sorted keys, and a scan of their chunk counts.
 class SegmentLists {
  public:
   /// Items grouped by key[i] in 0..segments-1, in index order inside each; key null: one
-  /// segment of every item, in index order.
-  void build(const int32_t* key, int32_t items, int32_t segments) {
-    m_start.assign(size_t(segments) + 1, 0);
+  /// segment of every item, in index order. Every item keeps its index order inside its
+  /// segment (the sort is stable), so the lists depend on the keys only. Exec is CpuExecutor;
+  /// the lists are host vectors.
+  template <class Exec>
+  void build(const Exec& exec, const int32_t* key, int32_t items, int32_t segments,
+             ScanScratch& s) {
+    m_start.resize(size_t(segments) + 1);
     m_order.clear();
+    const uint64_t* sortedKeys = nullptr;
     if (key) {
-      for (int32_t i = 0; i < items; ++i) ++m_start[size_t(key[i]) + 1];
-      for (int32_t s = 0; s < segments; ++s) m_start[size_t(s) + 1] += m_start[size_t(s)];
+      s.sortKeys.resize(size_t(items));
       m_order.resize(size_t(items));
-      std::vector<int32_t> fill(m_start.begin(), m_start.end() - 1);
-      for (int32_t i = 0; i < items; ++i) m_order[size_t(fill[size_t(key[i])]++)] = i;
-    } else {
-      m_start.back() = items;
+      exec.run(items, 1024, SegmentKeyStage{key, s.sortKeys.data(), m_order.data()});
+      int bits = 0;
+      while (bits < 31 && (int64_t(1) << bits) < int64_t(segments)) ++bits;
+      radixSort(exec, s.sortKeys, m_order, bits, s);
+      sortedKeys = s.sortKeys.data();
     }
-    m_chunkStart.assign(size_t(segments) + 1, 0);
-    m_chunkSegment.clear();
-    for (int32_t s = 0; s < segments; ++s) {
-      const int32_t chunks = sumChunks(m_start[size_t(s) + 1] - m_start[size_t(s)]);
-      m_chunkStart[size_t(s) + 1] = m_chunkStart[size_t(s)] + chunks;
-      m_chunkSegment.insert(m_chunkSegment.end(), size_t(chunks), s);
-    }
+    exec.run(items + 1, 1024, SegmentStartStage{sortedKeys, items, segments, m_start.data()});
+    m_chunkStart.resize(size_t(segments) + 1);
+    exec.run(segments, 1024, SegmentChunkCountStage{m_start.data(), m_chunkStart.data()});
+    const int32_t chunks =
+        exclusiveScan(exec, m_chunkStart.data(), segments, m_chunkStart.data(), s);
+    m_chunkSegment.resize(size_t(chunks));
+    exec.run(segments, 64, SegmentChunkFillStage{m_chunkStart.data(), m_chunkSegment.data()});
   }
   Segments view() const {
     return {m_start.data(),

@@ -36,7 +36,7 @@ void Fragments::assign(const CpuExecutor& exec, const int32_t* nodes, int32_t co
                        FragmentScratch& s) {
   exec.run(count, 1024,
            FragmentAssignStage{nodes, s.label.data(), s.rootId.data(), m_nodeFragment.data()});
-  m_lists.build(m_nodeFragment.data(), int32_t(m_nodeFragment.size()), this->count());
+  m_lists.build(exec, m_nodeFragment.data(), int32_t(m_nodeFragment.size()), this->count(), s.scan);
   ++m_version;
 }
 

@@ -28,11 +28,12 @@
 //   edges back in reverse order finds every split and its two sides (each side named by its
 //   lowest node); walking those splits forwards gives each side that does not hold the lowest
 //   node the next id. This host pass costs O(batch), not O(nodes). Assigning the new ids
-//   touches only the relabelled nodes; the node lists are still rebuilt whole (O(nodes)) on a
-//   step that split.
-// - Node lists hold every fragment's nodes in increasing index order (SegmentLists, rebuilt
-//   when the partition changes), and the per-fragment sums are segmented reductions over them
-//   in step/segments.h's fixed order: same bits for any thread count.
+//   touches only the relabelled nodes; the node lists are still rebuilt whole (O(nodes), by
+//   the stages of step/segments.h) on a step that split.
+// - Node lists hold every fragment's nodes in increasing index order (SegmentLists: a stable
+//   radix sort by fragment on the executor, rebuilt when the partition changes), and the
+//   per-fragment sums are segmented reductions over them in step/segments.h's fixed order: same
+//   bits for any thread count.
 #pragma once
 
 #include <cstddef>
