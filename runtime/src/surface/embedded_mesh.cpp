@@ -238,6 +238,8 @@ uint32_t EmbeddedSurface::addCopy(int32_t source, int32_t tet, const double* w, 
   const int32_t* n = &m_rest->tets[4 * size_t(tet)];
   m_vTet.push_back(tet);
   m_vSource.push_back(source);
+  m_vSeparated.push_back(0);
+  m_vJunction.push_back(0);
   m_vWeight.insert(m_vWeight.end(), w, w + 4);
   m_vGroup.push_back(uint8_t(group));
   m_vNode.push_back(n[strongest(w, group)]);
@@ -315,6 +317,7 @@ uint32_t EmbeddedSurface::cutCopy(uint32_t u, uint32_t v, uint32_t side) {
                       s * double(b.uv[2 * size_t(hi) + size_t(c)]));
     const uint32_t cl = pointCopy(P, N, uv, lo);
     const uint32_t ch = pointCopy(P, N, uv, hi);
+    if (m_home[lo] != m_home[hi]) m_vSeparated[cl] = m_vSeparated[ch] = 1;
     found = m_cut.emplace(key, std::make_pair(cl, ch)).first;
   }
   return side == lo ? found->second.first : found->second.second;
@@ -422,6 +425,8 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   m_frameNodes.clear();
   m_vTet.clear();
   m_vSource.clear();
+  m_vSeparated.clear();
+  m_vJunction.clear();
   m_vWeight.clear();
   m_vRest.clear();
   m_vRestNormal.clear();
@@ -483,6 +488,10 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
         const int j = (i + 1) % 3, k = (i + 2) % 3;
         const uint32_t c1 = cutCopy(id[i], id[j], id[i]), c2 = cutCopy(id[k], id[i], id[i]);
         const uint32_t m = pointCopy(P, N, uv, id[i]), h = homeCopy(id[i]);
+        // Three fragments meet here: the caps are split at this point (below).
+        if (m_home[id[0]] != m_home[id[1]] && m_home[id[1]] != m_home[id[2]] &&
+            m_home[id[2]] != m_home[id[0]])
+          m_vJunction[m] = 1;
         emit(h, c1, m);
         emit(h, m, c2);
         rim(c1, m);
@@ -493,7 +502,10 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
 
   // The rim segments split into cycles, each capped; a walk that returns to a vertex already on
   // it closes a cycle there, so a vertex on two cycles (two crack ends in its star) gets two
-  // caps. Chains that end (an open mesh's holes) stay open.
+  // caps. A cut that runs into a hole of an open render mesh is a chain from one cut point on
+  // the hole's rim to another: walked from its start (more segments leave than enter), it is
+  // capped like a cycle, so the fan's closing edge runs across the hole and the piece stays open
+  // only there, where the artist's mesh is.
   m_capStart.assign(1, 0);
   m_capRim.clear();
   m_openCuts = 0;
@@ -505,43 +517,98 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   std::vector<int32_t>& nextOut = m_nextOut;
   std::vector<int32_t>& onPath = m_onPath;
   std::vector<int32_t>& path = m_path;
+  std::vector<int32_t>& surplus = m_surplus;  // per copy: segments leaving minus entering
   outStart.assign(ncopy + 1, 0);
+  surplus.assign(ncopy, 0);
   out.resize(nseg);
-  for (const auto& sg : m_segments) ++outStart[sg.first + 1];
+  for (const auto& sg : m_segments) {
+    ++outStart[sg.first + 1];
+    ++surplus[sg.first];
+    --surplus[sg.second];
+  }
   for (size_t c = 0; c < ncopy; ++c) outStart[c + 1] += outStart[c];
   nextOut.assign(outStart.begin(), outStart.end() - 1);
   for (size_t g = 0; g < nseg; ++g) out[size_t(nextOut[m_segments[g].first]++)] = int32_t(g);
   nextOut.assign(outStart.begin(), outStart.end() - 1);  // per copy: its first unused segment
   onPath.assign(ncopy, -1);
-  for (size_t c = 0; c < ncopy; ++c) {
-    while (nextOut[c] < outStart[c + 1]) {
-      path.assign(1, int32_t(c));
-      onPath[c] = 0;
-      for (;;) {
-        const int32_t p = path.back();
-        if (nextOut[size_t(p)] == outStart[size_t(p) + 1]) {
-          // Stuck before closing: an open chain.
-          ++m_openCuts;
-          break;
-        }
-        const int32_t q = int32_t(m_segments[size_t(out[size_t(nextOut[size_t(p)]++)])].second);
-        if (onPath[size_t(q)] < 0) {
-          onPath[size_t(q)] = int32_t(path.size());
-          path.push_back(q);
-          continue;
-        }
-        // Back at q: path[onPath[q]..] is a cycle.
-        const size_t from = size_t(onPath[size_t(q)]);
-        for (size_t k = from; k < path.size(); ++k) {
-          m_capRim.push_back(path[k]);
-          if (k > from) onPath[size_t(path[k])] = -1;
-        }
-        m_capStart.push_back(int32_t(m_capRim.size()));
-        path.resize(from + 1);
-        if (from == 0 && nextOut[size_t(q)] == outStart[size_t(q) + 1]) break;
-      }
-      for (int32_t p : path) onPath[size_t(p)] = -1;
+  auto cap = [&](size_t from) {
+    for (size_t k = from; k < path.size(); ++k) {
+      m_capRim.push_back(path[k]);
+      if (k > from) onPath[size_t(path[k])] = -1;
     }
+    m_capStart.push_back(int32_t(m_capRim.size()));
+  };
+  auto walk = [&](size_t c) {
+    path.assign(1, int32_t(c));
+    onPath[c] = 0;
+    for (;;) {
+      const int32_t p = path.back();
+      if (nextOut[size_t(p)] == outStart[size_t(p) + 1]) {
+        // Stuck: the end of a chain (chain starts are walked first, so this is all of it). A
+        // chain of one segment encloses nothing and is left open.
+        ++m_openCuts;
+        if (path.size() >= 3) {
+          onPath[size_t(path[0])] = -1;
+          cap(0);
+          path.resize(1);
+        }
+        break;
+      }
+      const int32_t q = int32_t(m_segments[size_t(out[size_t(nextOut[size_t(p)]++)])].second);
+      if (onPath[size_t(q)] < 0) {
+        onPath[size_t(q)] = int32_t(path.size());
+        path.push_back(q);
+        continue;
+      }
+      // Back at q: path[onPath[q]..] is a cycle.
+      const size_t from = size_t(onPath[size_t(q)]);
+      cap(from);
+      path.resize(from + 1);
+      if (from == 0 && nextOut[size_t(q)] == outStart[size_t(q) + 1]) break;
+    }
+    for (int32_t p : path) onPath[size_t(p)] = -1;
+  };
+  for (size_t c = 0; c < ncopy; ++c)
+    while (surplus[c] > 0 && nextOut[c] < outStart[c + 1]) {
+      --surplus[c];
+      walk(c);
+    }
+  for (size_t c = 0; c < ncopy; ++c)
+    while (nextOut[c] < outStart[c + 1]) walk(c);
+
+  // Junctions. A cycle through points where three fragments meet (the centroids of render
+  // triangles with three labels) is split there: each run between two such points, closed by
+  // the chord between them, is a cap of its own, centred on the run's cut points, which the
+  // neighbour across the run shares, so neighbouring caps are the same fan reversed; with two
+  // junction points the two chords cancel (the three fragments' chords all lie on the triple
+  // line), with more a last cap closes the polygon of the junction points.
+  {
+    std::vector<int32_t> start, rim;
+    start.push_back(0);
+    const size_t ncap = m_capStart.size() - 1;
+    for (size_t c = 0; c < ncap; ++c) {
+      const int32_t b = m_capStart[c], e = m_capStart[c + 1];
+      std::vector<int32_t> at;
+      for (int32_t k = b; k < e; ++k)
+        if (m_vJunction[size_t(m_capRim[size_t(k)])]) at.push_back(k - b);
+      const int32_t n = e - b;
+      if (at.size() < 2) {
+        rim.insert(rim.end(), m_capRim.begin() + b, m_capRim.begin() + e);
+        start.push_back(int32_t(rim.size()));
+        continue;
+      }
+      for (size_t j = 0; j < at.size(); ++j) {
+        const int32_t from = at[j], to = j + 1 < at.size() ? at[j + 1] : at[0] + n;
+        for (int32_t k = from; k <= to; ++k) rim.push_back(m_capRim[size_t(b + k % n)]);
+        start.push_back(int32_t(rim.size()));
+      }
+      if (at.size() >= 3) {
+        for (int32_t k : at) rim.push_back(m_capRim[size_t(b + k)]);
+        start.push_back(int32_t(rim.size()));
+      }
+    }
+    m_capStart.swap(start);
+    m_capRim.swap(rim);
   }
 
   // Fragments without a render vertex: drawn with their tet faces when inside the render mesh.
@@ -632,8 +699,8 @@ void EmbeddedSurface::update(const double* x, const CrackSurface& crack, JobSyst
                                m_vRestNormal.data(), crack.nodeFrame().data(),
                                crack.frameMaps().data(), m_positions.data(), m_normals.data()});
   exec.run(ncap, 64,
-           CapCenterStage{m_capStart.data(), m_capRim.data(), m_vSource.data(), ne,
-                          m_positions.data(), m_normals.data()});
+           CapCenterStage{m_capStart.data(), m_capRim.data(), m_vSource.data(), m_vSeparated.data(),
+                          ne, m_positions.data(), m_normals.data()});
   const size_t off = 3 * size_t(ne + ncap);
   exec.run(nc, 512,
            GatherVec3Stage{crack.positionsDouble().data(), m_crackFrom.data(),
