@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <deque>
 #include <ostream>
@@ -208,6 +209,7 @@ struct StackCase {
   double gap = 0.02;     // each box starts this far above the one below [m]
   double friction = -1;  // every box's BodyDef::friction; negative: the default
   double perturb = 0;    // the top box's start moved sideways by this fraction of its offset
+  int sweeps = 1;        // WorldDef::contactSweeps
 };
 struct StackResult {
   double landing = 0, rest = 0, firstRest = 0, lastRest = 0;  // deepest node [m]
@@ -226,6 +228,7 @@ StackResult runStack(const StackCase& c) {
   Collider ground;  // y = 0
   ground.friction = 0.5;
   wd.colliders.push_back(ground);
+  wd.contactSweeps = c.sweeps;
   World world(wd);
   std::vector<BodyDef> defs(c.boxes.size());
   std::vector<BodyId> ids;
@@ -371,7 +374,7 @@ auto stackName = [](const ::testing::TestParamInfo<StackCase>& i) {
 // the normal contact, its lagged planes and the exchange are not chaotic); the frictional family
 // below still is (docs/validation.md, "Body-body and self contact": the lagged body-body
 // friction during the post-impact chatter multiplies a 1e-16 m asymmetry to a slide off).
-std::vector<StackCase> perturbedStackCases(double friction) {
+std::vector<StackCase> perturbedStackCases(double friction, int sweeps = 1) {
   const StackBox box{};
   std::vector<StackCase> out;
   struct Drop {
@@ -386,7 +389,7 @@ std::vector<StackCase> perturbedStackCases(double friction) {
   for (const Drop& d : drops)
     for (double e : {1e-15, 1e-12}) {
       names.push_back(std::string("dropped_") + d.name + (e > 1e-14 ? "_shift1e12" : "_shift1e15"));
-      out.push_back({names.back().c_str(), {box, box}, d.dt, d.gap, friction, e});
+      out.push_back({names.back().c_str(), {box, box}, d.dt, d.gap, friction, e, sweeps});
     }
   return out;
 }
@@ -398,11 +401,55 @@ INSTANTIATE_TEST_SUITE_P(Family, BodyContactStack, ::testing::ValuesIn(stackCase
 INSTANTIATE_TEST_SUITE_P(DISABLED_Failing, BodyContactStack,
                          ::testing::ValuesIn(failingStackCases()), stackName);
 
+// The same stacks with the bodies that touch stepped up to four times per step, each against
+// the others' latest end-of-step positions (WorldDef::contactSweeps, docs/design.md, Contact).
+// These failed with one sweep (DISABLED_Failing, DISABLED_PerturbedFriction: the same scenes).
+// The 120 Hz ones take 20-50 s each, so they run only with GF_FULL_VALIDATION=1.
+std::vector<StackCase> sweptStackCases() {
+  const StackBox box{}, soft{0.2, 4, 2e5}, stiff{0.2, 4, 1e6}, small{0.1, 4, 2e5};
+  std::vector<StackCase> out = {
+      {"two_equal_small_60", {small, small}, 1.0 / 60, 0.01},
+      {"three_equal_small_60", {small, small, small}, 1.0 / 60, 0.01},
+      {"three_equal_60", {box, box, box}, 1.0 / 60, 0.02},
+      {"dropped_30cm_60", {box, box}, 1.0 / 60, 0.3},
+  };
+  if (std::getenv("GF_FULL_VALIDATION")) {
+    out.push_back({"three_equal_120", {box, box, box}, 1.0 / 120, 0.02});
+    out.push_back({"dropped_30cm_three_120", {box, soft, stiff}, 1.0 / 120, 0.3});
+  }
+  for (StackCase& c : out) c.sweeps = 4;
+  // The frictional drops whose outcome a last-bit shift decided with one sweep.
+  for (const StackCase& c : perturbedStackCases(-1, 4))
+    if (std::string(c.name).find("_60_") != std::string::npos &&
+        std::string(c.name).find("10cm") == std::string::npos)
+      out.push_back(c);
+  return out;
+}
+// Still failing with sweeps (docs/validation.md): four boxes fall through while landing; the
+// mixed-size stacks keep a phantom velocity of 0.03-0.05 m/s from the exchange (action and
+// reaction of the converged half-spaces differ by ~50 N there, which the exchange takes off the
+// cluster as a velocity and the ground takes back each step).
+std::vector<StackCase> sweptFailingStackCases() {
+  const StackBox box{}, soft{0.2, 4, 2e5}, stiff{0.2, 4, 1e6};
+  std::vector<StackCase> out = {
+      {"four_equal_60", {box, box, box, box}, 1.0 / 60, 0.02},
+      {"sizes_stiffness_60", {{0.25, 5, 1e6}, soft, {0.15, 3, 5e5}}, 1.0 / 60, 0.02},
+      {"sizes_stiffness_120", {stiff, {0.15, 3, 2e5}, {0.1, 2, 1e6}}, 1.0 / 120, 0.02},
+  };
+  for (StackCase& c : out) c.sweeps = 4;
+  return out;
+}
+INSTANTIATE_TEST_SUITE_P(Swept, BodyContactStack, ::testing::ValuesIn(sweptStackCases()),
+                         stackName);
+INSTANTIATE_TEST_SUITE_P(DISABLED_SweptFailing, BodyContactStack,
+                         ::testing::ValuesIn(sweptFailingStackCases()), stackName);
+
 // Two free bodies of different sizes and meshes meet head-on without gravity: the total
 // linear momentum stays what it was to 1e-6 of its scale, the mechanical energy never rises,
 // the bodies part again in the right order, and momentum changed hands.
-TEST(BodyContact, HeadOnCollisionConservesMomentumAndLosesEnergy) {
+void headOnCollision(int sweeps) {
   WorldDef wd{glm::vec3(0, 0, 0), Backend::Cpu, nullptr, 1, {}};
+  wd.contactSweeps = sweeps;
   World world(wd);
   BodyDef left, right;
   left.mesh = movedBox(0.2, 0.2, 0.2, 4, 4, 4, {0, 0, 0});
@@ -435,9 +482,10 @@ TEST(BodyContact, HeadOnCollisionConservesMomentumAndLosesEnergy) {
   const double va = world.stats(a).linearMomentum.x / world.stats(a).mass;
   const double vb = world.stats(b).linearMomentum.x / world.stats(b).mass;
   std::printf(
-      "head-on: %lld pairs; momentum error %.3g of |p1| + |p2|; energy %.4f J -> max %.4f J, "
+      "head-on, %d sweeps: %lld pairs; momentum error %.3g of |p1| + |p2|; energy %.4f J -> max "
+      "%.4f J, "
       "end %.4f J; velocities 2, -1 -> %.3f, %.3f m/s\n",
-      (long long)pairs, worstMomentum, e0, maxEnergy, energy(), va, vb);
+      sweeps, (long long)pairs, worstMomentum, e0, maxEnergy, energy(), va, vb);
   EXPECT_GT(pairs, 0);
   EXPECT_LT(worstMomentum, 1e-6);
   EXPECT_LE(maxEnergy, e0 * (1 + 1e-9));
@@ -445,6 +493,10 @@ TEST(BodyContact, HeadOnCollisionConservesMomentumAndLosesEnergy) {
   const Part pa = wholeBody(a, left.mesh), pb = wholeBody(b, right.mesh);
   EXPECT_LT(deepestInside(world, left.mesh, pa, right.mesh, pb), 1e-3);
 }
+TEST(BodyContact, HeadOnCollisionConservesMomentumAndLosesEnergy) { headOnCollision(1); }
+// With sweeps the last sweep's half-spaces are against the others' previous iterate, not an
+// exact action-reaction pair either: the exchange must still make the momentum exact.
+TEST(BodyContact, HeadOnCollisionConservesMomentumAndLosesEnergyWithSweeps) { headOnCollision(4); }
 
 // A cube of `size` and `cells` a side, turned 45 degrees about `axis`, centred at `centre`.
 TetMesh turnedCube(double size, int cells, int axis, glm::dvec3 centre) {
@@ -718,8 +770,9 @@ TEST(BodyContact, FragmentsOfACutBodyDoNotPassThroughEachOther) {
 
 // The pair lists are built serially in slot and node order, so the contact step gives the same
 // bits for any thread count (tests/physics/test_determinism.cpp).
-std::vector<double> stackState(JobSystem* jobs) {
+std::vector<double> stackState(JobSystem* jobs, int sweeps = 1) {
   WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, jobs, 1, {}};
+  wd.contactSweeps = sweeps;
   wd.colliders.push_back(Collider{});
   World world(wd);
   BodyDef lower, upper;
@@ -753,6 +806,20 @@ TEST(BodyContact, SameBitsForAnyThreadCount) {
   ASSERT_EQ(serial.size(), two.size());
   EXPECT_EQ(0, std::memcmp(serial.data(), two.data(), serial.size() * sizeof(double)));
   EXPECT_EQ(0, std::memcmp(serial.data(), four.data(), serial.size() * sizeof(double)));
+}
+
+// The contact sweeps step the bodies again in the same partition (large bodies one after
+// another, small ones side by side) and judge convergence in slot and node order.
+TEST(BodyContact, SameBitsForAnyThreadCountWithSweeps) {
+  ThreadPoolJobSystem pool2(2), pool4(4);
+  const std::vector<double> serial = stackState(nullptr, 4);
+  const std::vector<double> two = stackState(&pool2, 4), four = stackState(&pool4, 4);
+  ASSERT_EQ(serial.size(), two.size());
+  EXPECT_EQ(0, std::memcmp(serial.data(), two.data(), serial.size() * sizeof(double)));
+  EXPECT_EQ(0, std::memcmp(serial.data(), four.data(), serial.size() * sizeof(double)));
+  // The sweeps ran: the state is not the single pass's.
+  const std::vector<double> once = stackState(nullptr, 1);
+  EXPECT_NE(0, std::memcmp(serial.data(), once.data(), serial.size() * sizeof(double)));
 }
 
 // Many groups at once: a cut body whose upper piece is thrown onto its lower one (self contact

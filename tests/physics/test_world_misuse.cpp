@@ -47,6 +47,8 @@ TEST(WorldMisuse, InvalidWorldDefRefusesToRun) {
     cases.push_back({field, d});
   };
   add("WorldDef.substeps", [](WorldDef& d) { d.substeps = 0; });
+  add("WorldDef.contactSweeps", [](WorldDef& d) { d.contactSweeps = 0; });
+  add("WorldDef.contactSweeps", [](WorldDef& d) { d.contactSweeps = 65; });
   add("WorldDef.gravity", [](WorldDef& d) { d.gravity.y = float(kInf); });
   add("WorldDef.backend", [](WorldDef& d) { d.backend = static_cast<Backend>(7); });
   add("WorldDef.colliders[1].stiffness", [](WorldDef& d) {

@@ -160,8 +160,9 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     ContactBody& t = m_table[si];
     t.faceBase = faces;
     if (!b.model) continue;
-    t.x = b.state->x.data();
-    t.v = b.state->v.data();
+    t.x = b.x ? b.x : b.state->x.data();
+    t.v = b.v ? b.v : b.state->v.data();
+    t.iterate = b.iterate;
     t.nodeMass = b.state->nodeMass.data();
     t.fixed = b.state->fixedNode.data();
     t.fragment = b.nodeFragment.empty() ? nullptr : b.nodeFragment.data();

@@ -73,6 +73,11 @@
 //   groups' free masses (each in node order) in group order: the serial order of the loop this
 //   replaced, whose bits a resting stack is sensitive to (BodyContactStack dropped_30cm_60 slid
 //   off its seat with the sums in the executor's chunked order).
+// - Sweeps (WorldDef::contactSweeps > 1). find() is called again with each body's substep start
+//   (ContactBodyView::x, v) and its latest end-of-step iterate (iterate): the pairs are chosen
+//   on the predictions as in the first pass (chosen at the iterates they toggled from sweep to
+//   sweep and let a landing box through), the planes, the give-way and friction's face motion
+//   are taken at the iterates, and the world steps the touching bodies again against them.
 #pragma once
 
 #include <array>
@@ -144,6 +149,11 @@ struct ContactBodyView {
   std::span<const int32_t> nodeFragment;  ///< empty: one fragment
   int32_t fragmentCount = 1;
   const uint8_t* excluded = nullptr;  ///< per fragment: handed to rigid physics
+  /// Null: the state's x and v; else the substep's start (World's sweeps over the bodies that
+  /// touch, whose states then hold the latest iterate of the end).
+  const double* x = nullptr;
+  const double* v = nullptr;
+  const double* iterate = nullptr;  ///< null: none (ContactBody::iterate)
 };
 
 /// The world's body-body and self contact: per substep, the half-spaces of every body's

@@ -121,11 +121,16 @@ struct ContactBody {
   const int32_t* faces = nullptr;       ///< 3 per contact face
   const int32_t* neighbours = nullptr;  ///< 3 per contact face (ContactSurface::neighbours)
   const int32_t* vertices = nullptr;    ///< the surface vertices, ascending
+  /// Null, or the latest iterate of the step's end positions (World's contact sweeps): the
+  /// pairs are still chosen on x_n + dt v_n, their planes are taken at the iterates.
+  const double* iterate = nullptr;
   double density = 0, cellSize = 0, friction = 0;
   int32_t groupBase = -1, faceBase = 0, faceCount = 0, vertexCount = 0, nodeCount = 0;
 
   GF_HD int32_t group(int32_t n) const { return groupBase + (fragment ? fragment[n] : 0); }
   GF_HD double thickness() const { return kContactThickness * cellSize; }
+  /// Node n where the planes are taken: the iterate, else the prediction p.
+  GF_HD Vec3 planeAt(int32_t n, Vec3 p) const { return iterate ? contactLoad3(iterate, n) : p; }
 };
 
 /// Mass per unit surface area [kg/m^2] that scales a pair's penalty (design note): the denser
@@ -459,29 +464,45 @@ struct ContactVertexPairStage {
         // Surfaces in contact face each other: a vertex on the rim of a face's side (a corner
         // resting on the other's top face) is not pushed out through the side.
         if (!(dot(vn, nq) < 0)) return;
+        // The sweeps' planes: the same pair, at the two sides' latest iterates.
+        Vec3 wi = w, cqi = cq, nqi = nq, pvi = pv;
+        if (b.iterate || o->iterate) {
+          Vec3 qi[3];
+          for (int k = 0; k < 3; ++k) qi[k] = o->planeAt(face[k], q[k]);
+          pvi = b.planeAt(n, pv);
+          const Vec3 ni = cross(qi[1] - qi[0], qi[2] - qi[0]);
+          const double li = norm(ni);
+          if (li > 0) {
+            nqi = (1.0 / li) * ni;
+            wi = closestOnTriangle(pvi, qi[0], qi[1], qi[2]);
+            cqi = wi.x * qi[0] + wi.y * qi[1] + wi.z * qi[2];
+          }
+        }
+        const double si = dot(pvi - cqi, nqi);
         // The plane where the two would meet in an inelastic impact (design note); a face
         // with a prescribed node does not give way.
         double mt = 0;
         bool kinematic = false;
         for (int k = 0; k < 3; ++k) {
-          mt += w[k] * o->nodeMass[face[k]];
-          kinematic |= o->fixed[face[k]] && w[k] > 0;
+          mt += wi[k] * o->nodeMass[face[k]];
+          kinematic |= o->fixed[face[k]] && wi[k] > 0;
         }
         const double mv = b.nodeMass[n];
         const double share = kinematic || !(mv + mt > 0) ? 0.0 : mv / (mv + mt);
         // Not deeper than the thickness: the face gives way only through its own body's step,
         // and a vertex left deeper behind it would be dropped next step (kContactBehind).
-        const double depth = s < 0 ? -s : 0.0;
+        const double depth = si < 0 ? -si : 0.0;
         const double giveWay = depth * share < o->thickness() ? depth * share : o->thickness();
         // The face where it will be when it comes on towards the vertex (so it pushes in
         // time), where it is when it moves away (a lagged plane that ran ahead of a receding
         // face would let the two sides take turns pushing, step by step).
-        const double onward = dot(cq - cp, nq);
-        const Vec3 point = (onward > 0 ? cq : cq - onward * nq) - giveWay * nq;
+        const Vec3 cpi = wi.x * p[0] + wi.y * p[1] + wi.z * p[2];
+        const double onward = dot(cqi - cpi, nqi);
+        const Vec3 point = (onward > 0 ? cqi : cqi - onward * nqi) - giveWay * nqi;
         {
           // Friction: the penalty's normal force at the step's start, lagged (as for
           // colliders), with Box2D's mixing of the two surfaces' coefficients.
-          const double startDepth = dot(point - xv, nq);
+          const double startDepth = dot(point - xv, nqi);
           const double mu = sqrt(b.friction * o->friction);
           // Stiffness per unit of the vertex's surface area, the same for both sides of a
           // pair of groups: at rest the two sides' penalties then carry the same load (their
@@ -492,8 +513,8 @@ struct ContactVertexPairStage {
           h.face = cf;
           h.partner = og;
           h.point = point;
-          h.normal = nq;
-          h.faceMotion = cq - cp;
+          h.normal = nqi;
+          h.faceMotion = cqi - cpi;
           h.muLambda = startDepth > 0 ? mu * k * startDepth : 0.0;
           h.stiffness = k;
         }
@@ -602,6 +623,11 @@ struct ContactEdgePairStage {
           const Vec3 xA = (1 - sA) * xa0 + sA * xa1, xB = (1 - tB) * xb0 + tB * xb1;
           const double gap = dot(pA - pB, n);
           if (gap > th + reach || dot(xA - xB, n) < -kContactBehind * th) continue;
+          // The sweeps' planes: the same pair, at the latest iterates.
+          const Vec3 ia0 = b.planeAt(a0, pa0), ia1 = b.planeAt(a1, pa1);
+          const Vec3 ib0 = o->planeAt(b0, qb0), ib1 = o->planeAt(b1, qb1);
+          const Vec3 iA = (1 - sA) * ia0 + sA * ia1, iB = (1 - tB) * ib0 + tB * ib1;
+          const double igap = dot(iA - iB, n);
           for (int i = 0; i < 2; ++i)
             if (!b.fixed[i == 0 ? a0 : a1]) {
               {
@@ -610,10 +636,10 @@ struct ContactEdgePairStage {
                 const double mB = (1 - tB) * o->nodeMass[b0] + tB * o->nodeMass[b1];
                 const bool kinematic = o->fixed[b0] || o->fixed[b1];
                 const double share = kinematic || !(mA + mB > 0) ? 0.0 : mA / (mA + mB);
-                const double sink = (gap < 0 ? -gap : 0.0) * share;
+                const double sink = (igap < 0 ? -igap : 0.0) * share;
                 const double giveWay = sink < o->thickness() ? sink : o->thickness();
-                const double onward = dot(pB - xB, n);
-                const Vec3 plane = (onward > 0 ? pB : pB - onward * n) - giveWay * n;
+                const double onward = dot(iB - xB, n);
+                const Vec3 plane = (onward > 0 ? iB : iB - onward * n) - giveWay * n;
                 // Two crossing edges may carry a whole body at one point, so the penalty is a
                 // collider's for the lighter of the two bodies or fragments (stiffness is per
                 // unit mass).
@@ -625,9 +651,9 @@ struct ContactEdgePairStage {
                 h.node = i == 0 ? a0 : a1;
                 h.face = cf;
                 h.partner = og;
-                h.point = plane + ((i == 0 ? pa0 : pa1) - pA);
+                h.point = plane + ((i == 0 ? ia0 : ia1) - iA);
                 h.normal = n;
-                h.faceMotion = pB - xB;
+                h.faceMotion = iB - xB;
                 h.muLambda = 0;
                 h.stiffness = k * (i == 0 ? 1 - sA : sA);
               }

@@ -232,6 +232,8 @@ Result<void> Collider::check() const {
 
 Result<void> WorldDef::check() const {
   if (substeps < 1) return fail("WorldDef.substeps: must be >= 1, got ", std::to_string(substeps));
+  if (contactSweeps < 1 || contactSweeps > 64)
+    return fail("WorldDef.contactSweeps: must be in [1, 64], got ", std::to_string(contactSweeps));
   if (!finite3(gravity)) return fail("WorldDef.gravity: must be finite");
   switch (backend) {
     case Backend::Auto:

@@ -207,6 +207,100 @@ int64_t World::Impl::findContacts(const detail::CpuExecutor& exec, double h) {
                           kFrictionSlipSpeed * h);
 }
 
+void World::Impl::stepBodies(const detail::StepContext& ctx) {
+  for (uint32_t si : single) stepBody(si, ctx, *jobs);
+  detail::forRanges(*jobs, uint32_t(batched.size()), 1, [&](uint32_t lo, uint32_t hi) {
+    for (uint32_t k = lo; k < hi; ++k) stepBody(batched[k], ctx, serialJobs());
+  });
+}
+
+bool World::Impl::canSweep() const {
+  // A body that fractures, is cut by Is-XFEM or yields changes more than x and v in its step
+  // (its damage, its cuts, Fp), and a step taken again would judge its fracture twice: such a
+  // body keeps the single pass, and so does every body with it (its impulses must match the
+  // half-spaces it stepped against).
+  for (size_t si = 0; si < slots.size(); ++si) {
+    if (!contactViews[si].model) continue;
+    const BodyRecord* b = slots[si].body.get();
+    if (b->fracture || b->xfem || b->model.plasticity.enabled) return false;
+  }
+  return true;
+}
+
+void World::Impl::saveSweepStart() {
+  sweepX0.resize(slots.size());
+  sweepV0.resize(slots.size());
+  sweepIterate.resize(slots.size());
+  sweepTouched.assign(slots.size(), 0);
+  for (size_t si = 0; si < slots.size(); ++si) {
+    if (!contactViews[si].model) continue;
+    sweepX0[si] = contactStates[si]->x;
+    sweepV0[si] = contactStates[si]->v;
+    sweepTouched[si] = bodyContact.halfSpaces(si).start != nullptr;
+  }
+}
+
+int World::Impl::contactSweeps(const detail::CpuExecutor& exec, const detail::StepContext& ctx,
+                               double h) {
+  std::vector<uint32_t> allSingle = single, allBatched = batched;
+  int sweeps = 1;
+  double threshold = HUGE_VAL;
+  for (size_t si = 0; si < slots.size(); ++si)
+    if (contactViews[si].model)
+      threshold = std::min(threshold,
+                           detail::kContactSweepTolerance * contactViews[si].surface->cellSize());
+  for (; sweeps < def.contactSweeps; ++sweeps) {
+    // How far the iterates moved in the last sweep (in slot and node order: the same for any
+    // thread count); the first sweep has nothing to compare with.
+    double moved = 0;
+    for (size_t si = 0; si < slots.size(); ++si) {
+      if (!contactViews[si].model) continue;
+      const std::vector<double>& x = contactStates[si]->x;
+      std::vector<double>& last = sweepIterate[si];
+      if (sweeps > 1)
+        for (size_t i = 0; i < x.size(); ++i) moved = std::max(moved, std::abs(x[i] - last[i]));
+      last = x;
+    }
+    if (sweeps > 1 && moved <= threshold) break;
+    for (size_t si = 0; si < slots.size(); ++si) {
+      detail::ContactBodyView& view = contactViews[si];
+      if (!view.model) continue;
+      view.x = sweepX0[si].data();
+      view.v = sweepV0[si].data();
+      view.iterate = sweepIterate[si].data();
+    }
+    const auto tc = detail::Clock::now();
+    bodyContact.find(exec, contactViews, h, detail::kAutoContactStiffnessDt2 / (h * h),
+                     kFrictionSlipSpeed * h);
+    timings.contactMs += detail::msSince(tc);
+    // Only the bodies whose half-spaces may have changed step again; the others' steps would
+    // repeat the bits they have.
+    single.clear();
+    batched.clear();
+    for (uint32_t si : allSingle)
+      if (sweepTouched[si] || bodyContact.halfSpaces(si).start) single.push_back(si);
+    for (uint32_t si : allBatched)
+      if (sweepTouched[si] || bodyContact.halfSpaces(si).start) batched.push_back(si);
+    for (size_t si = 0; si < slots.size(); ++si)
+      if (contactViews[si].model && bodyContact.halfSpaces(si).start) sweepTouched[si] = 1;
+    // The step's report keeps the last sweep's figures; the times of the others are added.
+    for (const std::vector<uint32_t>* list : {&single, &batched})
+      for (uint32_t si : *list) {
+        const detail::BodyStepReport& r = reports[si];
+        timings.elementsMs += r.elementsMs;
+        timings.assemblyMs += r.assemblyMs;
+        timings.solveMs += r.solveMs;
+        contactStates[si]->x = sweepX0[si];
+        contactStates[si]->v = sweepV0[si];
+      }
+    stepBodies(ctx);
+  }
+  single = allSingle;
+  batched = allBatched;
+  for (detail::ContactBodyView& view : contactViews) view.x = view.v = view.iterate = nullptr;
+  return sweeps;
+}
+
 World::World(const WorldDef& def) : m_impl(std::make_unique<Impl>()) {
   detail::blasOnOneThread();  // the process runs no BLAS threads beside the JobSystem's
   Impl& w = *m_impl;
@@ -359,12 +453,13 @@ StepStatus World::step(double dt) {
     // Body contact is a half-space per node that each body's step sees as fixed, so the
     // bodies still step apart; the exchange after evens out their impulses.
     auto tc = detail::Clock::now();
-    w.timings.contactPairs += w.findContacts(exec, h);
+    const int64_t pairs = w.findContacts(exec, h);
+    w.timings.contactPairs += pairs;
+    const bool sweep = pairs > 0 && w.def.contactSweeps > 1 && w.canSweep();
+    if (sweep) w.saveSweepStart();
     w.timings.contactMs += detail::msSince(tc);
-    for (uint32_t si : w.single) w.stepBody(si, ctx, *w.jobs);
-    detail::forRanges(*w.jobs, uint32_t(w.batched.size()), 1, [&](uint32_t lo, uint32_t hi) {
-      for (uint32_t k = lo; k < hi; ++k) w.stepBody(w.batched[k], ctx, serialJobs());
-    });
+    w.stepBodies(ctx);
+    if (sweep) w.contactSweeps(exec, ctx, h);
     tc = detail::Clock::now();
     w.bodyContact.exchange(exec, w.contactStates);
     w.timings.contactMs += detail::msSince(tc);

@@ -61,6 +61,9 @@ struct XfemRecord {
 // contact a hundred times stiffer than inertia, so a node is pushed out within about a step
 // and rests g dt^2 / 100 deep.
 constexpr double kAutoContactStiffnessDt2 = 100.0;
+// The largest move of any iterate between two contact sweeps (World::Impl::contactSweeps), as
+// a fraction of the finest cell, at which they stop before WorldDef::contactSweeps.
+constexpr double kContactSweepTolerance = 1e-4;
 
 /// A new id for each World, so that a snapshot is restored only into the world it was taken of.
 uint64_t nextWorldId();
@@ -184,6 +187,10 @@ struct World::Impl {
   detail::BodyContact bodyContact;
   std::vector<detail::ContactBodyView> contactViews;
   std::vector<detail::FemState*> contactStates;
+  // The contact sweeps' (contactSweeps): per slot, the substep's start positions and
+  // velocities and the latest iterate of its end.
+  std::vector<std::vector<double>> sweepX0, sweepV0, sweepIterate;
+  std::vector<uint8_t> sweepTouched;                  // per slot: had half-spaces in some sweep
   std::vector<glm::dvec3> impulses, angularImpulses;  // of the last step
   StepTimings timings;
   std::vector<FractureEvent> fractureEvents;
@@ -243,6 +250,17 @@ struct World::Impl {
   // The substep's contact pairs (BodyContact::find) among the bodies that take part; returns
   // their count.
   int64_t findContacts(const detail::CpuExecutor& exec, double h);
+  // Whether every body taking part in contact can be stepped again from the same start.
+  bool canSweep() const;
+  // Keeps the contact bodies' x and v at the substep's start for contactSweeps.
+  void saveSweepStart();
+  // Steps the bodies in `batched` and `single` once (one substep of ctx.dt).
+  void stepBodies(const detail::StepContext& ctx);
+  // Block Jacobi over the bodies that touch (docs/design.md, Contact): the pairs found again
+  // against every body's latest end-of-step iterate, and the bodies that have half-spaces
+  // stepped again from the substep's start, until the iterates stop moving. Call after the
+  // first stepBodies of a substep whose findContacts returned pairs; returns the sweeps run.
+  int contactSweeps(const detail::CpuExecutor& exec, const detail::StepContext& ctx, double h);
 
   // Keeps a requested render surface in step with the body: topology only after fractures.
   void updateSurface(BodyRecord& b) {
