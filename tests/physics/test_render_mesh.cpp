@@ -15,6 +15,7 @@
 #include <tuple>
 #include <vector>
 
+#include "common/embedded_setup.h"
 #include "common/render_mesh_checks.h"
 #include "common/sim_helpers.h"
 #include "mesh/edge_graph.h"
@@ -57,15 +58,7 @@ TEST(RenderMesh, AffineMotionIsReproducedToRoundOff) {
   EXPECT_GT(b.outsideCount, 0);
   const detail::EdgeGraph graph =
       detail::EdgeGraph::build(def.mesh.tets.data(), def.mesh.tetCount(), def.mesh.nodeCount());
-  std::vector<Mat3> restInverse(def.mesh.tetCount());
-  for (size_t t = 0; t < def.mesh.tetCount(); ++t) {
-    Vec3 P[4];
-    for (int k = 0; k < 4; ++k) {
-      const glm::dvec3 p = at(def.mesh.positions, size_t(def.mesh.tets[4 * t + size_t(k)]));
-      P[k] = {p.x, p.y, p.z};
-    }
-    restInverse[t] = inverse(fromColumns(P[1] - P[0], P[2] - P[0], P[3] - P[0]));
-  }
+  const std::vector<Mat3> restInverse = tetRestInverses(def.mesh);
   const std::vector<uint8_t> broken(size_t(graph.edgeCount), 0);
   const std::vector<int32_t> fragment(def.mesh.nodeCount(), 0);
   detail::CrackSurface crack;
@@ -352,15 +345,7 @@ TEST(RenderMesh, InteriorFragmentWithoutRenderVerticesIsDrawnWithItsTetFaces) {
       detail::EmbeddedBinding::bind(mesh, render, "renderMesh").value();
   const detail::EdgeGraph graph =
       detail::EdgeGraph::build(mesh.tets.data(), mesh.tetCount(), mesh.nodeCount());
-  std::vector<Mat3> restInverse(mesh.tetCount());
-  for (size_t t = 0; t < mesh.tetCount(); ++t) {
-    Vec3 P[4];
-    for (int k = 0; k < 4; ++k) {
-      const glm::dvec3 p = at(mesh.positions, size_t(mesh.tets[4 * t + size_t(k)]));
-      P[k] = {p.x, p.y, p.z};
-    }
-    restInverse[t] = inverse(fromColumns(P[1] - P[0], P[2] - P[0], P[3] - P[0]));
-  }
+  const std::vector<Mat3> restInverse = tetRestInverses(mesh);
   int32_t centre = -1;
   for (size_t n = 0; n < mesh.nodeCount(); ++n)
     if (glm::length(at(mesh.positions, n) - glm::dvec3(0.05)) < 1e-9) centre = int32_t(n);
@@ -845,15 +830,7 @@ TEST(RenderMesh, PerFrameCostAgainstTheStep) {
       detail::EmbeddedBinding::bind(brittle.mesh, *brittle.renderMesh, "renderMesh").value();
   const detail::EdgeGraph graph = detail::EdgeGraph::build(
       brittle.mesh.tets.data(), brittle.mesh.tetCount(), brittle.mesh.nodeCount());
-  std::vector<Mat3> restInverse(brittle.mesh.tetCount());
-  for (size_t t = 0; t < brittle.mesh.tetCount(); ++t) {
-    Vec3 P[4];
-    for (int k = 0; k < 4; ++k) {
-      const glm::dvec3 p = at(brittle.mesh.positions, size_t(brittle.mesh.tets[4 * t + size_t(k)]));
-      P[k] = {p.x, p.y, p.z};
-    }
-    restInverse[t] = inverse(fromColumns(P[1] - P[0], P[2] - P[0], P[3] - P[0]));
-  }
+  const std::vector<Mat3> restInverse = tetRestInverses(brittle.mesh);
   const std::span<const uint8_t> broken = world.brokenEdges(id);
   const std::span<const int32_t> fragment = world.nodeFragments(id);
   const std::span<const double> x = world.positions(id);

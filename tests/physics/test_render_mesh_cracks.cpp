@@ -14,6 +14,7 @@
 #include <set>
 #include <vector>
 
+#include "common/embedded_setup.h"
 #include "common/render_mesh_checks.h"
 #include "common/sim_helpers.h"
 #include "mesh/edge_graph.h"
@@ -340,15 +341,7 @@ std::pair<uint32_t, uint32_t> capsAndOpenCuts(const World& world, BodyId id, con
       detail::EmbeddedBinding::bind(def.mesh, *def.renderMesh, "renderMesh").value();
   const detail::EdgeGraph graph =
       detail::EdgeGraph::build(def.mesh.tets.data(), def.mesh.tetCount(), def.mesh.nodeCount());
-  std::vector<Mat3> restInverse(def.mesh.tetCount());
-  for (size_t t = 0; t < def.mesh.tetCount(); ++t) {
-    Vec3 P[4];
-    for (int k = 0; k < 4; ++k) {
-      const glm::dvec3 p = at(def.mesh.positions, size_t(def.mesh.tets[4 * t + size_t(k)]));
-      P[k] = {p.x, p.y, p.z};
-    }
-    restInverse[t] = inverse(fromColumns(P[1] - P[0], P[2] - P[0], P[3] - P[0]));
-  }
+  const std::vector<Mat3> restInverse = tetRestInverses(def.mesh);
   detail::EmbeddedSurface surface;
   surface.init(binding, def.mesh, graph, restInverse.data());
   surface.rebuild(world.brokenEdges(id).data(), world.nodeFragments(id).data());
