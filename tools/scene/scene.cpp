@@ -102,7 +102,8 @@ constexpr FieldName kBodyNames[] = {
     {"initialVelocity", "initial_velocity"}};
 constexpr FieldName kWorldNames[] = {{"WorldDef.substeps", "substeps"},
                                      {"WorldDef.gravity", "gravity"},
-                                     {"WorldDef.backend", "backend"}};
+                                     {"WorldDef.backend", "backend"},
+                                     {"WorldDef.contactSweeps", "contact_sweeps"}};
 
 // ---- scene pieces -------------------------------------------------------------------------
 
@@ -1425,7 +1426,7 @@ Collider readCollider(const json& v, const std::string& path) {
 Scene readScene(const json& root, const std::string& source, const std::string& baseDir) {
   ObjReader o(root, "");
   o.keys({"name", "description", "dt", "frames", "substeps", "threads", "gravity", "backend",
-          "colliders", "bodies", "cuts", "strokes", "rigid_bodies", "camera"});
+          "contact_sweeps", "colliders", "bodies", "cuts", "strokes", "rigid_bodies", "camera"});
   Scene scene;
   scene.source = source;
   scene.name = std::filesystem::path(source).stem().string();
@@ -1446,6 +1447,8 @@ Scene readScene(const json& root, const std::string& source, const std::string& 
     const std::string b = readChoice(*v, o.at("backend"), {"auto", "cpu", "cuda"});
     scene.world.backend = b == "cpu" ? Backend::Cpu : b == "cuda" ? Backend::Cuda : Backend::Auto;
   }
+  if (const json* v = o.find("contact_sweeps"))
+    scene.world.contactSweeps = readInteger(*v, o.at("contact_sweeps"));
   if (const json* v = o.find("colliders")) {
     readArray(*v, o.at("colliders"), 0, "colliders");
     for (size_t i = 0; i < v->size(); ++i) {
