@@ -78,6 +78,8 @@ double barSplitError(int cells, double p, int* offMidpoint, int* checked, JobSys
   *offMidpoint = 0;
   *checked = 0;
   for (const FractureEvent& ev : world.fractureEvents()) {
+    // A severed edge broke with no force on it (every tet around it split): midpoint.
+    if (ev.cause == FractureEvent::Cause::Severed) continue;
     EXPECT_EQ(ev.cause, FractureEvent::Cause::Stress);
     const double fa = F0 * std::pow(X[3 * size_t(ev.nodeA)], p);
     const double fb = F0 * std::pow(X[3 * size_t(ev.nodeB)], p);

@@ -66,10 +66,19 @@ TEST(ImpuritySlow, FirstFractureLoadOver20Seeds) {
   EXPECT_GT(shift[1][1], shift[1][0]);
 }
 
-int tornFragments(ImpurityNoise noise, uint64_t seed) {
+struct Torn {
+  int fragments = 0, pieces = 0, broken = 0;
+};
+
+// Slab 0.4 x 0.1 x 0.02 (1 cm cells) torn by grips at 2 cm/s for 1 s (it stops carrying load
+// after ~0.8 s): all fragments, pieces of at least 10 nodes, broken edges. Mass damping keeps the
+// grips from tearing their own faces off at the first step, so the count is the crack's, not the
+// grips'.
+Torn tornSlab(ImpurityNoise noise, uint64_t seed) {
   BodyDef def;
   def.mesh = gen::box(0.4, 0.1, 0.02, 40, 10, 2);
   def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
+  def.material.massDamping = 5;
   def.fracture.enabled = true;
   def.fracture.strength = 3e4;
   def.fracture.impurities.enabled = true;
@@ -80,31 +89,50 @@ int tornFragments(ImpurityNoise noise, uint64_t seed) {
   left.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
   right.nodes =
       test::selectNodes(def.mesh, [](double x, double, double) { return x > 0.4 - 1e-9; });
-  left.velocity = glm::vec3(-0.5f, 0, 0);
-  right.velocity = glm::vec3(0.5f, 0, 0);
+  left.velocity = glm::vec3(-0.02f, 0, 0);
+  right.velocity = glm::vec3(0.02f, 0, 0);
   def.grips = {left, right};
   World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
   auto id = world.createBody(def);
   EXPECT_TRUE(id.ok());
-  for (int s = 0; s < 40; ++s) (void)world.step(1.0 / 120);
-  return world.fractureStats(id.value()).fragments;
+  if (!id.ok()) return {};
+  for (int s = 0; s < 60; ++s) (void)world.step(1.0 / 60);
+  Torn t;
+  t.fragments = world.fractureStats(id.value()).fragments;
+  t.broken = world.fractureStats(id.value()).brokenEdges;
+  std::vector<int> size(size_t(t.fragments), 0);
+  for (int32_t f : world.nodeFragments(id.value())) ++size[size_t(f)];
+  for (int n : size) t.pieces += n >= 10;
+  return t;
 }
 
 TEST(ImpuritySlow, GaussianAndUniformNoiseGiveSimilarFragmentCounts) {
-  std::vector<double> g, u;
+  std::vector<double> fg, fu, pg, pu, bg, bu;
   for (uint64_t seed = 1; seed <= 10; ++seed) {
-    g.push_back(tornFragments(ImpurityNoise::Gaussian, seed));
-    u.push_back(tornFragments(ImpurityNoise::Uniform, seed));
+    const Torn g = tornSlab(ImpurityNoise::Gaussian, seed);
+    const Torn u = tornSlab(ImpurityNoise::Uniform, seed);
+    fg.push_back(g.fragments);
+    fu.push_back(u.fragments);
+    pg.push_back(g.pieces);
+    pu.push_back(u.pieces);
+    bg.push_back(g.broken);
+    bu.push_back(u.broken);
   }
-  const Stats sg = stats(g), su = stats(u);
+  const Stats sg = stats(fg), su = stats(fu), qg = stats(pg), qu = stats(pu), eg = stats(bg),
+              eu = stats(bu);
   std::printf(
-      "fragments over 10 seeds: Gaussian %.1f +- %.1f (%.0f-%.0f), uniform %.1f +- %.1f "
-      "(%.0f-%.0f)\n",
-      sg.mean, sg.sd, sg.lo, sg.hi, su.mean, su.sd, su.lo, su.hi);
-  EXPECT_GE(sg.lo, 2);
-  EXPECT_GE(su.lo, 2);
+      "torn slab over 10 seeds: fragments Gaussian %.1f +- %.1f (%.0f-%.0f), uniform %.1f +- "
+      "%.1f (%.0f-%.0f); pieces >= 10 nodes %.1f +- %.1f vs %.1f +- %.1f; broken edges %.0f +- "
+      "%.0f vs %.0f +- %.0f\n",
+      sg.mean, sg.sd, sg.lo, sg.hi, su.mean, su.sd, su.lo, su.hi, qg.mean, qg.sd, qu.mean, qu.sd,
+      eg.mean, eg.sd, eu.mean, eu.sd);
+  // The seeds matter (else "similar" would say nothing). Pieces are printed, not checked: the
+  // torn slab stays one graph piece plus loose nodes (docs/validation.md, known limits).
+  EXPECT_GT(sg.sd, 0);
+  EXPECT_GT(su.sd, 0);
   // Similar: the means differ by less than a quarter of the larger one.
   EXPECT_LT(std::fabs(sg.mean - su.mean), 0.25 * std::max(sg.mean, su.mean));
+  EXPECT_LT(std::fabs(eg.mean - eu.mean), 0.25 * std::max(eg.mean, eu.mean));
 }
 
 int dampLogBroken(double dt, uint64_t seed) {

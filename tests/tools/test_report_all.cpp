@@ -203,7 +203,7 @@ TEST(ReportAll, OnlyLabReuseRewritesTheLabRegionsFromTheFilesAlone) {
   EXPECT_NE(err.find("graphfrac report lab --out"), std::string::npos) << err;
   EXPECT_EQ(read(results), before);
   EXPECT_EQ(reportAll({"--reuse", "--results", results.string()}), gf::cli::kExitUsage);
-  EXPECT_EQ(reportAll({"--only", "bench", "--results", results.string()}), gf::cli::kExitUsage);
+  EXPECT_EQ(reportAll({"--only", "header", "--results", results.string()}), gf::cli::kExitUsage);
   EXPECT_EQ(reportAll({"--only"}), gf::cli::kExitUsage);
 
   const fs::path committed = fs::path(GF_SOURCE_DIR) / "docs" / "reports" / "lab";
@@ -238,6 +238,109 @@ TEST(ReportAll, OnlyLabReuseRewritesTheLabRegionsFromTheFilesAlone) {
   std::snprintf(want, sizeof want, "| %.2f", absorbed);
   const std::string charpy = body(after, "lab-charpy");
   EXPECT_NE(charpy.find(want), std::string::npos) << want << " not in\n" << charpy;
+}
+
+// `--only PART --reuse` for the other parts, on tiny files written here: each rewrites its own
+// regions and nothing else, from the files alone (no run), with figures that can be checked by
+// hand: the bench at 1 and 2 threads with its speed-up, the stability table's counts and its
+// listed failures, and the Bullet comparison's ratios (Bullet's ms and error over ours) and
+// sweep medians.
+TEST(ReportAll, OnlyPartReuseWritesEachPartsRegionsFromItsFiles) {
+  gf::test::TempDir dir("report_all_only_part");
+  const fs::path results = dir.path / "RESULTS.md", out = dir.path / "out";
+  fs::create_directories(out);
+  const std::string before = page();
+  write(results, before);
+  auto only = [&](const char* part) {
+    return reportAll(
+        {"--only", part, "--reuse", "--results", results.string(), "--out", out.string()});
+  };
+  // Each part's file missing: an error, the page unchanged.
+  for (const char* part : {"error-vs-time", "bench", "stability", "peer"}) {
+    testing::internal::CaptureStderr();
+    EXPECT_EQ(only(part), gf::cli::kExitOutput) << part;
+    EXPECT_NE(testing::internal::GetCapturedStderr().find("is missing"), std::string::npos);
+    EXPECT_EQ(read(results), before) << part;
+  }
+
+  write(out / "bench_multigrid.csv",
+        "# 2 frame(s)\n"
+        "case,solver,tets,threads,ms_frame,fps,speedup,ms_elements,ms_assembly,ms_solve,"
+        "ms_fracture,linear_iterations,thesis_gpu_fps\n"
+        "hinged beam,multigrid (default),4320,1,30.00,33.33,1.00,10,1,15,0,9.0,320.9\n"
+        "hinged beam,multigrid (default),4320,2,20.00,50.00,1.50,6,1,10,0,9.0,320.9\n");
+  write(out / "stability.csv",
+        "test,case,material,damage,solver,backend,outcome,e0_J,max_excess_J,max_excess_over_e0,"
+        "flags,flagged_steps,not_converged,rolled_back,broken_edges,edges,fragments,ms,message\n"
+        "t1,SteelDt5ms,StVK,projection,direct,Cpu,passed,1,0,0,0,0,0,0,0,10,1,5,\"\"\n"
+        "t2,SteelDt5ms,StVK,projection,pcg,Cpu,passed,1,0,0,1,3,3,0,0,10,1,5,\"\"\n"
+        "t3,SteelDt5ms,StVK,projection,direct,Cuda,skipped,,,,,,,,,,,,\"no device\"\n"
+        "t4,Nu0p49,StVK,projection,direct,Cpu,known_failure,1,2,2,0,0,0,0,0,10,1,5,"
+        "\"KNOWN FAILURE (why, with a comma)\"\n"
+        "t5,Nu0p49,StVK,projection,pcg,Cpu,failed,1,9,9,0,0,0,0,0,10,1,5,\"energy 9 J\"\n");
+  write(out / "peer.csv",
+        "# bench peer\n"
+        "case,method,E_Pa,dt_s,tets,outcome,ms_per_step,measure_m,reference_m,error,"
+        "kinetic_over_gravity_work,inverted_tets\n"
+        "cantilever,graphfrac-multigrid,1e+07,0.01667,480,stable,2.000,0.1,0.1,1.000e-03,0.1,0\n"
+        "cantilever,graphfrac-pcg,1e+07,0.01667,480,stable,4.000,0.1,0.1,2.000e-03,0.1,0\n"
+        "cantilever,bullet-implicit,1e+07,0.01667,480,stable,5.000,0.1,0.1,4.000e-03,0.1,0\n"
+        "drop,graphfrac-multigrid,1e+06,0.01667,384,stable,1.000,0.1,0.1,1.000e-03,0.1,0\n"
+        "drop,bullet-implicit,1e+06,0.01667,384,unstable,-,-,0.1,-,-,17\n"
+        "cantilever-sweep,graphfrac-multigrid,1e+05,0.01667,480,stable,1.000,0.1,0.1,1e-3,0,0\n"
+        "cantilever-sweep,graphfrac-multigrid,1e+06,0.01667,480,stable,3.000,0.1,0.1,1e-3,0,0\n"
+        "cantilever-sweep,graphfrac-multigrid,1e+07,0.01667,480,stable,2.000,0.1,0.1,1e-3,0,0\n"
+        "cantilever-sweep,bullet-implicit,1e+05,0.01667,480,stable,8.000,0.1,0.1,1e-3,0,0\n"
+        "cantilever-sweep,bullet-implicit,1e+06,0.01667,480,unstable,-,-,0.1,-,-,3\n");
+
+  EXPECT_EQ(only("bench"), gf::cli::kExitOk);
+  EXPECT_EQ(only("stability"), gf::cli::kExitOk);
+  EXPECT_EQ(only("peer"), gf::cli::kExitOk);
+  const std::string after = read(results);
+  EXPECT_EQ(skeleton(after), skeleton(before)) << "a hand-written byte changed";
+  for (const std::string& r : kRegions) {
+    const bool mine = r == "bench" || r == "stability" || r == "peer-time" || r == "peer-range";
+    EXPECT_EQ(body(after, r) == body(before, r), !mine) << r;
+  }
+  EXPECT_FALSE(fs::exists(out / "logs")) << "--reuse runs nothing, so it logs nothing";
+
+  // The bench: both thread counts, each with the speed-up the CSV gives, and the plot.
+  std::map<std::string, std::string> speedupOf;
+  for (const std::string& l : lines(body(after, "bench"))) {
+    if (l.empty() || l[0] != '|') continue;
+    const std::vector<std::string> c = cells(l);
+    if (c.size() >= 7 && c[0] == "hinged beam") speedupOf[c[3]] = c[6];
+  }
+  EXPECT_EQ(speedupOf["1"], "1.00");
+  EXPECT_EQ(speedupOf["2"], "1.50");
+  EXPECT_NE(body(after, "bench").find("--threads 1,2"), std::string::npos)
+      << "the command as run names both thread counts";
+  EXPECT_NE(read(out / "bench_multigrid.svg").find("<svg"), std::string::npos);
+
+  // Stability: per case, CPU passes / known failures / failures, and each listed with why.
+  const std::string stab = body(after, "stability");
+  EXPECT_NE(stab.find("| SteelDt5ms | 2 / 0 / 0 | 0, 1 | NotConverged |"), std::string::npos)
+      << stab;
+  EXPECT_NE(stab.find("| Nu0p49 | 0 / 1 / 1 | 0, 0 | none |"), std::string::npos) << stab;
+  EXPECT_NE(stab.find("KNOWN FAILURE (why, with a comma)"), std::string::npos) << stab;
+  EXPECT_NE(stab.find("Failed runs:"), std::string::npos) << stab;
+  EXPECT_NE(stab.find("energy 9 J"), std::string::npos) << stab;
+
+  // The Bullet comparison: 5 / 2 ms = 2.50x and 4e-3 / 1e-3 = 4x over multigrid, 1.25x and 2x
+  // over PCG; the unstable drop has no ratio. Sweep medians: ours 2 ms of 3 runs, Bullet's 8 ms
+  // of its 1 stable run: 4.00x.
+  const std::string peerTime = body(after, "peer-time");
+  EXPECT_NE(peerTime.find("| cantilever, 1/60 s | Bullet implicit | 2.50x; 4x | 1.25x; 2x |"),
+            std::string::npos)
+      << peerTime;
+  EXPECT_EQ(peerTime.find("| drop, 1/60 s | Bullet implicit |"), std::string::npos) << peerTime;
+  EXPECT_NE(peerTime.find("graphfrac multigrid 2.00 ms (3 of its runs)"), std::string::npos)
+      << peerTime;
+  EXPECT_NE(peerTime.find("Bullet implicit / graphfrac multigrid 4.00x"), std::string::npos)
+      << peerTime;
+  const std::string range = body(after, "peer-range");
+  EXPECT_NE(range.find("| Bullet implicit | 1 / 2 | - |"), std::string::npos) << range;
+  EXPECT_NE(range.find("| graphfrac multigrid | 3 / 3 | - |"), std::string::npos) << range;
 }
 
 // The quick form end to end: about a minute on two cores.

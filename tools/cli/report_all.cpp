@@ -58,24 +58,28 @@ namespace fs = std::filesystem;
 
 constexpr const char* kAllUsage =
     "usage: graphfrac report all [--quick] [--out DIR] [--results FILE] [--scenes DIR]\n"
-    "                            [--stability-bin PATH] [--only lab [--reuse]]\n"
+    "                            [--stability-bin PATH] [--only PART [--reuse]]\n"
     "\n"
     "Runs every measurement of docs/RESULTS.md and rewrites the file's generated regions, the\n"
     "lines between <!-- report:NAME:begin --> and <!-- report:NAME:end -->; every other line is\n"
     "kept byte for byte. Each region must appear once; a missing, unknown or unpaired marker is\n"
     "an error before anything runs. Regions and the parts that fill them:\n"
-    "  header          machine (/proc), compiler and build type, date, the commands below\n"
+    "  header          machine (/proc), compiler and build type, date, load average before and\n"
+    "                  after, OPENBLAS_NUM_THREADS, the commands below with exit and wall time\n"
     "  thesis          the thesis's published numbers (tables 4.1, 6.1, 6.2, lab outcomes)\n"
     "                  beside ours, with the ratio and the hardware of each\n"
-    "  lab-brazilian, lab-charpy, lab-izod, lab-acceptance\n"
+    "  lab-brazilian, lab-charpy, lab-izod, lab-acceptance            (PART lab)\n"
     "                  graphfrac report lab --out DIR/lab\n"
-    "  error-vs-time   graphfrac report error-vs-time scenes/hanging_sphere.json\n"
-    "  bench           graphfrac bench multigrid (4k to 160k tets, thesis table 6.2)\n"
+    "  error-vs-time   graphfrac report error-vs-time scenes/hanging_sphere.json (PART\n"
+    "                  error-vs-time)\n"
+    "  bench           graphfrac bench multigrid --threads 1,2 (4k to 160k tets, thesis table\n"
+    "                  6.2; PART bench)\n"
     "  stability       gf_stability_tests (found next to this build, or --stability-bin) run\n"
     "                  with GF_STABILITY_CSV=DIR/stability.csv; GF_FULL_VALIDATION=1 unless\n"
-    "                  --quick\n"
+    "                  --quick (PART stability)\n"
     "  peer-time, peer-range\n"
-    "                  graphfrac bench peer (Bullet's deformable FEM beside ours)\n"
+    "                  graphfrac bench peer (Bullet's deformable FEM beside ours; PART peer),\n"
+    "                  with the ratios of Bullet's step time and error to ours\n"
     "CSV and SVG files go to DIR (default docs/reports, where the page's links point; with\n"
     "--quick out/report-quick), the parts' logs to DIR/logs. FILE defaults to docs/RESULTS.md,\n"
     "--scenes to scenes. The full form takes tens of minutes (run it with OPENBLAS_NUM_THREADS=1\n"
@@ -83,12 +87,17 @@ constexpr const char* kAllUsage =
     "meshes with the impacts stopped 0.5 mm past contact, 2 frames of error against time, the\n"
     "4k-tet benchmark case, the stability suite's reduced form, the Bullet comparison on its\n"
     "smallest meshes for 0.25 s per run (not at all without Bullet).\n"
-    "--only lab runs the lab part alone and rewrites only its own regions (lab-*; header and\n"
-    "thesis describe a full run and are kept); with --reuse it runs nothing and reads the\n"
-    "files that `graphfrac report lab --out DIR/lab` left.\n"
+    "--only PART (lab, error-vs-time, bench, stability or peer) runs that part alone and\n"
+    "rewrites only its own regions (header and thesis describe a full run and are kept); with\n"
+    "--reuse it runs nothing and reads the files that part left under DIR (lab/*.csv,\n"
+    "hanging_sphere/error_vs_time.csv, bench_multigrid.csv, stability.csv, peer.csv).\n"
     "Exit: 0; 1 usage; 2 a scene could not be loaded; 3 a part failed or flagged a step (its\n"
     "region says so; error against time's capped solver settings flag by design and do not\n"
-    "count); 4 FILE has a bad marker or cannot be written (it is then unchanged).\n";
+    "count); 4 FILE has a bad marker or cannot be written (it is then unchanged), or --reuse\n"
+    "finds a part's file missing.\n";
+
+/// The parts `--only` can name.
+const std::vector<std::string> kParts = {"lab", "error-vs-time", "bench", "stability", "peer"};
 
 /// The regions `report all` owns, in the order the page shows them.
 const std::vector<std::string> kRegions = {
@@ -99,7 +108,7 @@ struct Options {
   bool quick = false;
   bool reuse = false;  // --reuse: read the part's files instead of running it (needs --only)
   std::string out, results = "docs/RESULTS.md", scenes = "scenes", stabilityBin;
-  std::string only;  // "lab" or empty (every part)
+  std::string only;  // one of kParts, or empty (every part)
 };
 
 std::string fmt(const char* f, double v) {
@@ -308,8 +317,20 @@ std::string memoryText() {
 
 // ---- regions ------------------------------------------------------------------------------
 
+// The 1-, 5- and 15-minute load averages: other jobs on the machine slow every wall time here.
+std::string loadAverage() {
+  std::ifstream in("/proc/loadavg");
+  double l1 = -1, l5 = -1, l15 = -1;
+  in >> l1 >> l5 >> l15;
+  if (!in) return "unknown (no /proc/loadavg)";
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "%.2f, %.2f, %.2f", l1, l5, l15);
+  return buf;
+}
+
 std::string headerRegion(const Options& opt, const std::vector<Part>& parts,
-                         const std::string& self, double seconds) {
+                         const std::string& self, double seconds, const std::string& loadBefore,
+                         const std::string& loadAfter) {
   const std::time_t now = std::time(nullptr);
   char date[64];
   std::strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
@@ -322,6 +343,12 @@ std::string headerRegion(const Options& opt, const std::vector<Part>& parts,
   s += "| memory | " + memoryText() + " |\n";
   s += "| system | " + osName() + " |\n";
   s += std::string("| compiler, build | ") + GF_CXX_COMPILER + ", " + GF_BUILD_TYPE + " build |\n";
+  const char* blas = std::getenv("OPENBLAS_NUM_THREADS");
+  s += std::string("| OPENBLAS_NUM_THREADS | ") + (blas ? blas : "not set") + " |\n";
+  s += "| load average (1, 5, 15 min) | " + loadBefore + " at the start, " + loadAfter +
+       " at the end (this machine has " +
+       std::to_string(std::max(1, procCount("/proc/cpuinfo", "processor"))) +
+       " logical cores; a load above that means the runs shared them) |\n";
   s += "\nThe parts, each a command of its own (same figures, same files):\n\n";
   s += "| part | command | exit | wall [s] |\n|---|---|---|---|\n";
   for (const Part& p : parts)
@@ -356,6 +383,64 @@ std::string image(const char* alt, const fs::path& svg, const fs::path& resultsD
 }
 
 // The Brazilian disc's runs (lab/brazilian.csv), in the columns of RESULTS.md's table.
+std::string pct(double now, double before) { return fmt("%+.2f %%", 100 * (now / before - 1)); }
+
+// What the disc's rows say beside the acceptance: the first break against Hondros's centre
+// stress for the jaws' arc, the load the jaws add while the crack crosses, the loading rate's
+// and the mesh's effect on P. Rows as `report lab` writes them: the coarse disc at the scene's
+// rate first, then at the other rate, the fine disc last.
+std::string brazilianFindings(const Table& b) {
+  if (b.rows.empty()) return "";
+  // scenes/lab/brazilian_disc.json bonds the jaws over +-11.25 degrees of the rim; for a load
+  // spread over 2 alpha, Hondros (1959) puts the centre's tensile stress at
+  // (sin 2 alpha - alpha) / alpha times 2 P / (pi D t).
+  const double alpha = 11.25 * M_PI / 180, hondros = (std::sin(2 * alpha) - alpha) / alpha;
+  std::vector<size_t> atRate, other;
+  for (size_t r = 0; r < b.rows.size(); ++r)
+    (b.num(r, "jaw_speed_m_s") == b.num(0, "jaw_speed_m_s") ? atRate : other).push_back(r);
+  std::string s =
+      "\n- First break against the set-up's elastic solution: for the jaws' arc of "
+      "+-11.25 degrees Hondros's centre stress is " +
+      fmt("%.3f", hondros) +
+      " times 2 P / (pi D t), so the first edge should break at 2 P / (pi D t) = " +
+      fmt("%.3f", 1 / hondros) + " sigma_th; it breaks at";
+  for (size_t i = 0; i < atRate.size(); ++i)
+    s += (i ? ", " : " ") + fmt("%.3f", b.num(atRate[i], "first_break_ratio")) + " (" +
+         b.at(atRate[i], "tets") + " tets)";
+  s += ". The jaws add";
+  for (size_t i = 0; i < atRate.size(); ++i)
+    s += (i ? ", " : " ") +
+         pct(b.num(atRate[i], "peak_load_N"), b.num(atRate[i], "first_break_load_N"));
+  s += " to the first-break load while the crack crosses the disc (P over the first break's "
+       "load).\n";
+  // Quasi-static: the time to P against a longitudinal wave's transit of the disc, D / c with
+  // c = sqrt(E / rho) for table 4.1's granite and the scene's D = 50 mm. Both jaws move, so the
+  // approach closes at twice the jaw speed.
+  const double transit = 0.05 / std::sqrt(4.5e10 / 2.75e3);
+  for (size_t r : atRate) {
+    const double toPeak = b.num(r, "approach_at_peak_m") / (2 * b.num(r, "jaw_speed_m_s"));
+    s += "- Loading time: P after " + fmt("%.1f um", 1e6 * b.num(r, "approach_at_peak_m")) +
+         " of approach, " + fmt("%.2f ms", 1e3 * toPeak) + " at the jaws' speed (" +
+         b.at(r, "tets") + " tets): " + fmt("%.0f", toPeak / transit) +
+         fmt(" times the %.1f us a longitudinal wave takes to cross the disc.\n", 1e6 * transit);
+  }
+  for (size_t r : other)
+    s += "- Loading rate: at " + fmt("%.3g m/s", b.num(r, "jaw_speed_m_s")) + " instead of " +
+         fmt("%.3g m/s", b.num(0, "jaw_speed_m_s")) + " (" + b.at(r, "tets") +
+         " tets) the first-break load changes by " +
+         pct(b.num(r, "first_break_load_N"), b.num(0, "first_break_load_N")) + " and P by " +
+         pct(b.num(r, "peak_load_N"), b.num(0, "peak_load_N")) + ".\n";
+  if (atRate.size() > 1)
+    s += "- Mesh: P changes by " +
+         pct(b.num(atRate.back(), "peak_load_N"), b.num(atRate.front(), "peak_load_N")) + " from " +
+         b.at(atRate.front(), "tets") + " to " + b.at(atRate.back(), "tets") +
+         " tets, the first-break load by " +
+         pct(b.num(atRate.back(), "first_break_load_N"),
+             b.num(atRate.front(), "first_break_load_N")) +
+         ".\n";
+  return s;
+}
+
 std::string labBrazilianRegion(const fs::path& dir, const fs::path& resultsDir, const Part& part) {
   Result<Table> t = readCsv(dir / "brazilian.csv");
   if (!t.ok()) return notGenerated(part, t.error().message);
@@ -380,6 +465,7 @@ std::string labBrazilianRegion(const fs::path& dir, const fs::path& resultsDir, 
          ", " + fmt("%.1f deg", b.num(r, "crack_angle_deg")) + " |\n";
   }
   s += "\nFrom `" + part.command + "` (" + linkPath(dir, resultsDir) + "/brazilian.csv).\n";
+  s += brazilianFindings(b);
   return s + image("Brazilian disc", dir / "brazilian.svg", resultsDir);
 }
 
@@ -447,6 +533,23 @@ std::string labImpactRegion(const fs::path& dir, const fs::path& resultsDir, con
          " |\n";
   }
   s += "\nFrom `" + part.command + "` (" + linkPath(dir, resultsDir) + "/impact.csv, curves/).\n";
+  // The mesh check: each material's first and last mesh (coarse, fine), as `report lab` runs
+  // them.
+  for (const char* material : {"brittle", "ductile"}) {
+    std::vector<size_t> rows;
+    for (size_t r = 0; r < m.rows.size(); ++r)
+      if (m.at(r, "test") == test && m.at(r, "material") == material) rows.push_back(r);
+    if (rows.size() < 2) continue;
+    const size_t c = rows.front(), f = rows.back();
+    s += std::string(material == std::string("brittle") ? "\n" : "") + "- Mesh, " + material +
+         " bar, " + meshText(m, c) + " to " + meshText(m, f) + ": peak load " +
+         pct(m.num(f, "peak_load_N"), m.num(c, "peak_load_N")) + " (at " +
+         mmText(m.num(c, "displacement_at_peak_m")) + " and " +
+         mmText(m.num(f, "displacement_at_peak_m")) + " mm), load at the first break " +
+         pct(m.num(f, "first_break_load_N"), m.num(c, "first_break_load_N")) +
+         ", absorbed energy " + pct(m.num(f, "absorbed_energy_J"), m.num(c, "absorbed_energy_J")) +
+         ".\n";
+  }
   return s + image(charpy ? "Charpy" : "Izod", dir / (test + ".svg"), resultsDir);
 }
 
@@ -569,17 +672,20 @@ std::string benchRegion(const fs::path& csv, const fs::path& svg, const fs::path
            (t.ok() ? " and printed no rows" : " (" + t.error().message + ")") + ".\n";
   const Table& c = t.value();
   std::string s = "From `" + part.command + "` (" + linkPath(csv, resultsDir) +
-                  "): ms per frame on this machine's CPU against the thesis's fps on one RTX 2060 "
-                  "GPU (table 6.2).\n\n";
-  s += "| case | solver | tets | threads | ms per frame | fps | elements | assembly | solve | "
-       "fracture | linear iterations | thesis GPU fps |\n";
-  s += "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+                  "): ms per frame on this machine's CPU, each case at every thread count in "
+                  "the same run (speed-up: the 1-thread frame time over this one; on a machine "
+                  "whose cores other jobs share it understates the code's), against the "
+                  "thesis's fps on one RTX 2060 GPU (table 6.2).\n\n";
+  s += "| case | solver | tets | threads | ms per frame | fps | speed-up over 1 thread | elements "
+       "| assembly | solve | fracture | linear iterations | thesis GPU fps |\n";
+  s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   PlotPanel panel{"Frame time against size", "tets", "ms per frame", true, true, {}};
   const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e"};
   std::map<std::string, size_t> seriesOf;
   for (size_t r = 0; r < c.rows.size(); ++r) {
     s += "| " + c.at(r, "case") + " | " + c.at(r, "solver") + " | " + c.at(r, "tets") + " | " +
          c.at(r, "threads") + " | " + c.at(r, "ms_frame") + " | " + c.at(r, "fps") + " | " +
+         (c.col("speedup") >= 0 ? c.at(r, "speedup") : std::string("-")) + " | " +
          c.at(r, "ms_elements") + " | " + c.at(r, "ms_assembly") + " | " + c.at(r, "ms_solve") +
          " | " + c.at(r, "ms_fracture") + " | " + c.at(r, "linear_iterations") + " | " +
          c.at(r, "thesis_gpu_fps") + " |\n";
@@ -695,6 +801,78 @@ std::string methodName(const std::string& m) {
   return it == names.end() ? m : it->second;
 }
 
+using NumberGrid = std::map<std::string, std::map<std::string, double>>;
+
+double median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// Each Bullet run over each graphfrac solver on the same case and dt: step time and error
+// (issue 19 asks for the ratios), and the same for the medians of the stable sweep runs.
+std::string peerRatios(const std::vector<std::string>& keys,
+                       const std::vector<std::string>& methods, NumberGrid& ms, NumberGrid& err,
+                       std::map<std::string, std::map<std::string, std::vector<double>>>& sweep) {
+  std::vector<std::string> ours, theirs;
+  for (const std::string& m : methods) (m.rfind("graphfrac", 0) == 0 ? ours : theirs).push_back(m);
+  if (ours.empty() || theirs.empty()) return "";
+  std::string s =
+      "\nRatios, Bullet over graphfrac (ms per step; error), where both ran stable:\n\n";
+  s += "| case, dt | Bullet run |";
+  std::string rule = "|---|---|";
+  for (const std::string& o : ours) {
+    s += " over " + o + " |";
+    rule += "---|";
+  }
+  s += "\n" + rule + "\n";
+  int rows = 0;
+  for (const std::string& key : keys)
+    for (const std::string& t : theirs) {
+      if (!ms[key].count(t)) continue;
+      s += "| " + key + " | " + t + " |";
+      for (const std::string& o : ours) {
+        std::string c = "-";
+        if (ms[key].count(o)) {
+          c = fmt("%.2fx; ", ms[key][t] / ms[key][o]);
+          c += err[key][o] > 0 ? fmt("%.3gx", err[key][t] / err[key][o]) : std::string("-");
+        }
+        s += ' ';
+        s += c;
+        s += " |";
+      }
+      s += "\n";
+      ++rows;
+    }
+  if (rows == 0) s += "\nNo Bullet run was stable on a case of this table.\n";
+  // The sweep's medians over its stable runs: a time ratio less tied to one E and dt.
+  std::string med;
+  for (const auto& [kase, byMethod] : sweep) {
+    std::string line;
+    for (const std::string& m : methods) {
+      const auto it = byMethod.find(m);
+      if (it == byMethod.end()) continue;
+      line += (line.empty() ? "" : ", ") + m + fmt(" %.2f ms", median(it->second)) + " (" +
+              std::to_string(it->second.size()) + " of its runs)";
+    }
+    const auto base = byMethod.find(ours.front());
+    if (base != byMethod.end())
+      for (const std::string& t : theirs) {
+        const auto it = byMethod.find(t);
+        if (it != byMethod.end())
+          line += "; " + t + " / " + ours.front() +
+                  fmt(" %.2fx", median(it->second) / median(base->second));
+      }
+    med += "- " + kase + ": " + line + "\n";
+  }
+  if (!med.empty())
+    s += "\nMedian ms per step over each method's stable runs of the sweep of E and dt (where "
+         "two methods' counts differ, their ratio compares different sets of E and dt):\n\n" +
+         med;
+  return s;
+}
+
 // bench peer's CSV: the step time and error table (`range` false) or the stable runs over its
 // sweep of E and dt (`range` true), in RESULTS.md's columns.
 std::string peerRegion(const fs::path& csv, const Part& part, bool range) {
@@ -705,7 +883,9 @@ std::string peerRegion(const fs::path& csv, const Part& part, bool range) {
   const Table& c = t.value();
   std::vector<std::string> methods, keys, setups;
   std::map<std::string, std::map<std::string, std::string>> cell;
-  std::map<std::string, std::map<std::string, std::pair<int, int>>> stable;  // method, case
+  std::map<std::string, std::map<std::string, std::pair<int, int>>> stable;   // method, case
+  NumberGrid ms, err;                                                         // key, method
+  std::map<std::string, std::map<std::string, std::vector<double>>> sweepMs;  // case, method
   for (size_t r = 0; r < c.rows.size(); ++r) {
     const std::string kase = c.at(r, "case"), method = methodName(c.at(r, "method")),
                       outcome = c.at(r, "outcome");
@@ -715,12 +895,18 @@ std::string peerRegion(const fs::path& csv, const Part& part, bool range) {
       auto& st = stable[method][kase.substr(0, kase.size() - 6)];
       ++st.second;
       st.first += outcome == "stable";
+      if (outcome == "stable" && std::isfinite(c.num(r, "ms_per_step")))
+        sweepMs[kase.substr(0, kase.size() - 6)][method].push_back(c.num(r, "ms_per_step"));
       continue;
     }
     const std::string key = kase + ", " + dtText(c.num(r, "dt_s"));
     const std::string setup = kase + ": E " + c.at(r, "E_Pa") + " Pa, " + c.at(r, "tets") + " tets";
     if (std::find(keys.begin(), keys.end(), key) == keys.end()) keys.push_back(key);
     if (std::find(setups.begin(), setups.end(), setup) == setups.end()) setups.push_back(setup);
+    if (outcome == "stable") {
+      ms[key][method] = c.num(r, "ms_per_step");
+      err[key][method] = c.num(r, "error");
+    }
     cell[key][method] =
         outcome == "stable"
             ? fmt("%.2f ms, ", c.num(r, "ms_per_step")) + fmt("%.2e", c.num(r, "error"))
@@ -749,6 +935,7 @@ std::string peerRegion(const fs::path& csv, const Part& part, bool range) {
     s += "\nFrom `" + part.command + "` (" + csv.filename().string() + "): ms per step, error;";
     for (const std::string& setup : setups) s += " " + setup + ";";
     s += " both engines on this machine's CPU, one thread.\n";
+    s += peerRatios(keys, methods, ms, err, sweepMs);
     return s;
   }
   if (stable.empty())
@@ -977,8 +1164,12 @@ int reportAll(int argc, char** argv) {
     } else if (a == "--reuse") {
       opt.reuse = true;
     } else if (a == "--only") {
-      if (i + 1 >= argc || std::string(argv[i + 1]) != "lab") {
-        std::fprintf(stderr, "graphfrac report all: --only: expected lab\n\n%s", kAllUsage);
+      if (i + 1 >= argc ||
+          std::find(kParts.begin(), kParts.end(), std::string(argv[i + 1])) == kParts.end()) {
+        std::fprintf(stderr,
+                     "graphfrac report all: --only: expected lab, error-vs-time, bench, "
+                     "stability or peer\n\n%s",
+                     kAllUsage);
         return kExitUsage;
       }
       opt.only = argv[++i];
@@ -998,7 +1189,7 @@ int reportAll(int argc, char** argv) {
     }
   }
   if (opt.reuse && opt.only.empty()) {
-    std::fprintf(stderr, "graphfrac report all: --reuse: needs --only lab\n\n%s", kAllUsage);
+    std::fprintf(stderr, "graphfrac report all: --reuse: needs --only PART\n\n%s", kAllUsage);
     return kExitUsage;
   }
   // The markers first: a page that cannot take the results stops the run before it starts.
@@ -1028,35 +1219,46 @@ int reportAll(int argc, char** argv) {
   for (int i = 2; i < argc; ++i) selfArgs.push_back(argv[i]);
   const auto t0 = std::chrono::steady_clock::now();
   const fs::path scenes(opt.scenes);
+  const std::string loadBefore = loadAverage();
   Part lab{"lab", "", -1, 0, ""}, evt{"error vs time", "", -1, 0, ""},
       bench{"frame-time bench", "", -1, 0, ""}, stab{"stability suite", "", -1, 0, ""},
       peer{"Bullet comparison", "", -1, 0, ""};
+  auto wanted = [&](const char* part) { return opt.only.empty() || opt.only == part; };
+  // --reuse: the part's files must be there (a region built from nothing would say "not
+  // generated"); the part counts as run, with the command that makes the files.
+  auto reuse = [&](Part& part, const std::string& command,
+                   const std::vector<fs::path>& files) -> bool {
+    part.command = command;
+    for (const fs::path& f : files)
+      if (!fs::exists(f)) {
+        std::fprintf(stderr, "graphfrac report all: --reuse: %s is missing (run `%s` first)\n",
+                     f.string().c_str(), command.c_str());
+        return false;
+      }
+    part.exit = 0;
+    part.note = "its files reused";
+    return true;
+  };
 
   // The quick form stops the impacts 0.5 mm past contact: the brittle bars crack within that,
   // the ductile ones have only begun to bend (their energies are then far below the full run's).
   const double stopMm = opt.quick ? 0.5 : 4;
-  std::vector<std::string> labArgs{
-      "report", "lab", "--out", (out / "lab").string(), "--scenes", (scenes / "lab").string()};
-  if (opt.quick) labArgs.insert(labArgs.end(), {"--quick", "--stop-after", "0.5"});
-  if (opt.reuse) {
-    // The files must be there: a region built from nothing would say "not generated".
-    lab.command = commandLine(labArgs);
-    for (const char* f : {"brazilian.csv", "impact.csv"})
-      if (!fs::exists(out / "lab" / f)) {
-        std::fprintf(stderr, "graphfrac report all: --reuse: %s is missing (run `%s` first)\n",
-                     (out / "lab" / f).string().c_str(), lab.command.c_str());
+  if (wanted("lab")) {
+    std::vector<std::string> labArgs{
+        "report", "lab", "--out", (out / "lab").string(), "--scenes", (scenes / "lab").string()};
+    if (opt.quick) labArgs.insert(labArgs.end(), {"--quick", "--stop-after", "0.5"});
+    if (opt.reuse) {
+      if (!reuse(lab, commandLine(labArgs),
+                 {out / "lab" / "brazilian.csv", out / "lab" / "impact.csv"}))
         return kExitOutput;
-      }
-    lab.exit = 0;
-    lab.note = "its files reused";
-  } else {
-    runPart(lab, runLabReport, labArgs, logs / "lab.log");
+    } else {
+      runPart(lab, runLabReport, labArgs, logs / "lab.log");
+    }
   }
-  const bool all = opt.only.empty();
 
   // The hanging sphere: table 6.1's volume gain and table 6.2's 35k-tet case in one scene.
   const fs::path evtDir = out / "hanging_sphere";
-  if (all) {
+  if (wanted("error-vs-time")) {
     std::vector<std::string> evtArgs{
         "report", "error-vs-time", (scenes / "hanging_sphere.json").string(),
         "--out",  evtDir.string(), "--threads",
@@ -1066,23 +1268,42 @@ int reportAll(int argc, char** argv) {
                      {"--frames", "2", "--levels", "50/all", "--cycles", "2", "--pcg-caps", "30"});
     else
       evtArgs.insert(evtArgs.end(), {"--levels", "50/all,256/all"});
-    runPart(evt, runReportCommand, evtArgs, logs / "error_vs_time.log");
+    if (opt.reuse) {
+      if (!reuse(evt, commandLine(evtArgs), {evtDir / "error_vs_time.csv"})) return kExitOutput;
+    } else {
+      runPart(evt, runReportCommand, evtArgs, logs / "error_vs_time.log");
+    }
+  }
 
-    // bench multigrid: the thesis's chapter-6 bodies (4k to 160k tets), a fixed list.
-    std::vector<std::string> benchArgs{"bench", "multigrid", "--frames", opt.quick ? "2" : "10"};
-    if (opt.quick) benchArgs.insert(benchArgs.end(), {"--only", "hinged beam", "--threads", "1"});
-    runPart(bench, runBenchCommand, benchArgs, out / "bench_multigrid.csv");
+  // bench multigrid: the thesis's chapter-6 bodies (4k to 160k tets), a fixed list, each at 1
+  // and 2 threads in the same run (issue 14), so the speed-up is measured under one load.
+  if (wanted("bench")) {
+    std::vector<std::string> benchArgs{"bench",     "multigrid", "--frames", opt.quick ? "2" : "10",
+                                       "--threads", "1,2"};
+    if (opt.quick) benchArgs.insert(benchArgs.end(), {"--only", "hinged beam"});
+    if (opt.reuse) {
+      if (!reuse(bench, commandLine(benchArgs), {out / "bench_multigrid.csv"})) return kExitOutput;
+    } else {
+      runPart(bench, runBenchCommand, benchArgs, out / "bench_multigrid.csv");
+    }
+  }
 
+  if (wanted("stability")) {
+    const std::string env = std::string(opt.quick ? "" : "GF_FULL_VALIDATION=1 ") +
+                            "GF_STABILITY_CSV=" + (out / "stability.csv").string() + " ";
     std::string looked;
-    const std::string stabBin = findStabilityBinary(opt, looked);
-    if (stabBin.empty()) {
+    const std::string stabBin = opt.reuse ? "" : findStabilityBinary(opt, looked);
+    if (opt.reuse) {
+      if (!reuse(stab, env + "gf_stability_tests", {out / "stability.csv"})) return kExitOutput;
+    } else if (stabBin.empty()) {
       stab.note =
           "gf_stability_tests was not found (looked for " + looked +
           "); build it with `cmake --build --preset release --target gf_stability_tests` or "
           "name it with --stability-bin";
     } else {
-      stab.command = std::string(opt.quick ? "" : "GF_FULL_VALIDATION=1 ") +
-                     "GF_STABILITY_CSV=" + (out / "stability.csv").string() + " " + stabBin;
+      std::error_code rec;
+      const fs::path rel = fs::relative(stabBin, fs::current_path(rec), rec);
+      stab.command = env + (rec || rel.empty() ? stabBin : "./" + rel.generic_string());
       std::printf("report all: %s ...\n", stab.command.c_str());
       std::fflush(stdout);
       const auto ts = std::chrono::steady_clock::now();
@@ -1096,35 +1317,46 @@ int reportAll(int argc, char** argv) {
         stab.note = "a run failed: " + (logs / "stability.log").string();
       std::printf("report all:   exit %d after %.1f s\n", stab.exit, stab.seconds);
     }
+  }
 
-    if (opt.quick && !kHasBullet) {
+  if (wanted("peer")) {
+    // The quick form: the smallest meshes and a quarter second per run, sweep included.
+    std::vector<std::string> peerArgs{"bench", "peer"};
+    if (opt.quick) peerArgs.insert(peerArgs.end(), {"--cells", "1", "--seconds", "0.25"});
+    if (opt.reuse) {
+      if (!reuse(peer, commandLine(peerArgs), {out / "peer.csv"})) return kExitOutput;
+    } else if (opt.quick && !kHasBullet) {
       peer.note =
           "this graphfrac was built without Bullet's soft bodies, and --quick skips the "
           "comparison then";
     } else {
-      // The quick form: the smallest meshes and a quarter second per run, sweep included.
-      std::vector<std::string> peerArgs{"bench", "peer"};
-      if (opt.quick) peerArgs.insert(peerArgs.end(), {"--cells", "1", "--seconds", "0.25"});
       runPart(peer, runBenchCommand, peerArgs, out / "peer.csv");
     }
-  }  // all parts
+  }
   const double seconds = secondsSince(t0);
+  const bool all = opt.only.empty();
 
   std::map<std::string, std::string> regions;
   std::vector<Part> parts{lab, evt, bench, stab, peer};
   // --only: the header and the thesis's table describe a full run (the latter reads every
   // part's files), and the other parts' regions stay as they are.
-  if (all) regions["header"] = headerRegion(opt, parts, commandLine(selfArgs), seconds);
+  if (all)
+    regions["header"] =
+        headerRegion(opt, parts, commandLine(selfArgs), seconds, loadBefore, loadAverage());
   if (all) regions["thesis"] = thesisRegion(opt, out, evtDir);
-  regions["lab-brazilian"] = labBrazilianRegion(out / "lab", resultsDir, lab);
-  regions["lab-charpy"] = labImpactRegion(out / "lab", resultsDir, lab, "charpy", stopMm);
-  regions["lab-izod"] = labImpactRegion(out / "lab", resultsDir, lab, "izod", stopMm);
-  regions["lab-acceptance"] = labAcceptanceRegion(out / "lab", lab);
-  if (all) {
+  if (wanted("lab")) {
+    regions["lab-brazilian"] = labBrazilianRegion(out / "lab", resultsDir, lab);
+    regions["lab-charpy"] = labImpactRegion(out / "lab", resultsDir, lab, "charpy", stopMm);
+    regions["lab-izod"] = labImpactRegion(out / "lab", resultsDir, lab, "izod", stopMm);
+    regions["lab-acceptance"] = labAcceptanceRegion(out / "lab", lab);
+  }
+  if (wanted("error-vs-time"))
     regions["error-vs-time"] = errorVsTimeRegion(evtDir, resultsDir, evt);
+  if (wanted("bench"))
     regions["bench"] =
         benchRegion(out / "bench_multigrid.csv", out / "bench_multigrid.svg", resultsDir, bench);
-    regions["stability"] = stabilityRegion(out / "stability.csv", stab);
+  if (wanted("stability")) regions["stability"] = stabilityRegion(out / "stability.csv", stab);
+  if (wanted("peer")) {
     regions["peer-time"] = peerRegion(out / "peer.csv", peer, false);
     regions["peer-range"] = peerRegion(out / "peer.csv", peer, true);
   }
@@ -1165,9 +1397,9 @@ int reportAll(int argc, char** argv) {
   // normal outcome. The Bullet comparison is left out of --quick on purpose without Bullet.
   for (size_t i = 0; i < parts.size(); ++i) {
     const Part& p = parts[i];
-    if (!all && i > 0) continue;  // --only lab: the others were not asked for
-    if (p.exit == kExitOk || (&p == &parts[1] && p.exit == kExitFlagged) ||
-        (&p == &parts[4] && p.exit < 0))
+    if (!wanted(kParts[i].c_str())) continue;  // --only: the others were not asked for
+    if (p.exit == kExitOk || (i == 1 && p.exit == kExitFlagged) ||
+        (i == 4 && p.exit < 0 && opt.quick))
       continue;
     return kExitFlagged;
   }

@@ -204,6 +204,8 @@ const char* causeName(FractureEvent::Cause c) {
       return "brittle";
     case FractureEvent::Cause::Cut:
       return "cut";
+    case FractureEvent::Cause::Severed:
+      return "severed";
   }
   return "unknown";
 }

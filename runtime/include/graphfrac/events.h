@@ -9,7 +9,8 @@
 
 namespace gf {
 
-/// An edge of a body's mesh broke (by the stress criterion, a brittle crack plane or a cut),
+/// An edge of a body's mesh broke (by the stress criterion, a brittle crack plane, a cut, or
+/// severed by other breaks),
 /// or, for a body in CutMode::Xfem, a cut crossed a tet (one event per tet that carries the new
 /// cut's enrichment: edge, nodeA and nodeB are -1, `tet` names it, position is the centroid of
 /// the cut polygon in it).
@@ -18,11 +19,13 @@ struct FractureEvent {
   int32_t edge = -1;               ///< Edge index in the body's edge graph (-1: Is-XFEM).
   int32_t nodeA = -1, nodeB = -1;  ///< Its end nodes.
   glm::vec3 position{0, 0, 0};     ///< World-space midpoint of the edge when it broke.
-  float stress = 0;                ///< Tensile normal stress that broke it [Pa]; 0 for cuts.
+  float stress = 0;                ///< Tensile normal stress that broke it [Pa]; 0: cut, severed.
   /// Where the render surface splits the edge, from nodeA (0) to nodeB (1): 0.5, or with
   /// FractureSettings::splitPoint = ForceRatio the point set when it broke (fig 4.10).
   float split = 0.5f;
-  enum class Cause : uint8_t { Stress, BrittlePlane, Cut } cause = Cause::Stress;
+  /// Severed: the edge carried nothing any more, every tet around it split by other breaks of
+  /// the same step (degradation model; stress 0, split 0.5; docs/design.md "Severed edges").
+  enum class Cause : uint8_t { Stress, BrittlePlane, Cut, Severed } cause = Cause::Stress;
   int32_t tet = -1;  ///< CutMode::Xfem: the tet the cut crosses; -1 for graph events.
 };
 

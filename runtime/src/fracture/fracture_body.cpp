@@ -18,6 +18,13 @@ constexpr uint32_t kTetGrain = 256;
 Vec3 load3(const double* p, int32_t i) { return {p[3 * i], p[3 * i + 1], p[3 * i + 2]}; }
 
 uint8_t cause(FractureEvent::Cause c) { return static_cast<uint8_t>(c); }
+
+// A tet whose corners fall into pieces no unbroken edge of it joins (rule after eq 4.33).
+bool tetSplit(const EdgeGraph& g, const uint8_t* broken, int32_t t) {
+  uint8_t local[6];
+  for (int k = 0; k < 6; ++k) local[k] = broken[g.tetEdges[6 * size_t(t) + size_t(k)]];
+  return cornersDisconnected(local);
+}
 }  // namespace
 
 Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem,
@@ -227,6 +234,36 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState
   }
 }
 
+void FractureBody::releaseSevered(size_t first, const double* x) {
+  // Projection keeps a lone edge's own strain in a split tet (kernels/damage.h): it still holds.
+  if (m_damageModel != kDamageDegradation) return;
+  const EdgeGraph& g = m_graph;
+  const uint8_t* broken = m_data.broken.data();
+  const size_t end = m_data.breaks.size();
+  for (size_t i = first; i < end; ++i) {
+    const int32_t e = m_data.breaks[i].edge;
+    for (int32_t q = g.edgeTetStart[e]; q < g.edgeTetStart[e + 1]; ++q) {
+      const int32_t t = g.edgeTets[size_t(q)] / 6;
+      if (!tetSplit(g, broken, t)) continue;
+      for (int k = 0; k < 6; ++k) {
+        const int32_t f = g.tetEdges[6 * size_t(t) + size_t(k)];
+        if (broken[f]) continue;
+        bool held = false;
+        for (int32_t r = g.edgeTetStart[f]; r < g.edgeTetStart[f + 1] && !held; ++r)
+          held = !tetSplit(g, broken, g.edgeTets[size_t(r)] / 6);
+        if (held) continue;
+        m_data.broken[size_t(f)] = 1;
+        EdgeBreak b;
+        b.edge = f;
+        b.tet = t;
+        b.position = 0.5 * (load3(x, g.edgeNodes[2 * f]) + load3(x, g.edgeNodes[2 * f + 1]));
+        m_data.breaks.push_back(b);
+        m_data.breakCause.push_back(cause(FractureEvent::Cause::Severed));
+      }
+    }
+  }
+}
+
 int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const double* x,
                              JobSystem& jobs, bool stressesReady, double* svdCache) {
   m_data.breaks.clear();
@@ -265,6 +302,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
   const int32_t n = evaluateCriterion(m_model, m_graph, m_data.strength.data(), m_stress.data(),
                                       m_data.broken, m_data.breaks, m_ws, jobs, x);
   m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Stress));
+  releaseSevered(first, x);
   if (n > 0 && fem.fracture.brittle && !m_data.brittleFired) {
     // Brittle mode: the first time the criterion fires, the most stressed regions start
     // crack planes through the whole body (sec 4.5.1.2).

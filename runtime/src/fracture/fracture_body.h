@@ -139,6 +139,11 @@ class FractureBody {
   // The split points of m_data.breaks[first..] (SplitPoint::ForceRatio), before they apply.
   void computeSplits(size_t first, const FemModel& fem, const FemState& data, const double* x,
                      JobSystem& jobs);
+  // Degradation model: breaks (cause Severed, appended) the unbroken edges around the
+  // criterion's breaks m_data.breaks[first..] whose every tet is now split. A split tet has
+  // chi = 0 and zero criterion stress, so no load could ever break such an edge, yet it would
+  // keep the graph's pieces one fragment (docs/design.md "Severed edges").
+  void releaseSevered(size_t first, const double* x);
   // Masks, chi and fragments after edges in m_data.breaks[first..] broke.
   void applyBreaks(size_t first, const FemModel& fem, const FemState& data, const double* x,
                    JobSystem& jobs);
