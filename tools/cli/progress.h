@@ -2,6 +2,8 @@
 // when stderr is a file or a pipe (CI logs), nothing when quiet.
 #pragma once
 
+#include <time.h>
+
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -45,6 +47,15 @@ std::string formatDuration(double seconds);
 /// it without linking the CLI.
 inline double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// CPU time of the whole process [ms]: on a shared machine other jobs stretch the wall clock but
+/// not this, so the ranking of settings survives a noisy machine. It sums all threads (the
+/// thread pool's and BLAS's), so with several threads it exceeds the wall clock.
+inline double processCpuMs() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
 }
 
 }  // namespace gf::cli

@@ -179,15 +179,6 @@ std::optional<std::string> parseOptions(int argc, char** argv, Options& opt) {
   return std::nullopt;
 }
 
-// CPU time of the whole process: on a shared machine other jobs stretch the wall clock but not
-// this, so the ranking of settings survives a noisy machine. It sums all threads (the thread
-// pool's and BLAS's), so with several threads it exceeds the wall clock.
-double processCpuMs() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
-}
-
 double signedVolume(const double* x, const int32_t* t, size_t tets) {
   double v = 0;
   for (size_t e = 0; e < tets; ++e) {

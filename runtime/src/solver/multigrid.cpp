@@ -345,6 +345,11 @@ struct MultigridSolver::Impl {
     if (due && rebindPending) applyRebind();
     if (patternsChanged) buildLevels(A);
     invertDiagonals<3>(0, A, jobs);
+    // Jacobi and Chebyshev are tuned to lambda_max of the fine D^-1 A; with a stale estimate
+    // below the current one (a longer step, fracture) they amplify the top modes and the
+    // V-cycle is no longer SPD, so CG breaks down. The coarse levels' estimates stay
+    // consistent with their (stale) operators.
+    if (!due && settings.smoother != Smoother::GaussSeidel) estimateLambda<3>(0, A, jobs);
     if (due) {
       refresh(A, jobs);
       needRefresh = false;
