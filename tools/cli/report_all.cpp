@@ -675,20 +675,27 @@ std::string benchRegion(const fs::path& csv, const fs::path& svg, const fs::path
                   "): ms per frame on this machine's CPU, each case at every thread count in "
                   "the same run (speed-up: the 1-thread frame time over this one; on a machine "
                   "whose cores other jobs share it understates the code's), against the "
-                  "thesis's fps on one RTX 2060 GPU (table 6.2).\n\n";
-  s += "| case | solver | tets | threads | ms per frame | fps | speed-up over 1 thread | elements "
-       "| assembly | solve | fracture | linear iterations | thesis GPU fps |\n";
-  s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+                  "thesis's fps on one RTX 2060 GPU (table 6.2). CPU ms: the process's CPU time "
+                  "per frame over all threads, which other jobs do not stretch; residual cut: "
+                  "per V-cycle on the first step (multigrid); unconverged: frames whose linear "
+                  "solve stopped at its cap.\n\n";
+  s += "| case | solver | tets | threads | ms per frame | CPU ms per frame | fps | speed-up over 1 "
+       "thread | elements | assembly | solve | fracture | linear iterations | residual cut per "
+       "V-cycle | unconverged frames | thesis GPU fps |\n";
+  s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  const auto opt = [&c](size_t r, const char* name) {
+    return c.col(name) >= 0 && !c.at(r, name).empty() ? c.at(r, name) : std::string("-");
+  };
   PlotPanel panel{"Frame time against size", "tets", "ms per frame", true, true, {}};
   const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e"};
   std::map<std::string, size_t> seriesOf;
   for (size_t r = 0; r < c.rows.size(); ++r) {
     s += "| " + c.at(r, "case") + " | " + c.at(r, "solver") + " | " + c.at(r, "tets") + " | " +
-         c.at(r, "threads") + " | " + c.at(r, "ms_frame") + " | " + c.at(r, "fps") + " | " +
-         (c.col("speedup") >= 0 ? c.at(r, "speedup") : std::string("-")) + " | " +
-         c.at(r, "ms_elements") + " | " + c.at(r, "ms_assembly") + " | " + c.at(r, "ms_solve") +
-         " | " + c.at(r, "ms_fracture") + " | " + c.at(r, "linear_iterations") + " | " +
-         c.at(r, "thesis_gpu_fps") + " |\n";
+         c.at(r, "threads") + " | " + c.at(r, "ms_frame") + " | " + opt(r, "cpu_ms_frame") + " | " +
+         c.at(r, "fps") + " | " + opt(r, "speedup") + " | " + c.at(r, "ms_elements") + " | " +
+         c.at(r, "ms_assembly") + " | " + c.at(r, "ms_solve") + " | " + c.at(r, "ms_fracture") +
+         " | " + c.at(r, "linear_iterations") + " | " + opt(r, "vcycle_reduction") + " | " +
+         opt(r, "unconverged_frames") + " | " + c.at(r, "thesis_gpu_fps") + " |\n";
     const std::string key = c.at(r, "solver") + ", " + c.at(r, "threads") + " thread(s)";
     if (!seriesOf.count(key)) {
       seriesOf[key] = panel.series.size();
