@@ -192,4 +192,64 @@ inline std::pair<int, double> stretchAbove(std::span<const float> restPos,
   return {above, stretch};
 }
 
+// How the drawn fragments fill a box at rest, along rays parallel to x through a grid of
+// (y, z) points (offsets chosen off the render lattices): per ray, each fragment's winding
+// number from the signed crossings of its triangles; the box's volume covered by two or more
+// fragments at once (caps that overlap) and by none (gaps between caps).
+struct Coverage {
+  double overlap = 0, gap = 0, volume = 0;
+};
+inline Coverage coverage(const SurfaceView& s, glm::dvec3 lo, glm::dvec3 hi, int rays) {
+  Coverage out;
+  const double dy = (hi.y - lo.y) / rays, dz = (hi.z - lo.z) / rays;
+  struct Hit {
+    double x;
+    int32_t fragment;
+    int sign;
+  };
+  std::vector<Hit> hits;
+  std::map<int32_t, int> winding;
+  for (int j = 0; j < rays; ++j)
+    for (int k = 0; k < rays; ++k) {
+      const double y = lo.y + (j + 0.5 + 0.0137) * dy, z = lo.z + (k + 0.5 - 0.0213) * dz;
+      hits.clear();
+      for (size_t t = 0; t < s.indices.size() / 3; ++t) {
+        glm::dvec3 p[3];
+        for (int c = 0; c < 3; ++c) p[c] = pos(s.positions, s.indices[3 * t + size_t(c)]);
+        // The ray meets the triangle where its (y, z) projection holds (y, z).
+        const double d =
+            (p[1].y - p[0].y) * (p[2].z - p[0].z) - (p[2].y - p[0].y) * (p[1].z - p[0].z);
+        if (d == 0) continue;
+        const double b1 = ((y - p[0].y) * (p[2].z - p[0].z) - (p[2].y - p[0].y) * (z - p[0].z)) / d;
+        const double b2 = ((p[1].y - p[0].y) * (z - p[0].z) - (y - p[0].y) * (p[1].z - p[0].z)) / d;
+        if (b1 < 0 || b2 < 0 || b1 + b2 > 1) continue;
+        const double x = p[0].x + b1 * (p[1].x - p[0].x) + b2 * (p[2].x - p[0].x);
+        // d is the x component of the normal: outward along -x means the ray enters.
+        hits.push_back({x, s.vertexFragment[s.indices[3 * t]], d < 0 ? 1 : -1});
+      }
+      std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) { return a.x < b.x; });
+      winding.clear();
+      int inside = 0;
+      double last = lo.x;
+      auto account = [&](double to) {
+        const double a = std::max(last, lo.x), b = std::min(to, hi.x);
+        if (b > a) {
+          if (inside >= 2) out.overlap += (b - a) * dy * dz;
+          if (inside == 0) out.gap += (b - a) * dy * dz;
+          if (inside >= 1) out.volume += (b - a) * dy * dz;
+        }
+        last = std::max(last, to);
+      };
+      for (const Hit& h : hits) {
+        account(h.x);
+        int& w = winding[h.fragment];
+        inside -= w != 0 ? 1 : 0;
+        w += h.sign;
+        inside += w != 0 ? 1 : 0;
+      }
+      account(hi.x);
+    }
+  return out;
+}
+
 }  // namespace gf::test

@@ -497,13 +497,30 @@ TEST(Scene, RenderMeshBunnyBreaksIntoClosedPieces) {
                                                                                 : cellsUndrawn) +=
           v;
   }
+  // Rays through the artist's mesh's box: the volume covered by none of the fragments and by
+  // two or more, against the artist's mesh's (a ray inside it counts once).
+  glm::dvec3 lo(HUGE_VAL), hi(-HUGE_VAL);
+  for (size_t v = 0; v < rm.vertexCount(); ++v) {
+    lo = glm::min(lo, test::at(rm.positions, v));
+    hi = glm::max(hi, test::at(rm.positions, v));
+  }
+  const test::Coverage cov = test::coverage(sv, lo, hi, 80);
+  SurfaceView whole;
+  std::vector<float> artistPositions(rm.positions.begin(), rm.positions.end());
+  std::vector<int32_t> oneFragment(rm.vertexCount(), 0);
+  whole.positions = artistPositions;
+  whole.indices = rm.indices;
+  whole.vertexFragment = oneFragment;
+  const test::Coverage inside = test::coverage(whole, lo, hi, 80);
   std::printf(
       "bunny_render after %d frames: %d fragments, %d drawn, %d of them closed and 2-manifold "
       "(%d open edges); %zu drawn triangles; at rest the fragments' volumes add up to %.6g m^3 "
       "against the artist's mesh's %.6g (%.3g relative); tets %.6g m^3, of which the corner "
-      "cells of fragments drawn %.6g and not drawn %.6g\n",
+      "cells of fragments drawn %.6g and not drawn %.6g; rays: the artist's mesh holds %.6g "
+      "m^3, the fragments cover %.6g (%.4g of it), %.3g of it covered twice\n",
       s.frames, fragments, drawn, closedFragments, open, sv.indices.size() / 3, volume, artist,
-      (volume - artist) / artist, cellsDrawn + cellsUndrawn, cellsDrawn, cellsUndrawn);
+      (volume - artist) / artist, cellsDrawn + cellsUndrawn, cellsDrawn, cellsUndrawn,
+      inside.volume, cov.volume, cov.volume / inside.volume, cov.overlap / inside.volume);
   EXPECT_GT(fragments, 10);
   EXPECT_EQ(open, 0);
 }

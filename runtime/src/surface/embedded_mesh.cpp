@@ -26,6 +26,13 @@ constexpr double kInsideTolerance = -1e-12;
 constexpr double kMinCut = 0.05;
 // The grid has at most this many cells along an axis.
 constexpr int kMaxGridCells = 256;
+// Midpoint rounds of EmbeddedBinding::refined: each halves the longest edges, so this bounds a
+// render edge at 2^16 times the target length.
+constexpr int kMaxRefineRounds = 16;
+// After fracture, render edges are split until none is longer than this fraction of the tets'
+// mean edge, so an edge seldom crosses more than one fragment boundary (design note: refinement;
+// the fraction is measured there and in docs/validation.md).
+constexpr double kRefineEdge = 1.0;
 
 // Barycentric coordinates of P in tet t: (w1, w2, w3) = Dm^-1 (P - X0), w0 = 1 - w1 - w2 - w3.
 void barycentric(const Mat3& dmInv, Vec3 X0, Vec3 P, double* w) {
@@ -60,8 +67,7 @@ int strongest(const double* w, unsigned mask) {
 
 Result<EmbeddedBinding> EmbeddedBinding::bind(const TetMesh& rest, const RenderMesh& mesh,
                                               const std::string& field) {
-  const size_t nt = rest.tetCount(), nv = mesh.vertexCount();
-  const double* X = rest.positions.data();
+  const size_t nv = mesh.vertexCount();
   EmbeddedBinding b;
   b.rest = mesh.positions;
   b.uv = mesh.uvs;
@@ -87,6 +93,17 @@ Result<EmbeddedBinding> EmbeddedBinding::bind(const TetMesh& rest, const RenderM
     for (int k = 0; k < 3; ++k) b.restNormal[3 * v + size_t(k)] = u[k];
   }
 
+  Result<void> located = locate(rest, b, field, true);
+  if (!located.ok()) return located.error();
+  return b;
+}
+
+Result<void> EmbeddedBinding::locate(const TetMesh& rest, EmbeddedBinding& b,
+                                     const std::string& field, bool limitDistance) {
+  const size_t nt = rest.tetCount(), nv = b.rest.size() / 3;
+  const double* X = rest.positions.data();
+  b.outsideCount = 0;
+  b.maxOutside = 0;
   // Per tet: Dm^-1 and bounding box; the longest edge bounds how far outside a vertex may be.
   std::vector<Mat3> dmInv(nt);
   std::vector<Vec3> lo(nt), hi(nt);
@@ -201,7 +218,7 @@ Result<EmbeddedBinding> EmbeddedBinding::bind(const TetMesh& rest, const RenderM
                 }
               }
             }
-      if (!(bestDist <= 2 * longest)) {
+      if (limitDistance && !(bestDist <= 2 * longest)) {
         char text[160];
         std::snprintf(text, sizeof text,
                       ".positions[%zu]: (%.6g, %.6g, %.6g) lies %.6g m from the nearest tet, ", v,
@@ -218,17 +235,105 @@ Result<EmbeddedBinding> EmbeddedBinding::bind(const TetMesh& rest, const RenderM
     barycentric(dmInv[size_t(best)], load(X, size_t(rest.tets[4 * size_t(best)])), P,
                 &b.weight[4 * v]);
   }
-  return b;
+  return {};
+}
+
+EmbeddedBinding EmbeddedBinding::refined(const TetMesh& tets, double maxEdge) const {
+  EmbeddedBinding r;
+  r.rest = rest;
+  r.restNormal = restNormal;
+  r.uv = uv;
+  r.indices = indices;
+  const double max2 = maxEdge * maxEdge;
+  std::unordered_map<uint64_t, uint32_t> mid;
+  std::vector<uint32_t> next;
+  for (int round = 0; round < kMaxRefineRounds; ++round) {
+    // Each long edge gets one midpoint, keyed by its two vertices, so the two triangles of the
+    // edge share it and the surface stays conforming (no T-junction opens it).
+    mid.clear();
+    auto midpoint = [&](uint32_t a, uint32_t c) -> int64_t {
+      const Vec3 Pa = load(r.rest.data(), a), Pc = load(r.rest.data(), c);
+      const Vec3 d = Pc - Pa;
+      if (dot(d, d) <= max2) return -1;
+      const uint64_t key = uint64_t(std::min(a, c)) << 32 | std::max(a, c);
+      auto [it, added] = mid.emplace(key, uint32_t(r.rest.size() / 3));
+      if (added) {
+        const Vec3 P = 0.5 * (Pa + Pc);
+        Vec3 N = load(r.restNormal.data(), a) + load(r.restNormal.data(), c);
+        N = norm(N) > 0 ? (1 / norm(N)) * N : load(r.restNormal.data(), a);
+        r.rest.insert(r.rest.end(), {P.x, P.y, P.z});
+        r.restNormal.insert(r.restNormal.end(), {N.x, N.y, N.z});
+        if (!r.uv.empty())
+          for (int k = 0; k < 2; ++k)
+            r.uv.push_back(0.5f *
+                           (r.uv[2 * size_t(a) + size_t(k)] + r.uv[2 * size_t(c) + size_t(k)]));
+      }
+      return int64_t(it->second);
+    };
+    next.clear();
+    const size_t ntri = r.indices.size() / 3;
+    for (size_t t = 0; t < ntri; ++t) {
+      const uint32_t id[3] = {r.indices[3 * t], r.indices[3 * t + 1], r.indices[3 * t + 2]};
+      // m[i]: the midpoint of the edge from corner i to corner i + 1, or -1.
+      const int64_t m[3] = {midpoint(id[0], id[1]), midpoint(id[1], id[2]), midpoint(id[2], id[0])};
+      const int marked = int(m[0] >= 0) + int(m[1] >= 0) + int(m[2] >= 0);
+      auto emit = [&](int64_t a, int64_t b, int64_t c) {
+        next.insert(next.end(), {uint32_t(a), uint32_t(b), uint32_t(c)});
+      };
+      if (marked == 0) {
+        emit(id[0], id[1], id[2]);
+      } else if (marked == 1) {
+        const int i = m[0] >= 0 ? 0 : m[1] >= 0 ? 1 : 2, j = (i + 1) % 3, k = (i + 2) % 3;
+        emit(id[i], m[i], id[k]);
+        emit(m[i], id[j], id[k]);
+      } else if (marked == 2) {
+        // Edge a-b whole: a triangle at corner c, and the quad (a, b, m1, m2) split along its
+        // shorter diagonal.
+        const int u = m[0] < 0 ? 0 : m[1] < 0 ? 1 : 2;
+        const uint32_t a = id[u], b = id[(u + 1) % 3], c = id[(u + 2) % 3];
+        const int64_t m1 = m[(u + 1) % 3], m2 = m[(u + 2) % 3];
+        emit(m1, c, m2);
+        const Vec3 Pa = load(r.rest.data(), a), Pb = load(r.rest.data(), b);
+        const Vec3 P1 = load(r.rest.data(), size_t(m1)), P2 = load(r.rest.data(), size_t(m2));
+        if (norm(P1 - Pa) <= norm(P2 - Pb)) {
+          emit(a, b, m1);
+          emit(a, m1, m2);
+        } else {
+          emit(a, b, m2);
+          emit(b, m1, m2);
+        }
+      } else {
+        emit(id[0], m[0], m[2]);
+        emit(m[0], id[1], m[1]);
+        emit(m[2], m[1], id[2]);
+        emit(m[0], m[1], m[2]);
+      }
+    }
+    r.indices.swap(next);
+    if (mid.empty()) break;
+  }
+  // The new points lie on the artist's triangles, whose corners passed bind()'s distance check.
+  // A mesh already fine enough is returned as is, unbound: the caller keeps the original.
+  if (r.indices.size() != indices.size()) (void)locate(tets, r, "", false);
+  return r;
 }
 
 void EmbeddedSurface::init(const EmbeddedBinding& binding, const TetMesh& rest,
                            const EdgeGraph& graph, const Mat3* restInverse) {
+  m_original = &binding;
   m_binding = &binding;
+  m_refined.reset();
+  m_refineChecked = false;
   m_rest = &rest;
   m_graph = &graph;
   m_restInverse = restInverse;
   m_frameMark.assign(rest.nodeCount(), 0);
   m_nodeInside.assign(rest.nodeCount(), -1);
+  double sum = 0;
+  for (int32_t e = 0; e < graph.edgeCount; ++e)
+    sum += norm(load(rest.positions.data(), size_t(graph.edgeNodes[2 * size_t(e)])) -
+                load(rest.positions.data(), size_t(graph.edgeNodes[2 * size_t(e) + 1])));
+  m_meanEdge = sum / double(std::max(graph.edgeCount, 1));
   m_composed = false;
 }
 
@@ -377,7 +482,7 @@ bool EmbeddedSurface::nodeInside(int32_t node) {
   if (inside < 0) {
     // Generalised winding number (solid angles, Van Oosterom and Strackee): 1 inside a closed
     // mesh, 0 outside, and a robust in-between for open ones.
-    const EmbeddedBinding& b = *m_binding;
+    const EmbeddedBinding& b = *m_original;
     const Vec3 p = load(m_rest->positions.data(), size_t(node));
     double omega = 0;
     for (size_t t = 0; t < b.indices.size() / 3; ++t) {
@@ -394,16 +499,27 @@ bool EmbeddedSurface::nodeInside(int32_t node) {
 }
 
 void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment) {
-  const EmbeddedBinding& b = *m_binding;
-  const size_t nv = b.tet.size();
   m_nodeFragment = nodeFragment;
   m_broken = broken;
   m_nodeCracked.assign(m_rest->nodeCount(), 0);
+  bool anyBroken = false;
   for (int32_t e = 0; e < m_graph->edgeCount; ++e)
     if (broken[e]) {
+      anyBroken = true;
       m_nodeCracked[size_t(m_graph->edgeNodes[2 * size_t(e)])] = 1;
       m_nodeCracked[size_t(m_graph->edgeNodes[2 * size_t(e) + 1])] = 1;
     }
+  // A render edge is cut once, so once the body breaks the mesh is drawn with its edges split
+  // to the tets' mean edge (made on the first break, kept); a whole body is drawn as given.
+  if (anyBroken && !m_refineChecked) {
+    m_refineChecked = true;
+    EmbeddedBinding r = m_original->refined(*m_rest, kRefineEdge * m_meanEdge);
+    if (r.indices.size() != m_original->indices.size())
+      m_refined = std::make_unique<EmbeddedBinding>(std::move(r));
+  }
+  m_binding = anyBroken && m_refined ? m_refined.get() : m_original;
+  const EmbeddedBinding& b = *m_binding;
+  const size_t nv = b.tet.size();
 
   // Each vertex's label and group: those of its tet's node of the largest weight, whose corner
   // cell holds it.
