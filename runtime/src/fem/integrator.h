@@ -219,6 +219,7 @@ class Integrator {
   std::vector<double> m_xLin;              // the last linearisation point, for collider impulses
   std::vector<double> m_impulses;          // ColliderImpulseStage's, 6 per collider and node
   std::vector<double> m_balanceTerms;      // BodyContactBalanceStage's
+  std::vector<double> m_adx;               // A dx, the Newton model's curvature along dx
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
   double m_theta = 1;  // of the last step; below 1, m_x keeps the solved point the forces act at
   FractureBody* m_fracture = nullptr;
