@@ -18,8 +18,12 @@
 //   weight (with midpoint splits that cell is exactly {w_a = max_k w_k}, crack_surface.h), and
 //   so to that node's fragment. Each render vertex gets that label and a copy in its fragment;
 //   the copy follows its group (the nodes of the tet joined to that node over unbroken edges):
-//   a whole tet carries it by interpolation as above, a partial group through the group nodes'
-//   local maps like a partial CrackSurface vertex, so it follows its side of the crack.
+//   a whole tet carries it by interpolation as above, a partial group through the local map
+//   of its cell node (the group node of the largest weight), so it follows its side of the
+//   crack. Not the mean of the group nodes' maps, as a partial CrackSurface vertex: an unbroken
+//   edge whose tets are all split holds nothing (degradation model), so a group's nodes can
+//   drift apart by many cells, and the mean drew the vertex between them
+//   (RenderMesh.DrawnVerticesStayWithTheirFragmentAsPiecesFlyApart).
 // - Fracture: which render edges are cut. A render edge is cut when its ends lie on different
 //   sides of a crack: in different fragments, or, within one fragment, when an end's tet holds
 //   the other end's cell node outside its own group. The groups are what move the copies, so
