@@ -269,7 +269,8 @@ TEST(ReportAll, OnlyPartReuseWritesEachPartsRegionsFromItsFiles) {
         "ms_fracture,linear_iterations,thesis_gpu_fps,cpu_ms_frame,vcycle_reduction,"
         "unconverged_frames\n"
         "hinged beam,multigrid (default),4320,1,30.00,33.33,1.00,10,1,15,0,9.0,320.9,29.5,1.80,0\n"
-        "hinged beam,multigrid (default),4320,2,20.00,50.00,1.50,6,1,10,0,9.0,320.9,39.0,1.80,1\n");
+        "hinged beam,multigrid (default),4320,2,20.00,50.00,1.50,6,1,10,0,9.0,320.9,39.0,1.80,1\n"
+        "hinged beam,pcg (default),4320,1,40.00,25.00,1.00,10,1,25,0,160.0,320.9,39.5,0,2\n");
   write(out / "stability.csv",
         "test,case,material,damage,solver,backend,outcome,e0_J,max_excess_J,max_excess_over_e0,"
         "flags,flagged_steps,not_converged,rolled_back,broken_edges,edges,fragments,ms,message\n"
@@ -309,10 +310,12 @@ TEST(ReportAll, OnlyPartReuseWritesEachPartsRegionsFromItsFiles) {
   // Columns: case, solver, tets, threads, ms, CPU ms, fps, speed-up, ..., residual cut,
   // unconverged, thesis fps.
   std::map<std::string, std::vector<std::string>> rowOf;
+  std::vector<std::string> pcgRow;
   for (const std::string& l : lines(body(after, "bench"))) {
     if (l.empty() || l[0] != '|') continue;
     const std::vector<std::string> c = cells(l);
-    if (c.size() == 16 && c[0] == "hinged beam") rowOf[c[3]] = c;
+    if (c.size() == 16 && c[0] == "hinged beam" && c[1] == "pcg (default)") pcgRow = c;
+    if (c.size() == 16 && c[0] == "hinged beam" && c[1] == "multigrid (default)") rowOf[c[3]] = c;
   }
   ASSERT_EQ(rowOf.size(), 2u);
   EXPECT_EQ(rowOf["1"][5], "29.5");
@@ -320,6 +323,8 @@ TEST(ReportAll, OnlyPartReuseWritesEachPartsRegionsFromItsFiles) {
   EXPECT_EQ(rowOf["2"][7], "1.50");
   EXPECT_EQ(rowOf["2"][13], "1.80");
   EXPECT_EQ(rowOf["2"][14], "1");
+  ASSERT_EQ(pcgRow.size(), 16u);
+  EXPECT_EQ(pcgRow[13], "-") << "PCG has no V-cycle: 0 in the CSV";
   EXPECT_NE(body(after, "bench").find("--threads 1,2"), std::string::npos)
       << "the command as run names both thread counts";
   EXPECT_NE(read(out / "bench_multigrid.svg").find("<svg"), std::string::npos);

@@ -683,8 +683,12 @@ std::string benchRegion(const fs::path& csv, const fs::path& svg, const fs::path
        "thread | elements | assembly | solve | fracture | linear iterations | residual cut per "
        "V-cycle | unconverged frames | thesis GPU fps |\n";
   s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  // "-" where the column is missing or empty, and for a residual cut of 0, which bench
+  // multigrid writes for a solver without V-cycles.
   const auto opt = [&c](size_t r, const char* name) {
-    return c.col(name) >= 0 && !c.at(r, name).empty() ? c.at(r, name) : std::string("-");
+    if (c.col(name) < 0 || c.at(r, name).empty()) return std::string("-");
+    if (std::string(name) == "vcycle_reduction" && !(c.num(r, name) > 0)) return std::string("-");
+    return c.at(r, name);
   };
   PlotPanel panel{"Frame time against size", "tets", "ms per frame", true, true, {}};
   const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e"};
