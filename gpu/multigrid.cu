@@ -2,6 +2,7 @@
 #include <type_traits>
 
 #include "gpu/multigrid.h"
+#include "solver/dense_cholesky.h"
 
 namespace gf::gpu {
 inline namespace GF_GPU_ABI {
@@ -25,9 +26,13 @@ bool DeviceMultigrid::mirror(const T* host, size_t n, Out*& out) {
   return true;
 }
 
+// Zeroed like the host solver's level vectors: a cycle may scale a vector by zero before its
+// first write, which keeps a NaN left in reused memory (before the fill, 3 and 12 of 200
+// Jacobi cycles-alone solves of the host build broke down on their first V-cycle).
 bool DeviceMultigrid::scratch(size_t n, double*& out) {
   DeviceBuffer<double>& buffer = m_doubles.emplace_back();
   out = buffer.resize(n) ? buffer.data() : nullptr;
+  if (out) m_exec.run(int32_t(n), 2048, detail::FillStage{0.0, out});
   return out != nullptr || n == 0;
 }
 
@@ -109,7 +114,25 @@ bool DeviceMultigrid::upload(const detail::BlockSparseMatrix& A, const HostMulti
   m_coarseX.resize(coarseLength);
   m_coarsestValues.resize(levels.size() > 1 ? 144 * size_t(levels.back().rowStart[levels.back().n])
                                             : 0);
+  const int64_t coarseSize = levels.size() > 1 ? 12 * int64_t(levels.back().n) : 0;
+  m_denseCoarse =
+      host.denseCoarsestOnDevice && coarseSize > 0 && coarseSize <= detail::kDenseCholeskyMaxSize;
+  m_denseOk = false;
+  if (m_denseCoarse) {
+    if (!m_coarseDense.resize(size_t(coarseSize * coarseSize)))
+      return fail("allocating the coarsest level's factor");
+    factorCoarsestOnDevice();
+  }
   return true;
+}
+
+// A failed factorisation (not positive definite after the shifts) zeroes the coarse
+// correction, as the host's does; a device error is reported by the caller's next check.
+bool DeviceMultigrid::factorCoarsestOnDevice() {
+  const detail::CycleLevel& c = m_levels.back();
+  m_denseOk = detail::denseCholeskyFactorBlocks(m_exec, c.n, c.rowStart, c.col, c.values,
+                                                m_coarseDense.data());
+  return m_denseOk;
 }
 
 bool DeviceMultigrid::refresh(const double* values) {
@@ -137,7 +160,9 @@ bool DeviceMultigrid::refresh(const double* values) {
       m_levels[l].lambdaMax =
           detail::estimateLambda<12>(m_exec, m_levels[l], s.powerIterations, s.lambdaMargin);
   }
-  if (L > 0) {
+  if (L > 0 && m_denseCoarse) {
+    factorCoarsestOnDevice();
+  } else if (L > 0) {
     if (!synchronize() || !copyToHost(m_coarsestValues.data(), m_levels[L].values,
                                       m_coarsestValues.size() * sizeof(double)))
       return fail("reading the coarsest operator");
@@ -152,10 +177,17 @@ bool DeviceMultigrid::solve(const double* b, double* x, int maxIterations, doubl
   const size_t n3 = 3 * size_t(m_n);
   if (!m_b.upload(b, n3) || !m_x.upload(x, n3)) return fail("uploading the right-hand side");
   m_coarseFailed = false;
-  // The coarsest level goes to the host and back; a failed copy zeroes the correction and
-  // fails the solve.
+  // The coarsest level is solved on the device, or goes to the host and back; a failed copy
+  // zeroes the correction and fails the solve.
   auto coarse = [this](const double* cb, double* cx) {
     const size_t len = m_coarseB.size();
+    if (m_denseCoarse) {
+      if (m_denseOk)
+        detail::denseCholeskySolve(m_exec, int32_t(len), m_coarseDense.data(), cb, cx);
+      else
+        m_exec.run(int32_t(len), 2048, detail::FillStage{0.0, cx});
+      return;
+    }
     if (!synchronize() || !copyToHost(m_coarseB.data(), cb, len * sizeof(double))) {
       m_coarseFailed = true;
       return;

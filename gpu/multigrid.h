@@ -2,9 +2,11 @@
 // galerkin_stages.h's coarse operators, run by the device executor on device copies of a
 // detail::MultigridSolver's levels. The hierarchy (aggregates, prolongators, patterns) is built
 // on the host and mirrored once per re-binding; a new matrix of the same pattern is refreshed
-// on the device except for the coarsest level's sparse Cholesky factor, which stays on the
-// host (its values go there once per refresh, and 12 doubles per coarsest handle each way per
-// V-cycle). Built twice from one source like gpu/pcg.h.
+// on the device. The coarsest level is factorised and solved on the device too (a dense
+// Cholesky, gpu/dense_cholesky.h) when HostMultigrid::denseCoarsestOnDevice asks for it and it
+// has at most detail::kDenseCholeskyMaxSize scalars; otherwise its sparse Cholesky factor stays
+// on the host (its values go there once per refresh, and 12 doubles per coarsest handle each
+// way per V-cycle). Built twice from one source like gpu/pcg.h.
 #pragma once
 
 #include <deque>
@@ -28,6 +30,9 @@ struct HostMultigrid {
   detail::CycleSettings settings;
   std::function<void(const double* values)> factorCoarsest;  ///< from its blocks' values
   std::function<void(const double* b, double* x)> solveCoarsest;
+  /// Factorise and solve the coarsest level on the device when it is small enough (then the
+  /// two functions above are not called). Off by default until it has run on a device.
+  bool denseCoarsestOnDevice = false;
 };
 
 class DeviceMultigrid {
@@ -46,8 +51,12 @@ class DeviceMultigrid {
   bool solve(const double* b, double* x, int maxIterations, double relativeTolerance,
              detail::MultigridRun& run, detail::SolveReport& report);
   const std::string& error() const { return m_error; }
+  /// Whether the uploaded coarsest level is factorised and solved on the device (asked for and
+  /// small enough), rather than on the host.
+  bool coarsestOnDevice() const { return m_denseCoarse; }
 
  private:
+  bool factorCoarsestOnDevice();
   bool fail(const char* what);
   // A device copy of n items of host (null stays null); false when it cannot be made.
   template <class T, class Out>
@@ -66,6 +75,8 @@ class DeviceMultigrid {
   std::deque<DeviceBuffer<int32_t>> m_ints;
   std::deque<DeviceBuffer<double>> m_doubles;
   DeviceBuffer<double> m_b, m_x, m_r, m_z, m_p, m_ap, m_rOld;
+  DeviceBuffer<double> m_coarseDense;  // the coarsest level's dense factor (12 handles)^2
+  bool m_denseCoarse = false, m_denseOk = false;
   Executor m_exec;
   bool m_coarseFailed = false;
   std::string m_error;

@@ -3,8 +3,8 @@
 // sum and the node gradients. Bodies are torn by moving grips until elements are damaged, for
 // every material model, both damage models, with fibres, a plastic stretch and tets of
 // detached fragments. Built twice: against the host build of the device sources (label
-// `backend`, runs in CI) and, where CUDA is built, against graphfrac_cuda (label `gpu`,
-// skipped, and reported as skipped, where no device exists).
+// `backend`, runs in CI) and, where CUDA is built, against graphfrac_cuda (labels `backend`
+// and `gpu`; skipped, and reported as skipped, where no device exists).
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -2,8 +2,9 @@
 // a serial union-find on the edge graphs of tet meshes (a box, a sphere) with random shares of
 // their edges broken, from none to most. Labels are integers, so the device must give the
 // CPU's labels exactly, and both the union-find's (every node labelled with the lowest node of
-// its component). Built twice like test_element_backend.cpp: label `backend` (host build, CI)
-// and `gpu` (skipped, and reported as skipped, where no device exists).
+// its component). Built twice like test_element_backend.cpp: the host build (label `backend`,
+// CI) and the CUDA build (labels `backend` and `gpu`; skipped, and reported as skipped, where
+// no device exists).
 #include <gtest/gtest.h>
 
 #include <algorithm>

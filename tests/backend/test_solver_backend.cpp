@@ -133,6 +133,7 @@ struct MultigridCase {
   bool smoothed, preconditionCG;
   int maxIterations;
   bool refreshOnDevice;  // the coarse operators of this matrix computed by the device
+  bool denseCoarsest;    // the coarsest level factorised and solved by the device executor
 };
 
 std::string multigridCaseName(const testing::TestParamInfo<MultigridCase>& info) {
@@ -175,8 +176,10 @@ TEST_P(MultigridBackend, MultigridMatchesTheCpu) {
                               host.galerkinLevels(), host.cycleSettings(),
                               [&](const double* values) { host.factorCoarsest(values); },
                               [&](const double* b, double* x) { host.solveCoarsest(b, x, jobs); }};
+  mirrored.denseCoarsestOnDevice = c.denseCoarsest;
   gpu::DeviceMultigrid dev;
   ASSERT_TRUE(dev.upload(c.refreshOnDevice ? other.A : s.A, mirrored)) << dev.error();
+  ASSERT_EQ(dev.coarsestOnDevice(), c.denseCoarsest);
   if (c.refreshOnDevice) {
     ASSERT_TRUE(dev.refresh(s.A.values.data())) << dev.error();
   }
@@ -206,27 +209,60 @@ TEST_P(MultigridBackend, MultigridMatchesTheCpu) {
   if (rd.converged) {
     EXPECT_LE(trueRelativeResidual(s, xDev), tol);
   }
-#if defined(GF_GPU_CUDA)
+#if !defined(GF_GPU_CUDA)
+  // The dense coarsest factor rounds differently from the host's sparse one (another order of
+  // operations), so only the same source with the same coarse solve gives the same bits.
+  if (!c.denseCoarsest) {
+    EXPECT_EQ(rd.iterations, rc.iterations);
+    EXPECT_EQ(run.vCycles, cpu.stats().cycles);
+    EXPECT_EQ(rd.relativeResidual, rc.relativeResidual);
+    EXPECT_EQ(xDev, xCpu);
+    return;
+  }
+#endif
   EXPECT_LE(std::abs(rd.iterations - rc.iterations), 2);
   EXPECT_LE(dx, 1e-6);
-#else
-  EXPECT_EQ(rd.iterations, rc.iterations);
-  EXPECT_EQ(run.vCycles, cpu.stats().cycles);
-  EXPECT_EQ(rd.relativeResidual, rc.relativeResidual);
-  EXPECT_EQ(xDev, xCpu);
-#endif
 }
 
 const MultigridCase kMultigridCases[] = {
-    {"GaussSeidelCG", false, Smoother::GaussSeidel, {}, false, true, 200, false},
-    {"GaussSeidelCGBrokenBand", true, Smoother::GaussSeidel, {}, false, true, 200, false},
-    {"TwoLevelsSmoothedCG", false, Smoother::GaussSeidel, {6, 40}, true, true, 200, false},
-    {"JacobiCyclesAlone", false, Smoother::Jacobi, {6, 40}, false, false, 6, false},
-    {"ChebyshevCGBrokenBand", true, Smoother::Chebyshev, {}, true, true, 200, false},
+    {"GaussSeidelCG", false, Smoother::GaussSeidel, {}, false, true, 200, false, false},
+    {"GaussSeidelCGBrokenBand", true, Smoother::GaussSeidel, {}, false, true, 200, false, false},
+    {"TwoLevelsSmoothedCG", false, Smoother::GaussSeidel, {6, 40}, true, true, 200, false, false},
+    {"JacobiCyclesAlone", false, Smoother::Jacobi, {6, 40}, false, false, 6, false, false},
+    {"ChebyshevCGBrokenBand", true, Smoother::Chebyshev, {}, true, true, 200, false, false},
     // The device refreshes: the broken bar's levels from the whole bar's set-up and back.
-    {"GaussSeidelCGRefreshed", true, Smoother::GaussSeidel, {}, false, true, 200, true},
-    {"TwoLevelsJacobiCGRefreshed", false, Smoother::Jacobi, {6, 40}, false, true, 200, true},
-    {"TwoLevelsChebyshevCGRefreshed", true, Smoother::Chebyshev, {6, 40}, false, true, 200, true},
+    {"GaussSeidelCGRefreshed", true, Smoother::GaussSeidel, {}, false, true, 200, true, false},
+    {"TwoLevelsJacobiCGRefreshed", false, Smoother::Jacobi, {6, 40}, false, true, 200, true, false},
+    {"TwoLevelsChebyshevCGRefreshed",
+     true,
+     Smoother::Chebyshev,
+     {6, 40},
+     false,
+     true,
+     200,
+     true,
+     false},
+    // The coarsest level factorised and solved by the device executor (solver/dense_cholesky.h)
+    // instead of the host's sparse factor: as set up, and refreshed by the device.
+    {"GaussSeidelCGDenseCoarsest", false, Smoother::GaussSeidel, {}, false, true, 200, false, true},
+    {"TwoLevelsJacobiCyclesDenseCoarsest",
+     false,
+     Smoother::Jacobi,
+     {6, 40},
+     false,
+     false,
+     6,
+     false,
+     true},
+    {"ChebyshevCGDenseCoarsestRefreshed",
+     true,
+     Smoother::Chebyshev,
+     {},
+     true,
+     true,
+     200,
+     true,
+     true},
 };
 
 #if defined(GF_GPU_CUDA)
