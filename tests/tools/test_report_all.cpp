@@ -27,7 +27,7 @@ namespace {
 
 const std::vector<std::string> kRegions = {
     "header",        "thesis", "lab-brazilian", "lab-charpy", "lab-izod",  "lab-acceptance",
-    "error-vs-time", "bench",  "stability",     "peer-time",  "peer-range"};
+    "error-vs-time", "bench",  "bench-scenes",  "stability",  "peer-time", "peer-range"};
 
 int reportAll(std::vector<std::string> args) {
   args.insert(args.begin(), {"report", "all"});
@@ -271,6 +271,17 @@ TEST(ReportAll, OnlyPartReuseWritesEachPartsRegionsFromItsFiles) {
         "hinged beam,multigrid (default),4320,1,30.00,33.33,1.00,10,1,15,0,9.0,320.9,29.5,1.80,0\n"
         "hinged beam,multigrid (default),4320,2,20.00,50.00,1.50,6,1,10,0,9.0,320.9,39.0,1.80,1\n"
         "hinged beam,pcg (default),4320,1,40.00,25.00,1.00,10,1,25,0,160.0,320.9,39.5,0,2\n");
+  // bench scenes: one case without reference (-1) and one with; the table shows "-" for the
+  // missing error and the reference run's broken edges in brackets.
+  write(out / "bench_scenes.csv",
+        "# 5 frame(s)\n"
+        "case,fracture,tets,frames,ms_frame,fps,cpu_ms_frame,ms_elements,ms_assembly,ms_solve,"
+        "ms_fracture,ms_contact,ms_other,linear_iterations,peak_mb,peak_reset,solver_error,"
+        "broken_edges,broken_edges_reference\n"
+        "box 680k,0,679728,1,9000.00,0.111,8800.00,3000.00,900.00,5000.00,0.00,0.00,100.00,"
+        "20.0,2500.5,1,-1.000e+00,0,-1\n"
+        "box 680k,1,679728,1,9500.00,0.105,9300.00,3100.00,900.00,5000.00,400.00,0.00,100.00,"
+        "20.0,2700.5,0,3.000e-09,12,11\n");
   write(out / "stability.csv",
         "test,case,material,damage,solver,backend,outcome,e0_J,max_excess_J,max_excess_over_e0,"
         "flags,flagged_steps,not_converged,rolled_back,broken_edges,edges,fragments,ms,message\n"
@@ -301,7 +312,8 @@ TEST(ReportAll, OnlyPartReuseWritesEachPartsRegionsFromItsFiles) {
   const std::string after = read(results);
   EXPECT_EQ(skeleton(after), skeleton(before)) << "a hand-written byte changed";
   for (const std::string& r : kRegions) {
-    const bool mine = r == "bench" || r == "stability" || r == "peer-time" || r == "peer-range";
+    const bool mine = r == "bench" || r == "bench-scenes" || r == "stability" || r == "peer-time" ||
+                      r == "peer-range";
     EXPECT_EQ(body(after, r) == body(before, r), !mine) << r;
   }
   EXPECT_FALSE(fs::exists(out / "logs")) << "--reuse runs nothing, so it logs nothing";
@@ -328,6 +340,18 @@ TEST(ReportAll, OnlyPartReuseWritesEachPartsRegionsFromItsFiles) {
   EXPECT_NE(body(after, "bench").find("--threads 1,2"), std::string::npos)
       << "the command as run names both thread counts";
   EXPECT_NE(read(out / "bench_multigrid.svg").find("<svg"), std::string::npos);
+
+  // The scene list: fracture on/off, the stages, peak MB and its reset, the solver error.
+  const std::string scenes = body(after, "bench-scenes");
+  EXPECT_NE(scenes.find("| box 680k | off | 679728 | 1 | 9000.00 | 0.111 | 3000.00 | 900.00 | "
+                        "5000.00 | 0.00 | 100.00 | 20.0 | 2500.5 | 1 | - | 0 |"),
+            std::string::npos)
+      << scenes;
+  EXPECT_NE(scenes.find("| box 680k | on | 679728 | 1 | 9500.00 | 0.105 | 3100.00 | 900.00 | "
+                        "5000.00 | 400.00 | 100.00 | 20.0 | 2700.5 | 0 | 3.000e-09 | 12 (11) |"),
+            std::string::npos)
+      << scenes;
+  EXPECT_NE(scenes.find("bench_scenes.json"), std::string::npos) << scenes;
 
   // Stability: per case, CPU passes / known failures / failures, and each listed with why.
   const std::string stab = body(after, "stability");

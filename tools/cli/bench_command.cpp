@@ -27,6 +27,8 @@
 // (bench_haptic.cpp).
 // `graphfrac bench peer`: graphfrac beside Bullet's deformable FEM (bench_peer.cpp).
 // `graphfrac bench fragments`: fragment labelling on recorded break steps (bench_fragments.cpp).
+// `graphfrac bench scenes`: the fixed 4k-680k scene list with fracture off and on
+// (bench_scenes.cpp).
 #include <dirent.h>
 
 #include <algorithm>
@@ -58,6 +60,7 @@ int benchXfem(int argc, char** argv);       // bench_xfem.cpp
 int benchHaptic(int argc, char** argv);     // bench_haptic.cpp
 int benchPeer(int argc, char** argv);       // bench_peer.cpp
 int benchFragments(int argc, char** argv);  // bench_fragments.cpp
+int benchScenes(int argc, char** argv);     // bench_scenes.cpp
 
 namespace {
 
@@ -890,6 +893,11 @@ int runBenchCommand(int argc, char** argv) {
         "  ms per break step of keeping the fragments (update, then compute when they split) on\n"
         "  recorded break sequences of a cube of N^3 cells (default 16 and 32: 24k and 192k\n"
         "  tets): a random shatter and a crack plane; a checksum of the final partition\n"
+        "       graphfrac bench scenes [--frames N] [--big-frames M] [--only CASE]\n"
+        "                              [--reference 0|1] [--csv FILE] [--json FILE]\n"
+        "  the fixed scene list, 4k to 680k tets, fracture off and on: ms per stage, fps, peak\n"
+        "  resident MB (VmHWM, reset per case) and the solver's error against the same frames\n"
+        "  solved by MG-CG to 1e-12; N frames (default 5), M for the 680k box (default 1)\n"
         "Every mode takes --backend auto|cpu|cuda (default cpu) for its worlds.");
     return argc < 2 ? kExitUsage : kExitOk;
   }
@@ -924,6 +932,7 @@ int runBenchCommand(int argc, char** argv) {
   if (!std::strcmp(argv[1], "haptic")) return benchHaptic(argc, argv);
   if (!std::strcmp(argv[1], "peer")) return benchPeer(argc, argv);
   if (!std::strcmp(argv[1], "fragments")) return benchFragments(argc, argv);
+  if (!std::strcmp(argv[1], "scenes")) return benchScenes(argc, argv);
   std::fprintf(stderr, "graphfrac bench: unknown benchmark '%s'\n", argv[1]);
   return kExitUsage;
 }

@@ -74,6 +74,8 @@ constexpr const char* kAllUsage =
     "                  error-vs-time)\n"
     "  bench           graphfrac bench multigrid --threads 1,2 (4k to 160k tets, thesis table\n"
     "                  6.2; PART bench)\n"
+    "  bench-scenes    graphfrac bench scenes --json DIR/bench_scenes.json (4k to 680k tets,\n"
+    "                  fracture off and on, peak MB, solver error; PART bench)\n"
     "  stability       gf_stability_tests (found next to this build, or --stability-bin) run\n"
     "                  with GF_STABILITY_CSV=DIR/stability.csv; GF_FULL_VALIDATION=1 unless\n"
     "                  --quick (PART stability)\n"
@@ -90,7 +92,8 @@ constexpr const char* kAllUsage =
     "--only PART (lab, error-vs-time, bench, stability or peer) runs that part alone and\n"
     "rewrites only its own regions (header and thesis describe a full run and are kept); with\n"
     "--reuse it runs nothing and reads the files that part left under DIR (lab/*.csv,\n"
-    "hanging_sphere/error_vs_time.csv, bench_multigrid.csv, stability.csv, peer.csv).\n"
+    "hanging_sphere/error_vs_time.csv, bench_multigrid.csv, bench_scenes.csv, stability.csv,\n"
+    "peer.csv).\n"
     "Exit: 0; 1 usage; 2 a scene could not be loaded; 3 a part failed or flagged a step (its\n"
     "region says so; error against time's capped solver settings flag by design and do not\n"
     "count); 4 FILE has a bad marker or cannot be written (it is then unchanged), or --reuse\n"
@@ -102,7 +105,7 @@ const std::vector<std::string> kParts = {"lab", "error-vs-time", "bench", "stabi
 /// The regions `report all` owns, in the order the page shows them.
 const std::vector<std::string> kRegions = {
     "header",        "thesis", "lab-brazilian", "lab-charpy", "lab-izod",  "lab-acceptance",
-    "error-vs-time", "bench",  "stability",     "peer-time",  "peer-range"};
+    "error-vs-time", "bench",  "bench-scenes",  "stability",  "peer-time", "peer-range"};
 
 struct Options {
   bool quick = false;
@@ -722,6 +725,40 @@ std::string benchRegion(const fs::path& csv, const fs::path& svg, const fs::path
   return s;
 }
 
+// bench scenes' CSV: the fixed 4k-680k scene list with fracture off and on.
+std::string benchScenesRegion(const fs::path& csv, const fs::path& resultsDir, const Part& part) {
+  Result<Table> t = readCsv(csv);
+  if (!t.ok() || t.value().rows.empty())
+    return "Not generated: `" + part.command + "` ended with exit " + std::to_string(part.exit) +
+           (t.ok() ? " and printed no rows" : " (" + t.error().message + ")") + ".\n";
+  const Table& c = t.value();
+  std::string s =
+      "From `" + part.command + "` (" + linkPath(csv, resultsDir) + ", and " +
+      linkPath(fs::path(csv).replace_extension(".json"), resultsDir) +
+      " with the same rows): ms per frame and per stage on one CPU thread, the process's peak "
+      "resident MB over the case (VmHWM, reset per case when the kernel allows: peak reset 0 "
+      "means the peak since the process started), and the solver error |x - x_ref| / |x_ref - "
+      "X0| after the last frame against the same frames with every linear system solved by "
+      "multigrid-preconditioned CG to a true relative residual of 1e-12. Broken: edges broken "
+      "after the last frame (reference run's in brackets).\n\n";
+  s += "| case | fracture | tets | frames | ms per frame | fps | elements | assembly | solve | "
+       "fracture ms | other | linear iterations | peak MB | peak reset | solver error | broken "
+       "edges |\n";
+  s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (size_t r = 0; r < c.rows.size(); ++r) {
+    const bool withRef = c.num(r, "solver_error") >= 0;
+    s += "| " + c.at(r, "case") + " | " + (c.at(r, "fracture") == "1" ? "on" : "off") + " | " +
+         c.at(r, "tets") + " | " + c.at(r, "frames") + " | " + c.at(r, "ms_frame") + " | " +
+         c.at(r, "fps") + " | " + c.at(r, "ms_elements") + " | " + c.at(r, "ms_assembly") + " | " +
+         c.at(r, "ms_solve") + " | " + c.at(r, "ms_fracture") + " | " + c.at(r, "ms_other") +
+         " | " + c.at(r, "linear_iterations") + " | " + c.at(r, "peak_mb") + " | " +
+         c.at(r, "peak_reset") + " | " + (withRef ? c.at(r, "solver_error") : "-") + " | " +
+         c.at(r, "broken_edges") +
+         (withRef ? " (" + c.at(r, "broken_edges_reference") + ")" : std::string()) + " |\n";
+  }
+  return s;
+}
+
 const char* kFlagNames[] = {"NotConverged", "NanContained", "InvalidInput", "LineSearchFailed",
                             "ContactSwept"};
 
@@ -1232,8 +1269,8 @@ int reportAll(int argc, char** argv) {
   const fs::path scenes(opt.scenes);
   const std::string loadBefore = loadAverage();
   Part lab{"lab", "", -1, 0, ""}, evt{"error vs time", "", -1, 0, ""},
-      bench{"frame-time bench", "", -1, 0, ""}, stab{"stability suite", "", -1, 0, ""},
-      peer{"Bullet comparison", "", -1, 0, ""};
+      bench{"frame-time bench", "", -1, 0, ""}, benchScenes{"scene-list bench", "", -1, 0, ""},
+      stab{"stability suite", "", -1, 0, ""}, peer{"Bullet comparison", "", -1, 0, ""};
   auto wanted = [&](const char* part) { return opt.only.empty() || opt.only == part; };
   // --reuse: the part's files must be there (a region built from nothing would say "not
   // generated"); the part counts as run, with the command that makes the files.
@@ -1297,6 +1334,17 @@ int reportAll(int argc, char** argv) {
     } else {
       runPart(bench, runBenchCommand, benchArgs, out / "bench_multigrid.csv");
     }
+    // bench scenes: the fixed 4k-680k list, fracture off and on, with peak memory and the
+    // solver error against a converged reference (the 680k box runs one frame).
+    std::vector<std::string> scenesArgs{"bench", "scenes", "--json",
+                                        (out / "bench_scenes.json").string()};
+    if (opt.quick) scenesArgs.insert(scenesArgs.end(), {"--frames", "2", "--only", "hinged beam"});
+    if (opt.reuse) {
+      if (!reuse(benchScenes, commandLine(scenesArgs), {out / "bench_scenes.csv"}))
+        return kExitOutput;
+    } else {
+      runPart(benchScenes, runBenchCommand, scenesArgs, out / "bench_scenes.csv");
+    }
   }
 
   if (wanted("stability")) {
@@ -1348,7 +1396,7 @@ int reportAll(int argc, char** argv) {
   const bool all = opt.only.empty();
 
   std::map<std::string, std::string> regions;
-  std::vector<Part> parts{lab, evt, bench, stab, peer};
+  std::vector<Part> parts{lab, evt, bench, benchScenes, stab, peer};
   // --only: the header and the thesis's table describe a full run (the latter reads every
   // part's files), and the other parts' regions stay as they are.
   if (all)
@@ -1366,6 +1414,8 @@ int reportAll(int argc, char** argv) {
   if (wanted("bench"))
     regions["bench"] =
         benchRegion(out / "bench_multigrid.csv", out / "bench_multigrid.svg", resultsDir, bench);
+  if (wanted("bench"))
+    regions["bench-scenes"] = benchScenesRegion(out / "bench_scenes.csv", resultsDir, benchScenes);
   if (wanted("stability")) regions["stability"] = stabilityRegion(out / "stability.csv", stab);
   if (wanted("peer")) {
     regions["peer-time"] = peerRegion(out / "peer.csv", peer, false);
@@ -1406,11 +1456,13 @@ int reportAll(int argc, char** argv) {
     if (p.exit == kExitScene) return kExitScene;
   // Error against time flags the capped solver settings it is there to measure: exit 3 is its
   // normal outcome. The Bullet comparison is left out of --quick on purpose without Bullet.
+  // The --only name of each entry of `parts` (the bench part runs two commands).
+  const char* partOf[] = {"lab", "error-vs-time", "bench", "bench", "stability", "peer"};
   for (size_t i = 0; i < parts.size(); ++i) {
     const Part& p = parts[i];
-    if (!wanted(kParts[i].c_str())) continue;  // --only: the others were not asked for
+    if (!wanted(partOf[i])) continue;  // --only: the others were not asked for
     if (p.exit == kExitOk || (i == 1 && p.exit == kExitFlagged) ||
-        (i == 4 && p.exit < 0 && opt.quick))
+        (i == 5 && p.exit < 0 && opt.quick))
       continue;
     return kExitFlagged;
   }

@@ -1,0 +1,138 @@
+// Google Benchmark of single kernels on one fixed mesh (a 1 x 0.25 x 0.25 m box of 40 x 10 x 10
+// cells, 24,000 tets, 4,961 nodes): the per-tet element kernel (energy, gradient and projected
+// Hessian), the block-sparse SpMV of the step matrix, one multigrid V-cycle, and the edge
+// stresses with the fracture criterion. items_per_second counts tets (element, edge stresses),
+// nodes (SpMV) or unknowns (V-cycle), so 1e9 / items_per_second is ns per item. Not a test:
+// ctest only runs it once with a tiny minimum time to see that it works.
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <vector>
+
+#include "common/elastic_system.h"
+#include "graphfrac/jobs.h"
+#include "graphfrac/mesh.h"
+#include "kernels/edge_stress.h"
+#include "kernels/element.h"
+#include "solver/multigrid.h"
+
+namespace {
+
+constexpr double kE = 1e6, kNu = 0.4, kRho = 1000, kDt = 1.0 / 60;
+
+gf::TetMesh fixedMesh() { return gf::gen::box(1.0, 0.25, 0.25, 40, 10, 10); }
+
+// Rest and deformed corners of every tet: a 1 % stretch along x with a small bend, so the
+// stresses are non-zero and the SVD takes its general path.
+struct TetData {
+  std::vector<gf::Vec3> rest, deformed;  // 4 per tet
+  size_t tets = 0;
+};
+
+TetData tetData(const gf::TetMesh& m) {
+  TetData d;
+  d.tets = m.tetCount();
+  for (size_t e = 0; e < d.tets; ++e)
+    for (int a = 0; a < 4; ++a) {
+      const double* p = &m.positions[3 * m.tets[4 * e + a]];
+      d.rest.push_back({p[0], p[1], p[2]});
+      d.deformed.push_back({1.01 * p[0], p[1] + 0.01 * std::sin(3 * p[0]), p[2]});
+    }
+  return d;
+}
+
+void BM_ElementForces(benchmark::State& state) {
+  const TetData d = tetData(fixedMesh());
+  const gf::MaterialCoeffs c =
+      gf::makeMaterialCoeffs(gf::kStableNeoHookean, kE, kNu, 0, gf::Vec3{1, 0, 0});
+  std::vector<gf::Mat3> dmInv(d.tets);
+  std::vector<double> vol(d.tets);
+  for (size_t e = 0; e < d.tets; ++e) dmInv[e] = gf::restShapeInverse(&d.rest[4 * e], vol[e]);
+  for (auto _ : state) {
+    double energy = 0;
+    for (size_t e = 0; e < d.tets; ++e) {
+      double grad[12];
+      gf::Mat12 H;
+      energy += gf::elementForces(c, &d.deformed[4 * e], dmInv[e], vol[e], grad, &H, true);
+      benchmark::DoNotOptimize(H);
+    }
+    benchmark::DoNotOptimize(energy);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(d.tets));
+  state.counters["tets"] = double(d.tets);
+}
+BENCHMARK(BM_ElementForces)->Unit(benchmark::kMillisecond);
+
+void BM_EdgeStressCriterion(benchmark::State& state) {
+  const TetData d = tetData(fixedMesh());
+  const gf::MaterialCoeffs c =
+      gf::makeMaterialCoeffs(gf::kStableNeoHookean, kE, kNu, 0, gf::Vec3{1, 0, 0});
+  std::vector<gf::Mat3> dmInv(d.tets);
+  std::vector<gf::Vec3> dirs(6 * d.tets);
+  for (size_t e = 0; e < d.tets; ++e) {
+    double vol = 0, len[6];
+    dmInv[e] = gf::restShapeInverse(&d.rest[4 * e], vol);
+    gf::restEdgeDirections(&d.rest[4 * e], &dirs[6 * e], len);
+  }
+  const double strength = 5e3;  // sigma_th (eq 4.11): some edges of the stretched box reach it
+  for (auto _ : state) {
+    int reached = 0;
+    for (size_t e = 0; e < d.tets; ++e) {
+      const gf::Mat3 F = gf::deformationGradient(&d.deformed[4 * e], dmInv[e]);
+      double sn[6];
+      gf::edgeNormalStresses(gf::materialStress(c, F), &dirs[6 * e], sn);  // eq 4.6-4.8
+      for (double s : sn) reached += s >= strength ? 1 : 0;
+    }
+    benchmark::DoNotOptimize(reached);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(d.tets));
+}
+BENCHMARK(BM_EdgeStressCriterion)->Unit(benchmark::kMillisecond);
+
+gf::test::ElasticSystem stepSystem(gf::JobSystem& jobs) {
+  return gf::test::assembleElasticSystem(
+      fixedMesh(), kE, kNu, kRho, kDt, [](double x, double, double) { return x < 1e-9; }, jobs);
+}
+
+void BM_BlockSpMV(benchmark::State& state) {
+  gf::SerialJobSystem jobs;
+  const gf::test::ElasticSystem s = stepSystem(jobs);
+  std::vector<double> x(s.b.size(), 1.0), y(s.b.size());
+  for (auto _ : state) {
+    s.A.multiply(x.data(), y.data(), jobs);
+    benchmark::DoNotOptimize(y.data());
+  }
+  state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(s.mesh.nodeCount()));
+}
+BENCHMARK(BM_BlockSpMV)->Unit(benchmark::kMicrosecond);
+
+// One V-cycle alone (no CG) on the step matrix, from x = 0. The hierarchy is built by a first
+// solve outside the timed loop; with the default coarse refresh interval (1) every timed solve
+// also recomputes the Galerkin coarse operators, as a game step's solve does, so this is the
+// cost of one solve of one cycle, refresh included.
+void BM_MultigridVCycle(benchmark::State& state) {
+  gf::SerialJobSystem jobs;
+  const gf::test::ElasticSystem s = stepSystem(jobs);
+  gf::MultigridSettings settings;
+  settings.preconditionCG = false;
+  settings.cycles = 1;
+  settings.directBelowNodes = 0;
+  gf::detail::MultigridSolver mg;
+  if (!mg.setup(settings, s.mesh.positions.data(), s.fixed.data(), s.A).ok()) {
+    state.SkipWithError("multigrid setup failed");
+    return;
+  }
+  std::vector<double> x(s.b.size(), 0.0);
+  (void)mg.solve(s.A, s.b.data(), x.data(), 1, 0, jobs);
+  for (auto _ : state) {
+    std::fill(x.begin(), x.end(), 0.0);
+    const gf::detail::SolveReport r = mg.solve(s.A, s.b.data(), x.data(), 1, 0, jobs);
+    benchmark::DoNotOptimize(r);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(s.b.size()));
+}
+BENCHMARK(BM_MultigridVCycle)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
