@@ -277,11 +277,13 @@ TEST(ReportAll, OnlyPartReuseWritesEachPartsRegionsFromItsFiles) {
         "# 5 frame(s)\n"
         "case,fracture,tets,frames,ms_frame,fps,cpu_ms_frame,ms_elements,ms_assembly,ms_solve,"
         "ms_fracture,ms_contact,ms_other,linear_iterations,peak_mb,peak_reset,solver_error,"
-        "broken_edges,broken_edges_reference\n"
+        "broken_edges,broken_edges_reference,reference_residual\n"
         "box 680k,0,679728,1,9000.00,0.111,8800.00,3000.00,900.00,5000.00,0.00,0.00,100.00,"
-        "20.0,2500.5,1,-1.000e+00,0,-1\n"
+        "20.0,2500.5,1,-1.000e+00,0,-1,-1.000e+00\n"
         "box 680k,1,679728,1,9500.00,0.105,9300.00,3100.00,900.00,5000.00,400.00,0.00,100.00,"
-        "20.0,2700.5,0,3.000e-09,12,11\n");
+        "20.0,2700.5,0,3.000e-09,12,11,4.000e-11\n"
+        "hinged beam,1,4320,5,12.00,83.333,12.00,7.00,0.60,4.40,0.10,0.00,0.10,"
+        "9.0,30.0,1,1.000e-08,51,51,8.000e-13\n");
   write(out / "stability.csv",
         "test,case,material,damage,solver,backend,outcome,e0_J,max_excess_J,max_excess_over_e0,"
         "flags,flagged_steps,not_converged,rolled_back,broken_edges,edges,fragments,ms,message\n"
@@ -347,9 +349,15 @@ TEST(ReportAll, OnlyPartReuseWritesEachPartsRegionsFromItsFiles) {
                         "5000.00 | 0.00 | 100.00 | 20.0 | 2500.5 | 1 | - | 0 |"),
             std::string::npos)
       << scenes;
-  EXPECT_NE(scenes.find("| box 680k | on | 679728 | 1 | 9500.00 | 0.105 | 3100.00 | 900.00 | "
-                        "5000.00 | 400.00 | 100.00 | 20.0 | 2700.5 | 0 | 3.000e-09 | 12 (11) |"),
+  EXPECT_NE(scenes.find(
+                "| box 680k | on | 679728 | 1 | 9500.00 | 0.105 | 3100.00 | 900.00 | "
+                "5000.00 | 400.00 | 100.00 | 20.0 | 2700.5 | 0 | 3.000e-09 (reference 4.000e-11) | "
+                "12 (11) |"),
             std::string::npos)
+      << "a reference that stopped short of 1e-12 shows the residual it reached\n"
+      << scenes;
+  EXPECT_NE(scenes.find("| 0.10 | 9.0 | 30.0 | 1 | 1.000e-08 | 51 (51) |"), std::string::npos)
+      << "a converged reference shows the error alone\n"
       << scenes;
   EXPECT_NE(scenes.find("bench_scenes.json"), std::string::npos) << scenes;
 

@@ -5,11 +5,12 @@
 //
 // The reference is the same scene stepped the same frames from the same start with the same
 // Newton iterations, but each linear system solved by multigrid-preconditioned CG to a true
-// relative residual |b - A x| / |b| of 1e-12 (cap 2000 iterations; the run says when a frame
-// stopped short): the difference is what the default solver's tolerance and early stop
-// leave in the positions, not a discretisation error. It is reported as |x - x_ref| / |x_ref -
-// X0| over all nodes after the last frame, X0 the start positions (relative displacement error).
-// With fracture on, the two runs may break different edges; the broken counts of both are kept.
+// relative residual |b - A x| / |b| of 1e-12 (cap 2000 iterations; when a frame stops short,
+// the worst residual the reference reached is printed and kept in the row): the difference is what
+// the default solver's tolerance and early stop leave in the positions, not a discretisation error.
+// It is reported as |x - x_ref| / |x_ref - X0| over all nodes after the last frame, X0 the start
+// positions (relative displacement error). With fracture on, the two runs may break different
+// edges; the broken counts of both are kept.
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -73,7 +74,7 @@ const SceneCase kCases[] = {
         "material": {"model": "stable_neo_hookean", "E": 2e4, "nu": 0.45, "rho": 1000,
         "damping": {"mass": 0.5}}, "solver": SOLVER FRACTURE,
         "pins": [{"region": {"min": [-0.1, 0.095, -0.1], "max": [0.1, 0.1, 0.1]}}]}]})"},
-    {"box 680k", R"({"strength": 5e4})", true,
+    {"box 680k", R"({"strength": 1e4})", true,
      R"({"dt": 0.016666666666666666, "gravity": [0, -9.81, 0],
       "bodies": [{"name": "b", "mesh": {"generator": "box", "size": [1.96, 0.68, 0.68],
         "cells": [98, 34, 34]}, "material": {"model": "stable_neo_hookean", "E": 1e7,
@@ -93,6 +94,7 @@ struct Row {
   bool peakReset = false;
   double solverError = -1;  // -1: reference not run
   int broken = 0, brokenReference = -1;
+  double referenceResidual = -1;  // worst relative linear residual the reference reached
 };
 
 // Resets the kernel's resident-memory high-water mark (VmHWM) to the current resident size;
@@ -132,17 +134,18 @@ int countBroken(const World& world, BodyId id) {
 std::string csvHeader() {
   return "case,fracture,tets,frames,ms_frame,fps,cpu_ms_frame,ms_elements,ms_assembly,ms_solve,"
          "ms_fracture,ms_contact,ms_other,linear_iterations,peak_mb,peak_reset,solver_error,"
-         "broken_edges,broken_edges_reference";
+         "broken_edges,broken_edges_reference,reference_residual";
 }
 
 std::string csvLine(const Row& r) {
   char buf[512];
-  std::snprintf(buf, sizeof buf,
-                "%s,%d,%zu,%d,%.2f,%.3f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%.1f,%d,%.3e,%d,%d",
-                r.name.c_str(), r.fracture ? 1 : 0, r.tets, r.frames, r.msFrame, r.fps,
-                r.cpuMsFrame, r.msElements, r.msAssembly, r.msSolve, r.msFracture, r.msContact,
-                r.msOther, r.linearIterations, r.peakMb, r.peakReset ? 1 : 0, r.solverError,
-                r.broken, r.brokenReference);
+  std::snprintf(
+      buf, sizeof buf,
+      "%s,%d,%zu,%d,%.2f,%.3f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%.1f,%d,%.3e,%d,%d,%.3e",
+      r.name.c_str(), r.fracture ? 1 : 0, r.tets, r.frames, r.msFrame, r.fps, r.cpuMsFrame,
+      r.msElements, r.msAssembly, r.msSolve, r.msFracture, r.msContact, r.msOther,
+      r.linearIterations, r.peakMb, r.peakReset ? 1 : 0, r.solverError, r.broken, r.brokenReference,
+      r.referenceResidual);
   return buf;
 }
 
@@ -165,7 +168,8 @@ nlohmann::json jsonRow(const Row& r) {
           {"peak_reset", r.peakReset},
           {"solver_error", r.solverError},
           {"broken_edges", r.broken},
-          {"broken_edges_reference", r.brokenReference}};
+          {"broken_edges_reference", r.brokenReference},
+          {"reference_residual", r.referenceResidual}};
 }
 
 }  // namespace
@@ -288,11 +292,19 @@ int benchScenes(int argc, char** argv) {
           return kExitScene;
         }
         int short_ = 0;
-        for (int f = 0; f <= row.frames; ++f)
-          short_ += world.step(dt).has(kStepNotConverged) ? 1 : 0;
+        row.referenceResidual = 0;
+        for (int f = 0; f <= row.frames; ++f) {
+          const StepStatus status = world.step(dt);
+          short_ += status.has(kStepNotConverged) ? 1 : 0;
+          row.referenceResidual = std::max(row.referenceResidual, status.residual);
+        }
+        // Round-off floors a large system's residual above 1e-12: the row then carries the
+        // residual the reference did reach, which bounds how far the error figure can be trusted.
         if (short_ > 0)
-          std::printf("# %s: the reference stopped short of 1e-12 in %d frame(s)\n", c.name,
-                      short_);
+          std::printf(
+              "# %s: the reference stopped short of 1e-12 in %d frame(s), worst relative "
+              "residual %.3e\n",
+              c.name, short_, row.referenceResidual);
         const std::span<const double> xr = world.positions(id.value());
         double diff = 0, disp = 0;
         for (size_t k = 0; k < xr.size() && k < x.size(); ++k) {
