@@ -620,4 +620,22 @@ TEST(Cli, BackendOptionOverridesTheScene) {
   EXPECT_TRUE(fs::exists(dir / "auto" / "stats.csv"));
 }
 
+// The benchmark modes share one case list; an --only that names no case of the mode is a usage
+// error listing the mode's cases, before any world is built (the 680k box is `bench scenes`'s
+// alone).
+TEST(Cli, BenchOnlyNamingNoCaseIsAUsageError) {
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"bench", "multigrid", "--only", "box 680k"}), gf::cli::kExitUsage);
+  EXPECT_EQ(run({"bench", "scenes", "--only", "charpy"}), gf::cli::kExitUsage);
+  const std::string error = testing::internal::GetCapturedStderr();
+  EXPECT_NE(error.find("bench multigrid: --only 'box 680k' is none of the cases: 'hinged beam', "
+                       "'charpy bar', 'hanging sphere', 'sphere 160k'\n"),
+            std::string::npos)
+      << error;
+  EXPECT_NE(error.find("bench scenes: --only 'charpy' is none of the cases: 'hinged beam', 'charpy "
+                       "bar', 'hanging sphere', 'sphere 160k', 'box 680k'\n"),
+            std::string::npos)
+      << error;
+}
+
 }  // namespace

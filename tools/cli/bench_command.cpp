@@ -42,6 +42,7 @@
 #include <vector>
 
 #include "cli/args.h"
+#include "cli/bench_cases.h"
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "fem/fem_body.h"
@@ -193,42 +194,6 @@ int benchFracture(int argc, char** argv) {
   return kExitOk;
 }
 
-// Bodies of the thesis's chapter-6 table (6.2) at our resolution, as scene text: the hinged
-// beam (fig 6.6, 4k tets), the notched Charpy bar (fig 6.9, 28k), the hanging sphere (fig 6.7,
-// 35k) and a 160k-tet sphere in place of the armadillo (fig 6.4). SOLVER is replaced per run.
-struct MgCase {
-  const char* name;
-  const char* thesisFps;  // RTX 2060, table 6.2
-  const char* scene;
-};
-
-const MgCase kMgCases[] = {
-    {"hinged beam", "320.9", R"({"dt": 0.016666666666666666, "gravity": [0, -9.81, 0],
-      "bodies": [{"name": "b", "mesh": {"generator": "box", "size": [1.0, 0.3, 0.3],
-        "cells": [20, 6, 6]}, "material": {"model": "stable_neo_hookean", "E": 1e6, "nu": 0.4,
-        "rho": 1000}, "solver": SOLVER,
-        "pins": [{"region": {"min": [0, 0.3, 0], "max": [0, 0.3, 0.3]}}]}]})"},
-    {"charpy bar", "152.5", R"({"dt": 1e-5, "gravity": [0, 0, 0],
-      "bodies": [{"name": "b", "mesh": {"generator": "box", "size": [0.055, 0.01, 0.01],
-        "cells": [68, 12, 6], "notch": {"depth": 0.002, "angle_deg": 45}},
-        "material": {"model": "corotated", "E": 2e11, "nu": 0.3, "rho": 7850},
-        "solver": SOLVER, "fracture": {"strength": 4e8},
-        "pins": [{"region": {"min": [0.007, 0.01, 0], "max": [0.0078, 0.01, 0.01]}},
-                 {"region": {"min": [0.0472, 0.01, 0], "max": [0.048, 0.01, 0.01]}}],
-        "grips": [{"region": {"min": [0.0265, 0, 0], "max": [0.0285, 0, 0.01]},
-                   "velocity": [0, 2, 0]}]}]})"},
-    {"hanging sphere", "118.7", R"({"dt": 0.016666666666666666, "gravity": [0, -9.81, 0],
-      "bodies": [{"name": "b", "mesh": {"generator": "sphere", "radius": 0.1, "cells": 18},
-        "material": {"model": "stable_neo_hookean", "E": 2e4, "nu": 0.45, "rho": 1000,
-        "damping": {"mass": 0.5}}, "solver": SOLVER,
-        "pins": [{"region": {"min": [-0.1, 0.09, -0.1], "max": [0.1, 0.1, 0.1]}}]}]})"},
-    {"sphere 160k", "34.9", R"({"dt": 0.016666666666666666, "gravity": [0, -9.81, 0],
-      "bodies": [{"name": "b", "mesh": {"generator": "sphere", "radius": 0.1, "cells": 30},
-        "material": {"model": "stable_neo_hookean", "E": 2e4, "nu": 0.45, "rho": 1000,
-        "damping": {"mass": 0.5}}, "solver": SOLVER,
-        "pins": [{"region": {"min": [-0.1, 0.095, -0.1], "max": [0.1, 0.1, 0.1]}}]}]})"},
-};
-
 // Residual reduction per V-cycle of a multigrid setting on the case's first step, from two
 // fresh worlds that cycle alone ("cycles" mode, no early stop) 1 and kProbeCycles times: the
 // first step's system is the same in both, so (r_1 / r_k)^(1 / (k - 1)) is the geometric mean
@@ -275,6 +240,10 @@ int benchMultigrid(int argc, char** argv) {
     }
     if (!std::strcmp(argv[i], "--only")) only = argv[i + 1];
   }
+  if (const std::string e = only.empty() ? "" : unknownBenchCase(only, false); !e.empty()) {
+    std::fprintf(stderr, "bench multigrid: %s\n", e.c_str());
+    return kExitUsage;
+  }
   // Every thread count runs in this process, one after the other per case and solver, so the
   // speed-ups are ratios measured in one run.
   std::vector<std::unique_ptr<JobSystem>> pools;
@@ -305,11 +274,10 @@ int benchMultigrid(int argc, char** argv) {
                        R"({"linear": "multigrid", "multigrid": )" + extra[k] + "}"});
     std::printf("# mg %zu: %s\n", k + 1, extra[k].c_str());
   }
-  for (const MgCase& c : kMgCases) {
-    if (!only.empty() && only != c.name) continue;
+  for (const BenchCase& c : benchCases()) {
+    if (c.big || (!only.empty() && only != c.name)) continue;
     for (const auto& sv : solvers) {
-      std::string text = c.scene;
-      text.replace(text.find("SOLVER"), 6, sv[1]);
+      const std::string text = benchSceneText(c, sv[1], c.multigridBreaks);
       gf::Result<scene::Scene> sc = scene::parseScene(text, c.name, "");
       if (!sc.ok()) {
         std::fprintf(stderr, "%s\n", sc.error().message.c_str());

@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/bench_cases.h"
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "graphfrac/world.h"
@@ -33,54 +34,6 @@
 namespace gf::cli {
 
 namespace {
-
-struct SceneCase {
-  const char* name;
-  const char* fracture;  // the "fracture" object when fracture is on
-  bool big;              // runs --big-frames frames (seconds per frame on a small CPU)
-  const char* scene;     // SOLVER and FRACTURE are replaced per run
-};
-
-// The chapter-6 bodies of `bench multigrid` (4k, 28k, 35k, 160k tets) and a 98 x 34 x 34-cell
-// cantilever box of 679,728 tets (the size of the thesis's largest body). Strengths are set so
-// that gravity or the grip reaches them in the first frames; the broken counts say whether they
-// did.
-const SceneCase kCases[] = {
-    {"hinged beam", R"({"strength": 2e4})", false,
-     R"({"dt": 0.016666666666666666, "gravity": [0, -9.81, 0],
-      "bodies": [{"name": "b", "mesh": {"generator": "box", "size": [1.0, 0.3, 0.3],
-        "cells": [20, 6, 6]}, "material": {"model": "stable_neo_hookean", "E": 1e6, "nu": 0.4,
-        "rho": 1000}, "solver": SOLVER FRACTURE,
-        "pins": [{"region": {"min": [0, 0.3, 0], "max": [0, 0.3, 0.3]}}]}]})"},
-    {"charpy bar", R"({"strength": 4e8})", false,
-     R"({"dt": 1e-5, "gravity": [0, 0, 0],
-      "bodies": [{"name": "b", "mesh": {"generator": "box", "size": [0.055, 0.01, 0.01],
-        "cells": [68, 12, 6], "notch": {"depth": 0.002, "angle_deg": 45}},
-        "material": {"model": "corotated", "E": 2e11, "nu": 0.3, "rho": 7850},
-        "solver": SOLVER FRACTURE,
-        "pins": [{"region": {"min": [0.007, 0.01, 0], "max": [0.0078, 0.01, 0.01]}},
-                 {"region": {"min": [0.0472, 0.01, 0], "max": [0.048, 0.01, 0.01]}}],
-        "grips": [{"region": {"min": [0.0265, 0, 0], "max": [0.0285, 0, 0.01]},
-                   "velocity": [0, 2, 0]}]}]})"},
-    {"hanging sphere", R"({"strength": 500})", false,
-     R"({"dt": 0.016666666666666666, "gravity": [0, -9.81, 0],
-      "bodies": [{"name": "b", "mesh": {"generator": "sphere", "radius": 0.1, "cells": 18},
-        "material": {"model": "stable_neo_hookean", "E": 2e4, "nu": 0.45, "rho": 1000,
-        "damping": {"mass": 0.5}}, "solver": SOLVER FRACTURE,
-        "pins": [{"region": {"min": [-0.1, 0.09, -0.1], "max": [0.1, 0.1, 0.1]}}]}]})"},
-    {"sphere 160k", R"({"strength": 500})", false,
-     R"({"dt": 0.016666666666666666, "gravity": [0, -9.81, 0],
-      "bodies": [{"name": "b", "mesh": {"generator": "sphere", "radius": 0.1, "cells": 30},
-        "material": {"model": "stable_neo_hookean", "E": 2e4, "nu": 0.45, "rho": 1000,
-        "damping": {"mass": 0.5}}, "solver": SOLVER FRACTURE,
-        "pins": [{"region": {"min": [-0.1, 0.095, -0.1], "max": [0.1, 0.1, 0.1]}}]}]})"},
-    {"box 680k", R"({"strength": 1e4})", true,
-     R"({"dt": 0.016666666666666666, "gravity": [0, -9.81, 0],
-      "bodies": [{"name": "b", "mesh": {"generator": "box", "size": [1.96, 0.68, 0.68],
-        "cells": [98, 34, 34]}, "material": {"model": "stable_neo_hookean", "E": 1e7,
-        "nu": 0.4, "rho": 1000}, "solver": SOLVER FRACTURE,
-        "pins": [{"region": {"min": [0, 0, 0], "max": [0, 0.68, 0.68]}}]}]})"},
-};
 
 struct Row {
   std::string name;
@@ -115,14 +68,6 @@ double peakMemoryMb() {
   while (std::getline(in, line))
     if (line.rfind("VmHWM:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
   return -1;
-}
-
-std::string sceneText(const SceneCase& c, const std::string& solver, bool fracture) {
-  std::string text = c.scene;
-  text.replace(text.find("SOLVER"), 6, solver);
-  text.replace(text.find("FRACTURE"), 8,
-               fracture ? std::string(", \"fracture\": ") + c.fracture : std::string());
-  return text;
 }
 
 int countBroken(const World& world, BodyId id) {
@@ -197,6 +142,10 @@ int benchScenes(int argc, char** argv) {
       return kExitUsage;
     }
   }
+  if (const std::string e = only.empty() ? "" : unknownBenchCase(only, true); !e.empty()) {
+    std::fprintf(stderr, "bench scenes: %s\n", e.c_str());
+    return kExitUsage;
+  }
   const bool canReset = resetPeakMemory();
   std::printf(
       "# %d frame(s) per case after one warm-up frame; %d frame(s) for the 680k-tet box (seconds "
@@ -211,14 +160,14 @@ int benchScenes(int argc, char** argv) {
       reference ? "run" : "not run: --reference 0, printed as -1");
   std::printf("%s\n", csvHeader().c_str());
   std::vector<Row> rows;
-  for (const SceneCase& c : kCases) {
+  for (const BenchCase& c : benchCases()) {
     if (!only.empty() && only != c.name) continue;
     for (bool fracture : {false, true}) {
       Row row;
       row.name = c.name;
       row.fracture = fracture;
       row.frames = c.big ? bigFrames : frames;
-      const std::string text = sceneText(c, "{}", fracture);
+      const std::string text = benchSceneText(c, "{}", fracture);
       gf::Result<scene::Scene> sc = scene::parseScene(text, c.name, "");
       if (!sc.ok()) {
         std::fprintf(stderr, "%s\n", sc.error().message.c_str());
@@ -274,10 +223,10 @@ int benchScenes(int argc, char** argv) {
       }
       if (reference) {
         gf::Result<scene::Scene> ref =
-            scene::parseScene(sceneText(c,
-                                        R"({"linear": "multigrid", "linear_tolerance": 1e-12,
+            scene::parseScene(benchSceneText(c,
+                                             R"({"linear": "multigrid", "linear_tolerance": 1e-12,
                           "max_linear_iterations": 2000})",
-                                        fracture),
+                                             fracture),
                               c.name, "");
         if (!ref.ok()) {
           std::fprintf(stderr, "%s\n", ref.error().message.c_str());
