@@ -2,14 +2,20 @@
 // cells, 24,000 tets, 4,961 nodes): the per-tet element kernel (energy, gradient and projected
 // Hessian), the block-sparse SpMV of the step matrix, one multigrid V-cycle, and the edge
 // stresses with the fracture criterion. items_per_second counts tets (element, edge stresses),
-// nodes (SpMV) or unknowns (V-cycle), so 1e9 / items_per_second is ns per item. Not a test:
-// ctest only runs it once with a tiny minimum time to see that it works.
+// nodes (SpMV) or unknowns (V-cycle), so 1e9 / items_per_second is ns per item. BM_Triad
+// measures one core's memory bandwidth (STREAM's triad) and BM_ElementStage, the step's element
+// pass, reports the share of that bound it reaches (its counter triad_share: the bytes it must
+// move at least, over the triad's rate, against its time). Not a test: ctest only runs it once
+// with a tiny minimum time to see that it works.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <cstdint>
+#include <ctime>
 #include <vector>
 
 #include "common/elastic_system.h"
+#include "fem/element_stage.h"
 #include "graphfrac/jobs.h"
 #include "graphfrac/mesh.h"
 #include "kernels/edge_stress.h"
@@ -22,8 +28,11 @@ constexpr double kE = 1e6, kNu = 0.4, kRho = 1000, kDt = 1.0 / 60;
 
 gf::TetMesh fixedMesh() { return gf::gen::box(1.0, 0.25, 0.25, 40, 10, 10); }
 
-// Rest and deformed corners of every tet: a 1 % stretch along x with a small bend, so the
+// The deformed state of every benchmark: a 1 % stretch along x with a small bend, so the
 // stresses are non-zero and the SVD takes its general path.
+gf::Vec3 deform(const double* p) { return {1.01 * p[0], p[1] + 0.01 * std::sin(3 * p[0]), p[2]}; }
+
+// Rest and deformed corners of every tet.
 struct TetData {
   std::vector<gf::Vec3> rest, deformed;  // 4 per tet
   size_t tets = 0;
@@ -36,7 +45,7 @@ TetData tetData(const gf::TetMesh& m) {
     for (int a = 0; a < 4; ++a) {
       const double* p = &m.positions[3 * m.tets[4 * e + a]];
       d.rest.push_back({p[0], p[1], p[2]});
-      d.deformed.push_back({1.01 * p[0], p[1] + 0.01 * std::sin(3 * p[0]), p[2]});
+      d.deformed.push_back(deform(p));
     }
   return d;
 }
@@ -62,6 +71,71 @@ void BM_ElementForces(benchmark::State& state) {
   state.counters["tets"] = double(d.tets);
 }
 BENCHMARK(BM_ElementForces)->Unit(benchmark::kMillisecond);
+
+// Bytes per CPU second (one thread, as Google Benchmark's rates) of STREAM's triad a = b + s c
+// (24 bytes an element, write-allocate not counted, as STREAM counts) on arrays far larger than
+// the caches; 0 until BM_Triad ran.
+double g_triadBytesPerSecond = 0;
+
+void BM_Triad(benchmark::State& state) {
+  const size_t n = size_t(1) << 23;  // 3 arrays of 64 MB
+  std::vector<double> a(n, 0.0), b(n, 1.0), c(n, 2.0);
+  const double scale = 3.0;
+  const std::clock_t c0 = std::clock();
+  for (auto _ : state) {
+    for (size_t i = 0; i < n; ++i) a[i] = b[i] + scale * c[i];
+    benchmark::DoNotOptimize(a.data());
+    benchmark::ClobberMemory();
+  }
+  const double s = double(std::clock() - c0) / CLOCKS_PER_SEC;
+  const double bytes = double(state.iterations()) * 24.0 * double(n);
+  if (s > 0) g_triadBytesPerSecond = bytes / s;
+  state.SetBytesProcessed(int64_t(bytes));
+}
+BENCHMARK(BM_Triad)->Unit(benchmark::kMillisecond);
+
+// The step's element pass (fem/element_stage.h) as one core runs it: energy, gradient and PSD
+// Hessian of every tet written to the per-tet buffers the assembly reads. Its least traffic a
+// tet: the 4 corner indices, Dm^-1 and the rest volume read, energy, gradient and the 144-double
+// Hessian written, and the node positions once over the mesh.
+void BM_ElementStage(benchmark::State& state) {
+  const gf::TetMesh m = fixedMesh();
+  const TetData d = tetData(m);
+  const size_t tets = d.tets;
+  std::vector<double> x(m.positions.size());
+  for (size_t n = 0; n < m.nodeCount(); ++n) {
+    const gf::Vec3 p = deform(&m.positions[3 * n]);
+    for (int k = 0; k < 3; ++k) x[3 * n + size_t(k)] = p[k];
+  }
+  std::vector<gf::Mat3> dmInv(tets);
+  std::vector<double> vol(tets), energy(tets), grad(12 * tets), hess(144 * tets);
+  for (size_t e = 0; e < tets; ++e) dmInv[e] = gf::restShapeInverse(&d.rest[4 * e], vol[e]);
+  gf::detail::ElementStage stage;
+  stage.tets = m.tets.data();
+  stage.x = x.data();
+  stage.restInverse = dmInv.data();
+  stage.restVolume = vol.data();
+  stage.coeffs = gf::makeMaterialCoeffs(gf::kStableNeoHookean, kE, kNu, 0, gf::Vec3{1, 0, 0});
+  stage.energy = energy.data();
+  stage.grad = grad.data();
+  stage.hess = hess.data();
+  const double bytesPerTet = 4 * sizeof(int32_t) + sizeof(gf::Mat3) + 8 + 8 + 12 * 8 + 144 * 8 +
+                             24.0 * double(m.nodeCount()) / double(tets);
+  const std::clock_t c0 = std::clock();
+  for (auto _ : state) {
+    for (size_t t = 0; t < tets; ++t) stage(int32_t(t));
+    benchmark::DoNotOptimize(hess.data());
+    benchmark::ClobberMemory();
+  }
+  const double s = double(std::clock() - c0) / CLOCKS_PER_SEC;
+  const double bytes = double(state.iterations()) * double(tets) * bytesPerTet;
+  state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(tets));
+  state.SetBytesProcessed(int64_t(bytes));
+  state.counters["bytes_per_tet"] = bytesPerTet;
+  if (g_triadBytesPerSecond > 0 && s > 0)
+    state.counters["triad_share"] = bytes / s / g_triadBytesPerSecond;
+}
+BENCHMARK(BM_ElementStage)->Unit(benchmark::kMillisecond);
 
 void BM_EdgeStressCriterion(benchmark::State& state) {
   const TetData d = tetData(fixedMesh());
