@@ -680,7 +680,7 @@ constexpr int kMaxBrittleRegions = 1'000'000;
 FractureSettings readFracture(const json& v, const std::string& path) {
   ObjReader o(v, path);
   o.keys({"strength", "radius", "nonlocal_length", "model", "brittle", "regions",
-          "fibre_strength_ratio", "split_point"});
+          "fibre_strength_ratio", "split_point", "release_every_batch"});
   FractureSettings f;
   f.enabled = true;
   f.strength = readNumber(o.require("strength"), o.at("strength"));
@@ -696,6 +696,8 @@ FractureSettings readFracture(const json& v, const std::string& path) {
                   : DamageModel::Degradation;
   }
   if (const json* b = o.find("brittle")) f.brittle = readBool(*b, o.at("brittle"));
+  if (const json* b = o.find("release_every_batch"))
+    f.releaseEveryBatch = readBool(*b, o.at("release_every_batch"));
   if (const json* n = o.find("regions")) {
     f.regions = readInteger(*n, o.at("regions"));
     requireAtMost(f.regions, kMaxBrittleRegions, o.at("regions"), *n);

@@ -44,6 +44,10 @@ struct FractureStats {
   int32_t edgeCount = 0;
   int32_t brokenEdges = 0;
   int32_t fragments = 1;
+  /// Of those fragments, the chips: ones that hold no whole tet (in the degradation model, a
+  /// node all of whose tets a crack or blade split). Loose matter with mass and no stiffness, so
+  /// fragments - chips is the number of pieces.
+  int32_t chips = 0;
 };
 
 /// A fragment as a rigid body (World::fragmentInfo, World::detachFragment). The fragment is

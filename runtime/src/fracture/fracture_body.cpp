@@ -234,6 +234,16 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState
   }
 }
 
+int32_t FractureBody::chipCount() const {
+  const std::span<const int32_t> nodeFragment = m_data.fragments.nodeFragment();
+  std::vector<uint8_t> whole(size_t(m_data.fragments.count()), 0);
+  for (int32_t t = 0; t < int32_t(m_data.tetMask.size()); ++t)
+    if (m_data.tetMask[size_t(t)] == 0 || !tetSplit(m_graph, m_data.broken.data(), t))
+      whole[size_t(nodeFragment[size_t(m_graph.edgeNodes[2 * m_graph.tetEdges[6 * size_t(t)]])])] =
+          1;
+  return int32_t(std::count(whole.begin(), whole.end(), uint8_t(0)));
+}
+
 void FractureBody::releaseSevered(size_t first, const double* x) {
   // Projection keeps a lone edge's own strain in a split tet (kernels/damage.h): it still holds.
   if (m_damageModel != kDamageDegradation) return;
@@ -275,8 +285,8 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     (void)cutEdges(m_graph, x, cut.blade, cut.from, cut.to, m_data.broken, m_data.breaks, m_cutWs,
                    jobs);
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Cut));
-    computeSplits(first, fem, data, x, jobs);
-    applyBreaks(first, fem, data, x, jobs);
+    if (fem.fracture.releaseEveryBatch) releaseSevered(first, x);
+    finishBatch(first, fem, data, x, jobs);
   }
   m_data.pendingCuts.clear();
   if (m_data.hasImpurity && !m_data.impurity.pendingPrecut.empty()) {
@@ -293,8 +303,8 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     }
     m_data.impurity.pendingPrecut.clear();
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Cut));
-    computeSplits(first, fem, data, x, jobs);
-    applyBreaks(first, fem, data, x, jobs);
+    if (fem.fracture.releaseEveryBatch) releaseSevered(first, x);
+    finishBatch(first, fem, data, x, jobs);
   }
 
   computeStresses(fem, data, x, !stressesReady, svdCache, jobs);
@@ -303,6 +313,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
                                       m_data.broken, m_data.breaks, m_ws, jobs, x);
   m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Stress));
   releaseSevered(first, x);
+  const size_t brittleFirst = m_data.breaks.size();
   if (n > 0 && fem.fracture.brittle && !m_data.brittleFired) {
     // Brittle mode: the first time the criterion fires, the most stressed regions start
     // crack planes through the whole body (sec 4.5.1.2).
@@ -319,19 +330,25 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
                                m_data.broken, m_data.breaks, jobs, x);
     }
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::BrittlePlane));
+    // The planes split tets of their own; the criterion's releases above saw none of them.
+    if (fem.fracture.releaseEveryBatch) releaseSevered(brittleFirst, x);
   }
-  // Keep each cause with its break through the sort in applyBreaks.
-  if (m_data.breaks.size() > first) {
-    computeSplits(first, fem, data, x, jobs);
-    std::vector<std::pair<int32_t, uint8_t>> causes;
-    for (size_t i = first; i < m_data.breaks.size(); ++i)
-      causes.push_back({m_data.breaks[i].edge, m_data.breakCause[i]});
-    std::sort(causes.begin(), causes.end());
-    applyBreaks(first, fem, data, x, jobs);
-    for (size_t i = first; i < m_data.breaks.size(); ++i)
-      m_data.breakCause[i] = causes[i - first].second;
-  }
+  finishBatch(first, fem, data, x, jobs);
   return int32_t(m_data.breaks.size());
+}
+
+void FractureBody::finishBatch(size_t first, const FemModel& fem, const FemState& data,
+                               const double* x, JobSystem& jobs) {
+  if (m_data.breaks.size() == first) return;
+  computeSplits(first, fem, data, x, jobs);
+  // Keep each cause with its break through the sort in applyBreaks.
+  std::vector<std::pair<int32_t, uint8_t>> causes;
+  for (size_t i = first; i < m_data.breaks.size(); ++i)
+    causes.push_back({m_data.breaks[i].edge, m_data.breakCause[i]});
+  std::sort(causes.begin(), causes.end());
+  applyBreaks(first, fem, data, x, jobs);
+  for (size_t i = first; i < m_data.breaks.size(); ++i)
+    m_data.breakCause[i] = causes[i - first].second;
 }
 
 }  // namespace gf::detail

@@ -100,6 +100,8 @@ class FractureBody {
   const std::vector<FragmentSplit>& splits() const { return m_data.splits; }
   const FragmentProperties& splitProperties() const { return m_data.props; }
   int32_t brokenCount() const { return m_data.brokenCount; }
+  /// Fragments that hold no whole (unsplit) tet (FractureStats::chips).
+  int32_t chipCount() const;
   /// Every broken edge in the order it broke (the first k are the broken set after k breaks).
   const std::vector<int32_t>& breakOrder() const { return m_data.breakOrder; }
 
@@ -140,10 +142,15 @@ class FractureBody {
   void computeSplits(size_t first, const FemModel& fem, const FemState& data, const double* x,
                      JobSystem& jobs);
   // Degradation model: breaks (cause Severed, appended) the unbroken edges around the
-  // criterion's breaks m_data.breaks[first..] whose every tet is now split. A split tet has
-  // chi = 0 and zero criterion stress, so no load could ever break such an edge, yet it would
-  // keep the graph's pieces one fragment (docs/design.md "Severed edges").
+  // breaks m_data.breaks[first..] of a batch (the criterion's; with
+  // FractureSettings::releaseEveryBatch also a cut, the pre-cuts, the brittle planes') whose
+  // every tet is now split. A split tet has chi = 0 and zero criterion
+  // stress, so no load could ever break such an edge, yet it would keep the graph's pieces one
+  // fragment (docs/design.md "Severed edges").
   void releaseSevered(size_t first, const double* x);
+  // Split points, then applyBreaks, for m_data.breaks[first..], each cause kept with its break.
+  void finishBatch(size_t first, const FemModel& fem, const FemState& data, const double* x,
+                   JobSystem& jobs);
   // Masks, chi and fragments after edges in m_data.breaks[first..] broke.
   void applyBreaks(size_t first, const FemModel& fem, const FemState& data, const double* x,
                    JobSystem& jobs);

@@ -406,7 +406,9 @@ uint32_t EmbeddedSurface::cutCopy(uint32_t u, uint32_t v, uint32_t side) {
       const double* wl = &b.weight[4 * size_t(lo)];
       double wh[4];
       barycentric(m_restInverse[t], load(m_rest->positions.data(), size_t(n[0])), Phi, wh);
-      const int ka = strongest(wl, 15u), kb = strongest(wh, other);
+      const unsigned drawn = drawnNodes(t);
+      if (other & drawn) other &= drawn;
+      const int ka = strongest(wl, drawn), kb = strongest(wh, other);
       const double dl = wl[ka] - wl[kb], dh = wh[ka] - wh[kb];
       if (dl - dh > 0) s = dl / (dl - dh);
     }
@@ -470,6 +472,13 @@ bool EmbeddedSurface::apart(uint32_t u, uint32_t v) const {
   return true;
 }
 
+unsigned EmbeddedSurface::drawnNodes(int32_t t) const {
+  const int32_t* n = &m_rest->tets[4 * size_t(t)];
+  unsigned m = 0;
+  for (int k = 0; k < 4; ++k) m |= m_wholeTet[size_t(m_nodeFragment[n[k]])] ? 1u << k : 0u;
+  return m ? m : 15u;
+}
+
 unsigned EmbeddedSurface::joinedMask(int32_t t) const {
   const int32_t* te = &m_graph->tetEdges[6 * size_t(t)];
   unsigned m = 0;
@@ -521,14 +530,27 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   const EmbeddedBinding& b = *m_binding;
   const size_t nv = b.tet.size();
 
+  // Chips: fragments that hold no whole tet (in the degradation model, a node whose every tet
+  // is split). Such a fragment is free matter with no volume of its own: drawn as a piece, each
+  // one made its neighbours' cycles meet at more junctions and the cores between them went
+  // uncovered (design note: chips).
+  const size_t nn = m_rest->nodeCount();
+  int32_t fragments = 0;
+  for (size_t n = 0; n < nn; ++n) fragments = std::max(fragments, nodeFragment[n] + 1);
+  m_wholeTet.assign(size_t(fragments), m_chipsByNeighbours ? 0 : 1);
+  for (size_t t = 0; t < m_rest->tetCount() && m_chipsByNeighbours; ++t)
+    if (component(0, joinedMask(int32_t(t))) == 15u)
+      m_wholeTet[size_t(nodeFragment[m_rest->tets[4 * t]])] = 1;
+
   // Each vertex's label and group: those of its tet's node of the largest weight, whose corner
-  // cell holds it.
+  // cell holds it, among the nodes not in chips (a chip's cells go to the neighbours that share
+  // its tets), or among all four when every one is.
   m_home.resize(nv);
   m_homeGroup.resize(nv);
   m_homeNode.resize(nv);
   for (size_t v = 0; v < nv; ++v) {
     const int32_t t = b.tet[v];
-    const int k = strongest(&b.weight[4 * v], 15u);
+    const int k = strongest(&b.weight[4 * v], drawnNodes(t));
     m_homeNode[v] = m_rest->tets[4 * size_t(t) + size_t(k)];
     m_home[v] = nodeFragment[m_homeNode[v]];
     m_homeGroup[v] = uint8_t(component(k, joinedMask(t)));
@@ -728,16 +750,14 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   }
 
   // Fragments without a render vertex: drawn with their tet faces when inside the render mesh.
-  const size_t nn = m_rest->nodeCount();
-  int32_t fragments = 0;
-  for (size_t n = 0; n < nn; ++n) fragments = std::max(fragments, nodeFragment[n] + 1);
+  // Chips are not: their cells are drawn by the neighbours whose caps enclose them.
   std::vector<uint8_t> hasRender(size_t(fragments), 0);
   for (size_t v = 0; v < nv; ++v) hasRender[size_t(m_home[v])] = 1;
   m_crackDrawn.assign(size_t(fragments), 0);
   std::vector<uint8_t> asked(size_t(fragments), 0);
   for (size_t n = 0; n < nn; ++n) {
     const size_t f = size_t(nodeFragment[n]);
-    if (hasRender[f] || asked[f]) continue;
+    if (hasRender[f] || asked[f] || !m_wholeTet[f]) continue;
     asked[f] = 1;  // the fragment's lowest node stands for it
     m_crackDrawn[f] = nodeInside(int32_t(n)) ? 1 : 0;
   }

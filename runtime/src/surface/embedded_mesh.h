@@ -24,6 +24,17 @@
 //   edge whose tets are all split holds nothing (degradation model), so a group's nodes can
 //   drift apart by many cells, and the mean drew the vertex between them
 //   (RenderMesh.DrawnVerticesStayWithTheirFragmentAsPiecesFlyApart).
+// - Fracture: chips (setChipsDrawnByNeighbours). A fragment that holds no whole tet (in the
+// degradation model, a node whose
+//   every tet is split, released as its own fragment: docs/design.md "Severed edges") has mass
+//   and no stiffness and no volume of its own. Labels skip its nodes: a vertex in its cell takes
+//   the strongest node of its tet outside chips (all four when every one is a chip) and follows
+//   that node's group, and the cut point between two ends is placed between those nodes. Drawn as
+//   pieces, a shattered bunny's 801 one-node chips made the pieces' cycles meet at more junctions
+//   and left the cores between them uncovered (0.547 of its volume covered against 0.807 with the
+//   chips' cells drawn by their neighbours), and interior chips drawn with their tet faces added
+//   their cells twice. The price: a chip flies off undrawn, and its neighbours draw its cells as
+//   theirs (each the part of the chip's cell nearest its node).
 // - Fracture: which render edges are cut. A render edge is cut when its ends lie on different
 //   sides of a crack: in different fragments, or, within one fragment, when an end's tet holds
 //   the other end's cell node outside its own group. The groups are what move the copies, so
@@ -123,21 +134,22 @@
 //   a cycle, so the fan's closing edge spans the hole and each piece is open only where the
 //   artist's mesh is (RenderMesh.OpenRenderMeshIsOpenOnlyAtItsHoles; before, chains were left
 //   uncapped and each piece was open along its whole cut). A fragment that owns no
-//   render vertex is drawn with its CrackSurface faces (closed, CrackSurface's design note) if
-//   one of its nodes is inside the render mesh at rest (generalised winding number >= 1/2),
-//   else not at all; such an interior fragment is also enclosed by its neighbours' caps, which
-//   do not know it is missing. The cut follows the render mesh's resolution: a fragment thinner
-//   than a render edge may own no render vertex.
+//   render vertex and is not a chip is drawn with its CrackSurface faces (closed, CrackSurface's
+//   design note) if one of its nodes is inside the render mesh at rest (generalised winding number
+//   >= 1/2), else not at all; such an interior fragment is also enclosed by its neighbours' caps,
+//   which do not know it is missing. The cut follows the render mesh's resolution: a fragment
+//   thinner than a render edge may own no render vertex.
 // - Cost: nothing until World::surface asks; then O(render vertices + caps) per rendered frame
 //   plus the tet surface's own update (its local maps and the faces of fragments drawn with
-//   them). rebuild() runs once per fracture step, O(render triangles): a side test per
-//   triangle edge (a few table reads; it looks further, at the two cell nodes' graph edges,
-//   only where both touch broken edges and neither end's tet holds the other's), one hash
-//   lookup per cut edge, a counting sort and a walk over the rim segments, plus a winding
-//   number (O(render triangles)) for each node first asked about, and, on the first break, the
-//   refinement (one pass per halving of the longest edge, and a binding of its vertices). Measured
-//   in RenderMesh.PerFrameCostAgainstTheStep: the unseparated-crack rule adds about 0.5 ms to a 1.4
-//   ms rebuild of a 24k-vertex render mesh on a shattered bar (docs/design.md).
+//   them). rebuild() runs once per fracture step, O(render triangles + tets): a look at each
+//   tet (which fragments are chips), a side test per triangle edge (a few table reads; it looks
+//   further, at the two cell nodes' graph edges, only where both touch broken edges and neither
+//   end's tet holds the other's), one hash lookup per cut edge, a counting sort and a walk over the
+//   rim segments, plus a winding number (O(render triangles)) for each node first asked about, and,
+//   on the first break, the refinement (one pass per halving of the longest edge, and a binding of
+//   its vertices). Measured in RenderMesh.PerFrameCostAgainstTheStep: the unseparated-crack rule
+//   adds about 0.5 ms to a 1.4 ms rebuild of a 24k-vertex render mesh on a shattered bar
+//   (docs/design.md).
 #pragma once
 
 #include <cstdint>
@@ -197,6 +209,10 @@ class EmbeddedSurface {
   /// (1 per edge) and node fragments. Then frameNodes() lists the nodes whose local maps the
   /// copies need: hand them to CrackSurface::setExtraFrameNodes before its rebuild().
   void rebuild(const uint8_t* broken, const int32_t* nodeFragment);
+  /// Whether rebuild() draws chips' cells with their neighbours (design note: chips); on for
+  /// bodies that release severed edges after every batch (FractureSettings::releaseEveryBatch),
+  /// off by default: every fragment is then drawn as its own.
+  void setChipsDrawnByNeighbours(bool on) { m_chipsByNeighbours = on; }
   /// Nodes whose local maps the last rebuild() needs.
   std::span<const int32_t> frameNodes() const { return m_frameNodes; }
   /// Places the vertices for node positions `x` (3 per node), with the local maps of `crack`,
@@ -246,6 +262,7 @@ class EmbeddedSurface {
   uint32_t cutCopy(uint32_t u, uint32_t v, uint32_t side);
   bool apart(uint32_t u, uint32_t v) const;
   unsigned joinedMask(int32_t t) const;
+  unsigned drawnNodes(int32_t t) const;
   void compose(const CrackSurface& crack);
   bool nodeInside(int32_t node);
 
@@ -280,6 +297,8 @@ class EmbeddedSurface {
   const int32_t* m_nodeFragment = nullptr;  // during rebuild()
   const uint8_t* m_broken = nullptr;        // during rebuild()
   std::vector<uint8_t> m_nodeCracked;       // per node: 1 when one of its edges is broken
+  std::vector<uint8_t> m_wholeTet;  // per fragment: 1 when it holds a whole tet (not a chip)
+  bool m_chipsByNeighbours = false;
   std::vector<uint8_t> m_frameMark;
   std::vector<int32_t> m_frameNodes;
 

@@ -584,6 +584,7 @@ FractureStats World::fractureStats(BodyId id) const {
   s.edgeCount = b->fracture->graph().edgeCount;
   s.brokenEdges = b->fracture->brokenCount();
   s.fragments = b->fracture->fragments().count();
+  s.chips = b->fracture->chipCount();
   return s;
 }
 

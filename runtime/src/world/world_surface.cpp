@@ -79,6 +79,7 @@ SurfaceView World::surface(BodyId id) {
     if (b->renderBinding) {
       r->embedded = std::make_unique<detail::EmbeddedSurface>();
       r->embedded->init(*b->renderBinding, r->rest, *graph, b->model.restInverse.data());
+      r->embedded->setChipsDrawnByNeighbours(b->fracture && b->model.fracture.releaseEveryBatch);
       r->embedded->rebuild(broken, fragments);
       r->surface.setExtraFrameNodes(r->embedded->frameNodes());
     }
