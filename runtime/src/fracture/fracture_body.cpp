@@ -232,9 +232,11 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState
     m_data.fragments.compute(exec, m_nodeVolume, data.nodeMass, x, data.v.data(), m_data.props,
                              m_fragmentScratch);
   }
+  // Here, not in World::fractureStats: a game asks for the stats every frame, edges break rarely.
+  m_data.chips = countChips();
 }
 
-int32_t FractureBody::chipCount() const {
+int32_t FractureBody::countChips() const {
   const std::span<const int32_t> nodeFragment = m_data.fragments.nodeFragment();
   std::vector<uint8_t> whole(size_t(m_data.fragments.count()), 0);
   for (int32_t t = 0; t < int32_t(m_data.tetMask.size()); ++t)

@@ -48,6 +48,7 @@ struct FractureData {
   /// it, as the parameter from edgeNodes[2e]; 0.5 until it breaks, then set once.
   std::vector<double> splitRatio;
   int32_t brokenCount = 0;
+  int32_t chips = 0;          ///< FractureStats::chips, recounted on steps where edges break
   bool brittleFired = false;  ///< Brittle crack planes start once per body.
   bool hasImpurity = false;
   ImpurityField impurity;  ///< Meaningful only with hasImpurity.
@@ -101,7 +102,7 @@ class FractureBody {
   const FragmentProperties& splitProperties() const { return m_data.props; }
   int32_t brokenCount() const { return m_data.brokenCount; }
   /// Fragments that hold no whole (unsplit) tet (FractureStats::chips).
-  int32_t chipCount() const;
+  int32_t chipCount() const { return m_data.chips; }
   /// Every broken edge in the order it broke (the first k are the broken set after k breaks).
   const std::vector<int32_t>& breakOrder() const { return m_data.breakOrder; }
 
@@ -151,6 +152,8 @@ class FractureBody {
   // Split points, then applyBreaks, for m_data.breaks[first..], each cause kept with its break.
   void finishBatch(size_t first, const FemModel& fem, const FemState& data, const double* x,
                    JobSystem& jobs);
+  // The fragments that hold no whole tet, from the broken flags and fragments as they are.
+  int32_t countChips() const;
   // Masks, chi and fragments after edges in m_data.breaks[first..] broke.
   void applyBreaks(size_t first, const FemModel& fem, const FemState& data, const double* x,
                    JobSystem& jobs);
