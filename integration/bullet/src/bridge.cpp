@@ -197,10 +197,13 @@ int Bridge::handOffNewFragments() {
     for (int32_t f : m_world.nodeFragments(p.body)) ++m_nodeCount[size_t(f)];
     m_candidates.clear();
     int32_t inBullet = 0;
+    // Chips (loose nodes with no whole tet) stay in the FEM body, which steps them as particles
+    // once nothing else of it is left: as rigid bodies they would fill Bullet with specks.
+    const std::span<const uint8_t> chip = m_world.chipFlags(p.body);
     for (int32_t f = 0; f < count; ++f) {
       if (rigidBody(p.body, f))
         ++inBullet;
-      else
+      else if (size_t(f) >= chip.size() || !chip[size_t(f)])
         m_candidates.push_back(f);
     }
     // Most nodes first, then by id: deterministic, and a capped body keeps its big pieces.

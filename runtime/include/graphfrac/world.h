@@ -166,6 +166,9 @@ class World {
   FractureStats fractureStats(BodyId id) const;
   /// Fragment id of every node (empty for an invalid id or a body without fracture).
   std::span<const int32_t> nodeFragments(BodyId id) const;
+  /// 1 for every fragment that is a chip (FractureStats::chips), 0 for a piece; one per
+  /// fragment. Empty for an invalid id or a body without fracture.
+  std::span<const uint8_t> chipFlags(BodyId id) const;
   /// The two nodes of every edge of the fracture graph, 2 per edge, in the order that
   /// setEdgeStrengths, brokenEdges and FractureEvent::edge use. Empty for an invalid id or a
   /// body without fracture. Fixed for the body's lifetime.

@@ -123,6 +123,21 @@ struct ElementStage {
   }
 };
 
+/// 1 when tet t can store elastic energy, else 0, as ElementStage::evaluate decides: a max-
+/// reduction term. A tet moving with a fragment handed to rigid physics cannot, nor, in the
+/// degradation model, one whose lagged chi is 0 (a crack split it: eq 4.33 and the rule after).
+struct LiveTetTerm {
+  const uint8_t* rigidTet = nullptr;  ///< null: none
+  const uint8_t* tetMask = nullptr;   ///< null: no fracture
+  const double* chi = nullptr;
+  bool degradation = false;
+
+  GF_HD double operator()(int32_t t) const {
+    if (rigidTet && rigidTet[t]) return 0.0;
+    return degradation && tetMask && tetMask[t] && chi[t] <= 0 ? 0.0 : 1.0;
+  }
+};
+
 /// Node gradient of the elastic energy: the element gradients of each node's tets summed in
 /// element order (nodeRef = tet * 4 + corner, CSR by node), so the result does not depend on
 /// how nodes are split between threads.

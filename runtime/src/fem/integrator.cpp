@@ -148,8 +148,22 @@ ElementStage Integrator::elementStage(const FemModel& model, const FemState& sta
   return s;
 }
 
+void Integrator::findInert(const FemModel& model, const FemState& state, JobSystem& jobs) {
+  m_inert = false;
+  if (!m_fracture && state.rigidTet.empty()) return;
+  const LiveTetTerm live{state.rigidTet.empty() ? nullptr : state.rigidTet.data(),
+                         m_fracture ? m_fracture->tetMask() : nullptr,
+                         m_fracture ? m_fracture->chi() : nullptr,
+                         m_fracture && m_fracture->damageModel() == kDamageDegradation};
+  m_inert = CpuExecutor(jobs).reduce<MaxOp>(model.tetCount, live) == 0;
+}
+
 double Integrator::elementPass(const FemModel& model, const FemState& state, const double* x,
                                bool withGradient, bool withHessian, JobSystem& jobs) {
+  if (m_inert) {
+    if (m_stressOut) CpuExecutor(jobs).run(6 * model.tetCount, 4096, FillStage{0.0, m_stressOut});
+    return 0.0;
+  }
   ElementStage stage =
       elementStage(model, state, x, m_elemEnergy.data(), withGradient ? m_elemGrad.data() : nullptr,
                    withGradient && withHessian ? m_elemHess.data() : nullptr, m_stressOut);
@@ -161,8 +175,11 @@ double Integrator::elementPass(const FemModel& model, const FemState& state, con
 }
 
 void Integrator::gatherGradient(const FemModel& model, JobSystem& jobs) {
-  CpuExecutor(jobs).run(model.nodeCount, kNodeGrain,
-                        gatherStage(m_elemGrad.data(), m_elasticGrad.data()));
+  const CpuExecutor exec(jobs);
+  if (m_inert)
+    exec.run(3 * model.nodeCount, kNodeGrain, FillStage{0.0, m_elasticGrad.data()});
+  else
+    exec.run(model.nodeCount, kNodeGrain, gatherStage(m_elemGrad.data(), m_elasticGrad.data()));
 }
 
 double Integrator::incrementalPotential(const FemModel& model, const FemState& state,
@@ -533,6 +550,7 @@ void Integrator::prescribedNodeForces(const FemModel& model, const FemState& sta
   StepContext inner = ctx;
   inner.dt = m_theta * ctx.dt;
   const double* x = m_theta == 1 ? state.x.data() : m_x.data();
+  findInert(model, state, jobs);  // a restore may have come between
   (void)incrementalPotential(model, state, m_xStart.data(), x, inner, true, false, jobs);
   const double dt2 = inner.dt * inner.dt;
   out.resize(state.x.size());
@@ -551,6 +569,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   // pieces start at their rigid motion over the step, and their inertia target y follows it.
   const CpuExecutor exec(jobs);
   const int32_t n3i = int32_t(n3);
+  // Inert: breaks only make more tets rigid or split, so it holds for the whole step.
+  findInert(model, state, jobs);
   // gripVelocity is zero on free nodes, so one pass moves exactly the prescribed ones.
   exec.run(n3i, kNodeGrain, AxpyStage{state.x.data(), state.gripVelocity.data(), dt, m_x.data()});
   buildFriction(model, state, ctx, jobs);
@@ -604,7 +624,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
 
     // A = M (1 + dt r1) + dt r2 K(x_n) + dt^2 (K + K_contact)
     t0 = Clock::now();
-    if (it == 0 && r2 > 0) {
+    if (it == 0 && r2 > 0 && !m_inert) {
       if (m_dampK.n == 0) m_dampK = m_A;
       m_dampK.setZero(jobs);
       gatherElementBlocks(m_gather, m_elemHess.data(), 1.0, m_dampK, jobs);
@@ -612,8 +632,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       E += dampingTerm(state, m_dampRef.data(), m_x.data(), dt, true, jobs);
     }
     m_A.setZero(jobs);
-    gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs);
-    if (r2 > 0)
+    if (!m_inert) gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs);
+    if (m_dampKValid)
       exec.run(int32_t(m_A.values.size()), 4096,
                AxpyStage{m_A.values.data(), m_dampK.values.data(), dt * r2, m_A.values.data()});
     exec.run(model.nodeCount, kNodeGrain,
@@ -650,7 +670,12 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     }
     const double tolerance = model.solver.linearTolerance * toleranceScale;
     SolveReport sr;
-    if (m_cholesky) {
+    if (m_inert) {
+      // Block diagonal: block-Jacobi PCG is exact in one iteration, where a factorisation or a
+      // V-cycle of the whole pattern would cost as much as for the intact body.
+      sr = m_pcg.solve(m_A, m_rhs.data(), m_dx.data(), model.solver.maxLinearIterations, tolerance,
+                       jobs);
+    } else if (m_cholesky) {
       sr = m_cholesky->solve(m_A, m_rhs.data(), m_dx.data());
     } else if (m_multigrid) {
       // Cracks change the binding only when edges broke since the last solve (SPEC §5).

@@ -134,8 +134,11 @@ class Integrator {
                             JobSystem& jobs, std::vector<double>& out);
 
  private:
+  // Sets m_inert: no tet of the body can store elastic energy now (LiveTetTerm).
+  void findInert(const FemModel& model, const FemState& state, JobSystem& jobs);
   // Per-element pass: energies and, when asked, gradients and PSD Hessians into the buffers
-  // (an energy-only pass leaves m_elemGrad as it was). Reads and fills m_svdCache.
+  // (an energy-only pass leaves m_elemGrad as it was). Reads and fills m_svdCache. An inert
+  // body has nothing to evaluate: 0, stresses zero, the buffers left as they were.
   double elementPass(const FemModel& model, const FemState& state, const double* x,
                      bool withGradient, bool withHessian, JobSystem& jobs);
   // Node gradient of the elastic energy from the element gradients (deterministic gather).
@@ -225,6 +228,9 @@ class Integrator {
   FractureBody* m_fracture = nullptr;
   double* m_stressOut = nullptr;      // 6 per tet: the element pass also writes Biot stresses
   bool m_closedCrackHessian = false;  // the element pass's Hessians take every crack as closed
+  // Every tet is rigid or split (what is left free are chips, as when a shattered body's pieces
+  // went to rigid physics): the potential is per node, so its Hessian is block diagonal.
+  bool m_inert = false;
   PcgSolver m_pcg;
   std::unique_ptr<CholeskySolver> m_cholesky;
   std::unique_ptr<MultigridSolver> m_multigrid;

@@ -77,6 +77,7 @@ Result<std::unique_ptr<FractureBody>> FractureBody::create(const FemModel& fem,
   fb->m_nodeVolume = Fragments::nodeVolumes(fem.tets.data(), nt, fem.restPositions.data(), nn);
   fb->m_data.fragments.build(CpuExecutor(jobs), fb->m_graph, fb->m_data.broken.data(),
                              fb->m_fragmentScratch);
+  fb->m_data.chip.assign(size_t(fb->m_data.fragments.count()), 0);
   const FractureSettings& fs = fem.fracture;
   if (fs.impurities.enabled || !fs.impurityMaps.empty()) {
     fb->m_data.hasImpurity = true;
@@ -233,17 +234,17 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState
                              m_fragmentScratch);
   }
   // Here, not in World::fractureStats: a game asks for the stats every frame, edges break rarely.
-  m_data.chips = countChips();
+  findChips();
 }
 
-int32_t FractureBody::countChips() const {
+void FractureBody::findChips() {
   const std::span<const int32_t> nodeFragment = m_data.fragments.nodeFragment();
-  std::vector<uint8_t> whole(size_t(m_data.fragments.count()), 0);
+  m_data.chip.assign(size_t(m_data.fragments.count()), 1);
   for (int32_t t = 0; t < int32_t(m_data.tetMask.size()); ++t)
     if (m_data.tetMask[size_t(t)] == 0 || !tetSplit(m_graph, m_data.broken.data(), t))
-      whole[size_t(nodeFragment[size_t(m_graph.edgeNodes[2 * m_graph.tetEdges[6 * size_t(t)]])])] =
-          1;
-  return int32_t(std::count(whole.begin(), whole.end(), uint8_t(0)));
+      m_data.chip[size_t(
+          nodeFragment[size_t(m_graph.edgeNodes[2 * m_graph.tetEdges[6 * size_t(t)]])])] = 0;
+  m_data.chips = int32_t(std::count(m_data.chip.begin(), m_data.chip.end(), uint8_t(1)));
 }
 
 void FractureBody::releaseSevered(size_t first, const double* x) {

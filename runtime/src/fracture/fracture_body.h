@@ -48,7 +48,9 @@ struct FractureData {
   /// it, as the parameter from edgeNodes[2e]; 0.5 until it breaks, then set once.
   std::vector<double> splitRatio;
   int32_t brokenCount = 0;
-  int32_t chips = 0;          ///< FractureStats::chips, recounted on steps where edges break
+  /// Per fragment, 1 for a chip (FractureStats::chips); recomputed on steps where edges break.
+  std::vector<uint8_t> chip;
+  int32_t chips = 0;          ///< The count of ones in chip.
   bool brittleFired = false;  ///< Brittle crack planes start once per body.
   bool hasImpurity = false;
   ImpurityField impurity;  ///< Meaningful only with hasImpurity.
@@ -103,6 +105,8 @@ class FractureBody {
   int32_t brokenCount() const { return m_data.brokenCount; }
   /// Fragments that hold no whole (unsplit) tet (FractureStats::chips).
   int32_t chipCount() const { return m_data.chips; }
+  /// Per fragment, 1 for a chip.
+  const std::vector<uint8_t>& chipFlags() const { return m_data.chip; }
   /// Every broken edge in the order it broke (the first k are the broken set after k breaks).
   const std::vector<int32_t>& breakOrder() const { return m_data.breakOrder; }
 
@@ -152,8 +156,8 @@ class FractureBody {
   // Split points, then applyBreaks, for m_data.breaks[first..], each cause kept with its break.
   void finishBatch(size_t first, const FemModel& fem, const FemState& data, const double* x,
                    JobSystem& jobs);
-  // The fragments that hold no whole tet, from the broken flags and fragments as they are.
-  int32_t countChips() const;
+  // Marks the fragments that hold no whole tet, from the broken flags and fragments as they are.
+  void findChips();
   // Masks, chi and fragments after edges in m_data.breaks[first..] broke.
   void applyBreaks(size_t first, const FemModel& fem, const FemState& data, const double* x,
                    JobSystem& jobs);

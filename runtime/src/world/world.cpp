@@ -594,6 +594,12 @@ std::span<const int32_t> World::nodeFragments(BodyId id) const {
   return b->fracture->fragments().nodeFragment();
 }
 
+std::span<const uint8_t> World::chipFlags(BodyId id) const {
+  const BodyRecord* b = m_impl->get(id);
+  if (!b || !b->fracture) return {};
+  return b->fracture->chipFlags();
+}
+
 std::span<const int32_t> World::edges(BodyId id) const {
   const BodyRecord* b = m_impl->get(id);
   if (!b || !b->fracture) return {};

@@ -39,7 +39,8 @@ class btRigidBody;
 namespace gf::bullet {
 
 /// Which fragments of a body the bridge hands to Bullet once the body has split. Under any
-/// policy a body has at most kMaxRigidFragments pieces in Bullet, the ones with most nodes
+/// policy chips (FractureStats::chips: loose nodes that hold no whole tet) stay in the FEM
+/// world, and a body has at most kMaxRigidFragments pieces in Bullet, the ones with most nodes
 /// first; the rest stay in the FEM world, where they move as free nodes and meet the colliders.
 /// A body pulverised node by node would otherwise put thousands of overlapping bodies into
 /// Bullet (a glass bunny hit at 20 m/s: 5016 of them, 5 million pairs, memory exhausted).
