@@ -6,7 +6,10 @@
 // node a. F is linear in x: dF(i,j)/dx(a,l) = delta_il B(a,j) with B the rest-space gradients
 // of the shape functions (rows 1..3 of B are the rows of Dm^-1, row 0 is minus their sum).
 // The element Hessian V D^T dPdF D therefore splits into 3x3 blocks (i,l) of dPdF, each
-// mapped by B: H(3a+i, 3b+l) = V sum_jm B(a,j) dPdF(3i+j, 3l+m) B(b,m), never forming D.
+// mapped by B: H(3a+i, 3b+l) = V sum_jm B(a,j) dPdF(3i+j, 3l+m) B(b,m), never forming D
+// (the damaged-element kernels). The undamaged kernel, the hot loop of a step, never forms
+// dPdF either: the material gives it as at most 13 rank-1 terms (materials.h, HessianModes),
+// each of which maps to one 12-vector (hessianFromModes).
 #pragma once
 
 #include "materials.h"
@@ -56,6 +59,13 @@ GF_HD Mat<4, 3> shapeGradients(const Mat3& DmInv) {
 
 namespace detail {
 
+/// grad = V D^T vec(P): grad(3a + i) = V sum_j P(i,j) B(a,j).
+GF_HD void elementGradient(const Mat<4, 3>& B, double volume, const Mat3& P, double grad[12]) {
+  for (int a = 0; a < 4; ++a)
+    for (int i = 0; i < 3; ++i)
+      grad[3 * a + i] = volume * (P(i, 0) * B(a, 0) + P(i, 1) * B(a, 1) + P(i, 2) * B(a, 2));
+}
+
 /// grad = V D^T vec(P) and, when hessian is non-null, V D^T dPdF D for an element with shape
 /// gradients B (see the file comment). Shared by elementForces and the damaged-element kernels
 /// so all of them map P and dP/dF to nodes the same way.
@@ -77,10 +87,54 @@ GF_HD void scatterElementDerivatives(const Mat<4, 3>& B, double volume, const Ma
                 volume * (t(a, 0) * B(b, 0) + t(a, 1) * B(b, 1) + t(a, 2) * B(b, 2));
       }
   }
-  // grad(3a + i) = V sum_j P(i,j) B(a,j)
-  for (int a = 0; a < 4; ++a)
-    for (int i = 0; i < 3; ++i)
-      grad[3 * a + i] = volume * (P(i, 0) * B(a, 0) + P(i, 1) * B(a, 1) + P(i, 2) * B(a, 2));
+  elementGradient(B, volume, P, grad);
+}
+
+/// hessian = V D^T dPdF D for dPdF given as rank-1 terms w_m vec(Q_m) vec(Q_m)^T: each term
+/// maps to the 12-vector g_m = D^T vec(Q_m), g_m(3a + i) = (Q_m B^T)(i, a), so the Hessian is
+/// V sum_m w_m g_m g_m^T, some 9 x 78 multiply-adds against 2 x 729 for forming dPdF and
+/// mapping it by blocks. Only the upper triangle is summed and then mirrored, so the Hessian
+/// is exactly symmetric.
+GF_HD void hessianFromModes(const Mat3& DmInv, double volume, const HessianModes& modes, Mat12& h) {
+  double g[kMaxHessianModes][12];
+  double wg[kMaxHessianModes][12];
+  for (int m = 0; m < modes.count; ++m) {
+    const double* q = modes.q[m];
+    const double vw = volume * modes.w[m];
+    for (int i = 0; i < 3; ++i) {
+      // Row b_a of B is row a - 1 of Dm^-1 for a = 1..3 and minus their sum for a = 0.
+      double sum = 0;
+      for (int a = 1; a < 4; ++a) {
+        const double v = q[3 * i] * DmInv(a - 1, 0) + q[3 * i + 1] * DmInv(a - 1, 1) +
+                         q[3 * i + 2] * DmInv(a - 1, 2);
+        g[m][3 * a + i] = v;
+        sum += v;
+      }
+      g[m][i] = -sum;
+    }
+    for (int k = 0; k < 12; ++k) wg[m][k] = vw * g[m][k];
+  }
+  // 2x2 tiles of the upper triangle with their sums in registers.
+  for (int i = 0; i < 12; i += 2)
+    for (int j = i; j < 12; j += 2) {
+      double a00 = 0, a01 = 0, a10 = 0, a11 = 0;
+      for (int m = 0; m < modes.count; ++m) {
+        const double w0 = wg[m][i], w1 = wg[m][i + 1], g0 = g[m][j], g1 = g[m][j + 1];
+        a00 += w0 * g0;
+        a01 += w0 * g1;
+        a10 += w1 * g0;
+        a11 += w1 * g1;
+      }
+      if (i == j) a10 = a01;  // the same entry of the diagonal tile, summed twice
+      h(i, j) = a00;
+      h(i, j + 1) = a01;
+      h(i + 1, j) = a10;
+      h(i + 1, j + 1) = a11;
+      h(j, i) = a00;
+      h(j + 1, i) = a01;
+      h(j, i + 1) = a10;
+      h(j + 1, i + 1) = a11;
+    }
 }
 
 }  // namespace detail
@@ -95,18 +149,18 @@ GF_HD double elementForces(const MaterialCoeffs& c, const Vec3 x[4], const Mat3&
                            double volume, double grad[12], Mat12* hessian, bool projectPsd,
                            Mat3* materialStress = nullptr, double* svdCache = nullptr) {
   const Mat3 F = deformationGradient(x, DmInv);
-  const Mat<4, 3> B = shapeGradients(DmInv);
   Mat3 P;
-  Mat9 dPdF;
+  HessianModes modes;
   const Svd3 svd = cachedSvd3(F, svdCache);
   const double psi =
-      evaluateMaterialSvd(c, F, svd, P, hessian != nullptr ? &dPdF : nullptr, projectPsd);
+      evaluateMaterialModes(c, F, svd, P, hessian != nullptr ? &modes : nullptr, projectPsd);
   if (materialStress != nullptr) {
     const Mat3 rp = transpose(svd.U * transpose(svd.V)) * P;
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) (*materialStress)(i, j) = 0.5 * (rp(i, j) + rp(j, i));
   }
-  detail::scatterElementDerivatives(B, volume, P, dPdF, grad, hessian);
+  if (hessian != nullptr) detail::hessianFromModes(DmInv, volume, modes, *hessian);
+  detail::elementGradient(shapeGradients(DmInv), volume, P, grad);
   return volume * psi;
 }
 

@@ -20,7 +20,12 @@
 // energy really has a kink; there the denominator is bounded by kTwistDenominatorMin. The
 // signed SVD (s0 >= s1 >= |s2|) keeps s_i + s_j >= 0 for inverted elements too.
 // Clamping negative eigenvalues to zero gives the PSD projection that keeps the implicit
-// system SPD; without projection the sum of the modes is the exact Hessian.
+// system SPD; without projection the sum of the modes is the exact Hessian. The modes are
+// handed on as rank-1 terms (HessianModes), not summed into a 9x9 matrix, so the element
+// kernel maps 9 terms to nodes instead of a dense dP/dF. The 3x3 scaling block is split by
+// its Cholesky factor where it is positive definite (any split into rank-1 terms sums to the
+// same matrix; the eigen-solve, 4-6 Jacobi sweeps, cost a third of the element pass) and by
+// its eigen-decomposition only where it is not.
 //
 // The anisotropic fibre term (Kim et al. 2019, eq 2.2/4.36) is added on top when
 // fibreMu > 0 with its own analytic eigen-system (see detail::addFibre). Each term is
@@ -82,6 +87,37 @@ GF_HD MaterialCoeffs makeMaterialCoeffs(int model, double E, double nu, double f
   }
   return c;
 }
+
+/// Most rank-1 terms of a material's dP/dF: 3 scaling, 3 twist and 3 flip modes of the
+/// isotropic model, 4 of the fibre term.
+constexpr int kMaxHessianModes = 13;
+
+/// dP/dF as a sum of rank-1 terms sum_m w_m vec(Q_m) vec(Q_m)^T: the analytic eigen-systems
+/// give it in this form, and the element kernel maps each Q_m to nodes (element.h) instead of
+/// forming the 9x9 matrix. Terms of weight zero (clamped by the PSD projection) are not kept.
+struct HessianModes {
+  int count = 0;
+  double w[kMaxHessianModes];
+  double q[kMaxHessianModes][9];  ///< vec(Q_m), row-major
+
+  GF_HD void add(double weight, const Mat3& Q) {
+    if (weight == 0) return;
+    w[count] = weight;
+    for (int k = 0; k < 9; ++k) q[count][k] = Q.m[k];
+    ++count;
+  }
+
+  /// The 9x9 matrix sum_m w_m vec(Q_m) vec(Q_m)^T.
+  GF_HD Mat9 matrix() const {
+    Mat9 h;
+    for (int m = 0; m < count; ++m)
+      for (int a = 0; a < 9; ++a) {
+        const double la = w[m] * q[m][a];
+        for (int b = 0; b < 9; ++b) h.m[a * 9 + b] += la * q[m][b];
+      }
+    return h;
+  }
+};
 
 namespace detail {
 
@@ -203,15 +239,6 @@ GF_HD Mat3 hessianFromInvariants(const InvariantDerivs& r, Vec3 s) {
   return h;
 }
 
-/// H += lambda vec(q) vec(q)^T.
-GF_HD void addRank1(Mat9& h, double lambda, const Mat3& q) {
-  if (lambda == 0) return;
-  for (int a = 0; a < 9; ++a) {
-    const double la = lambda * q.m[a];
-    for (int b = 0; b < 9; ++b) h.m[a * 9 + b] += la * q.m[b];
-  }
-}
-
 /// u_a v_b^T for columns of U and V.
 GF_HD Mat3 outerUV(const Svd3& svd, int a, int b) {
   Mat3 q;
@@ -220,48 +247,64 @@ GF_HD Mat3 outerUV(const Svd3& svd, int a, int b) {
   return q;
 }
 
-/// Isotropic psi (returned), P = U diag(dpsi/ds) V^T (overwritten) and, when H is non-null,
-/// dP/dF (overwritten) from the analytic eigen-system.
-GF_HD double isotropicEvaluate(const MaterialCoeffs& c, const Svd3& svd, Mat3& P, Mat9* hOut,
-                               bool projectPsd) {
+/// Scaling modes of an isotropic energy: the 3x3 d2psi/ds2 A split into rank-1 terms
+/// w_m k_m k_m^T over span{u_a v_a^T}, each added as the mode U diag(k_m) V^T. A positive
+/// definite A (the common case) is split by its Cholesky factor, which is cheaper than an
+/// eigen-solve and exact to round-off; an indefinite A takes the eigen-decomposition, with
+/// negative eigenvalues dropped when projecting (then the sum is the nearest PSD matrix).
+GF_HD void addScalingModes(const Mat3& A, const Svd3& svd, HessianModes& modes, bool projectPsd) {
+  Mat3 k;  // columns k_m
+  double w[3] = {1, 1, 1};
+  const double d0 = A(0, 0);
+  bool pd = d0 > 0;
+  if (pd) {
+    const double l00 = sqrt(d0);
+    const double l10 = A(1, 0) / l00, l20 = A(2, 0) / l00;
+    const double d1 = A(1, 1) - l10 * l10;
+    pd = d1 > 0;
+    if (pd) {
+      const double l11 = sqrt(d1);
+      const double l21 = (A(2, 1) - l20 * l10) / l11;
+      const double d2 = A(2, 2) - l20 * l20 - l21 * l21;
+      pd = d2 > 0;
+      if (pd) {
+        k(0, 0) = l00;
+        k(1, 0) = l10;
+        k(2, 0) = l20;
+        k(1, 1) = l11;
+        k(2, 1) = l21;
+        k(2, 2) = sqrt(d2);
+      }
+    }
+  }
+  if (!pd) symmetricEigen<3>(A, w, k);
+  for (int m = 0; m < 3; ++m) {
+    if (projectPsd && w[m] <= 0) continue;
+    Mat3 q;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        q(i, j) = svd.U(i, 0) * k(0, m) * svd.V(j, 0) + svd.U(i, 1) * k(1, m) * svd.V(j, 1) +
+                  svd.U(i, 2) * k(2, m) * svd.V(j, 2);
+    modes.add(w[m], q);
+  }
+}
+
+/// Isotropic psi (returned), P = U diag(dpsi/ds) V^T (overwritten) and, when modes is
+/// non-null, the analytic eigen-system of dP/dF added to it.
+GF_HD double isotropicEvaluate(const MaterialCoeffs& c, const Svd3& svd, Mat3& P,
+                               HessianModes* modes, bool projectPsd) {
   const Vec3 s = svd.s;
   const InvariantDerivs r = isotropicInvariants(c, s);
   const Vec3 g = gradientFromInvariants(r, s);
 
   P = Mat3{};
-  Mat3 d[3];  // u_a v_a^T: the scaling directions
-  for (int a = 0; a < 3; ++a) {
-    d[a] = outerUV(svd, a, a);
-    P = P + g[a] * d[a];
-  }
-  if (hOut == nullptr) return r.psi;
-  Mat9& H = *hOut;
-  H = Mat9{};
-  const Mat3 A = hessianFromInvariants(r, s);
+  for (int a = 0; a < 3; ++a) P = P + g[a] * outerUV(svd, a, a);
+  if (modes == nullptr) return r.psi;
 
-  // Scaling modes: span{u_a v_a^T} carries the 3x3 d2psi/ds2.
-  if (projectPsd) {
-    double w[3];
-    Mat3 q;
-    symmetricEigen<3>(A, w, q);
-    for (int m = 0; m < 3; ++m) {
-      if (w[m] <= 0) continue;
-      const Mat3 mode = q(0, m) * d[0] + q(1, m) * d[1] + q(2, m) * d[2];
-      addRank1(H, w[m], mode);
-    }
-  } else {
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) {
-        const double aab = A(a, b);
-        for (int x = 0; x < 9; ++x) {
-          const double dx = aab * d[a].m[x];
-          for (int y = 0; y < 9; ++y) H.m[x * 9 + y] += dx * d[b].m[y];
-        }
-      }
-  }
+  addScalingModes(hessianFromInvariants(r, s), svd, *modes, projectPsd);
 
-  // Twist and flip modes of each pair (i, j); k is the remaining index.
-  const double kInvSqrt2 = 0.70710678118654752440;
+  // Twist and flip modes of each pair (i, j); k is the remaining index. The modes are
+  // U (e_i e_j^T -+ e_j e_i^T) V^T / sqrt2: the 1/2 of their squares goes to the weights.
   for (int k = 2; k >= 0; --k) {
     const int i = k == 0 ? 1 : 0;
     const int j = k == 2 ? 1 : 2;
@@ -278,8 +321,8 @@ GF_HD double isotropicEvaluate(const MaterialCoeffs& c, const Svd3& svd, Mat3& P
     }
     const Mat3 uij = outerUV(svd, i, j);
     const Mat3 uji = outerUV(svd, j, i);
-    addRank1(H, projectPsd && twist < 0 ? 0.0 : twist, kInvSqrt2 * (uij - uji));
-    addRank1(H, projectPsd && flip < 0 ? 0.0 : flip, kInvSqrt2 * (uij + uji));
+    if (!(projectPsd && twist < 0)) modes->add(0.5 * twist, uij - uji);
+    if (!(projectPsd && flip < 0)) modes->add(0.5 * flip, uij + uji);
   }
   return r.psi;
 }
@@ -306,8 +349,8 @@ GF_HD double fibreEnergy(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd
 /// On the 3-D subspace {vec(w a^T)} its eigenvalues are mu_f on g and mu_f (1 - sign/sqrt(I5))
 /// on the two directions orthogonal to g, zero elsewhere, so the projection clamps only that
 /// one (Kim et al. 2019).
-GF_HD void addFibre(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd, Mat3& P, Mat9* H,
-                    bool projectPsd) {
+GF_HD void addFibre(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd, Mat3& P,
+                    HessianModes* modes, bool projectPsd) {
   const Vec3 a = c.fibreDir;
   const Vec3 fa = F * a;
   const double sign = fibreSign(c, svd);
@@ -317,27 +360,28 @@ GF_HD void addFibre(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd, Mat
   const Vec3 pa = c.fibreMu * (fa - sign * dir);
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) P(i, j) += pa[i] * a[j];
-  if (H == nullptr) return;
+  if (modes == nullptr) return;
 
   const double l = len > kFibreStretchMin ? len : kFibreStretchMin;
   const double coefIso = c.fibreMu * (1.0 - sign / l);
-  Mat9& h = *H;
   if (!projectPsd || coefIso >= 0) {
-    // coefIso (I (x) a a^T): entry ((i,j),(l,m)) = coefIso delta_il a_j a_m.
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        for (int m = 0; m < 3; ++m) h(3 * i + j, 3 * i + m) += coefIso * a[j] * a[m];
+    // coefIso (I (x) a a^T) = coefIso sum_i vec(e_i a^T) vec(e_i a^T)^T.
+    for (int i = 0; i < 3; ++i) {
+      Mat3 e;
+      for (int j = 0; j < 3; ++j) e(i, j) = a[j];
+      modes->add(coefIso, e);
+    }
     const double coefG = c.fibreMu * sign / (l * l * l);
     Mat3 g;
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) g(i, j) = fa[i] * a[j];
-    addRank1(h, coefG, g);
+    modes->add(coefG, g);
   } else {
     // Only the g direction (eigenvalue mu_f) survives: mu_f ghat ghat^T, ghat = vec(dir a^T).
     Mat3 gh;
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) gh(i, j) = dir[i] * a[j];
-    addRank1(h, c.fibreMu, gh);
+    modes->add(c.fibreMu, gh);
   }
 }
 
@@ -358,17 +402,26 @@ GF_HD Mat3 isotropicHessian(const MaterialCoeffs& c, Vec3 s) {
   return detail::hessianFromInvariants(detail::isotropicInvariants(c, s), s);
 }
 
-/// Energy density psi(F) [J/m^3], P = dpsi/dF and, when dPdF is non-null, dP/dF, all from
-/// one SVD; the isotropic model plus the fibre term when fibreMu > 0. See
-/// firstPiolaAndHessian for projectPsd.
-/// evaluateMaterial with svd = svd3(F) already known (e.g. from an SVD cache, svd3.h).
-GF_HD double evaluateMaterialSvd(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd, Mat3& P,
-                                 Mat9* dPdF, bool projectPsd) {
-  double psi = detail::isotropicEvaluate(c, svd, P, dPdF, projectPsd);
+/// Energy density psi(F) [J/m^3], P = dpsi/dF and, when modes is non-null, dP/dF as rank-1
+/// terms added to it, all from svd = svd3(F) (e.g. from an SVD cache, svd3.h); the isotropic
+/// model plus the fibre term when fibreMu > 0. See firstPiolaAndHessian for projectPsd.
+GF_HD double evaluateMaterialModes(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd, Mat3& P,
+                                   HessianModes* modes, bool projectPsd) {
+  double psi = detail::isotropicEvaluate(c, svd, P, modes, projectPsd);
   if (c.fibreMu > 0) {
     psi += detail::fibreEnergy(c, F, svd);
-    detail::addFibre(c, F, svd, P, dPdF, projectPsd);
+    detail::addFibre(c, F, svd, P, modes, projectPsd);
   }
+  return psi;
+}
+
+/// evaluateMaterialModes with dP/dF formed as a 9x9 matrix (when dPdF is non-null).
+GF_HD double evaluateMaterialSvd(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd, Mat3& P,
+                                 Mat9* dPdF, bool projectPsd) {
+  if (dPdF == nullptr) return evaluateMaterialModes(c, F, svd, P, nullptr, projectPsd);
+  HessianModes modes;
+  const double psi = evaluateMaterialModes(c, F, svd, P, &modes, projectPsd);
+  *dPdF = modes.matrix();
   return psi;
 }
 

@@ -346,7 +346,6 @@ std::vector<StackCase> stackCases() {
       {"two_equal_60", {box, box}, 1.0 / 60, 0.02},
       {"two_equal_120", {box, box}, 1.0 / 120, 0.02},
       {"sizes_stiffness_60", {{0.25, 5, 1e6}, soft, {0.15, 3, 5e5}}, 1.0 / 60, 0.02},
-      {"dropped_30cm_60", {box, box}, 1.0 / 60, 0.3},
   };
 }
 
@@ -362,6 +361,9 @@ std::vector<StackCase> failingStackCases() {
       {"four_equal_60", {box, box, box, box}, 1.0 / 60, 0.02},
       {"sizes_stiffness_120", {stiff, {0.15, 3, 2e5}, {0.1, 2, 1e6}}, 1.0 / 120, 0.02},
       {"dropped_30cm_three_120", {box, soft, stiff}, 1.0 / 120, 0.3},
+      // Passed or failed by the last bits of the run (DISABLED_PerturbedFriction: shifted by
+      // 1e-15 it slides off); with sweeps it rests (Swept/..., below).
+      {"dropped_30cm_60", {box, box}, 1.0 / 60, 0.3},
   };
 }
 
