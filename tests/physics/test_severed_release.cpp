@@ -150,6 +150,16 @@ std::vector<Blade> bladePlanes(int which) {
           plane({-1, 0.15f, -1}, {1, 0.16f, -1}, {1, 0.14f, 1}, {-1, 0.13f, 1}),
           plane({-1, -1, 0.1f}, {1, -1, 0.09f}, {1, 1, 0.11f}, {-1, 1, 0.1f})};
 }
+// The box the blades cut: strong enough that the blades alone break edges.
+BodyDef bladeBox(bool release) {
+  BodyDef def;
+  def.mesh = gen::box(0.4, 0.2, 0.2, 8, 4, 4);
+  def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
+  def.fracture.enabled = true;
+  def.fracture.strength = 1e9;
+  def.fracture.releaseEveryBatch = release;
+  return def;
+}
 const char* const kBladeCases[] = {"two parallel blades", "two oblique parallel blades",
                                    "five crossing blades"};
 
@@ -157,11 +167,7 @@ TEST(SeveredEdges, BladeCutsReleaseSeveredEdgesIntoSeparateFragments) {
   for (int which = 0; which < 3; ++which) {
     const std::vector<Blade> blades = bladePlanes(which);
     const char* what = kBladeCases[which];
-    BodyDef def;
-    def.mesh = gen::box(0.4, 0.2, 0.2, 8, 4, 4);
-    def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
-    def.fracture.enabled = true;
-    def.fracture.strength = 1e9;  // the blades alone break edges
+    BodyDef def = bladeBox(false);
     {
       // Off by default: a blade's severed edges stay unbroken.
       World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
@@ -228,12 +234,7 @@ TEST(SeveredEdges, BrittlePlanesReleaseSeveredEdges) {
 // uncovered whatever the chips (docs/design.md, "Triple junctions").
 TEST(SeveredEdges, ChipsAreDrawnByTheirNeighbours) {
   for (int c = 0; c < 2; ++c) {
-    BodyDef def;
-    def.mesh = gen::box(0.4, 0.2, 0.2, 8, 4, 4);
-    def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
-    def.fracture.enabled = true;
-    def.fracture.strength = 1e9;
-    def.fracture.releaseEveryBatch = true;
+    BodyDef def = bladeBox(true);
     def.renderMesh = test::boxSurface(glm::dvec3(0), glm::dvec3(0.4, 0.2, 0.2), 13, 7, 7);
     World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
     const BodyId id = world.createBody(def).value();
@@ -281,12 +282,7 @@ TEST(SeveredEdges, ChipsLeftAloneFallAsParticlesAndLandOnAPlane) {
     for (LinearSolverKind solver : solvers) {
       const std::string what =
           std::string(kBladeCases[which]) + ", solver " + std::to_string(int(solver));
-      BodyDef def;
-      def.mesh = gen::box(0.4, 0.2, 0.2, 8, 4, 4);
-      def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
-      def.fracture.enabled = true;
-      def.fracture.strength = 1e9;
-      def.fracture.releaseEveryBatch = true;
+      BodyDef def = bladeBox(true);
       def.solver.linearSolver = solver;
       Collider plane;
       plane.point = glm::vec3(0, float(floor), 0);
