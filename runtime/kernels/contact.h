@@ -238,6 +238,9 @@ struct SweptContacts {
   const Vec3* point = nullptr;
   const Vec3* normal = nullptr;
   const double* stiffness = nullptr;  ///< per node, per unit mass (sweptStiffness)
+  /// Per node, the factor on a moving collider's own stiffness where the node has no swept
+  /// face (the step's stiffening of deep contacts); null: 1.
+  const double* scale = nullptr;
 
   /// Depth (> 0 inside) of node n at x against collider ci, and the outward direction.
   GF_HD double depth(const ColliderData& c, int ci, int32_t n, Vec3 x, Vec3& out) const {
@@ -252,7 +255,9 @@ struct SweptContacts {
                        Mat3& hess) const {
     Vec3 dir;
     const double d = depth(c, ci, n, x, dir);
-    const double k = collider && collider[n] == ci ? stiffness[n] : c.stiffness;
+    const double k = collider && collider[n] == ci              ? stiffness[n]
+                     : scale && dot(c.velocity, c.velocity) > 0 ? c.stiffness * scale[n]
+                                                                : c.stiffness;
     return penaltyContact(k * m, d, dir, grad, hess);
   }
 };

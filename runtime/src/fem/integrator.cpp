@@ -43,6 +43,8 @@ constexpr int kMaxContactIterations = 2;
 // a fraction of its depth per iteration.
 constexpr int kMaxSweptIterations = 12;
 constexpr double kSweptTolerance = 1e-3;
+// Pushed contacts are stiffened (DeepContactTerm) at most this many times per step.
+constexpr int kMaxContactStiffenings = 8;
 // Newton step, relative to the body's size, below which round-off dominates: converged
 // whatever the tolerance (a step that starts at equilibrium has nothing left to solve).
 constexpr double kNewtonRoundOff = 1e-12;
@@ -88,6 +90,8 @@ Integrator::Integrator(const FemModel& model) {
   for (size_t n = 0; n < nn; ++n) m_diagonalBlock[n] = m_A.diagonal(int32_t(n));
   m_nodeTerms.resize(kNodeTerms * nn);
   for (double v : model.restVolume) m_restVolume += v;
+  // The edge of a regular tet of the mean volume, V = L^3 / (6 sqrt 2), as body contact's.
+  if (nt > 0) m_cellSize = std::cbrt(6 * std::sqrt(2.0) * m_restVolume / double(nt));
   m_contactSeen.assign(nn, 0);
   if (model.solver.linearSolver == LinearSolverKind::Direct) {
     m_cholesky = std::make_unique<CholeskySolver>();
@@ -578,9 +582,13 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
 
   const double* start = m_xStart.data();  // x_n
   const bool fullNewton = maxNewton > 1;
-  const bool swept = !fullNewton && (rep.flags & kStepContactSwept);
+  // A moving collider that swept over x_n makes its first linearisation a poor model of the
+  // contacts where the step ends (SweepStage::classify): such a step goes on to convergence
+  // too, without being reported as swept.
+  bool swept = !fullNewton && ((rep.flags & kStepContactSwept) || m_over);
   int iterationCap =
       fullNewton ? maxNewton : 1 + (swept ? kMaxSweptIterations : kMaxContactIterations);
+  int stiffeningsLeft = kMaxContactStiffenings;
   // Projection damage: a crack that the linearisation saw open can close within the step, and
   // the step built on the open crack's softness then overshoots into the closed crack's
   // stiffness (on steel at dt 50 ms no trial down to kMinLineSearchStep lowered E, and taking
@@ -595,6 +603,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   m_closedCrackHessian = false;
   bool retry = false;
   double firstStepNorm = 0;
+  bool newReference = false;
   bool converged = !fullNewton;
   // Whether the elastic energy at the final positions is known (the accepted line-search
   // trial), or the final step was too small to matter (below the potential's round-off).
@@ -704,7 +713,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
 
     const double stepNorm = std::sqrt(exec.dot(m_dx.data(), m_dx.data(), n3i));
     const double slope = exec.dot(m_grad.data(), m_dx.data(), n3i);
-    if (it == 0) firstStepNorm = stepNorm;
+    if (it == 0 || std::exchange(newReference, false)) firstStepNorm = stepNorm;
 
     double alpha = 1.0;
     bool modelOvershot = false;
@@ -766,6 +775,20 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     exec.run(n3i, kNodeGrain, AxpyStage{m_x.data(), m_dx.data(), alpha, m_x.data()});
     if (std::exchange(retry, false)) continue;
     const double relStep = firstStepNorm > 0 ? alpha * stepNorm / firstStepNorm : 0.0;
+    // A pushed contact that holds a node deeper than its bound is stiffened, and the step goes
+    // on as a swept one (to convergence) from where it is.
+    if (stiffeningsLeft > 0 && stiffenDeepContacts(model, state, ctx, jobs)) {
+      --stiffeningsLeft;
+      if (!fullNewton && !swept) {
+        swept = true;
+        iterationCap = it + 1 + kMaxSweptIterations;
+      } else {
+        iterationCap = std::max(iterationCap, it + 2);
+      }
+      newReference = true;  // the stiffer penalty's first step is the reference
+      converged = false;
+      continue;
+    }
     if (fullNewton || swept) {
       if (relStep <= (fullNewton ? model.solver.newtonTolerance : kSweptTolerance) ||
           alpha * stepNorm <= kNewtonRoundOff * model.lengthScale * std::sqrt(double(n3))) {
@@ -786,15 +809,25 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
 void Integrator::sweepColliders(const FemModel& model, const FemState& state,
                                 const StepContext& ctx, JobSystem& jobs, BodyStepReport& rep) {
   m_swept = {};
-  bool thin = false;  // planes are half-spaces: nothing to pass through
-  for (int c = 0; c < ctx.colliderCount; ++c) thin |= ctx.colliders[c].kind != kColliderPlane;
-  if (!thin) return;
+  // Planes are half-spaces: nothing to pass through; but a moving one may need stiffening.
+  bool thin = false;
+  m_movingCollider = false;
+  m_over = false;
+  for (int c = 0; c < ctx.colliderCount; ++c) {
+    thin |= ctx.colliders[c].kind != kColliderPlane;
+    m_movingCollider |= dot(ctx.colliders[c].velocity, ctx.colliders[c].velocity) > 0;
+  }
+  if (!thin && !m_movingCollider) return;
   const size_t nn = size_t(model.nodeCount);
   m_sweptCollider.resize(nn);
   m_sweptPoint.resize(nn);
   m_sweptNormal.resize(nn);
   m_sweptCrossed.resize(nn);
   m_sweptStiffness.resize(nn);
+  m_sweptBound.resize(nn);
+  m_sweptScale.resize(nn);
+  m_sweptPressed.resize(nn);
+  m_sweptOver.resize(nn);
   SweepStage sweep;
   sweep.x = state.x.data();
   sweep.v = state.v.data();
@@ -807,11 +840,48 @@ void Integrator::sweepColliders(const FemModel& model, const FemState& state,
   sweep.normal = m_sweptNormal.data();
   sweep.stiffness = m_sweptStiffness.data();
   sweep.crossed = m_sweptCrossed.data();
+  sweep.cell = m_cellSize;
+  sweep.bound = m_sweptBound.data();
+  sweep.scale = m_sweptScale.data();
+  sweep.pressed = m_sweptPressed.data();
+  sweep.over = m_sweptOver.data();
   const CpuExecutor exec(jobs);
+  if (m_movingCollider) {
+    // Free nodes' mean velocity: whether a moving collider closes in on the body.
+    NodeMomentumTerm p{state.v.data(), state.nodeMass.data(), state.fixedNode.data(), -1};
+    const double mass = exec.reduce<SumOp>(model.nodeCount, p);
+    for (int k = 0; k < 3 && mass > 0; ++k) {
+      p.axis = k;
+      sweep.body[k] = exec.reduce<SumOp>(model.nodeCount, p) / mass;
+    }
+  }
   exec.run(model.nodeCount, kNodeGrain, sweep);
   m_swept = {m_sweptCollider.data(), m_sweptPoint.data(), m_sweptNormal.data(),
-             m_sweptStiffness.data()};
+             m_sweptStiffness.data(), m_movingCollider ? m_sweptScale.data() : nullptr};
   if (exec.max(m_sweptCrossed.data(), model.nodeCount) > 0) rep.flags |= kStepContactSwept;
+  m_over = exec.max(m_sweptOver.data(), model.nodeCount) > 0;
+}
+
+bool Integrator::stiffenDeepContacts(const FemModel& model, const FemState& state,
+                                     const StepContext& ctx, JobSystem& jobs) {
+  // Only against moving colliders: nothing spent, and nothing changed, on static worlds.
+  if (!m_swept.collider || !m_movingCollider) return false;
+  DeepContactTerm deep;
+  deep.x = m_x.data();
+  deep.fixedNode = state.fixedNode.data();
+  deep.colliders = ctx.colliders;
+  deep.swept = m_swept;
+  deep.bound = m_sweptBound.data();
+  deep.stiffness = m_sweptStiffness.data();
+  deep.scale = m_sweptScale.data();
+  deep.pressed = m_sweptPressed.data();
+  deep.xn = m_xStart.data();
+  deep.contactSeen = m_contactSeen.data();
+  deep.dt = ctx.dt;
+  deep.colliderCount = ctx.colliderCount;
+  deep.cell = m_cellSize;
+  deep.maxStiffness = kMaxContactStiffnessDt2 / (ctx.dt * ctx.dt);
+  return CpuExecutor(jobs).reduce<MaxOp>(model.nodeCount, deep) > 0;
 }
 
 bool Integrator::nearCollider(const FemModel& model, const FemState& state, const double* x,

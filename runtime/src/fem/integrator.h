@@ -186,6 +186,10 @@ class Integrator {
   // True when a free node now penetrates a collider that the last linearisation missed.
   bool enteredUnseenContact(const FemModel& model, const FemState& state, const StepContext& ctx,
                             JobSystem& jobs) const;
+  // Stiffens the contacts that hold a pressed node at m_x deeper than its bound
+  // (DeepContactTerm); true when any was.
+  bool stiffenDeepContacts(const FemModel& model, const FemState& state, const StepContext& ctx,
+                           JobSystem& jobs);
   // Rayleigh stiffness-damping term dt/2 (x-x_r)^T r2 K(x_n) (x-x_r) (+ gradient into m_grad),
   // x_r = x_n, or the rigid motion of x_n for a free piece.
   double dampingTerm(const FemState& state, const double* xn, const double* x, double dt,
@@ -213,6 +217,11 @@ class Integrator {
   std::vector<int32_t> m_sweptCollider;
   std::vector<Vec3> m_sweptPoint, m_sweptNormal;
   std::vector<double> m_sweptCrossed, m_sweptStiffness;
+  // Per node, SweepStage::bound, scale, pressed and over.
+  std::vector<double> m_sweptBound, m_sweptScale, m_sweptPressed, m_sweptOver;
+  bool m_movingCollider = false;           // this step has a collider with a velocity
+  bool m_over = false;                     // a moving collider swept over a node's x_n (SweepStage)
+  double m_cellSize = 0;                   // edge of a regular tet of the mean rest volume
   ColliderFriction m_friction;             // this step's; null muLambda when none
   std::vector<double> m_frictionMuLambda;  // FrictionContactStage's, per collider and node
   std::vector<Vec3> m_frictionNormal;
