@@ -184,8 +184,17 @@ TEST(BulletAcceptance, GlassBunnyShattersAndFragmentsRestOnBulletFloor) {
         "worst %.2f\n",
         hulls, bridge.fragments().size(), meanRatio, worstRatio);
     EXPECT_LT(ballSpeed, 19);  // the ball hit the bunny (without it the bunny does not break)
-    EXPECT_NEAR(handedMass, bunnyMass, 1e-9 * bunnyMass);  // every piece went, none twice
-    EXPECT_LT(maxSpeed, 0.3);                              // settled (a few cm/s of creep)
+    // Every piece went, none twice; loose nodes (one-node chips) stay FEM particles.
+    double looseMass = 0;
+    std::vector<int> nodes(size_t(world.fractureStats(id).fragments), 0);
+    for (int32_t f : fragmentOf) ++nodes[size_t(f)];
+    for (size_t f = 0; f < nodes.size(); ++f)
+      if (nodes[f] == 1 && !bridge.rigidBody(id, int32_t(f)))
+        looseMass += world.fragmentInfo(id, int32_t(f)).value().mass;
+    std::printf("[ info ] loose nodes left in the FEM body: %.4g kg\n", looseMass);
+    EXPECT_NEAR(handedMass + looseMass, bunnyMass, 1e-9 * bunnyMass);
+    EXPECT_LT(looseMass, 1e-2 * bunnyMass);
+    EXPECT_LT(maxSpeed, 0.3);  // settled (a few cm/s of creep)
     for (size_t f = 0; f < lowest.size(); ++f) {
       SCOPED_TRACE(f);
       EXPECT_GT(lowest[f], -kTolerance);

@@ -130,6 +130,10 @@ void Bridge::mirrorColliders() {
     const btTransform& T = b->getCenterOfMassTransform();
     Collider c;
     c.point = glm::vec3(toGlm(T.getOrigin()));
+    // A static body's friction is met with sqrt(friction * BodyDef::friction). A moving one's
+    // stays frictionless: its spin is not mirrored, so the friction would drag its surface as
+    // if it did not turn (a ball resting on a block, spun by it, rolled off).
+    if (b->isStaticObject()) c.friction = b->getFriction();
     if (!b->isStaticObject()) c.velocity = glm::vec3(toGlm(b->getLinearVelocity()));
     switch (shape->getShapeType()) {
       case SPHERE_SHAPE_PROXYTYPE:
@@ -197,13 +201,14 @@ int Bridge::handOffNewFragments() {
     for (int32_t f : m_world.nodeFragments(p.body)) ++m_nodeCount[size_t(f)];
     m_candidates.clear();
     int32_t inBullet = 0;
-    // Chips (loose nodes with no whole tet) stay in the FEM body, which steps them as particles
-    // once nothing else of it is left: as rigid bodies they would fill Bullet with specks.
+    // Loose nodes (one-node chips) stay in the FEM body, which steps them as particles once
+    // nothing else of it is left: as rigid bodies they would fill Bullet with specks. A chip of
+    // several nodes (a slice thinner than a cell, held by edges no tet holds) is a piece.
     const std::span<const uint8_t> chip = m_world.chipFlags(p.body);
     for (int32_t f = 0; f < count; ++f) {
       if (rigidBody(p.body, f))
         ++inBullet;
-      else if (size_t(f) >= chip.size() || !chip[size_t(f)])
+      else if (size_t(f) >= chip.size() || !chip[size_t(f)] || m_nodeCount[size_t(f)] > 1)
         m_candidates.push_back(f);
     }
     // Most nodes first, then by id: deterministic, and a capped body keeps its big pieces.

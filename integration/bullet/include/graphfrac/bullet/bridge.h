@@ -17,8 +17,9 @@
 // is stable when its mass exceeds roughly 100 dt^2 k times theirs, k the collider stiffness per
 // unit node mass; the default makes that 100 times). Contact acts on FEM nodes only: a body
 // that moves more than about half the FEM body's thickness or node spacing per step can pass
-// between nodes (no continuous detection). Friction and the collider's spin during the step
-// are not modelled. A handed-off fragment collides only with Bullet objects.
+// between nodes (no continuous detection). A static body's friction is the collider's
+// (Collider::friction, met with BodyDef::friction); a moving body's friction and its spin
+// during the step are not modelled. A handed-off fragment collides only with Bullet objects.
 // Concave fragments get the hull of their nodes (no convex decomposition yet). A piece of a body
 // in CutMode::Xfem gets the hull of its closed surface (its exact cut faces included); the last
 // piece left in that body's Is-XFEM system stays there (World::detachFragment refuses it).
@@ -39,11 +40,11 @@ class btRigidBody;
 namespace gf::bullet {
 
 /// Which fragments of a body the bridge hands to Bullet once the body has split. Under any
-/// policy chips (FractureStats::chips: loose nodes that hold no whole tet) stay in the FEM
-/// world, and a body has at most kMaxRigidFragments pieces in Bullet, the ones with most nodes
-/// first; the rest stay in the FEM world, where they move as free nodes and meet the colliders.
-/// A body pulverised node by node would otherwise put thousands of overlapping bodies into
-/// Bullet (a glass bunny hit at 20 m/s: 5016 of them, 5 million pairs, memory exhausted).
+/// policy loose nodes (one-node chips, FractureStats::chips) stay in the FEM world, and a body has
+/// at most kMaxRigidFragments pieces in Bullet, the ones with most nodes first; the rest stay in
+/// the FEM world, where they move as free nodes and meet the colliders. A body pulverised node by
+/// node would otherwise put thousands of overlapping bodies into Bullet (a glass bunny hit at 20
+/// m/s: 5016 of them, 5 million pairs, memory exhausted).
 constexpr int32_t kMaxRigidFragments = 256;
 /// Which fragments of a body the bridge hands to Bullet once the body has split.
 enum class HandoffPolicy : uint8_t {
