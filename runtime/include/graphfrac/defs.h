@@ -265,11 +265,11 @@ struct FractureSettings {
   /// Degradation model: release the severed edges (docs/design.md "Severed edges") after every
   /// batch of breaks (blade cuts, potency-0 pre-cuts, brittle planes), not only after the
   /// criterion's. Pieces that nothing holds together then come apart, so no render triangle is
-  /// stretched across them, and every node whose tets are all split becomes a chip
-  /// (FractureStats::chips). Off by default: chips stay in the FEM world, so a body whose
-  /// pieces all went to Bullet keeps solving its whole mesh for them (the default demo's glass
-  /// bunny: 961 fragments instead of 17, and 6 times the frame time).
-  bool releaseEveryBatch = false;
+  /// stretched across them, and every node whose tets are all split and that no blade cut out
+  /// with others as a slice becomes a loose node (a one-node chip, FractureStats::chips): free
+  /// matter that stays in the FEM world as a particle and is never handed to Bullet. Off, such
+  /// pieces hang together by edges that hold nothing until the criterion breaks nearby.
+  bool releaseEveryBatch = true;
   /// Where the render surface splits each broken edge; set once, when the edge breaks.
   SplitPoint splitPoint = SplitPoint::Midpoint;
   /// Random-graph impurities (thesis sec 5.2); off by default: then no work is added.

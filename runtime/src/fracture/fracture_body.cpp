@@ -247,11 +247,36 @@ void FractureBody::findChips() {
   m_data.chips = int32_t(std::count(m_data.chip.begin(), m_data.chip.end(), uint8_t(1)));
 }
 
-void FractureBody::releaseSevered(size_t first, const double* x) {
+void FractureBody::releaseSevered(size_t first, const double* x, bool keepSlices) {
   // Projection keeps a lone edge's own strain in a split tet (kernels/damage.h): it still holds.
   if (m_damageModel != kDamageDegradation) return;
   const EdgeGraph& g = m_graph;
   const uint8_t* broken = m_data.broken.data();
+  auto whole = [&](int32_t node) {  // the node has a whole tet: it belongs to a piece
+    for (int32_t q = g.nodeEdgeStart[node]; q < g.nodeEdgeStart[node + 1]; ++q) {
+      const int32_t e = g.nodeEdges[size_t(q)];
+      for (int32_t r = g.edgeTetStart[e]; r < g.edgeTetStart[e + 1]; ++r)
+        if (!tetSplit(g, broken, g.edgeTets[size_t(r)] / 6)) return true;
+    }
+    return false;
+  };
+  // A chip that an unbroken edge still joins to a piece: that edge is severed and goes in this
+  // batch, so the chip is the skin of a piece, not part of a slice the blades cut out whole.
+  auto touchesPiece = [&](int32_t node) {
+    for (int32_t q = g.nodeEdgeStart[node]; q < g.nodeEdgeStart[node + 1]; ++q) {
+      const int32_t e = g.nodeEdges[size_t(q)];
+      if (broken[e]) continue;
+      const int32_t other =
+          g.edgeNodes[2 * e] == node ? g.edgeNodes[2 * e + 1] : g.edgeNodes[2 * e];
+      if (whole(other)) return true;
+    }
+    return false;
+  };
+  auto inSlice = [&](int32_t node) { return !whole(node) && !touchesPiece(node); };
+  // Decided on the broken flags before this batch's releases (they remove the evidence of
+  // touchesPiece), applied after.
+  std::vector<std::pair<int32_t, int32_t>> release;  // (edge, the split tet it was found in)
+  m_releaseMark.resize(m_data.broken.size(), 0);
   const size_t end = m_data.breaks.size();
   for (size_t i = first; i < end; ++i) {
     const int32_t e = m_data.breaks[i].edge;
@@ -260,20 +285,26 @@ void FractureBody::releaseSevered(size_t first, const double* x) {
       if (!tetSplit(g, broken, t)) continue;
       for (int k = 0; k < 6; ++k) {
         const int32_t f = g.tetEdges[6 * size_t(t) + size_t(k)];
-        if (broken[f]) continue;
+        if (broken[f] || m_releaseMark[size_t(f)]) continue;
         bool held = false;
         for (int32_t r = g.edgeTetStart[f]; r < g.edgeTetStart[f + 1] && !held; ++r)
           held = !tetSplit(g, broken, g.edgeTets[size_t(r)] / 6);
         if (held) continue;
-        m_data.broken[size_t(f)] = 1;
-        EdgeBreak b;
-        b.edge = f;
-        b.tet = t;
-        b.position = 0.5 * (load3(x, g.edgeNodes[2 * f]) + load3(x, g.edgeNodes[2 * f + 1]));
-        m_data.breaks.push_back(b);
-        m_data.breakCause.push_back(cause(FractureEvent::Cause::Severed));
+        if (keepSlices && inSlice(g.edgeNodes[2 * f]) && inSlice(g.edgeNodes[2 * f + 1])) continue;
+        m_releaseMark[size_t(f)] = 1;
+        release.emplace_back(f, t);
       }
     }
+  }
+  for (const auto& [f, t] : release) {
+    m_releaseMark[size_t(f)] = 0;
+    m_data.broken[size_t(f)] = 1;
+    EdgeBreak b;
+    b.edge = f;
+    b.tet = t;
+    b.position = 0.5 * (load3(x, g.edgeNodes[2 * f]) + load3(x, g.edgeNodes[2 * f + 1]));
+    m_data.breaks.push_back(b);
+    m_data.breakCause.push_back(cause(FractureEvent::Cause::Severed));
   }
 }
 
@@ -288,7 +319,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     (void)cutEdges(m_graph, x, cut.blade, cut.from, cut.to, m_data.broken, m_data.breaks, m_cutWs,
                    jobs);
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Cut));
-    if (fem.fracture.releaseEveryBatch) releaseSevered(first, x);
+    if (fem.fracture.releaseEveryBatch) releaseSevered(first, x, true);
     finishBatch(first, fem, data, x, jobs);
   }
   m_data.pendingCuts.clear();
@@ -306,7 +337,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     }
     m_data.impurity.pendingPrecut.clear();
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Cut));
-    if (fem.fracture.releaseEveryBatch) releaseSevered(first, x);
+    if (fem.fracture.releaseEveryBatch) releaseSevered(first, x, true);
     finishBatch(first, fem, data, x, jobs);
   }
 
@@ -315,7 +346,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
   const int32_t n = evaluateCriterion(m_model, m_graph, m_data.strength.data(), m_stress.data(),
                                       m_data.broken, m_data.breaks, m_ws, jobs, x);
   m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Stress));
-  releaseSevered(first, x);
+  releaseSevered(first, x, false);
   const size_t brittleFirst = m_data.breaks.size();
   if (n > 0 && fem.fracture.brittle && !m_data.brittleFired) {
     // Brittle mode: the first time the criterion fires, the most stressed regions start
@@ -334,7 +365,7 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     }
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::BrittlePlane));
     // The planes split tets of their own; the criterion's releases above saw none of them.
-    if (fem.fracture.releaseEveryBatch) releaseSevered(brittleFirst, x);
+    if (fem.fracture.releaseEveryBatch) releaseSevered(brittleFirst, x, false);
   }
   finishBatch(first, fem, data, x, jobs);
   return int32_t(m_data.breaks.size());

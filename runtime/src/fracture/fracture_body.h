@@ -152,7 +152,10 @@ class FractureBody {
   // every tet is now split. A split tet has chi = 0 and zero criterion
   // stress, so no load could ever break such an edge, yet it would keep the graph's pieces one
   // fragment (docs/design.md "Severed edges").
-  void releaseSevered(size_t first, const double* x);
+  // With keepSlices (blade and pre-cut batches), an edge between two chips that no unbroken
+  // edge joins to a piece stays: the blades cut out a slice thinner than a cell, which stays
+  // one fragment (a chip of several nodes) rather than falling apart into loose nodes.
+  void releaseSevered(size_t first, const double* x, bool keepSlices);
   // Split points, then applyBreaks, for m_data.breaks[first..], each cause kept with its break.
   void finishBatch(size_t first, const FemModel& fem, const FemState& data, const double* x,
                    JobSystem& jobs);
@@ -177,6 +180,7 @@ class FractureBody {
   std::vector<double> m_stress;
   std::vector<int32_t> m_newEdges;
   FragmentScratch m_fragmentScratch;
+  std::vector<uint8_t> m_releaseMark;  // per edge, within releaseSevered: already listed
   CriterionWorkspace m_ws;
   CutWorkspace m_cutWs;
 };
