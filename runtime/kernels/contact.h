@@ -25,8 +25,9 @@ struct ColliderData {
   double radius = 0;                 ///< sphere, capsule
   double halfLength = 0;             ///< capsule: its segment runs along local y, +-halfLength
   double stiffness = 0;
-  Vec3 velocity;        ///< translation [m/s]: sliding is measured against it
-  double friction = 0;  ///< the collider's Coulomb coefficient (mixed with the body's)
+  Vec3 velocity;         ///< translation [m/s]: sliding is measured against it
+  Vec3 angularVelocity;  ///< spin [rad/s] about `point`, for the surface's velocity
+  double friction = 0;   ///< the collider's Coulomb coefficient (mixed with the body's)
 };
 
 /// A capsule's segment: its start and its axis times the segment's length (local y).

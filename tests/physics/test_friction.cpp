@@ -134,6 +134,87 @@ TEST(Friction, SlidingBlockStopsWhereCoulombSaysAndTheFloorReportsTheImpulse) {
   EXPECT_LT(std::abs(momentum().x), 1e-3 * mass * v0);
 }
 
+// A block on a level floor with friction mu (both surfaces, so the pair has mu), centred on
+// (r, 0, 0): the floor a turntable (Collider::angularVelocity w about the vertical through the
+// origin) or a conveyor (Collider::velocity, the turntable's surface velocity w x r = -w r z
+// under the block's start). 60 Hz.
+struct DraggedBlock {
+  World world;
+  BodyId id;
+  DraggedBlock(double r, double omega, bool conveyor, double mu)
+      : world(WorldDef{glm::vec3(0, float(-kG), 0), Backend::Cpu, nullptr, 1, {}}) {
+    Collider floor;
+    floor.friction = mu;
+    if (conveyor)
+      floor.velocity = glm::vec3(0, 0, float(-omega * r));
+    else
+      floor.angularVelocity = glm::vec3(0, float(omega), 0);
+    const Collider floors[] = {floor};
+    EXPECT_TRUE(world.setColliders(floors).ok());
+    BodyDef def;
+    def.mesh = gen::box(0.1, 0.04, 0.1, 4, 2, 4);
+    for (size_t n = 0; n < def.mesh.nodeCount(); ++n) {
+      def.mesh.positions[3 * n] += r - 0.05;
+      def.mesh.positions[3 * n + 2] -= 0.05;
+    }
+    def.material = Material::stableNeoHookean(1e7, 0.3, 1000);
+    def.friction = mu;
+    id = world.createBody(def).value();
+  }
+  glm::dvec3 mean(std::span<const double> a) const {
+    glm::dvec3 sum(0);
+    for (size_t n = 0; n < a.size() / 3; ++n)
+      sum += glm::dvec3(a[3 * n], a[3 * n + 1], a[3 * n + 2]);
+    return sum / double(a.size() / 3);
+  }
+};
+
+// A turntable drags what rests on it along its surface's velocity: far out (2 m, 4 m/s under
+// the block, faster than it can follow for the 0.5 s) the block slides as on a conveyor of
+// that speed, whatever the friction law gives there; near the axis and slow (0.2 m/s) it is
+// carried round with the surface. Without the spin the floor holds the block still.
+TEST(Friction, TurntableDragsABlockAlongItsSurface) {
+  const double mu = 0.5, dt = 1.0 / 60;
+  DraggedBlock table(2, 2, false, mu), belt(2, 2, true, mu);
+  for (int s = 0; s < 30; ++s) {
+    ASSERT_TRUE(table.world.step(dt).ok());
+    ASSERT_TRUE(belt.world.step(dt).ok());
+  }
+  const glm::dvec3 vt = table.mean(table.world.velocities(table.id)),
+                   vb = belt.mean(belt.world.velocities(belt.id));
+  // The conveyor's block went straight along -z; the turntable's turned with the surface's
+  // velocity under it, w x (its position) = w (z, 0, -x), by about z / r.
+  const glm::dvec3 c = table.mean(table.world.positions(table.id));
+  const double turnedSurface = std::atan2(c.z, c.x), turnedBlock = std::atan2(-vt.x, -vt.z);
+  std::printf(
+      "after 0.5 s: turntable block %.4f m/s, conveyor block %.4f m/s (%+.2f %%; mu g t = "
+      "%.4f); the turntable's block turned %.4f rad, the surface under it %.4f\n",
+      glm::length(vt), glm::length(vb), 100 * (glm::length(vt) / glm::length(vb) - 1),
+      mu * kG * 0.5, turnedBlock, -turnedSurface);
+  EXPECT_NEAR(glm::length(vt), glm::length(vb), 0.01 * glm::length(vb));
+  EXPECT_GT(glm::length(vb), 0.8 * mu * kG * 0.5);  // it did slide under friction
+  EXPECT_GT(turnedBlock, 0);                        // bent towards the surface's velocity
+  EXPECT_LT(turnedBlock, -turnedSurface);
+
+  DraggedBlock slow(0.5, 0.4, false, mu);
+  for (int s = 0; s < 120; ++s) ASSERT_TRUE(slow.world.step(dt).ok());
+  const glm::dvec3 x = slow.mean(slow.world.positions(slow.id)),
+                   v = slow.mean(slow.world.velocities(slow.id));
+  const glm::dvec3 surface = glm::cross(glm::dvec3(0, 0.4, 0), glm::dvec3(x.x, 0, x.z));
+  const double turned = std::atan2(-x.z, x.x);
+  std::printf(
+      "0.2 m/s turntable: after 2 s at radius %.4f m, turned %.3f rad (w t = 0.800), velocity "
+      "off the surface's by %.2e m/s\n",
+      std::hypot(x.x, x.z), turned, glm::length(glm::dvec3(v.x, 0, v.z) - surface));
+  EXPECT_NEAR(turned, 0.8, 0.05 * 0.8);
+  EXPECT_LT(glm::length(glm::dvec3(v.x, 0, v.z) - surface), 0.05 * 0.2);
+
+  DraggedBlock still(2, 0, false, mu);
+  for (int s = 0; s < 30; ++s) ASSERT_TRUE(still.world.step(dt).ok());
+  const glm::dvec3 v0 = still.mean(still.world.velocities(still.id));
+  EXPECT_LT(std::hypot(v0.x, v0.z), 1e-3);
+}
+
 TEST(Friction, CoefficientsAreChecked) {
   World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
   BodyDef def;

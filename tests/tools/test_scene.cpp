@@ -830,6 +830,8 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
      {": bodies[0].mesh.notch.x: the notch, 0.046188 wide at the top, at x = 0.59 does not fit"}},
     {"bad_collider_radius.json",
      {": colliders[0].radius: must be positive and at most 1e9 m, got -0.3"}},
+    {"bad_collider_angular_velocity.json",
+     {": colliders[0].angular_velocity: must be finite, at most 1e9 rad/s"}},
     {"bad_collider_type.json", {": colliders[0].type: expected one of", "got \"cone\""}},
     {"missing_bodies.json", {": bodies: missing (required)"}},
     {"no_bodies.json", {": bodies: expected at least one body, got []"}},

@@ -1371,7 +1371,7 @@ Collider readCollider(const json& v, const std::string& path) {
   const std::string type =
       readChoice(o.require("type"), o.at("type"), {"plane", "box", "sphere", "capsule"});
   if (type == "plane") {
-    o.keys({"type", "point", "normal", "stiffness", "velocity", "friction"});
+    o.keys({"type", "point", "normal", "stiffness", "velocity", "angular_velocity", "friction"});
     c.kind = Collider::Kind::Plane;
     if (const json* p = o.find("point")) c.point = glm::vec3(readVec3(*p, o.at("point")));
     if (const json* n = o.find("normal")) {
@@ -1381,13 +1381,14 @@ Collider readCollider(const json& v, const std::string& path) {
       c.normal = glm::vec3(len > 0 ? d / len : d);
     }
   } else if (type == "box") {
-    o.keys({"type", "center", "half_extents", "stiffness", "velocity", "friction"});
+    o.keys({"type", "center", "half_extents", "stiffness", "velocity", "angular_velocity",
+            "friction"});
     c.kind = Collider::Kind::Box;
     c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
     c.halfExtents = glm::vec3(readVec3(o.require("half_extents"), o.at("half_extents")));
   } else if (type == "capsule") {
-    o.keys(
-        {"type", "center", "axis", "half_length", "radius", "stiffness", "velocity", "friction"});
+    o.keys({"type", "center", "axis", "half_length", "radius", "stiffness", "velocity",
+            "angular_velocity", "friction"});
     c.kind = Collider::Kind::Capsule;
     c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
     c.radius = static_cast<float>(readNumber(o.require("radius"), o.at("radius")));
@@ -1406,21 +1407,29 @@ Collider readCollider(const json& v, const std::string& path) {
       c.rotation = glm::quat(q);
     }
   } else {
-    o.keys({"type", "center", "radius", "stiffness", "velocity", "friction"});
+    o.keys({"type", "center", "radius", "stiffness", "velocity", "angular_velocity", "friction"});
     c.kind = Collider::Kind::Sphere;
     c.point = glm::vec3(readVec3(o.require("center"), o.at("center")));
     c.radius = static_cast<float>(readNumber(o.require("radius"), o.at("radius")));
   }
   if (const json* k = o.find("stiffness")) c.stiffness = readNumber(*k, o.at("stiffness"));
   if (const json* u = o.find("velocity")) c.velocity = glm::vec3(readVec3(*u, o.at("velocity")));
+  if (const json* w = o.find("angular_velocity"))
+    c.angularVelocity = glm::vec3(readVec3(*w, o.at("angular_velocity")));
   if (const json* f = o.find("friction")) c.friction = readNumber(*f, o.at("friction"));
   o.finish();
   // Box, sphere and capsule read their point from "center".
   const std::string_view pointKey = c.kind == Collider::Kind::Plane ? "point" : "center";
-  const FieldName names[] = {
-      {"kind", "type"},           {"point", pointKey},      {"velocity", "velocity"},
-      {"stiffness", "stiffness"}, {"normal", "normal"},     {"halfExtents", "half_extents"},
-      {"radius", "radius"},       {"friction", "friction"}, {"halfLength", "half_length"}};
+  const FieldName names[] = {{"kind", "type"},
+                             {"point", pointKey},
+                             {"velocity", "velocity"},
+                             {"stiffness", "stiffness"},
+                             {"normal", "normal"},
+                             {"halfExtents", "half_extents"},
+                             {"radius", "radius"},
+                             {"friction", "friction"},
+                             {"halfLength", "half_length"},
+                             {"angularVelocity", "angular_velocity"}};
   requireValid(c.check(), path, names);
   return c;
 }

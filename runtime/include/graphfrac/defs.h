@@ -427,8 +427,13 @@ struct Collider {
   /// Penalty stiffness [N/m per node-mass kg]; 0 picks one from the time step so that a
   /// node is pushed out within about one step.
   double stiffness = 0;
-  glm::vec3 velocity{0, 0, 0};     ///< Translation velocity [m/s] (no spin).
+  glm::vec3 velocity{0, 0, 0};     ///< Translation velocity [m/s].
   glm::quat rotation{1, 0, 0, 0};  ///< Box, Capsule: local-to-world rotation (normalised).
+  /// Spin [rad/s] about `point`: friction measures a node's sliding against the surface's own
+  /// velocity there, velocity + angularVelocity x (node - point), so a turning wheel or ball
+  /// drags what it touches and rolls on it without slip. The world does not turn the pose by it
+  /// (a game that turns a box or capsule sets `rotation` each step, as the Bullet bridge does).
+  glm::vec3 angularVelocity{0, 0, 0};
   /// Coulomb friction coefficient of the collider's surface (>= 0). A body meets it with
   /// sqrt(friction * BodyDef::friction) (Box2D's rule). 0, the default, is frictionless.
   double friction = 0;

@@ -201,6 +201,7 @@ Result<void> Collider::check() const {
     return fail("kind: ", std::to_string(static_cast<int>(kind)), " is not a Collider::Kind");
   if (!bounded3(point)) return fail("point: must be finite, within 1e9 m of the origin");
   if (!bounded3(velocity)) return fail("velocity: must be finite, at most 1e9 m/s");
+  if (!bounded3(angularVelocity)) return fail("angularVelocity: must be finite, at most 1e9 rad/s");
   if (!(std::isfinite(stiffness) && stiffness >= 0 && stiffness <= kMaxColliderStiffness))
     return fail("stiffness: must lie in [0, 1e18] (0 picks one from the time step), got ",
                 num(stiffness));

@@ -37,6 +37,7 @@ ColliderData toData(const Collider& c) {
   d.radius = c.radius;
   d.halfLength = c.halfLength;
   d.velocity = {c.velocity.x, c.velocity.y, c.velocity.z};
+  d.angularVelocity = {c.angularVelocity.x, c.angularVelocity.y, c.angularVelocity.z};
   d.friction = c.friction;
   const glm::dquat q(c.rotation);
   const double ql = glm::length(q);
