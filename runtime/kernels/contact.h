@@ -317,6 +317,156 @@ GF_HD bool closestOnSegments(Vec3 p0, Vec3 p1, Vec3 q0, Vec3 q1, double& s, doub
   return true;
 }
 
+/// The part of segment p0 -> p1 over triangle abc grown by `band` (inside the prism the grown
+/// triangle sweeps along its normal nf): the parameters [t0, t1] in [0, 1], false when none of
+/// it is.
+GF_HD bool clipToPrism(Vec3 p0, Vec3 p1, Vec3 a, Vec3 b, Vec3 c, Vec3 nf, double band, double& t0,
+                       double& t1) {
+  t0 = 0;
+  t1 = 1;
+  const Vec3 v[3] = {a, b, c};
+  for (int e = 0; e < 3; ++e) {
+    const Vec3 s = v[e], t = v[(e + 1) % 3], o = v[(e + 2) % 3];
+    Vec3 m = cross(nf, t - s);
+    const double len = norm(m);
+    if (!(len > 0)) return false;
+    m = (dot(m, o - s) < 0 ? -1.0 / len : 1.0 / len) * m;  // unit, towards the triangle
+    const double f0 = dot(p0 - s, m) + band, df = dot(p1 - p0, m);
+    if (df == 0) {
+      if (f0 < 0) return false;
+      continue;
+    }
+    const double tc = -f0 / df;
+    if (df > 0) {
+      if (tc > t0) t0 = tc;
+    } else if (tc < t1) {
+      t1 = tc;
+    }
+    if (t0 > t1) return false;
+  }
+  return true;
+}
+
+/// Where the swept sphere (capsule) of radius r about segment p0 -> p1 reaches past the plane
+/// of triangle abc along nIn (its unit normal into the body), over the part of the segment
+/// above the triangle (or, where none is, above the triangle grown by `band`): that part's ends
+/// s[0], s[1] and their depths d[0], d[1] (signed, > 0 past the plane; linear along it, so one
+/// of the ends is the part's deepest point). False when no part is above it.
+GF_HD bool chordUnderFace(Vec3 p0, Vec3 p1, double r, Vec3 a, Vec3 b, Vec3 c, Vec3 nIn, double band,
+                          Vec3 s[2], double d[2]) {
+  // The triangle's own prism first: a bar that crosses the face, slightly tilted, reaches
+  // deepest at one end of the part over it, and over the grown triangle that end would lie in
+  // the band, where the face's share fades to nothing. The band is for the thin wedge between
+  // two faces that meet at a slight angle, a gap as wide as the depth times the angle: a part
+  // found only there and deeper than the band is beyond another face's edge (a bar under a
+  // block's bottom, seen from a side face).
+  double t0, t1;
+  const bool own = clipToPrism(p0, p1, a, b, c, nIn, 0, t0, t1);
+  if (!own && !clipToPrism(p0, p1, a, b, c, nIn, band, t0, t1)) return false;
+  s[0] = p0 + t0 * (p1 - p0);
+  s[1] = p0 + t1 * (p1 - p0);
+  for (int k = 0; k < 2; ++k) d[k] = dot(s[k] - a, nIn) + r;
+  return own || (d[0] <= band && d[1] <= band);
+}
+
+/// Contact of a box, sphere or capsule collider with a point of boundary triangle abc of a body
+/// (nIn: the triangle's unit normal into the body): the collider's point y that reaches
+/// deepest past the triangle's plane above the triangle, its depth (> 0 past the plane; the
+/// returned value, -HUGE_VAL when no part of the collider is above the triangle), the
+/// barycentric weights w of y's projection on the triangle, and the face's share `share` of the
+/// contact. Planes have no such contact (a flat face's deepest point in a half-space is a
+/// vertex, the node's). A sphere or capsule is its segment swept by its radius; a box, whose
+/// deepest point over the triangle is a vertex of the box cut by the triangle's prism, is its 12
+/// edges (corners included): a box face parallel to the triangle and covering it reaches
+/// deepest at the triangle's vertices, which are nodes.
+/// The prisms of two faces that meet at an angle leave a wedge between them that neither
+/// covers, where a ball's centre under a bent surface found no face and dropped through; so each
+/// triangle is grown by `band`, and a contact within band of an edge is shared by the faces on
+/// both sides: share = min over the edges of (s + band) / (2 band) clamped to [0, 1], s the
+/// projection's distance inside the edge, which sums to 1 across an edge between coplanar faces.
+/// w is clamped to the triangle there.
+GF_HD double faceContact(const ColliderData& c, Vec3 a, Vec3 b, Vec3 cc, Vec3 nIn, double band,
+                         Vec3& y, Vec3& w, double& share) {
+  // The collider as segments swept by a radius: a sphere's point, a capsule's segment, or a
+  // box's 12 edges.
+  Vec3 p0[12], p1[12];
+  int count = 0;
+  double r = 0;
+  if (c.kind == kColliderSphere) {
+    p0[0] = p1[0] = c.point;
+    r = c.radius;
+    count = 1;
+  } else if (c.kind == kColliderCapsule) {
+    Vec3 along;
+    capsuleSegment(c, p0[0], along);
+    p1[0] = p0[0] + along;
+    r = c.radius;
+    count = 1;
+  } else if (c.kind == kColliderBox) {
+    for (int axis = 0; axis < 3; ++axis) {
+      const int i = (axis + 1) % 3, j = (axis + 2) % 3;
+      for (int k = 0; k < 4; ++k, ++count) {
+        Vec3 l0, l1;
+        l0[axis] = -c.halfExtents[axis];
+        l1[axis] = c.halfExtents[axis];
+        l0[i] = l1[i] = (k & 1) ? c.halfExtents[i] : -c.halfExtents[i];
+        l0[j] = l1[j] = (k & 2) ? c.halfExtents[j] : -c.halfExtents[j];
+        p0[count] = c.point + c.rotation * l0;
+        p1[count] = c.point + c.rotation * l1;
+      }
+    }
+  }
+  double depth = -HUGE_VAL;
+  for (int k = 0; k < count; ++k) {
+    Vec3 s[2];
+    double d[2];
+    if (!chordUnderFace(p0[k], p1[k], r, a, b, cc, nIn, band, s, d)) continue;
+    depth = fmax(depth, fmax(d[0], d[1]));
+  }
+  if (depth == -HUGE_VAL) return depth;
+  // The contact point: the middle of the parts that reach within a tenth of the band of the
+  // deepest, at the deepest depth. A bar lying flat on the face (or a box's face) reaches as
+  // deep along a line or over an area, and the deepest end or corner alone jumped from one to
+  // another as the face tilted by a hair, rocking the body off a short bar.
+  const double tol = 0.1 * band;
+  Vec3 sum{0, 0, 0};
+  int n = 0;
+  for (int k = 0; k < count; ++k) {
+    Vec3 s[2];
+    double d[2];
+    if (!chordUnderFace(p0[k], p1[k], r, a, b, cc, nIn, band, s, d)) continue;
+    for (int e = 0; e < 2; ++e)
+      if (d[e] >= depth - tol) {
+        sum += s[e];
+        ++n;
+      }
+  }
+  const Vec3 mid = (1.0 / n) * sum;
+  y = mid + (depth - dot(mid - a, nIn)) * nIn;
+  share = 1;
+  const Vec3 v[3] = {a, b, cc};
+  for (int e = 0; e < 3; ++e) {
+    const Vec3 s = v[e], t = v[(e + 1) % 3], o = v[(e + 2) % 3];
+    Vec3 m = cross(nIn, t - s);
+    m = (dot(m, o - s) < 0 ? -1.0 / norm(m) : 1.0 / norm(m)) * m;
+    const double f = band > 0 ? (dot(y - s, m) + band) / (2 * band) : 1.0;
+    if (f < share) share = f < 0 ? 0 : f;
+  }
+  // Barycentric weights of y's projection (Ericson, Real-Time Collision Detection, sec 3.4).
+  const Vec3 v0 = b - a, v1 = cc - a, v2 = y - a;
+  const double d00 = dot(v0, v0), d01 = dot(v0, v1), d11 = dot(v1, v1);
+  const double d20 = dot(v2, v0), d21 = dot(v2, v1), den = d00 * d11 - d01 * d01;
+  if (!(den > 0)) return -HUGE_VAL;
+  double wb = (d11 * d20 - d01 * d21) / den, wc = (d00 * d21 - d01 * d20) / den;
+  double wa = 1 - wb - wc;
+  wa = wa > 0 ? wa : 0;
+  wb = wb > 0 ? wb : 0;
+  wc = wc > 0 ? wc : 0;
+  const double total = wa + wb + wc;
+  w = (1.0 / total) * Vec3{wa, wb, wc};
+  return depth;
+}
+
 /// Body-body and self contacts of one body for one step (contact/body_contact.h): per node a
 /// run of half-spaces, each a point and an outward unit normal that the node must stay in
 /// front of, with the one-sided penalty of a collider (energy k d^2 / 2, gradient, PSD Hessian

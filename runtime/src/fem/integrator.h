@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "fem/element_stage.h"
+#include "fem/face_stage.h"
 #include "fem/fem_body.h"
 #include "fem/node_stage.h"
 #include "fem/rigid_stage.h"
@@ -190,6 +191,18 @@ class Integrator {
   // (DeepContactTerm); true when any was.
   bool stiffenDeepContacts(const FemModel& model, const FemState& state, const StepContext& ctx,
                            JobSystem& jobs);
+  // Whether this step has a box, sphere or capsule collider (m_faceOn), building the body's
+  // boundary faces the first time one appears: a world with only planes pays nothing. crossed:
+  // the sweep found a node whose path would pass a collider (kStepContactSwept).
+  void prepareFaces(const FemModel& model, const StepContext& ctx, bool crossed);
+  // The face contacts at x (FacePlaneStage) into the m_face* arrays; true when any.
+  bool findFaceContacts(const FemModel& model, const FemState& state, const double* x,
+                        const StepContext& ctx, JobSystem& jobs);
+  FaceContacts faceContacts() {
+    return {m_faceNodes.data(),  m_faceCollider.data(), m_faceWeight.data(), m_facePoint.data(),
+            m_faceNormal.data(), m_faceK.data(),        m_faceSeen.data(),   m_faceMuLambda.data()};
+  }
+  FaceContacts faceContacts() const { return const_cast<Integrator*>(this)->faceContacts(); }
   // Rayleigh stiffness-damping term dt/2 (x-x_r)^T r2 K(x_n) (x-x_r) (+ gradient into m_grad),
   // x_r = x_n, or the rigid motion of x_n for a free piece.
   double dampingTerm(const FemState& state, const double* xn, const double* x, double dt,
@@ -232,6 +245,19 @@ class Integrator {
   std::vector<double> m_impulses;          // ColliderImpulseStage's, 6 per collider and node
   std::vector<double> m_balanceTerms;      // BodyContactBalanceStage's
   std::vector<double> m_adx;               // A dx, the Newton model's curvature along dx
+  // Boundary faces as 4-node elements (FaceContacts::faces), their gather plans and per-face
+  // contacts (fem/face_stage.h); built when the first box, sphere or capsule collider appears.
+  bool m_facesBuilt = false;
+  bool m_faceOn = false;   // this step has a box, sphere or capsule collider
+  bool m_faceAny = false;  // the last linearisation has a face contact
+  int32_t m_faceCount = 0;
+  std::vector<int32_t> m_faceNodes, m_faceRefStart, m_faceRef, m_faceCollider;
+  ElementGather m_faceGather;
+  std::vector<Vec3> m_faceWeight, m_facePoint, m_faceNormal;
+  std::vector<double> m_faceK, m_faceMuLambda, m_faceEnergy, m_faceGrad, m_faceHess, m_faceTotal;
+  std::vector<uint8_t> m_faceSeen;
+  std::vector<uint8_t> m_faceSkip;     // per collider: no face contact with it this step
+  std::vector<double> m_faceNodeGrad;  // per node: the face gradient, then the face impulse
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
   double m_theta = 1;  // of the last step; below 1, m_x keeps the solved point the forces act at
   FractureBody* m_fracture = nullptr;

@@ -108,6 +108,8 @@ struct ExternalImpulse {
   SweptContacts swept;
   HalfSpaceContacts bodies;
   ColliderFriction friction;
+  /// Per node, what the face contacts gave it over the step (FaceImpulseStage); null: none.
+  const double* faceImpulse = nullptr;
 
   GF_HD Vec3 operator()(int32_t n, Vec3 x) const {
     const double m = nodeMass[n];
@@ -130,6 +132,7 @@ struct ExternalImpulse {
       if (bodies.contact(n, xl, g, h) + bodies.friction(n, xl, xs, g, h) != 0)
         impulse -= dt * (g + h * (x - xl));
     }
+    if (faceImpulse) impulse += nodeVec3(faceImpulse, n);
     if (friction.muLambda) {
       const Vec3 xl = nodeVec3(xLin, n);
       for (int c = 0; c < colliderCount; ++c)

@@ -1,0 +1,323 @@
+// Collider contact at points inside a body's boundary faces, not only at its nodes (issue 15,
+// item 3): colliders smaller than a cell (1-4 cm spheres, 1 cm bars and capsules) under a block
+// of 5 cm cells, placed between its nodes (under a face's centre, near an edge, near a vertex),
+// where no node ever touches them. Independent truths: the geometry (the block's surface above
+// each support stays within a tenth of a cell of it, no node sinks below the support), statics
+// (the supports' reported impulses carry the block's weight), and, for a moving ball, that it
+// pushes the block ahead instead of passing into it. Without face contact the block falls
+// through all of them.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <map>
+#include <vector>
+
+#include "graphfrac/world.h"
+
+namespace gf {
+namespace {
+
+constexpr double kG = 9.81;
+constexpr double kCell = 0.05;
+// A face pressed by a point support tilts (its nodes take the load unevenly), so on frictionless
+// supports its normal force has a sideways part and the block drifts off them, as a row of nodes
+// on a frictionless crown does (test_capsule_collider.cpp); with friction (mu = sqrt(0.5 * 0.6),
+// the body's default 0.6) it rests.
+constexpr double kSupportFriction = 0.5;
+
+// A 20 x 10 x 20 cm block of 5 cm cells, its bottom at y = 0, centred on x = z = 0.
+TetMesh blockMesh() {
+  TetMesh m = gen::box(0.2, 0.1, 0.2, 4, 2, 4);
+  for (size_t n = 0; n < m.nodeCount(); ++n) {
+    m.positions[3 * n] -= 0.1;
+    m.positions[3 * n + 2] -= 0.1;
+  }
+  return m;
+}
+
+using Tri = std::array<int32_t, 3>;
+
+// The boundary triangles of `m` whose nodes all have coordinate `axis` equal to `value`.
+std::vector<Tri> facesAt(const TetMesh& m, int axis, double value) {
+  std::map<Tri, int> count;
+  for (size_t t = 0; t < m.tetCount(); ++t)
+    for (int k = 0; k < 4; ++k) {
+      Tri f{};
+      int j = 0;
+      for (int i = 0; i < 4; ++i)
+        if (i != k) f[j++] = m.tets[4 * t + i];
+      std::sort(f.begin(), f.end());
+      ++count[f];
+    }
+  std::vector<Tri> out;
+  for (const auto& [f, c] : count) {
+    bool on = c == 1;
+    for (int32_t v : f) on &= std::abs(m.positions[3 * v + axis] - value) < 1e-9;
+    if (on) out.push_back(f);
+  }
+  return out;
+}
+
+glm::dvec3 node(const std::vector<double>& x, int32_t n) {
+  return {x[3 * n], x[3 * n + 1], x[3 * n + 2]};
+}
+
+// Height of the surface of faces `tris` over (px, pz) at positions x (the triangle whose xz
+// projection holds the point), or NaN when none does.
+double surfaceY(const std::vector<Tri>& tris, const std::vector<double>& x, double px, double pz) {
+  for (const Tri& f : tris) {
+    const glm::dvec3 a = node(x, f[0]), b = node(x, f[1]), c = node(x, f[2]);
+    const glm::dvec2 p(px, pz), a2(a.x, a.z), b2(b.x, b.z), c2(c.x, c.z);
+    const glm::dvec2 v0 = b2 - a2, v1 = c2 - a2, v2 = p - a2;
+    const double den = v0.x * v1.y - v1.x * v0.y;
+    const double u = (v2.x * v1.y - v1.x * v2.y) / den, v = (v0.x * v2.y - v2.x * v0.y) / den;
+    if (u >= -1e-9 && v >= -1e-9 && u + v <= 1 + 1e-9)
+      return a.y + u * (b.y - a.y) + v * (c.y - a.y);
+  }
+  return std::nan("");
+}
+
+struct Rest {
+  double support = 0;  // mean upward collider force over the last third [N]
+  double weight = 0;   // m g [N]
+  double deepest = 0;  // largest depth of the bottom surface past a support's top, at the end [m]
+  double lowest = 0;   // lowest node y at the end [m]
+  double endSpeed = 0;
+};
+
+// The block dropped from 1 mm above supports whose tops are at y = 0, for `seconds` at dt;
+// `tops` are the (x, z) where each support reaches highest (the surface is measured there).
+Rest restOn(const std::vector<Collider>& supports, const std::vector<glm::dvec2>& tops, double dt,
+            double seconds) {
+  WorldDef wd{glm::vec3(0, float(-kG), 0), Backend::Cpu, nullptr, 1, supports};
+  World world(wd);
+  BodyDef def;
+  def.mesh = blockMesh();
+  for (size_t n = 0; n < def.mesh.nodeCount(); ++n) def.mesh.positions[3 * n + 1] += 0.001;
+  def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
+  const std::vector<Tri> bottom = facesAt(def.mesh, 1, 0.001);
+  const BodyId id = world.createBody(def).value();
+  Rest r;
+  const double mass = world.stats(id).mass;
+  r.weight = mass * kG;
+  const int steps = int(std::lround(seconds / dt));
+  int counted = 0;
+  for (int s = 0; s < steps; ++s) {
+    const StepStatus st = world.step(dt);
+    // kStepContactSwept is information: a node beside a bar sagged into its side's path.
+    EXPECT_EQ(st.flags & ~uint32_t(kStepContactSwept), 0u) << st.flags;
+    if (s >= 2 * steps / 3) {
+      glm::dvec3 J(0);
+      for (const glm::dvec3& j : world.colliderImpulses()) J += j;
+      r.support += J.y / dt;
+      ++counted;
+    }
+  }
+  r.support /= counted;
+  const auto xf = world.positions(id);
+  const std::vector<double> x(xf.begin(), xf.end());
+  const auto v = world.velocities(id);
+  r.lowest = 1e300;
+  for (size_t n = 0; n < x.size() / 3; ++n) {
+    r.lowest = std::min(r.lowest, x[3 * n + 1]);
+    r.endSpeed =
+        std::max(r.endSpeed, glm::length(glm::dvec3(v[3 * n], v[3 * n + 1], v[3 * n + 2])));
+  }
+  r.deepest = -1e300;
+  for (const glm::dvec2& t : tops) {
+    const double y = surfaceY(bottom, x, t.x, t.y);
+    r.deepest = std::max(r.deepest, std::isnan(y) ? 1.0 : -y);  // fell off: 1 m
+  }
+  return r;
+}
+
+Collider sphereAt(glm::dvec2 xz, double radius) {
+  Collider c;
+  c.kind = Collider::Kind::Sphere;
+  c.radius = float(radius);
+  c.point = glm::vec3(float(xz.x), float(-radius), float(xz.y));
+  c.friction = kSupportFriction;
+  return c;
+}
+
+// A bar (box) or capsule of 1 cm section and half-length `half` along the horizontal direction
+// at `angle` from x, through (x, z), its top at y = 0.
+Collider barAt(Collider::Kind kind, glm::dvec2 xz, double angleDeg, double half) {
+  Collider c;
+  c.kind = kind;
+  const float a = float(angleDeg * M_PI / 180);
+  if (kind == Collider::Kind::Box) {
+    c.halfExtents = glm::vec3(float(half), 0.005f, 0.005f);
+    c.rotation = glm::angleAxis(a, glm::vec3(0, 1, 0));
+  } else {
+    c.radius = 0.005f;
+    c.halfLength = float(half);
+    // Local y along the bar: turned to x, then about y by the angle.
+    c.rotation = glm::angleAxis(a, glm::vec3(0, 1, 0)) *
+                 glm::angleAxis(float(-M_PI / 2), glm::vec3(0, 0, 1));
+  }
+  c.point = glm::vec3(float(xz.x), -0.005f, float(xz.y));
+  c.friction = kSupportFriction;
+  return c;
+}
+
+void expectRests(const Rest& r, const char* name) {
+  std::printf(
+      "  %s: support %.4f N / weight %.4f N (%+.2f %%), deepest %.2e m (%.3f cell), "
+      "lowest node %.4f m, end speed %.1e m/s\n",
+      name, r.support, r.weight, 100 * (r.support / r.weight - 1), r.deepest, r.deepest / kCell,
+      r.lowest, r.endSpeed);
+  EXPECT_LT(r.deepest, 0.1 * kCell) << name;
+  EXPECT_NEAR(r.support, r.weight, 0.03 * r.weight) << name;
+  EXPECT_LT(r.endSpeed, 0.05) << name;
+}
+
+// Four points of the bottom face, one per quadrant, each at `where` within the bottom triangle
+// whose centre is nearest (+-5 cm, +-5 cm): 0 the triangle's centre, 1 near an edge (85 % of
+// the way from the centre to an edge's midpoint), 2 near a vertex (80 % of the way to it).
+std::vector<glm::dvec2> points(int where) {
+  const TetMesh m = blockMesh();
+  const std::vector<Tri> tris = facesAt(m, 1, 0.0);
+  std::vector<glm::dvec2> out;
+  for (const double sx : {-1.0, 1.0})
+    for (const double sz : {-1.0, 1.0}) {
+      const glm::dvec2 aim(0.05 * sx + 0.01, 0.05 * sz + 0.01);
+      double best = 1e300;
+      glm::dvec2 pick(0);
+      for (const Tri& f : tris) {
+        glm::dvec2 v[3];
+        for (int i = 0; i < 3; ++i) v[i] = {m.positions[3 * f[i]], m.positions[3 * f[i] + 2]};
+        const glm::dvec2 c = (v[0] + v[1] + v[2]) / 3.0;
+        if (glm::length(c - aim) >= best) continue;
+        best = glm::length(c - aim);
+        pick = where == 0   ? c
+               : where == 1 ? c + 0.85 * (0.5 * (v[0] + v[1]) - c)
+                            : c + 0.8 * (v[2] - c);
+      }
+      out.push_back(pick);
+    }
+  return out;
+}
+
+TEST(FaceContact, BlockRestsOnSmallSpheresBetweenItsNodes) {
+  const char* where[] = {"face centre", "near an edge", "near a vertex"};
+  for (int w = 0; w < 3; ++w)
+    for (const double radius : {0.005, 0.01, 0.02}) {
+      const std::vector<glm::dvec2> tops = points(w);
+      std::vector<Collider> spheres;
+      for (const glm::dvec2& p : tops) spheres.push_back(sphereAt(p, radius));
+      char name[96];
+      std::snprintf(name, sizeof name, "4 spheres r %.1f cm, %s", 100 * radius, where[w]);
+      const Rest r = restOn(spheres, tops, 1.0 / 60, 1.5);
+      expectRests(r, name);
+      EXPECT_GT(r.lowest, -2 * radius) << name;  // no node below the spheres' bottoms
+    }
+}
+
+TEST(FaceContact, BlockRestsOnThinBarsAndCapsules) {
+  // Two parallel 30 cm bars (or capsules) 7.5 cm apart along an axis, between the node rows;
+  // and four 3 cm ones under the centres of faces (points(0)), turned 0 to 90 degrees, each
+  // within 2 cm of its centre, nearer than any node (a long bar at an angle passes under nodes,
+  // which hold it without face contact).
+  for (const Collider::Kind kind : {Collider::Kind::Box, Collider::Kind::Capsule}) {
+    const char* what = kind == Collider::Kind::Box ? "bars" : "capsules";
+    for (const double angle : {0.0, 90.0}) {
+      const double a = angle * M_PI / 180;
+      const glm::dvec2 across(-std::sin(a), std::cos(a));  // horizontal, normal to the bar
+      std::vector<Collider> bars;
+      std::vector<glm::dvec2> tops;
+      for (const double s : {-1.0, 1.0}) {
+        tops.push_back(s * 0.0375 * across);
+        bars.push_back(barAt(kind, tops.back(), angle, 0.15));
+      }
+      char name[96];
+      std::snprintf(name, sizeof name, "two 30 cm %s at %.0f deg", what, angle);
+      const Rest r = restOn(bars, tops, 1.0 / 60, 1.5);
+      expectRests(r, name);
+      EXPECT_GT(r.lowest, -0.01) << name;
+    }
+    for (const double angle : {0.0, 30.0, 45.0, 60.0, 90.0}) {
+      const std::vector<glm::dvec2> tops = points(0);
+      std::vector<Collider> bars;
+      for (const glm::dvec2& t : tops) bars.push_back(barAt(kind, t, angle, 0.015));
+      char name[96];
+      std::snprintf(name, sizeof name, "four 3 cm %s at %.0f deg", what, angle);
+      const Rest r = restOn(bars, tops, 1.0 / 60, 1.5);
+      expectRests(r, name);
+      EXPECT_GT(r.lowest, -0.01) << name;
+    }
+  }
+}
+
+// A 1 cm ball moving at `speed` along +x into the centre of a triangle of the free block's
+// -x face (no gravity), until it has moved 10 cm: the block must end ahead of it, pushed.
+TEST(FaceContact, MovingSmallSpherePushesTheBlock) {
+  for (const double speed : {0.2, 1.0}) {
+    const TetMesh m = blockMesh();
+    const std::vector<Tri> side = facesAt(m, 0, -0.1);
+    // The side triangle whose centre is nearest the middle of the face.
+    glm::dvec2 aim(0.05 + 0.01, 0.01), pick(0);  // (y, z)
+    double best = 1e300;
+    for (const Tri& f : side) {
+      glm::dvec2 c(0);
+      for (int i = 0; i < 3; ++i)
+        c += glm::dvec2(m.positions[3 * f[i] + 1], m.positions[3 * f[i] + 2]) / 3.0;
+      if (glm::length(c - aim) < best) best = glm::length(c - aim), pick = c;
+    }
+    Collider ball;
+    ball.kind = Collider::Kind::Sphere;
+    ball.radius = 0.005f;
+    ball.point = glm::vec3(-0.1f - 0.006f, float(pick.x), float(pick.y));
+    ball.velocity = glm::vec3(float(speed), 0, 0);
+    World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {ball}});
+    BodyDef def;
+    def.mesh = m;
+    def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
+    const BodyId id = world.createBody(def).value();
+    const double dt = 1.0 / 60;
+    const int steps = int(std::lround(0.1 / speed / dt));
+    glm::dvec3 impulse(0);
+    double deepest = -1e300;
+    for (int s = 0; s < steps; ++s) {
+      const StepStatus st = world.step(dt);
+      EXPECT_EQ(st.flags & ~uint32_t(kStepContactSwept), 0u) << st.flags;
+      impulse += world.colliderImpulses()[0];
+      const auto xf = world.positions(id);
+      const std::vector<double> x(xf.begin(), xf.end());
+      // How far the ball's front is past the block's -x surface at the ball's (y, z), which
+      // the block's -x side triangles (nodes of the rest face) cover.
+      const glm::dvec3 c = glm::dvec3(world.colliders()[0].point);
+      for (const Tri& f : side) {
+        const glm::dvec3 a = node(x, f[0]), b = node(x, f[1]), e = node(x, f[2]);
+        // Project along x: barycentric in (y, z).
+        const glm::dvec2 p(c.y, c.z), a2(a.y, a.z), b2(b.y, b.z), e2(e.y, e.z);
+        const glm::dvec2 v0 = b2 - a2, v1 = e2 - a2, v2 = p - a2;
+        const double den = v0.x * v1.y - v1.x * v0.y;
+        const double u = (v2.x * v1.y - v1.x * v2.y) / den, v = (v0.x * v2.y - v2.x * v0.y) / den;
+        if (u < -1e-9 || v < -1e-9 || u + v > 1 + 1e-9) continue;
+        const double surface = a.x + u * (b.x - a.x) + v * (e.x - a.x);
+        deepest = std::max(deepest, c.x + ball.radius - surface);
+      }
+    }
+    const double mass = world.stats(id).mass;
+    const glm::dvec3 p = world.stats(id).linearMomentum;
+    std::printf(
+        "  ball at %.1f m/s: deepest %.2e m (%.3f cell), block momentum %.4f N s, "
+        "reported impulse %.4f N s, block speed %.3f m/s\n",
+        speed, deepest, deepest / kCell, p.x, impulse.x, p.x / mass);
+    // Face contacts are not stiffened where a moving collider pushes (the nodes' are,
+    // DeepContactTerm): the ball stays within a fifth of a cell, not a tenth.
+    EXPECT_LT(deepest, 0.2 * kCell) << speed;
+    // Pushed along, with the momentum the ball's reported impulses gave it.
+    EXPECT_GT(p.x / mass, 0.5 * speed) << speed;
+    EXPECT_NEAR(impulse.x, p.x, 0.01 * std::abs(p.x) + 1e-9) << speed;
+  }
+}
+
+}  // namespace
+}  // namespace gf
