@@ -215,6 +215,46 @@ TEST(Friction, TurntableDragsABlockAlongItsSurface) {
   EXPECT_LT(std::hypot(v0.x, v0.z), 1e-3);
 }
 
+// A block at rest on a conveyor belt (Collider::velocity V along -z) is dragged along by
+// kinetic friction: while it slips, the floor's reported friction impulse is mu times its
+// normal impulse, and the block gains mu g a second until it rides with the belt. For mu 0.2
+// and 0.6 and belts at 1, 3 and 6 m/s; each at 60 Hz.
+TEST(Friction, ConveyorDragsABlockAtMuGUntilItRidesWithTheBelt) {
+  const double dt = 1.0 / 60;
+  for (const double mu : {0.2, 0.6})
+    for (const double speed : {1.0, 3.0, 6.0}) {
+      DraggedBlock belt(2, speed / 2, true, mu);  // belt velocity -w r z
+      // Lagged normal force: the first step that touches has none, so count from the second.
+      double normal = 0, along = 0, gained = 0, v0 = 0;
+      int slipping = 0, riding = 0;
+      const double slipSteps = speed / (mu * kG * dt);
+      const int steps = int(slipSteps) + 30;
+      for (int s = 0; s < steps; ++s) {
+        ASSERT_TRUE(belt.world.step(dt).ok());
+        const glm::dvec3 v = belt.mean(belt.world.velocities(belt.id));
+        if (s == 1) v0 = -v.z;
+        if (s >= 2 && -v.z < speed - 2 * mu * kG * dt) {
+          const glm::dvec3 j = belt.world.colliderImpulses()[0];
+          normal += j.y;
+          along += -j.z;
+          gained = -v.z - v0;
+          ++slipping;
+        }
+        if (s == steps - 1) riding = std::abs(-v.z - speed) < 1e-3 * speed;
+      }
+      const double accel = gained / (slipping * dt);
+      std::printf(
+          "mu %.1f, belt %.0f m/s: friction / normal impulse %.5f over %d slipping steps, "
+          "acceleration %.4f m/s^2 (mu g %.4f, %+.2f %%), rides with the belt: %d\n",
+          mu, speed, along / normal, slipping, accel, mu * kG, 100 * (accel / (mu * kG) - 1),
+          riding);
+      ASSERT_GT(slipping, 3);
+      EXPECT_NEAR(along / normal, mu, 0.01 * mu);  // lagged normal force against the end's
+      EXPECT_NEAR(accel, mu * kG, 0.01 * mu * kG);
+      EXPECT_TRUE(riding);
+    }
+}
+
 TEST(Friction, CoefficientsAreChecked) {
   World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
   BodyDef def;

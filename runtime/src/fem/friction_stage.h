@@ -21,14 +21,19 @@ struct ColliderFriction {
 
   GF_HD int64_t slot(int c, int32_t n) const { return int64_t(c) * nodeCount + n; }
   GF_HD bool touches(int c, int32_t n) const { return muLambda[slot(c, n)] > 0; }
+  /// The collider surface's velocity where node n starts the step.
+  GF_HD Vec3 surfaceVelocity(const ColliderData& col, int32_t n) const {
+    const int64_t i3 = 3 * int64_t(n);
+    const Vec3 start{xStart[i3], xStart[i3 + 1], xStart[i3 + 2]};
+    return col.velocity + cross(col.angularVelocity, start - col.point);
+  }
   /// The node's sliding against the collider over dt when it ends at x, in the contact plane:
   /// against the surface's velocity where the node starts (a spinning collider's differs from
   /// point to point; held over the step, so the potential stays a function of x alone).
   GF_HD Vec3 slide(const ColliderData& col, int c, int32_t n, Vec3 x, double dt) const {
     const int64_t i3 = 3 * int64_t(n);
     const Vec3 start{xStart[i3], xStart[i3 + 1], xStart[i3 + 2]};
-    const Vec3 surface = col.velocity + cross(col.angularVelocity, start - col.point);
-    const Vec3 s = x - start - dt * surface;
+    const Vec3 s = x - start - dt * surfaceVelocity(col, n);
     const Vec3 nrm = normal[slot(c, n)];
     return s - dot(s, nrm) * nrm;
   }

@@ -418,9 +418,10 @@ void Integrator::groupPieces(const FemModel& model, const CpuExecutor& exec) {
     m_pieceLists.build(exec, nullptr, model.nodeCount, count, m_pieceScan);
   }
   m_pieces.resize(size_t(count));
-  m_pieceTerms.resize(kPieceSpinTerms * nn);
-  m_pieceSums.resize(kPieceSpinTerms * size_t(count));
-  m_piecePartials.resize(kPieceSpinTerms * size_t(m_pieceLists.view().chunks));
+  constexpr size_t terms = std::max({kPieceMassTerms, kPieceSpinTerms, kPieceFrictionTerms});
+  m_pieceTerms.resize(terms * nn);
+  m_pieceSums.resize(terms * size_t(count));
+  m_piecePartials.resize(terms * size_t(m_pieceLists.view().chunks));
 }
 
 void Integrator::sumPerPiece(const FemModel& model, const CpuExecutor& exec, int components) {
@@ -530,9 +531,10 @@ void Integrator::frictionStart(const FemModel& model, const FemState& state, con
   // Each free piece's contact normal, friction force, gravity and point forces (the elastic
   // forces are internal) summed per piece; the pieces are fresh from predictRigidMotion.
   const int32_t nn = model.nodeCount, pieces = int32_t(m_pieces.size());
-  exec.run(nn, kNodeGrain,
-           PieceFrictionTerms{state.externalForce.data(), state.nodeMass.data(), ctx.gravity,
-                              m_friction, ctx.colliderCount, nn, m_pieceTerms.data()});
+  exec.run(
+      nn, kNodeGrain,
+      PieceFrictionTerms{state.externalForce.data(), state.nodeMass.data(), ctx.gravity,
+                         ctx.colliders, m_friction, ctx.colliderCount, nn, m_pieceTerms.data()});
   sumPerPiece(model, exec, kPieceFrictionTerms);
   exec.run(pieces, kPieceGrain,
            PieceSlideStage{m_pieceSums.data(), pieces, ctx.dt, m_pieces.data()});
