@@ -601,6 +601,8 @@ Result<DemoSummary> runDemo(const DemoOptions& opt) {
   }
 
   SceneDrawing drawing(sc);
+  if (Result<void> r = drawing.loadTextures(sc); !r)
+    return fail(opt.scene, ": ", r.error().message);
   cli::Progress progress(frames, cli::Progress::detect(stderr, opt.quiet));
   Image image;
   double simSum = 0, bulletSum = 0, renderSum = 0, pngSum = 0, upSum = 0, fullSum = 0;

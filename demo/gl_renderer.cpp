@@ -28,12 +28,15 @@ const char* kVertexShader = R"(#version 330 core
 layout(location = 0) in vec3 inPosition;
 layout(location = 1) in vec3 inNormal;
 layout(location = 2) in float inScalar;
+layout(location = 3) in vec2 inUv;
 uniform mat4 uModel;
 uniform mat4 uViewProj;
 out vec3 vWorldPos;
 out vec3 vNormal;
 out float vScalar;
+out vec2 vUv;
 void main() {
+  vUv = inUv;
   vec4 world = uModel * vec4(inPosition, 1.0);
   vWorldPos = world.xyz;
   vNormal = mat3(uModel) * inNormal;
@@ -46,7 +49,9 @@ const char* kFragmentShader = R"(#version 330 core
 in vec3 vWorldPos;
 in vec3 vNormal;
 in float vScalar;
+in vec2 vUv;
 uniform usamplerBuffer uCrackMask;
+uniform sampler2D uTexture;  // sRGB: sampled as linear light
 uniform sampler2DShadow uShadowMap;
 uniform vec3 uEye;
 uniform vec3 uColour;
@@ -56,7 +61,7 @@ uniform int uHasCrack;
 uniform mat4 uLightViewProj;
 uniform vec4 uShadow;  // on, texel size, normal offset
 uniform vec4 uLook;    // crack faces: specular, shininess, grain, metallic
-uniform vec4 uGround;  // x: grid cell [m]
+uniform vec4 uGround;  // x: grid cell [m], y: 1 = textured
 out vec4 outColour;
 
 vec3 colourMap(float s) {
@@ -109,6 +114,9 @@ void main() {
   // Two-sided: crack slits are seen from both sides.
   if (!gl_FrontFacing) n = -n;
   vec3 base = uHasScalar != 0 ? colourMap(vScalar) : uColour;
+  // Sampled here, in uniform control flow (implicit derivatives pick the mip level); v runs up
+  // from the image's bottom row, which is the texture's last.
+  if (uGround.y != 0.0) base *= texture(uTexture, vec2(vUv.x, 1.0 - vUv.y)).rgb;
   float specular = 0.12, shininess = 48.0, metallic = 0.0;
   if (crack) {
     if (length(facet) > 0.0) n = normalize(dot(facet, v) < 0.0 ? -facet : facet);
@@ -271,9 +279,10 @@ Result<GLuint> compileShader(GLenum stage, const char* source, const char* name)
 
 // One mesh slot's GL objects, kept across frames.
 struct Slot {
-  GLuint vao = 0, positions = 0, normals = 0, scalar = 0, indices = 0, crack = 0, crackTexture = 0;
+  GLuint vao = 0, positions = 0, normals = 0, scalar = 0, indices = 0, crack = 0, crackTexture = 0,
+         uv = 0;
   uint32_t vertices = 0, triangles = 0;
-  bool hasScalar = false, hasCrack = false, uploaded = false;
+  bool hasScalar = false, hasCrack = false, hasUv = false, uploaded = false;
   uint64_t topologyVersion = 0;
 };
 
@@ -291,6 +300,8 @@ class GlRenderer final : public Renderer {
   Result<void> createPipeline(const RendererOptions& options);
   Result<void> makeCurrent();
   Result<void> upload(Slot& slot, const MeshFrame& mesh, FrameStats& stats);
+  /// The GL texture of `texture`, uploaded (all mip levels) the first time it is seen.
+  GLuint textureFor(const std::shared_ptr<const Texture>& texture);
 
   EGLDisplay m_display = EGL_NO_DISPLAY;
   EGLContext m_context = EGL_NO_CONTEXT;
@@ -301,11 +312,13 @@ class GlRenderer final : public Renderer {
   GLuint m_resolveFbo = 0, m_resolveColour = 0;
   GLint m_uModel = -1, m_uViewProj = -1, m_uEye = -1, m_uColour = -1, m_uCrackColour = -1,
         m_uHasScalar = -1, m_uHasCrack = -1, m_uCrackMask = -1, m_uShadowMap = -1,
-        m_uLightViewProj = -1, m_uShadow = -1, m_uLook = -1, m_uGround = -1;
+        m_uLightViewProj = -1, m_uShadow = -1, m_uLook = -1, m_uGround = -1, m_uTexture = -1;
   GLuint m_shadowProgram = 0, m_shadowFbo = 0, m_shadowTexture = 0;
   GLint m_uShadowModel = -1, m_uShadowLightViewProj = -1;
   GLint m_maxTextureBuffer = 0;
   std::vector<Slot> m_slots;
+  // Kept alive with their GL names so that a pointer is never reused for another texture.
+  std::map<const Texture*, std::pair<std::shared_ptr<const Texture>, GLuint>> m_textures;
 };
 
 Result<void> GlRenderer::createContextOn(EGLDisplay display, const char* platform) {
@@ -458,6 +471,7 @@ Result<void> GlRenderer::createPipeline(const RendererOptions& options) {
   m_uShadow = glGetUniformLocation(m_program, "uShadow");
   m_uLook = glGetUniformLocation(m_program, "uLook");
   m_uGround = glGetUniformLocation(m_program, "uGround");
+  m_uTexture = glGetUniformLocation(m_program, "uTexture");
   m_uModel = glGetUniformLocation(m_program, "uModel");
   m_uViewProj = glGetUniformLocation(m_program, "uViewProj");
   m_uEye = glGetUniformLocation(m_program, "uEye");
@@ -535,11 +549,12 @@ GlRenderer::~GlRenderer() {
   if (m_display == EGL_NO_DISPLAY) return;
   if (m_context != EGL_NO_CONTEXT && eglMakeCurrent(m_display, m_pbuffer, m_pbuffer, m_context)) {
     for (Slot& s : m_slots) {
-      const GLuint buffers[] = {s.positions, s.normals, s.scalar, s.indices, s.crack};
-      glDeleteBuffers(5, buffers);
+      const GLuint buffers[] = {s.positions, s.normals, s.scalar, s.indices, s.crack, s.uv};
+      glDeleteBuffers(6, buffers);
       glDeleteTextures(1, &s.crackTexture);
       glDeleteVertexArrays(1, &s.vao);
     }
+    for (auto& [key, entry] : m_textures) glDeleteTextures(1, &entry.second);
     glDeleteProgram(m_program);
     glDeleteProgram(m_shadowProgram);
     glDeleteTextures(1, &m_shadowTexture);
@@ -572,6 +587,10 @@ Result<void> GlRenderer::upload(Slot& slot, const MeshFrame& mesh, FrameStats& s
     return fail("dirty range [", std::to_string(mesh.dirtyBegin), ", ",
                 std::to_string(mesh.dirtyEnd), ") is outside 0..", std::to_string(vertices));
   const bool hasScalar = !mesh.scalar.empty(), hasCrack = !mesh.crackMask.empty();
+  const bool hasUv = mesh.texture != nullptr;
+  if (mesh.texture && mesh.uvs.size() != 2 * vertices)
+    return fail("uvs has ", std::to_string(mesh.uvs.size()), " values for ",
+                std::to_string(vertices), " vertices (2 each, needed with a texture)");
   if (vertices > UINT32_MAX)
     return fail(std::to_string(vertices), " vertices exceed 32-bit indices");
   if (hasCrack && triangles > uint64_t(std::max(m_maxTextureBuffer, 0)))
@@ -579,8 +598,9 @@ Result<void> GlRenderer::upload(Slot& slot, const MeshFrame& mesh, FrameStats& s
                 " triangles exceed the GL's texture buffer limit (",
                 std::to_string(m_maxTextureBuffer), " texels)");
   const uint64_t vertexBytes = (hasScalar ? 7 : 6) * sizeof(float);
-  const uint64_t fullBytes =
-      vertices * vertexBytes + triangles * (3 * sizeof(uint32_t) + (hasCrack ? 1 : 0));
+  const uint64_t fullBytes = vertices * vertexBytes +
+                             triangles * (3 * sizeof(uint32_t) + (hasCrack ? 1 : 0)) +
+                             (hasUv ? vertices * 2 * sizeof(float) : 0);
   stats.surfaceBytes += fullBytes;
 
   if (slot.vao == 0) {
@@ -593,10 +613,11 @@ Result<void> GlRenderer::upload(Slot& slot, const MeshFrame& mesh, FrameStats& s
     slot.indices = buffers[3];
     slot.crack = buffers[4];
     glGenTextures(1, &slot.crackTexture);
+    glGenBuffers(1, &slot.uv);
   }
   const bool full = !slot.uploaded || slot.topologyVersion != mesh.topologyVersion ||
                     slot.vertices != vertices || slot.triangles != triangles ||
-                    slot.hasScalar != hasScalar || slot.hasCrack != hasCrack;
+                    slot.hasScalar != hasScalar || slot.hasCrack != hasCrack || slot.hasUv != hasUv;
   // Marked stale first so a GL error below forces a full upload next frame.
   slot.uploaded = false;
   if (full) {
@@ -624,6 +645,15 @@ Result<void> GlRenderer::upload(Slot& slot, const MeshFrame& mesh, FrameStats& s
     } else {
       glDisableVertexAttribArray(2);  // reads the constant set in render()
     }
+    if (hasUv) {
+      glBindBuffer(GL_ARRAY_BUFFER, slot.uv);
+      glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(mesh.uvs.size_bytes()), mesh.uvs.data(),
+                   GL_STATIC_DRAW);
+      glVertexAttribPointer(3, 2, GL_FLOAT, GL_FALSE, 0, nullptr);
+      glEnableVertexAttribArray(3);
+    } else {
+      glDisableVertexAttribArray(3);
+    }
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, slot.indices);  // recorded in the VAO
     glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(mesh.indices.size_bytes()),
                  mesh.indices.data(), GL_DYNAMIC_DRAW);
@@ -643,6 +673,7 @@ Result<void> GlRenderer::upload(Slot& slot, const MeshFrame& mesh, FrameStats& s
     slot.triangles = uint32_t(triangles);
     slot.hasScalar = hasScalar;
     slot.hasCrack = hasCrack;
+    slot.hasUv = hasUv;
     slot.topologyVersion = mesh.topologyVersion;
   } else if (mesh.dirtyBegin < mesh.dirtyEnd) {
     const uint64_t count = mesh.dirtyEnd - mesh.dirtyBegin;
@@ -662,6 +693,28 @@ Result<void> GlRenderer::upload(Slot& slot, const MeshFrame& mesh, FrameStats& s
   if (!errors.empty()) return fail("uploading: ", errors);
   slot.uploaded = true;
   return {};
+}
+
+GLuint GlRenderer::textureFor(const std::shared_ptr<const Texture>& texture) {
+  auto it = m_textures.find(texture.get());
+  if (it != m_textures.end()) return it->second.second;
+  GLuint name = 0;
+  glGenTextures(1, &name);
+  glBindTexture(GL_TEXTURE_2D, name);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  for (size_t level = 0; level < texture->levels.size(); ++level) {
+    const Image& l = texture->levels[level];
+    glTexImage2D(GL_TEXTURE_2D, GLint(level), GL_SRGB8_ALPHA8, l.width, l.height, 0, GL_RGBA,
+                 GL_UNSIGNED_BYTE, l.rgba.data());
+  }
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, GLint(texture->levels.size()) - 1);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  m_textures.emplace(texture.get(), std::make_pair(texture, name));
+  return name;
 }
 
 Result<FrameStats> GlRenderer::render(std::span<const MeshFrame> meshes, const Camera& camera,
@@ -728,6 +781,7 @@ Result<FrameStats> GlRenderer::render(std::span<const MeshFrame> meshes, const C
   glUniform3fv(m_uEye, 1, glm::value_ptr(camera.eye));
   glUniform1i(m_uCrackMask, 0);
   glUniform1i(m_uShadowMap, 1);
+  glUniform1i(m_uTexture, 2);
   glUniformMatrix4fv(m_uLightViewProj, 1, GL_FALSE, glm::value_ptr(light));
   glUniform4f(m_uShadow, options.shadows ? 1.0f : 0.0f, 1.0f / float(kShadowSize),
               2.0f * texelWorld, 0.0f);
@@ -746,13 +800,20 @@ Result<FrameStats> GlRenderer::render(std::span<const MeshFrame> meshes, const C
     glUniform1i(m_uHasCrack, slot.hasCrack ? 1 : 0);
     glUniform4f(m_uLook, mesh.crackLook.specular, mesh.crackLook.shininess, mesh.crackLook.grain,
                 mesh.crackLook.metallic);
-    glUniform4f(m_uGround, mesh.gridSpacing, 0.0f, 0.0f, 0.0f);
+    glUniform4f(m_uGround, mesh.gridSpacing, slot.hasUv ? 1.0f : 0.0f, 0.0f, 0.0f);
+    if (slot.hasUv) {
+      glActiveTexture(GL_TEXTURE2);
+      glBindTexture(GL_TEXTURE_2D, textureFor(mesh.texture));
+      glActiveTexture(GL_TEXTURE0);
+    }
     glBindTexture(GL_TEXTURE_BUFFER, slot.crackTexture);
     glBindVertexArray(slot.vao);
     glDrawElements(GL_TRIANGLES, GLsizei(3 * slot.triangles), GL_UNSIGNED_INT, nullptr);
   }
   glBindVertexArray(0);
   glBindTexture(GL_TEXTURE_BUFFER, 0);
+  glActiveTexture(GL_TEXTURE2);
+  glBindTexture(GL_TEXTURE_2D, 0);
   glActiveTexture(GL_TEXTURE1);
   glBindTexture(GL_TEXTURE_2D, 0);
   glActiveTexture(GL_TEXTURE0);

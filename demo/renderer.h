@@ -55,6 +55,18 @@ struct Camera {
   float nearPlane = 0.01f, farPlane = 50.0f;
 };
 
+/// A colour texture: sRGB-encoded 8-bit RGBA as image files hold it (the shaders sample it as
+/// linear light), level 0 the image and each next level half as large down to 1x1 (a box filter
+/// in linear light). Renderers keep one GPU copy per Texture object for as long as they live.
+struct Texture {
+  std::vector<Image> levels;
+};
+/// The texture of an image with its mip levels; an error for an empty or inconsistent image.
+Result<std::shared_ptr<const Texture>> makeTexture(Image image);
+/// Decodes an image file (PNG, JPEG, TGA, BMP, ... through stb_image) into a texture; the error
+/// names the file and the reason.
+Result<std::shared_ptr<const Texture>> loadTexture(const std::string& path);
+
 /// One mesh this frame. Mesh i of a frame keeps its GPU buffers in slot i across frames: the
 /// renderer re-uploads vertices and indices when topologyVersion (or the size) changes, and
 /// otherwise only the vertices in [dirtyBegin, dirtyEnd). The spans are read during render()
@@ -65,6 +77,13 @@ struct MeshFrame {
   std::span<const uint32_t> indices;   ///< 3 per triangle, counter-clockwise from outside
   std::span<const uint8_t> crackMask;  ///< per triangle, 1 = crack face; empty = none
   std::span<const float> scalar;       ///< per vertex in [0, 1] for the colour map; empty = off
+  /// 2 per vertex: texture coordinates, u right and v up from the image's bottom left (OpenGL's
+  /// convention, which assimp gives); read only with a texture, and only on a full upload (they
+  /// are rest-frame data, fixed between topology changes).
+  std::span<const float> uvs;
+  /// Multiplied into `colour` (or the colour map) on the original surface; crack faces keep
+  /// crackColour. Needs uvs; null: drawn in the plain colour, exactly as without textures.
+  std::shared_ptr<const Texture> texture;
   uint64_t topologyVersion = 0;
   uint32_t dirtyBegin = 0, dirtyEnd = 0;
   glm::mat4 model{1.0f};                      ///< model to world
@@ -85,7 +104,8 @@ struct FrameOptions {
 
 /// What one render() cost.
 struct FrameStats {
-  uint64_t uploadedBytes = 0;  ///< bytes copied to the device this frame (vertices + indices)
+  uint64_t uploadedBytes = 0;  ///< bytes copied to the device this frame (vertices + indices;
+                               ///< textures, uploaded once, are not counted)
   uint64_t surfaceBytes = 0;   ///< bytes a full re-upload of every mesh would have copied
   double renderMs = 0;         ///< upload + draw + readback, wall clock
 };

@@ -132,6 +132,7 @@ SceneDrawing::SceneDrawing(const scene::Scene& sc)
   m_lastVertices.assign(slots, 0);
   m_lastTriangles.assign(slots, 0);
   m_strain.resize(m_bodyCount);
+  m_textures.resize(m_bodyCount);
   for (size_t i = 0; i < m_bodyCount; ++i) {
     m_meshes[i].colour = sc.bodies[i].colour;
     m_meshes[i].crackColour = sc.bodies[i].crackColour;
@@ -220,6 +221,16 @@ SceneDrawing::SceneDrawing(const scene::Scene& sc)
   }
 }
 
+Result<void> SceneDrawing::loadTextures(const scene::Scene& scene) {
+  for (size_t i = 0; i < m_bodyCount && i < scene.bodies.size(); ++i) {
+    if (scene.bodies[i].texture.empty()) continue;
+    Result<std::shared_ptr<const Texture>> t = loadTexture(scene.bodies[i].texture);
+    if (!t) return fail("body '", scene.bodies[i].name, "': texture ", t.error().message);
+    m_textures[i] = t.value();
+  }
+  return {};
+}
+
 DrawingChanges SceneDrawing::update(scene::BulletScene& sim, double strainMax) {
   World& world = sim.world();
   for (size_t i = 0; i < m_bodyCount; ++i) {
@@ -229,6 +240,9 @@ DrawingChanges SceneDrawing::update(scene::BulletScene& sim, double strainMax) {
     m.normals = v.normals;
     m.indices = v.indices;
     m.crackMask = v.crackMask;
+    // Vertices without UVs (a body whose render mesh is gone) are drawn untextured.
+    m.texture = v.uvs.empty() ? nullptr : m_textures[i];
+    m.uvs = m.texture ? v.uvs : std::span<const float>{};
     m.topologyVersion = v.topologyVersion;
     m.dirtyBegin = v.dirtyBegin;
     m.dirtyEnd = v.dirtyEnd;

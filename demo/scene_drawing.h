@@ -9,6 +9,7 @@
 #include <graphfrac/world.h>
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -62,6 +63,10 @@ class SceneDrawing {
   /// strainMax > 0 colours the bodies by World::nodeStrain, saturating (red) at that strain.
   DrawingChanges update(scene::BulletScene& sim, double strainMax);
 
+  /// Decodes the bodies' textures (SceneBody::texture); until then, and for bodies without
+  /// one, the bodies are drawn in their colour. The error names the body and the file.
+  Result<void> loadTextures(const scene::Scene& scene);
+
   /// The slots as update() left them; their spans point into the world's surfaces and this
   /// object, valid until the next step or update.
   std::span<const MeshFrame> meshes() const { return m_meshes; }
@@ -77,7 +82,8 @@ class SceneDrawing {
   std::vector<ShapeMesh> m_shapes;             ///< Parallel to m_drawn.
   std::vector<MeshFrame> m_meshes;
   std::vector<uint64_t> m_lastVersion, m_lastVertices, m_lastTriangles;
-  std::vector<std::vector<float>> m_strain;  ///< Per body, per vertex, 0..1.
+  std::vector<std::vector<float>> m_strain;                ///< Per body, per vertex, 0..1.
+  std::vector<std::shared_ptr<const Texture>> m_textures;  ///< Per body; null: none.
   /// The cut brush (the last slot when the scene has cut strokes): a two-sided square.
   bool m_hasBrush = false;
   size_t m_brushSlot = 0;

@@ -286,6 +286,11 @@ Result<void> Viewer::load(const std::string& path) {
     m_loadError = sim.error().message;
     return sim.error();
   }
+  auto drawing = std::make_unique<SceneDrawing>(loaded.value());
+  if (Result<void> r = drawing->loadTextures(loaded.value()); !r) {
+    m_loadError = path + ": " + r.error().message;
+    return fail(m_loadError);
+  }
   m_loadError.clear();
   // A renderer keeps its buffers per slot, and a new scene's slot i is another mesh whose
   // topology version may well equal the old one's: so a new renderer, not stale buffers.
@@ -298,7 +303,7 @@ Result<void> Viewer::load(const std::string& path) {
   }
   m_scene = std::move(loaded).value();
   m_sim = std::move(sim).value();
-  m_drawing = std::make_unique<SceneDrawing>(m_scene);
+  m_drawing = std::move(drawing);
   if (path != m_scenePath) m_sceneFiles = siblingScenes(path);
   m_scenePath = path;
   m_orbit = Orbit::from(sceneCamera(m_scene));

@@ -377,12 +377,13 @@ void VulkanDevice::destroyBuffer(GpuBuffer& b) {
 
 Result<void> VulkanDevice::createImage(int width, int height, VkFormat format,
                                        VkImageUsageFlags usage, VkSampleCountFlagBits samples,
-                                       VkImageAspectFlags aspect, GpuImage& out) {
+                                       VkImageAspectFlags aspect, GpuImage& out,
+                                       uint32_t mipLevels) {
   auto info = vkInfo<VkImageCreateInfo>(VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO);
   info.imageType = VK_IMAGE_TYPE_2D;
   info.format = format;
   info.extent = {uint32_t(width), uint32_t(height), 1};
-  info.mipLevels = 1;
+  info.mipLevels = mipLevels;
   info.arrayLayers = 1;
   info.samples = samples;
   info.tiling = VK_IMAGE_TILING_OPTIMAL;
@@ -403,7 +404,7 @@ Result<void> VulkanDevice::createImage(int width, int height, VkFormat format,
   view.image = out.image;
   view.viewType = VK_IMAGE_VIEW_TYPE_2D;
   view.format = format;
-  view.subresourceRange = {aspect, 0, 1, 0, 1};
+  view.subresourceRange = {aspect, 0, mipLevels, 0, 1};
   GF_VK(vkCreateImageView, (m_device, &view, nullptr, &out.view));
   return {};
 }

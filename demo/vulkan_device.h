@@ -107,7 +107,8 @@ class VulkanDevice {
   void destroyBuffer(GpuBuffer& b);
   /// A width x height 2D image in device-local memory, with a view of `aspect`.
   Result<void> createImage(int width, int height, VkFormat format, VkImageUsageFlags usage,
-                           VkSampleCountFlagBits samples, VkImageAspectFlags aspect, GpuImage& out);
+                           VkSampleCountFlagBits samples, VkImageAspectFlags aspect, GpuImage& out,
+                           uint32_t mipLevels = 1);
   void destroyImage(GpuImage& t);
 
  private:

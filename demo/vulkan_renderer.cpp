@@ -18,6 +18,8 @@
 #include <chrono>
 #include <cstring>
 #include <glm/gtc/matrix_transform.hpp>
+#include <map>
+#include <memory>
 
 #include "renderer.h"
 #include "vulkan_device.h"
@@ -49,12 +51,21 @@ struct Slot {
   GpuBuffer buffer;
   VkDescriptorSet set = VK_NULL_HANDLE;
   uint32_t vertexCapacity = 0, triangleCapacity = 0;
-  VkDeviceSize normalOffset = 0, scalarOffset = 0, indexOffset = 0, crackOffset = 0;
+  VkDeviceSize normalOffset = 0, scalarOffset = 0, indexOffset = 0, crackOffset = 0, uvOffset = 0;
   // What the buffer holds; valid = false forces a full upload.
   bool valid = false;
   uint64_t topologyVersion = 0;
   uint32_t vertices = 0, triangles = 0;
-  bool hasScalar = false, hasCrack = false;
+  bool hasScalar = false, hasCrack = false, hasUv = false;
+};
+
+// The GPU copy of one Texture: an sRGB image with its mip levels and the descriptor set that
+// samples it. `source` keeps the texture alive so its address is never reused as a key.
+struct GpuTexture {
+  std::shared_ptr<const Texture> source;
+  GpuImage image;
+  VkDescriptorSet set = VK_NULL_HANDLE;
+  bool uploaded = false;  // set once a frame that copied it completed
 };
 
 // std140 layout of the Frame block of the shaders.
@@ -74,6 +85,7 @@ struct DrawConstants {
 };
 
 constexpr uint32_t kSetsPerPool = 64;
+constexpr uint32_t kMaxTextures = 256;  // texture descriptor sets, the 1x1 white one included
 
 class VulkanRenderer final : public Renderer {
  public:
@@ -92,6 +104,8 @@ class VulkanRenderer final : public Renderer {
   Result<void> createShadowPass();
   Result<void> createDescriptors();
   Result<void> growSlot(Slot& slot, uint32_t vertices, uint32_t triangles);
+  /// The texture's GPU copy, made (not yet filled) the first time it is seen.
+  Result<GpuTexture*> textureFor(const std::shared_ptr<const Texture>& texture);
   Result<FrameStats> renderFrame(std::span<const MeshFrame> meshes, const Camera& camera,
                                  const FrameOptions& options, Image& out);
 
@@ -105,7 +119,8 @@ class VulkanRenderer final : public Renderer {
   GpuImage m_colourMs, m_depth, m_resolved;  // m_colourMs is unused with 1 sample
   VkRenderPass m_renderPass = VK_NULL_HANDLE;
   VkFramebuffer m_framebuffer = VK_NULL_HANDLE;
-  VkDescriptorSetLayout m_frameLayout = VK_NULL_HANDLE, m_meshLayout = VK_NULL_HANDLE;
+  VkDescriptorSetLayout m_frameLayout = VK_NULL_HANDLE, m_meshLayout = VK_NULL_HANDLE,
+                        m_textureLayout = VK_NULL_HANDLE;
   VkPipelineLayout m_pipelineLayout = VK_NULL_HANDLE;
   VkPipeline m_pipeline = VK_NULL_HANDLE;
   GpuImage m_shadowMap;
@@ -120,6 +135,11 @@ class VulkanRenderer final : public Renderer {
 
   GpuBuffer m_uniforms, m_staging, m_readback;
   std::vector<Slot> m_slots;
+  VkDescriptorPool m_texturePool = VK_NULL_HANDLE;
+  VkSampler m_textureSampler = VK_NULL_HANDLE;
+  std::map<const Texture*, GpuTexture> m_textures;
+  // Bound for untextured meshes: the pipeline layout has the texture set either way.
+  std::shared_ptr<const Texture> m_white;
 
   bool m_broken = false;
   std::string m_brokenReason;
@@ -342,8 +362,8 @@ Result<void> VulkanRenderer::createDescriptors() {
   info.pBindings = frameBindings;
   GF_VK(vkCreateDescriptorSetLayout, (m_device, &info, nullptr, &m_frameLayout));
 
-  // 0: crack flags (fragment), 1: scalars (vertex).
-  VkDescriptorSetLayoutBinding mesh[2]{};
+  // 0: crack flags (fragment), 1: scalars (vertex), 2: texture coordinates (vertex).
+  VkDescriptorSetLayoutBinding mesh[3]{};
   mesh[0].binding = 0;
   mesh[0].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   mesh[0].descriptorCount = 1;
@@ -351,9 +371,44 @@ Result<void> VulkanRenderer::createDescriptors() {
   mesh[1] = mesh[0];
   mesh[1].binding = 1;
   mesh[1].stageFlags = VK_SHADER_STAGE_VERTEX_BIT;
-  info.bindingCount = 2;
+  mesh[2] = mesh[1];
+  mesh[2].binding = 2;
+  info.bindingCount = 3;
   info.pBindings = mesh;
   GF_VK(vkCreateDescriptorSetLayout, (m_device, &info, nullptr, &m_meshLayout));
+
+  // Set 2: the mesh's colour texture.
+  VkDescriptorSetLayoutBinding texture{};
+  texture.binding = 0;
+  texture.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  texture.descriptorCount = 1;
+  texture.stageFlags = VK_SHADER_STAGE_FRAGMENT_BIT;
+  info.bindingCount = 1;
+  info.pBindings = &texture;
+  GF_VK(vkCreateDescriptorSetLayout, (m_device, &info, nullptr, &m_textureLayout));
+  const VkDescriptorPoolSize textureSize{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, kMaxTextures};
+  auto texturePool =
+      vkInfo<VkDescriptorPoolCreateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO);
+  texturePool.maxSets = kMaxTextures;
+  texturePool.poolSizeCount = 1;
+  texturePool.pPoolSizes = &textureSize;
+  GF_VK(vkCreateDescriptorPool, (m_device, &texturePool, nullptr, &m_texturePool));
+  // Trilinear where the format filters linearly (lavapipe and GPUs do), repeating like GL's.
+  const bool linear = m_vk.formatFeatures(VK_FORMAT_R8G8B8A8_SRGB) &
+                      VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT;
+  auto sampler = vkInfo<VkSamplerCreateInfo>(VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO);
+  sampler.magFilter = sampler.minFilter = linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST;
+  sampler.mipmapMode = linear ? VK_SAMPLER_MIPMAP_MODE_LINEAR : VK_SAMPLER_MIPMAP_MODE_NEAREST;
+  sampler.addressModeU = sampler.addressModeV = sampler.addressModeW =
+      VK_SAMPLER_ADDRESS_MODE_REPEAT;
+  sampler.maxLod = VK_LOD_CLAMP_NONE;
+  GF_VK(vkCreateSampler, (m_device, &sampler, nullptr, &m_textureSampler));
+  Image white;
+  white.width = white.height = 1;
+  white.rgba = {255, 255, 255, 255};
+  Result<std::shared_ptr<const Texture>> w = makeTexture(std::move(white));
+  if (!w) return w.error();
+  m_white = w.value();
 
   const VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
                                          {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1}};
@@ -387,11 +442,11 @@ Result<void> VulkanRenderer::createDescriptors() {
 }
 
 Result<void> VulkanRenderer::createPipeline() {
-  const VkDescriptorSetLayout sets[2] = {m_frameLayout, m_meshLayout};
+  const VkDescriptorSetLayout sets[3] = {m_frameLayout, m_meshLayout, m_textureLayout};
   const VkPushConstantRange push{VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
                                  sizeof(DrawConstants)};
   auto layout = vkInfo<VkPipelineLayoutCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO);
-  layout.setLayoutCount = 2;
+  layout.setLayoutCount = 3;
   layout.pSetLayouts = sets;
   layout.pushConstantRangeCount = 1;
   layout.pPushConstantRanges = &push;
@@ -524,6 +579,10 @@ VulkanRenderer::~VulkanRenderer() {
   (void)vkDeviceWaitIdle(m_device);
   for (Slot& s : m_slots) m_vk.destroyBuffer(s.buffer);
   for (VkDescriptorPool p : m_meshPools) vkDestroyDescriptorPool(m_device, p, nullptr);
+  for (auto& [key, t] : m_textures) m_vk.destroyImage(t.image);
+  if (m_texturePool) vkDestroyDescriptorPool(m_device, m_texturePool, nullptr);
+  if (m_textureSampler) vkDestroySampler(m_device, m_textureSampler, nullptr);
+  if (m_textureLayout) vkDestroyDescriptorSetLayout(m_device, m_textureLayout, nullptr);
   if (m_framePool) vkDestroyDescriptorPool(m_device, m_framePool, nullptr);
   m_vk.destroyBuffer(m_staging);
   m_vk.destroyBuffer(m_readback);
@@ -563,7 +622,8 @@ Result<void> VulkanRenderer::growSlot(Slot& slot, uint32_t vertices, uint32_t tr
   slot.scalarOffset = alignUp(slot.normalOffset + VkDeviceSize(vCap) * 12, align);
   slot.indexOffset = alignUp(slot.scalarOffset + VkDeviceSize(vCap) * 4, align);
   slot.crackOffset = alignUp(slot.indexOffset + VkDeviceSize(tCap) * 12, align);
-  GF_TRY(m_vk.createBuffer(slot.crackOffset + VkDeviceSize(tCap) * 4,
+  slot.uvOffset = alignUp(slot.crackOffset + VkDeviceSize(tCap) * 4, align);
+  GF_TRY(m_vk.createBuffer(slot.uvOffset + VkDeviceSize(vCap) * 8,
                            VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_INDEX_BUFFER_BIT |
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                VK_BUFFER_USAGE_TRANSFER_DST_BIT,
@@ -572,7 +632,7 @@ Result<void> VulkanRenderer::growSlot(Slot& slot, uint32_t vertices, uint32_t tr
   if (!slot.set) {
     // Mesh sets come from pools of kSetsPerPool, added as slots are.
     if (m_meshSets == m_meshPools.size() * kSetsPerPool) {
-      const VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2 * kSetsPerPool};
+      const VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 3 * kSetsPerPool};
       auto pool = vkInfo<VkDescriptorPoolCreateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO);
       pool.maxSets = kSetsPerPool;
       pool.poolSizeCount = 1;
@@ -593,19 +653,53 @@ Result<void> VulkanRenderer::growSlot(Slot& slot, uint32_t vertices, uint32_t tr
   const VkDescriptorBufferInfo cracks{slot.buffer.buffer, slot.crackOffset, VkDeviceSize(tCap) * 4};
   const VkDescriptorBufferInfo scalars{slot.buffer.buffer, slot.scalarOffset,
                                        VkDeviceSize(vCap) * 4};
-  VkWriteDescriptorSet writes[2]{};
-  for (int i = 0; i < 2; ++i) {
+  const VkDescriptorBufferInfo uvs{slot.buffer.buffer, slot.uvOffset, VkDeviceSize(vCap) * 8};
+  const VkDescriptorBufferInfo* infos[3] = {&cracks, &scalars, &uvs};
+  VkWriteDescriptorSet writes[3]{};
+  for (int i = 0; i < 3; ++i) {
     writes[i].sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
     writes[i].dstSet = slot.set;
     writes[i].dstBinding = uint32_t(i);
     writes[i].descriptorCount = 1;
     writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    writes[i].pBufferInfo = i == 0 ? &cracks : &scalars;
+    writes[i].pBufferInfo = infos[i];
   }
-  vkUpdateDescriptorSets(m_device, 2, writes, 0, nullptr);
+  vkUpdateDescriptorSets(m_device, 3, writes, 0, nullptr);
   slot.vertexCapacity = vCap;
   slot.triangleCapacity = tCap;
   return {};
+}
+
+Result<GpuTexture*> VulkanRenderer::textureFor(const std::shared_ptr<const Texture>& texture) {
+  auto it = m_textures.find(texture.get());
+  if (it != m_textures.end()) return &it->second;
+  if (m_textures.size() >= kMaxTextures)
+    return fail("Vulkan: more than ", std::to_string(kMaxTextures - 1), " textures");
+  const Image& base = texture->levels.at(0);
+  GpuTexture t;
+  t.source = texture;
+  GF_TRY(m_vk.createImage(base.width, base.height, VK_FORMAT_R8G8B8A8_SRGB,
+                          VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_SAMPLED_BIT,
+                          VK_SAMPLE_COUNT_1_BIT, VK_IMAGE_ASPECT_COLOR_BIT, t.image,
+                          uint32_t(texture->levels.size())));
+  auto alloc = vkInfo<VkDescriptorSetAllocateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO);
+  alloc.descriptorPool = m_texturePool;
+  alloc.descriptorSetCount = 1;
+  alloc.pSetLayouts = &m_textureLayout;
+  if (const VkResult r = vkAllocateDescriptorSets(m_device, &alloc, &t.set); r != VK_SUCCESS) {
+    m_vk.destroyImage(t.image);
+    return detail::vkFail("vkAllocateDescriptorSets (texture)", r);
+  }
+  const VkDescriptorImageInfo image{m_textureSampler, t.image.view,
+                                    VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  auto write = vkInfo<VkWriteDescriptorSet>(VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET);
+  write.dstSet = t.set;
+  write.dstBinding = 0;
+  write.descriptorCount = 1;
+  write.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  write.pImageInfo = &image;
+  vkUpdateDescriptorSets(m_device, 1, &write, 0, nullptr);
+  return &m_textures.emplace(texture.get(), std::move(t)).first->second;
 }
 
 Result<FrameStats> VulkanRenderer::render(std::span<const MeshFrame> meshes, const Camera& camera,
@@ -631,7 +725,7 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
   // otherwise the dirty vertex range only.
   struct Plan {
     uint32_t vertices, triangles;
-    bool hasScalar, hasCrack, full;
+    bool hasScalar, hasCrack, hasUv, full;
     uint32_t begin, end;  // dirty vertex range of a partial upload
   };
   std::vector<Plan> plans(meshes.size());
@@ -660,16 +754,21 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
     if (m.dirtyBegin > m.dirtyEnd || m.dirtyEnd > p.vertices)
       return fail(name, "dirty range [", std::to_string(m.dirtyBegin), ", ",
                   std::to_string(m.dirtyEnd), ") is outside 0..", std::to_string(p.vertices));
+    if (m.texture && m.uvs.size() != 2 * size_t(p.vertices))
+      return fail(name, "uvs has ", std::to_string(m.uvs.size()), " values for ",
+                  std::to_string(p.vertices), " vertices (2 each, needed with a texture)");
     p.hasScalar = !m.scalar.empty();
     p.hasCrack = !m.crackMask.empty();
+    p.hasUv = m.texture != nullptr;
     const VkDeviceSize vertexBytes = p.hasScalar ? 28 : 24;
-    const VkDeviceSize fullBytes =
-        p.vertices * vertexBytes + VkDeviceSize(p.triangles) * (p.hasCrack ? 16 : 12);
+    const VkDeviceSize fullBytes = p.vertices * vertexBytes +
+                                   VkDeviceSize(p.triangles) * (p.hasCrack ? 16 : 12) +
+                                   (p.hasUv ? VkDeviceSize(p.vertices) * 8 : 0);
     stats.surfaceBytes += fullBytes;
     const Slot* s = i < m_slots.size() ? &m_slots[i] : nullptr;
     p.full = !s || !s->valid || s->topologyVersion != m.topologyVersion ||
              s->vertices != p.vertices || s->triangles != p.triangles ||
-             s->hasScalar != p.hasScalar || s->hasCrack != p.hasCrack;
+             s->hasScalar != p.hasScalar || s->hasCrack != p.hasCrack || s->hasUv != p.hasUv;
     if (p.full) {
       // Indices are checked once per topology: out-of-range reads are undefined on the device.
       for (uint32_t index : m.indices)
@@ -691,6 +790,20 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
       GF_TRY(
           growSlot(m_slots[i], std::max(plans[i].vertices, 1u), std::max(plans[i].triangles, 1u)));
 
+  // Each mesh's texture set (the white one without a texture); textures not yet on the device
+  // are copied, every mip level, at the start of this frame's commands.
+  std::vector<GpuTexture*> textures(meshes.size());
+  std::vector<GpuTexture*> fresh;
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    Result<GpuTexture*> t = textureFor(plans[i].hasUv ? meshes[i].texture : m_white);
+    if (!t) return t.error();
+    textures[i] = t.value();
+    if (!t.value()->uploaded && std::find(fresh.begin(), fresh.end(), t.value()) == fresh.end()) {
+      fresh.push_back(t.value());
+      for (const Image& l : t.value()->source->levels) stagingBytes += l.rgba.size();
+    }
+  }
+
   if (stagingBytes > m_staging.size) {
     const VkDeviceSize size = std::max(stagingBytes, m_staging.size + m_staging.size / 2);
     m_vk.destroyBuffer(m_staging);
@@ -706,6 +819,42 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
   // Fill the staging buffer and record one copy per stream.
   auto* staging = static_cast<uint8_t*>(m_staging.mapped);
   VkDeviceSize cursor = 0;
+  VkDeviceSize textureBytes = 0;
+  for (GpuTexture* t : fresh) {
+    const uint32_t levels = uint32_t(t->source->levels.size());
+    auto toLayout = [&](VkImageLayout from, VkImageLayout to, VkAccessFlags srcAccess,
+                        VkAccessFlags dstAccess, VkPipelineStageFlags srcStage,
+                        VkPipelineStageFlags dstStage) {
+      auto barrier = vkInfo<VkImageMemoryBarrier>(VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER);
+      barrier.oldLayout = from;
+      barrier.newLayout = to;
+      barrier.srcAccessMask = srcAccess;
+      barrier.dstAccessMask = dstAccess;
+      barrier.srcQueueFamilyIndex = barrier.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+      barrier.image = t->image.image;
+      barrier.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, levels, 0, 1};
+      vkCmdPipelineBarrier(cmd, srcStage, dstStage, 0, 0, nullptr, 0, nullptr, 1, &barrier);
+    };
+    toLayout(VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 0,
+             VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT,
+             VK_PIPELINE_STAGE_TRANSFER_BIT);
+    std::vector<VkBufferImageCopy> regions(levels);
+    for (uint32_t l = 0; l < levels; ++l) {
+      const Image& level = t->source->levels[l];
+      std::memcpy(staging + cursor, level.rgba.data(), level.rgba.size());
+      regions[l] = VkBufferImageCopy{};
+      regions[l].bufferOffset = cursor;
+      regions[l].imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, l, 0, 1};
+      regions[l].imageExtent = {uint32_t(level.width), uint32_t(level.height), 1};
+      cursor += level.rgba.size();
+      textureBytes += level.rgba.size();
+    }
+    vkCmdCopyBufferToImage(cmd, m_staging.buffer, t->image.image,
+                           VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, levels, regions.data());
+    toLayout(VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+             VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT,
+             VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT);
+  }
   std::vector<VkBufferCopy> copies;
   for (size_t i = 0; i < meshes.size(); ++i) {
     const MeshFrame& m = meshes[i];
@@ -726,6 +875,7 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
       stage(m.scalar.data() + b, VkDeviceSize(e - b) * 4, s.scalarOffset + VkDeviceSize(b) * 4);
     if (p.full) {
       stage(m.indices.data(), VkDeviceSize(p.triangles) * 12, s.indexOffset);
+      if (p.hasUv) stage(m.uvs.data(), VkDeviceSize(p.vertices) * 8, s.uvOffset);
       if (p.hasCrack && p.triangles > 0) {
         // One uint per triangle: the shaders index it by gl_PrimitiveID.
         auto* flags = reinterpret_cast<uint32_t*>(staging + cursor);
@@ -738,7 +888,7 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
       vkCmdCopyBuffer(cmd, m_staging.buffer, s.buffer.buffer, uint32_t(copies.size()),
                       copies.data());
   }
-  stats.uploadedBytes = cursor;
+  stats.uploadedBytes = cursor - textureBytes;  // vertices and indices, as surfaceBytes counts
 
   auto uploaded = vkInfo<VkMemoryBarrier>(VK_STRUCTURE_TYPE_MEMORY_BARRIER);
   uploaded.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
@@ -780,13 +930,15 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
       draw.crackColour = glm::vec4(m.crackColour, p.hasCrack ? 1.0f : 0.0f);
       draw.look = glm::vec4(m.crackLook.specular, m.crackLook.shininess, m.crackLook.grain,
                             m.crackLook.metallic);
-      draw.ground = glm::vec4(m.gridSpacing, 0.0f, 0.0f, 0.0f);
+      draw.ground = glm::vec4(m.gridSpacing, p.hasUv ? 1.0f : 0.0f, 0.0f, 0.0f);
       vkCmdPushConstants(cmd, m_pipelineLayout,
                          VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof draw,
                          &draw);
-      if (!shadowPass)
-        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, m_pipelineLayout, 1, 1,
-                                &s.set, 0, nullptr);
+      if (!shadowPass) {
+        const VkDescriptorSet sets[2] = {s.set, textures[i]->set};
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, m_pipelineLayout, 1, 2, sets,
+                                0, nullptr);
+      }
       const VkBuffer buffers[2] = {s.buffer.buffer, s.buffer.buffer};
       const VkDeviceSize offsets[2] = {0, s.normalOffset};
       vkCmdBindVertexBuffers(cmd, 0, shadowPass ? 1 : 2, buffers, offsets);
@@ -864,7 +1016,9 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
     s.triangles = plans[i].triangles;
     s.hasScalar = plans[i].hasScalar;
     s.hasCrack = plans[i].hasCrack;
+    s.hasUv = plans[i].hasUv;
   }
+  for (GpuTexture* t : fresh) t->uploaded = true;
   out.width = m_width;
   out.height = m_height;
   out.rgba.resize(size_t(m_width) * size_t(m_height) * 4);

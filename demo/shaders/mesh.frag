@@ -6,6 +6,7 @@
 layout(location = 0) in vec3 worldPosition;
 layout(location = 1) in vec3 worldNormal;
 layout(location = 2) in float scalar;
+layout(location = 3) in vec2 uv;
 
 layout(set = 0, binding = 0) uniform Frame {
   mat4 viewProj;
@@ -19,13 +20,15 @@ layout(set = 0, binding = 1) uniform sampler2DShadow shadowMap;
 // One uint per triangle, indexed by gl_PrimitiveID (triangles of the draw in index order).
 layout(set = 1, binding = 0) readonly buffer Cracks { uint flag[]; }
 cracks;
+// The mesh's colour texture (sRGB: sampled as linear light); a 1x1 white one when it has none.
+layout(set = 2, binding = 0) uniform sampler2D colourTexture;
 
 layout(push_constant) uniform Draw {
   mat4 model;
   vec4 colour;       // w: 1 when the mesh has a scalar stream
   vec4 crackColour;  // w: 1 when the mesh has crack flags
   vec4 look;         // crack faces: specular, shininess, grain, metallic
-  vec4 ground;       // x: grid cell [m], 0 = none
+  vec4 ground;       // x: grid cell [m], 0 = none; y: 1 = textured
 }
 draw;
 
@@ -81,6 +84,9 @@ void main() {
   // Two-sided: crack slits are seen from both sides.
   if (!gl_FrontFacing) n = -n;
   vec3 base = draw.colour.w != 0.0 ? colourMap(scalar) : draw.colour.rgb;
+  // Sampled here, in uniform control flow (implicit derivatives pick the mip level); v runs up
+  // from the image's bottom row, which is the texture's last.
+  if (draw.ground.y != 0.0) base *= texture(colourTexture, vec2(uv.x, 1.0 - uv.y)).rgb;
   float specular = 0.12, shininess = 48.0, metallic = 0.0;
   if (crack) {
     if (length(facet) > 0.0) n = normalize(dot(facet, v) < 0.0 ? -facet : facet);

@@ -42,6 +42,9 @@ struct SurfaceFile {
   // assimp only: the mesh of each vertex and triangle, an index into meshNames.
   std::vector<int32_t> vertexMesh, faceMesh;
   std::vector<std::string> meshNames;  // "mesh 'Cube'" or "mesh 'Wheel' in node 'Wheel.L'"
+  // assimp only: 2 per vertex (u right, v up from the image's bottom left, assimp's convention)
+  // from the first texture coordinate set, when every mesh read has one; else empty.
+  std::vector<float> uvs;
   // What was read and converted, for the summary: "FBX (Autodesk FBX Importer), 2 meshes";
   // "unit 0.01 m (FBX UnitScaleFactor 1), up +Y (FBX axis system)".
   std::string format, conversion;

@@ -113,6 +113,7 @@ struct Walk {
   const aiScene* scene;
   std::vector<unsigned> uses;  // how many nodes instance each mesh
   SurfaceFile* out;
+  bool allHaveUvs = true;  // every mesh so far had texture coordinates (set 0)
 };
 
 // Appends the triangles of the node's meshes, placed by t (the node's transform included).
@@ -125,7 +126,10 @@ void addMeshes(Walk& w, const aiNode* node, const Affine& t) {
     const int32_t id = static_cast<int32_t>(s.meshNames.size());
     s.meshNames.push_back(meshName(w.scene, mi, node, w.uses[mi] > 1));
     const int64_t base = static_cast<int64_t>(s.vertexCount());
+    const aiVector3D* uv = mesh->mTextureCoords[0];
+    w.allHaveUvs = w.allHaveUvs && uv != nullptr;
     for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      if (w.allHaveUvs) s.uvs.insert(s.uvs.end(), {uv[v].x, uv[v].y});
       const aiVector3D& p = mesh->mVertices[v];
       for (int r = 0; r < 3; ++r) {
         s.positions.push_back(t.m[4 * r] * p.x + t.m[4 * r + 1] * p.y + t.m[4 * r + 2] * p.z +
@@ -246,6 +250,8 @@ Result<SurfaceFile> readWithAssimp(const std::string& path, const SurfaceReadOpt
   Walk w{scene, std::vector<unsigned>(scene->mNumMeshes, 0), &s};
   countUses(scene->mRootNode, w.uses);
   collect(w, scene->mRootNode, Affine::linear(axes) * root);
+  // UVs from some meshes only would leave the others' texture lookups meaningless.
+  if (!w.allHaveUvs) s.uvs.clear();
 
   s.format +=
       ", " + std::to_string(s.meshNames.size()) + (s.meshNames.size() == 1 ? " mesh" : " meshes");

@@ -12,8 +12,10 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -23,6 +25,7 @@
 #include <glm/matrix.hpp>
 #include <limits>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <set>
@@ -38,6 +41,9 @@
 #include "meshing/triangle_soup.h"
 #include "scene/impurity_image.h"
 #include "scene/json_reader.h"
+#ifdef GF_SCENE_HAS_STB_IMAGE
+#include <stb/stb_image.h>
+#endif
 
 namespace gf::scene {
 namespace {
@@ -304,10 +310,37 @@ TetMesh readSurfaceMesh(ObjReader& o, const std::string& baseDir) {
 // "render_mesh": the artist's surface drawn instead of the tet boundary (BodyDef::renderMesh),
 // read like "mesh": {"surface": ...}, scaled about the origin by "scale" and moved by the
 // body's "translate" like the tets, so the two stay in register. Normals come from the triangles.
+// "texture": the image file, checked here (it exists, opens, and its header is one stb_image
+// decodes) so that a typo fails at load rather than in the renderer; the demo decodes it.
+std::string readTexture(ObjReader& o, const std::string& baseDir) {
+  const std::string at = o.at("texture");
+  const std::string resolved = resolvePath(readString(o.require("texture"), at), baseDir);
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(resolved, ec)) {
+    throw SceneError{at, "no such file \"" + resolved + "\""};
+  }
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(resolved.c_str(), "rb"), &std::fclose);
+  if (!f) throw SceneError{at, "cannot open \"" + resolved + "\": " + std::strerror(errno)};
+#ifdef GF_SCENE_HAS_STB_IMAGE
+  int w = 0, h = 0, channels = 0;
+  if (!stbi_info_from_file(f.get(), &w, &h, &channels)) {
+    throw SceneError{at, "\"" + resolved +
+                             "\" is not an image stb_image reads (PNG, JPEG, TGA, "
+                             "BMP, PSD, GIF, HDR, PIC, PNM): " +
+                             stbi_failure_reason()};
+  }
+#else
+  throw SceneError{at,
+                   "this build reads no images (stb_image from libstb-dev was not found at "
+                   "configure: tools/setup tools)"};
+#endif
+  return resolved;
+}
+
 RenderMesh readRenderMesh(const json& v, const std::string& path, const std::string& baseDir,
-                          const glm::dvec3& translate) {
+                          const glm::dvec3& translate, std::string& texture) {
   ObjReader o(v, path);
-  o.keys({"surface", "unit", "up", "scale"});
+  o.keys({"surface", "unit", "up", "scale", "texture"});
   glm::dvec3 k(1);
   if (const json* scale = o.find("scale")) k = readScale(*scale, o.at("scale"));
   const meshing::SurfaceFile surface = readSurfaceKeys(o, baseDir);
@@ -318,7 +351,18 @@ RenderMesh readRenderMesh(const json& v, const std::string& path, const std::str
       m.positions[3 * i + a] = m.positions[3 * i + a] * k[a] + translate[a];
   }
   m.indices.assign(surface.triangles.begin(), surface.triangles.end());
+  m.uvs = surface.uvs;
   if (Result<void> r = m.check(); !r.ok()) throw SceneError{o.at("surface"), r.error().message};
+  if (o.has("texture")) {
+    texture = readTexture(o, baseDir);
+    if (m.uvs.empty()) {
+      throw SceneError{o.at("texture"),
+                       "the render mesh \"" + surface.path +
+                           "\" has no texture coordinates (UVs) to map it with (UVs are read "
+                           "through assimp, e.g. from glTF, Collada or FBX, and only when every "
+                           "mesh in the file has them)"};
+    }
+  }
   return m;
 }
 
@@ -1121,7 +1165,10 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
     }
   }
   if (const json* rm = o.find("render_mesh")) {
-    body.def.renderMesh = readRenderMesh(*rm, o.at("render_mesh"), baseDir, translate);
+    body.def.renderMesh =
+        readRenderMesh(*rm, o.at("render_mesh"), baseDir, translate, body.texture);
+    // The texture's own colours unless "colour" tints them.
+    if (!body.texture.empty()) body.colour = glm::vec3(1.0f);
   }
   body.def.material = readMaterial(o.require("material"), o.at("material"));
   if (const json* s = o.find("solver")) body.def.solver = readSolver(*s, o.at("solver"));

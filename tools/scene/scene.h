@@ -37,6 +37,9 @@ struct SceneBody {
   glm::vec3 crackColour{0.95f, 0.55f, 0.3f};  ///< Linear RGB of crack faces.
   /// How crack faces are drawn: "plain", "glass", "crumb" or "steel" (roughness, grain).
   std::string interior = "plain";
+  /// Image file drawn on the render mesh by its UVs ("render_mesh": {"texture": ...}), resolved
+  /// against the scene's folder; empty for none. Checked at load; decoded by the demo.
+  std::string texture;
   /// The JSON entry of each def.grips, in order ("pins[0]", "grips[1]"): pins and grips
   /// share BodyDef::grips, and an entry whose nodes were all held already makes none.
   std::vector<std::string> gripNames;
