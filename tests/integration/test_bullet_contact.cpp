@@ -264,6 +264,82 @@ TEST(BulletContact, TurnedBoxThrownAtFreeBlockConservesMomenta) {
   }
 }
 
+// A soft block resting on a kinematic Bullet platform (a 10 x 1 x 10 m box the test drives,
+// friction 0.5 met with the block's 0.5) that moves at 1 m/s along x, or turns at 0.4 rad/s
+// about its vertical axis with the block 0.5 m out: the platform's friction drags the block at
+// mu g until it rides along, and the turning one carries it round by w t.
+TEST(BulletContact, KinematicPlatformCarriesABlockByFriction) {
+  const double g = 9.81, dt = 1.0 / 60, mu = 0.5;
+  for (const bool turning : {false, true}) {
+    World world(WorldDef{glm::vec3(0, -float(g), 0), Backend::Cpu, nullptr, 1, {}});
+    BodyDef def;
+    def.mesh = gen::box(0.1, 0.04, 0.1, 4, 2, 4);
+    const double offset = turning ? 0.45 : -0.05;  // the block's centre 0.5 m out, or at 0
+    for (size_t n = 0; n < def.mesh.nodeCount(); ++n) {
+      def.mesh.positions[3 * n] += offset;
+      def.mesh.positions[3 * n + 2] -= 0.05;
+    }
+    def.material = Material::stableNeoHookean(1e7, 0.3, 1000);
+    def.friction = mu;
+    const BodyId block = world.createBody(def).value();
+    test::BulletWorld dyn(btVector3(0, -float(g), 0), /*withFloor=*/false);
+    btBoxShape shape(btVector3(5, 0.5, 5));
+    btRigidBody platform(0, nullptr, &shape);
+    platform.setCollisionFlags(platform.getCollisionFlags() |
+                               btCollisionObject::CF_KINEMATIC_OBJECT);
+    platform.setActivationState(DISABLE_DEACTIVATION);
+    platform.setFriction(btScalar(mu));
+    const double omega = 0.4, speed = 1;
+    const auto pose = [&](double t) {
+      btTransform T;
+      T.setIdentity();
+      T.setOrigin(btVector3(turning ? 0 : btScalar(speed * t), -0.5f, 0));
+      if (turning) T.setRotation(btQuaternion(btVector3(0, 1, 0), btScalar(omega * t)));
+      return T;
+    };
+    platform.setWorldTransform(pose(0));
+    platform.setInterpolationWorldTransform(pose(0));
+    dyn.world.addRigidBody(&platform);
+    {
+      bullet::Bridge bridge(world, dyn.world);
+      ASSERT_EQ(bridge.addCollider(&platform).value(), 0);
+      const auto mean = [](std::span<const double> a) {
+        glm::dvec3 sum(0);
+        for (size_t n = 0; n < a.size() / 3; ++n)
+          sum += glm::dvec3(a[3 * n], a[3 * n + 1], a[3 * n + 2]);
+        return sum / double(a.size() / 3);
+      };
+      double v5 = 0, v10 = 0;
+      const int steps = 120;
+      for (int s = 1; s <= steps; ++s) {
+        platform.setWorldTransform(pose(s * dt));  // Bullet takes its velocity from the motion
+        ASSERT_EQ(bridge.step(dt).flags & kStepNanContained, 0u);
+        const double vx = mean(world.velocities(block)).x;
+        if (s == 5) v5 = vx;
+        if (s == 10) v10 = vx;
+      }
+      const glm::dvec3 v = mean(world.velocities(block)), x = mean(world.positions(block));
+      if (!turning) {
+        // mu g takes the block to 1 m/s in 0.2 s: steps 5-10 slip.
+        const double accel = (v10 - v5) / (5 * dt);
+        std::printf(
+            "kinematic platform at 1 m/s: block accelerates at %.4f m/s^2 (mu g %.4f, %+.2f %%), "
+            "after 2 s at %.5f m/s\n",
+            accel, mu * g, 100 * (accel / (mu * g) - 1), v.x);
+        EXPECT_NEAR(accel, mu * g, 0.02 * mu * g);
+        EXPECT_NEAR(v.x, speed, 1e-3);
+      } else {
+        const double turned = std::atan2(-x.z, x.x);
+        std::printf("kinematic turntable at 0.4 rad/s: block turned %.4f rad in 2 s (w t %.4f)\n",
+                    turned, omega * steps * dt);
+        EXPECT_NEAR(turned, omega * steps * dt, 0.05 * omega * steps * dt);
+        EXPECT_NEAR(std::hypot(x.x, x.z), 0.5, 0.01);
+      }
+    }
+    dyn.world.removeRigidBody(&platform);
+  }
+}
+
 // Gravity, a Bullet floor mirrored as a static plane: the block rests on it, a ball dropped on
 // the block comes to rest on it, and at rest the impulses balance the weights (statics). 3 s:
 // on the floor's friction (Bullet's default 0.5) the block's base does not spread, and the

@@ -130,13 +130,18 @@ void Bridge::mirrorColliders() {
     const btTransform& T = b->getCenterOfMassTransform();
     Collider c;
     c.point = glm::vec3(toGlm(T.getOrigin()));
-    // A static body's friction is met with sqrt(friction * BodyDef::friction). A moving one's
-    // stays frictionless: without its spin, the friction dragged its surface as if it did not
-    // turn (a ball resting on a block, spun by it, rolled off); with its spin
-    // (Collider::angularVelocity) the ball rolled back and forth in the block's dimple for
-    // seconds (0.02 m/s at 3 s), as nothing here gives a contact patch's rolling resistance.
-    if (b->isStaticObject()) c.friction = b->getFriction();
-    if (!b->isStaticObject()) c.velocity = glm::vec3(toGlm(b->getLinearVelocity()));
+    // A static or kinematic body's friction is met with sqrt(friction * BodyDef::friction),
+    // a kinematic one's surface moving with its velocity and spin (a platform or turntable the
+    // game drives carries what rests on it). A dynamic one stays frictionless: with its spin
+    // and friction, a ball resting on a soft block rolled back and forth in the block's dimple
+    // for seconds (0.02 m/s at 3 s), as nothing here gives a contact patch's rolling
+    // resistance.
+    // (A kinematic body made from a massless one keeps Bullet's static flag too.)
+    if (b->isStaticOrKinematicObject()) c.friction = b->getFriction();
+    if (b->isKinematicObject() || !b->isStaticObject()) {
+      c.velocity = glm::vec3(toGlm(b->getLinearVelocity()));
+      c.angularVelocity = glm::vec3(toGlm(b->getAngularVelocity()));
+    }
     switch (shape->getShapeType()) {
       case SPHERE_SHAPE_PROXYTYPE:
         c.kind = Collider::Kind::Sphere;

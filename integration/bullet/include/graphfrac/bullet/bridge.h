@@ -8,8 +8,8 @@
 //
 // Two-way contact: Bullet bodies registered with addCollider (spheres, boxes, static planes)
 // are mirrored as World colliders before every FEM step, at their pose and with their linear
-// velocity, and after the step each dynamic one takes the opposite of the impulse and of its
-// moment that its collider gave the FEM nodes (World::colliderImpulses): equal and opposite.
+// and angular velocity, and after the step each dynamic one takes the opposite of the impulse and
+// of its moment that its collider gave the FEM nodes (World::colliderImpulses): equal and opposite.
 // The coupling is staggered: during the FEM step the rigid body moves at its old velocity (a
 // kinematic obstacle), the reaction enters Bullet's step that follows. Momentum is exchanged
 // exactly, but a rigid body much lighter than the FEM nodes it touches in one step gets a
@@ -17,12 +17,13 @@
 // is stable when its mass exceeds roughly 100 dt^2 k times theirs, k the collider stiffness per
 // unit node mass; the default makes that 100 times). Contact acts on FEM nodes only: a body
 // that moves more than about half the FEM body's thickness or node spacing per step can pass
-// between nodes (no continuous detection). A static body's friction is the collider's
-// (Collider::friction, met with BodyDef::friction); a moving body's friction and its spin
-// during the step are not modelled. A handed-off fragment collides only with Bullet objects.
-// Concave fragments get the hull of their nodes (no convex decomposition yet). A piece of a body
-// in CutMode::Xfem gets the hull of its closed surface (its exact cut faces included); the last
-// piece left in that body's Is-XFEM system stays there (World::detachFragment refuses it).
+// between nodes (no continuous detection). A static or kinematic body's friction is the
+// collider's (Collider::friction, met with BodyDef::friction), a kinematic one's surface moving
+// with its velocity and spin (Collider::angularVelocity); a dynamic body is frictionless. A
+// handed-off fragment collides only with Bullet objects. Concave fragments get the hull of their
+// nodes (no convex decomposition yet). A piece of a body in CutMode::Xfem gets the hull of its
+// closed surface (its exact cut faces included); the last piece left in that body's Is-XFEM system
+// stays there (World::detachFragment refuses it).
 //
 // Bullet is used in single precision (integration/CMakeLists.txt says why).
 #pragma once
