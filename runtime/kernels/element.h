@@ -92,31 +92,33 @@ GF_HD void scatterElementDerivatives(const Mat<4, 3>& B, double volume, const Ma
 
 /// hessian = V D^T dPdF D for dPdF given as rank-1 terms w_m vec(Q_m) vec(Q_m)^T: each term
 /// maps to the 12-vector g_m = D^T vec(Q_m), g_m(3a + i) = (Q_m B^T)(i, a), so the Hessian is
-/// V sum_m w_m g_m g_m^T, some 9 x 78 multiply-adds against 2 x 729 for forming dPdF and
-/// mapping it by blocks. Only the upper triangle is summed and then mirrored, so the Hessian
-/// is exactly symmetric.
+/// V sum_m w_m g_m g_m^T. Node 0's shape gradient is minus the sum of the others', so g_m's
+/// node-0 entries are minus the sum of its node 1..3 entries and H = E^T K E with K the 9x9
+/// block of nodes 1..3 and E = [-I -I -I; I 0 0; 0 I 0; 0 0 I]: the modes are summed into
+/// K's upper triangle only (15 2x2 tiles of a 10x10 padding, 60 entries a mode against 84
+/// for the 12x12 upper triangle) and node 0's rows follow by sums. Every entry below the
+/// diagonal is a copy of its mirror, so the Hessian is exactly symmetric.
 GF_HD void hessianFromModes(const Mat3& DmInv, double volume, const HessianModes& modes, Mat12& h) {
-  double g[kMaxHessianModes][12];
-  double wg[kMaxHessianModes][12];
+  constexpr int kPad = 10;  // 9 rows of K padded to whole 2x2 tiles
+  double g[kMaxHessianModes][kPad];
+  double wg[kMaxHessianModes][kPad];
   for (int m = 0; m < modes.count; ++m) {
     const double* q = modes.q[m];
     const double vw = volume * modes.w[m];
-    for (int i = 0; i < 3; ++i) {
-      // Row b_a of B is row a - 1 of Dm^-1 for a = 1..3 and minus their sum for a = 0.
-      double sum = 0;
-      for (int a = 1; a < 4; ++a) {
-        const double v = q[3 * i] * DmInv(a - 1, 0) + q[3 * i + 1] * DmInv(a - 1, 1) +
-                         q[3 * i + 2] * DmInv(a - 1, 2);
+    // Row a of Dm^-1 is the shape gradient of node a + 1.
+    for (int a = 0; a < 3; ++a)
+      for (int i = 0; i < 3; ++i) {
+        const double v =
+            q[3 * i] * DmInv(a, 0) + q[3 * i + 1] * DmInv(a, 1) + q[3 * i + 2] * DmInv(a, 2);
         g[m][3 * a + i] = v;
-        sum += v;
+        wg[m][3 * a + i] = vw * v;
       }
-      g[m][i] = -sum;
-    }
-    for (int k = 0; k < 12; ++k) wg[m][k] = vw * g[m][k];
+    g[m][9] = 0;
+    wg[m][9] = 0;
   }
-  // 2x2 tiles of the upper triangle with their sums in registers.
-  for (int i = 0; i < 12; i += 2)
-    for (int j = i; j < 12; j += 2) {
+  double k[kPad][kPad];  // K, upper triangle (and the diagonal tiles' lower entry)
+  for (int i = 0; i < kPad; i += 2)
+    for (int j = i; j < kPad; j += 2) {
       double a00 = 0, a01 = 0, a10 = 0, a11 = 0;
       for (int m = 0; m < modes.count; ++m) {
         const double w0 = wg[m][i], w1 = wg[m][i + 1], g0 = g[m][j], g1 = g[m][j + 1];
@@ -126,15 +128,27 @@ GF_HD void hessianFromModes(const Mat3& DmInv, double volume, const HessianModes
         a11 += w1 * g1;
       }
       if (i == j) a10 = a01;  // the same entry of the diagonal tile, summed twice
-      h(i, j) = a00;
-      h(i, j + 1) = a01;
-      h(i + 1, j) = a10;
-      h(i + 1, j + 1) = a11;
-      h(j, i) = a00;
-      h(j + 1, i) = a01;
-      h(j, i + 1) = a10;
-      h(j + 1, i + 1) = a11;
+      k[i][j] = a00;
+      k[i][j + 1] = a01;
+      k[i + 1][j] = a10;
+      k[i + 1][j + 1] = a11;
     }
+  for (int r = 0; r < 9; ++r)
+    for (int c = 0; c < r; ++c) k[r][c] = k[c][r];
+  // Rows 0..2 of H, columns 3..11: minus the sums of K's rows i, 3 + i and 6 + i.
+  for (int i = 0; i < 3; ++i)
+    for (int c = 0; c < 9; ++c) h(i, 3 + c) = -(k[i][c] + k[3 + i][c] + k[6 + i][c]);
+  // The node-0 block: minus the sums of the three blocks of row i just formed, upper triangle.
+  for (int i = 0; i < 3; ++i)
+    for (int j = i; j < 3; ++j) {
+      const double v = -(h(i, 3 + j) + h(i, 6 + j) + h(i, 9 + j));
+      h(i, j) = v;
+      h(j, i) = v;
+    }
+  for (int r = 0; r < 9; ++r) {
+    for (int i = 0; i < 3; ++i) h(3 + r, i) = h(i, 3 + r);
+    for (int c = 0; c < 9; ++c) h(3 + r, 3 + c) = k[r][c];
+  }
 }
 
 }  // namespace detail

@@ -48,6 +48,58 @@ GF_HD void swapColumns(Mat3& m, int i, int j) {
   }
 }
 
+/// One Jacobi rotation of columns P < Q of B = F V (and of V) that makes them orthogonal;
+/// false when they already are. The column pair is a template argument so B and V stay in
+/// registers through a sweep.
+template <int P, int Q>
+GF_HD bool jacobiRotate(Mat3& B, Mat3& V) {
+  double alpha = 0, beta = 0, gamma = 0;  // (F^T F) entries pp, qq, pq in the basis V
+  for (int r = 0; r < 3; ++r) {
+    alpha += B(r, P) * B(r, P);
+    beta += B(r, Q) * B(r, Q);
+    gamma += B(r, P) * B(r, Q);
+  }
+  // Orthogonal to working precision relative to the columns' own lengths: |gamma| <= 1e-15
+  // sqrt(alpha beta), squared, as a square root here cost a fifth of svd3.
+  if (gamma * gamma <= 1e-30 * (alpha * beta) || fabs(gamma) < 1e-300) return false;
+  // The rotation's tangent is t = sign(zeta) / (|zeta| + sqrt(1 + zeta^2)), zeta = d / g2,
+  // and c = 1 / sqrt(1 + t^2), s = c t. Multiplied through by |g2|, t = num / den with den
+  // = |d| + hypot(d, g2), so c = den / w and s = num / w, w = hypot(den, num): two square
+  // roots and one division on the sweep's critical path instead of two and three. The
+  // squares are safe for column lengths far from over- and underflow; elsewhere the zeta form.
+  const double d = beta - alpha, g2 = 2.0 * gamma;
+  const double scale = alpha + beta;
+  double c, s;
+  if (fabs(g2) < 1e-8 * fabs(d)) {
+    // g2^2 is below round-off of d^2 and t^2 below that of 1: the same c and s to the last
+    // bit or so, without a square root (most rotations of a sweep near convergence).
+    c = 1.0;
+    s = gamma / d;
+  } else if (scale > 1e-100 && scale < 1e100) {
+    const double den = fabs(d) + sqrt(d * d + g2 * g2);
+    const double num = d == 0 ? fabs(g2) : (d > 0 ? g2 : -g2);  // sign(zeta) |g2|, zeta = +-0: +
+    const double iw = 1.0 / sqrt(den * den + num * num);
+    c = den * iw;
+    s = num * iw;
+  } else {
+    const double zeta = d / g2;
+    const double t = fabs(zeta) > 1e150
+                         ? 0.5 / zeta
+                         : (zeta >= 0 ? 1.0 : -1.0) / (fabs(zeta) + sqrt(1.0 + zeta * zeta));
+    c = 1.0 / sqrt(1.0 + t * t);
+    s = c * t;
+  }
+  for (int r = 0; r < 3; ++r) {
+    const double bp = B(r, P), bq = B(r, Q);
+    B(r, P) = c * bp - s * bq;
+    B(r, Q) = s * bp + c * bq;
+    const double vp = V(r, P), vq = V(r, Q);
+    V(r, P) = c * vp - s * vq;
+    V(r, Q) = s * vp + c * vq;
+  }
+  return true;
+}
+
 }  // namespace detail
 
 /// Rotation-variant SVD of F (see the file comment). Robust for rank-deficient, inverted and
@@ -58,38 +110,10 @@ GF_HD Svd3 svd3(const Mat3& F) {
 
   // One-sided Jacobi: rotate column pairs of B (and V) until all are mutually orthogonal.
   for (int sweep = 0; sweep < 30; ++sweep) {
-    bool rotated = false;
-    for (int p = 0; p < 2; ++p) {
-      for (int q = p + 1; q < 3; ++q) {
-        double alpha = 0, beta = 0, gamma = 0;  // (F^T F) entries pp, qq, pq in the basis V
-        for (int r = 0; r < 3; ++r) {
-          alpha += B(r, p) * B(r, p);
-          beta += B(r, q) * B(r, q);
-          gamma += B(r, p) * B(r, q);
-        }
-        // Orthogonal to working precision relative to the columns' own lengths.
-        if (fabs(gamma) <= 1e-15 * sqrt(alpha * beta) || fabs(gamma) < 1e-300) continue;
-        rotated = true;
-        const double zeta = (beta - alpha) / (2.0 * gamma);
-        double t;
-        if (fabs(zeta) > 1e150) {
-          t = 0.5 / zeta;
-        } else {
-          t = (zeta >= 0 ? 1.0 : -1.0) / (fabs(zeta) + sqrt(1.0 + zeta * zeta));
-        }
-        const double c = 1.0 / sqrt(1.0 + t * t);
-        const double s = c * t;
-        for (int r = 0; r < 3; ++r) {
-          const double bp = B(r, p), bq = B(r, q);
-          B(r, p) = c * bp - s * bq;
-          B(r, q) = s * bp + c * bq;
-          const double vp = V(r, p), vq = V(r, q);
-          V(r, p) = c * vp - s * vq;
-          V(r, q) = s * vp + c * vq;
-        }
-      }
-    }
-    if (!rotated) break;
+    const bool r01 = detail::jacobiRotate<0, 1>(B, V);
+    const bool r02 = detail::jacobiRotate<0, 2>(B, V);
+    const bool r12 = detail::jacobiRotate<1, 2>(B, V);
+    if (!(r01 || r02 || r12)) break;
   }
 
   // Sort columns by length (the singular magnitudes), descending.

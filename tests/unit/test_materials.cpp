@@ -200,6 +200,71 @@ TEST(Svd, ReconstructsWithProperRotations) {
       cases.size(), maxRecon, maxDet, maxOrtho, maxSigma);
 }
 
+/// The rotation formulas of svd3's Jacobi sweep have three branches: rotations too small to
+/// change c from 1 (near-diagonal and near-rotation F, the last sweeps), the product form for
+/// ordinary column lengths, and the zeta form where squares of the column lengths' squares
+/// would over- or underflow (|F| near 1e+-60). Each family, with repeated, zero and negative
+/// singular values and equal-length columns (d = 0, where the rotation's sign convention
+/// matters), must reconstruct F to round-off relative to |F| itself, with singular values
+/// equal to Eigen's to round-off of |F| and proper rotations.
+TEST(Svd, EveryRotationBranchIsAccurateAtEveryScale) {
+  std::mt19937 rng(19);
+  std::normal_distribution<double> n(0, 1);
+  std::vector<NamedF> base;
+  const Mat3 r1 = randomRotation(rng), r2 = randomRotation(rng);
+  base.push_back({"near-diagonal", diag(3, 2, 1)});
+  base.push_back({"near-rotation", r1 * diag(1 + 1e-9, 1, 1 - 1e-9) * transpose(r2)});
+  base.push_back({"near-reflection", r1 * diag(1 + 1e-9, 1, -1 + 1e-9) * transpose(r2)});
+  base.push_back({"repeated", r1 * diag(2, 2, 1) * transpose(r2)});
+  base.push_back({"repeated-inverted", r1 * diag(1, 1, -1) * transpose(r2)});
+  base.push_back({"rank-1", r1 * diag(3, 0, 0) * transpose(r2)});
+  base.push_back({"rank-2", r1 * diag(2, 0.5, 0) * transpose(r2)});
+  Mat3 equal;  // columns (1,1,0), (1,0,1), (0,1,-1): equal lengths, not orthogonal
+  equal(0, 0) = equal(1, 0) = equal(0, 1) = equal(2, 1) = equal(1, 2) = 1;
+  equal(2, 2) = -1;
+  base.push_back({"equal-columns", equal});
+  for (int k = 0; k < 20; ++k) {
+    Mat3 f;
+    for (double& v : f.m) v = n(rng);
+    base.push_back({"random", f});
+  }
+  std::vector<NamedF> cases;
+  for (const NamedF& b : base) {
+    Mat3 f = b.F;
+    if (b.name == std::string("near-diagonal")) {
+      for (double& v : f.m) v += 1e-10 * n(rng);
+    }
+    for (double scale : {1e-60, 1e-30, 1.0, 1e30, 1e60})
+      cases.push_back(
+          {b.name + std::string(" x") + std::to_string(int(std::log10(scale))), scale * f});
+  }
+  double worst = 0;
+  for (const NamedF& c : cases) {
+    const gf::Svd3 svd = gf::svd3(c.F);
+    const double scale = frob(c.F);
+    const Mat3 rec = svd.U * diag(svd.s.x, svd.s.y, svd.s.z) * transpose(svd.V);
+    const double recon = scale > 0 ? frob(rec - c.F) / scale : frob(rec);
+    const double ortho = std::max(frob(transpose(svd.U) * svd.U - Mat3::identity()),
+                                  frob(transpose(svd.V) * svd.V - Mat3::identity()));
+    EXPECT_LT(recon, 1e-13) << c.name;
+    EXPECT_LT(ortho, 1e-13) << c.name;
+    EXPECT_NEAR(gf::det(svd.U), 1, 1e-13) << c.name;
+    EXPECT_NEAR(gf::det(svd.V), 1, 1e-13) << c.name;
+    // Sorted, up to round-off between equal singular values.
+    EXPECT_GE(svd.s.x, svd.s.y - 1e-14 * scale) << c.name;
+    EXPECT_GE(svd.s.y, std::fabs(svd.s.z) - 1e-14 * scale) << c.name;
+    Eigen::Matrix3d e;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) e(i, j) = c.F(i, j);
+    const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(e).singularValues();
+    for (int a = 0; a < 3; ++a)
+      EXPECT_LE(std::fabs(sv(a) - std::fabs(svd.s[a])), 1e-13 * scale) << c.name << " s" << a;
+    worst = std::max({worst, recon, ortho});
+  }
+  std::printf("[svd3] %zu cases at scales 1e-60..1e60: worst relative error %.2e\n", cases.size(),
+              worst);
+}
+
 TEST(Svd, SymmetricEigenMatchesEigen) {
   std::mt19937 rng(11);
   std::normal_distribution<double> n(0, 1);
