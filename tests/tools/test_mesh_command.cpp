@@ -338,6 +338,69 @@ TEST(MeshFromSurface, HugeOrNonFiniteCoordinatesNameTheLine) {
       << o.err;
 }
 
+// Each triangle corner as (x, y, z, u, v): what a textured surface draws, whatever the
+// vertex numbering.
+std::vector<std::array<double, 5>> texturedCorners(const gf::meshing::SurfaceFile& f) {
+  std::vector<std::array<double, 5>> out;
+  for (int64_t v : f.triangles) {
+    const size_t i = static_cast<size_t>(v);
+    out.push_back({f.positions[3 * i], f.positions[3 * i + 1], f.positions[3 * i + 2],
+                   double(f.uvs[2 * i]), double(f.uvs[2 * i + 1])});
+  }
+  return out;
+}
+
+// OBJ texture coordinates, read on request (render meshes): a square of two triangles whose
+// diagonal is a UV seam becomes 6 vertices, each corner with the UV its face names (also by a
+// relative index); without the request, or when a face names none, the 4 positions and no UVs.
+TEST(MeshFromSurface, ObjTextureCoordinatesSplitVerticesAtSeams) {
+  const fs::path dir = scratch("objuv");
+  const std::string square =
+      "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+      "vt 0 0\nvt 0.5 0\nvt 0.5 1\nvt 0 1\nvt 0.5 0.5\nvt 1 0.5\n";
+  std::ofstream(dir / "seam.obj") << square << "f 1/1 2/2 3/3\nf 1/5/1 3/-1 4/-3\n";
+  std::ofstream(dir / "mixed.obj") << square << "f 1/1 2/2 3/3\nf 1 3 4\n";
+  gf::meshing::SurfaceReadOptions withUvs;
+  withUvs.uvs = true;
+  gf::Result<gf::meshing::SurfaceFile> r =
+      gf::meshing::readSurfaceFile((dir / "seam.obj").string(), withUvs);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r.value().vertexCount(), 6u);
+  const std::vector<std::array<double, 5>> corners = texturedCorners(r.value()),
+                                           expected = {{0, 0, 0, 0, 0},   {1, 0, 0, 0.5, 0},
+                                                       {1, 1, 0, 0.5, 1}, {0, 0, 0, 0.5, 0.5},
+                                                       {1, 1, 0, 1, 0.5}, {0, 1, 0, 0, 1}};
+  EXPECT_EQ(corners, expected);
+  EXPECT_EQ(r.value().vertexLine[3], 1);  // the split vertex keeps its position's line
+  for (const char* name : {"seam.obj", "mixed.obj"}) {
+    for (const bool uvs : {false, true}) {
+      if (uvs && std::string(name) == "seam.obj") continue;
+      gf::meshing::SurfaceReadOptions o;
+      o.uvs = uvs;
+      gf::Result<gf::meshing::SurfaceFile> plain =
+          gf::meshing::readSurfaceFile((dir / name).string(), o);
+      ASSERT_TRUE(plain.ok()) << plain.error().message;
+      EXPECT_EQ(plain.value().vertexCount(), 4u) << name;
+      EXPECT_TRUE(plain.value().uvs.empty()) << name;
+    }
+  }
+  // Errors name the line.
+  std::ofstream(dir / "short.obj") << square << "vt 0.5\nf 1/1 2/2 3/3\n";
+  std::ofstream(dir / "range.obj") << square << "f 1/1 2/2 3/7\n";
+  std::ofstream(dir / "word.obj") << square << "f 1/a 2/2 3/3\n";
+  const std::pair<const char*, const char*> bad[] = {
+      {"short.obj", "short.obj:11: texture coordinate needs u and v"},
+      {"range.obj", "range.obj:11: texture index in '3/7' is outside the 6 'vt' lines before it"},
+      {"word.obj", "word.obj:11: bad texture index in '1/a'"}};
+  for (const auto& [name, message] : bad) {
+    gf::Result<gf::meshing::SurfaceFile> e =
+        gf::meshing::readSurfaceFile((dir / name).string(), withUvs);
+    ASSERT_FALSE(e.ok()) << name;
+    EXPECT_NE(e.error().message.find(message), std::string::npos) << e.error().message;
+    EXPECT_TRUE(gf::meshing::readSurfaceFile((dir / name).string()).ok()) << name;
+  }
+}
+
 // ---- through assimp ----------------------------------------------------------------------
 
 struct Shape {
@@ -396,6 +459,33 @@ TEST(MeshFromSurfaceAssimp, OneModelInStlPlyAndObjReadsTheSame) {
   gf::meshing::SurfaceReadOptions viaAssimp;
   viaAssimp.assimp = true;
   expectSameShape(stl, shape(kModels / "OBJ" / "WusonOBJ.obj", viaAssimp), 1e-6, "OBJ (assimp)");
+}
+
+// The spider's OBJ (1368 faces, a UV per corner) read by the OBJ reader and through assimp:
+// the same textured corners, whatever order and numbering each gives them.
+TEST(MeshFromSurfaceAssimp, ObjUvsReadTheSameAsAssimp) {
+  REQUIRE_MODELS();
+  gf::meshing::SurfaceReadOptions own, viaAssimp;
+  own.uvs = true;
+  viaAssimp.assimp = true;
+  const fs::path spider = kModels / "OBJ" / "spider.obj";
+  gf::Result<gf::meshing::SurfaceFile> a = gf::meshing::readSurfaceFile(spider.string(), own),
+                                       b = gf::meshing::readSurfaceFile(spider.string(), viaAssimp);
+  ASSERT_TRUE(a.ok()) << a.error().message;
+  ASSERT_TRUE(b.ok()) << b.error().message;
+  ASSERT_FALSE(a.value().uvs.empty());
+  ASSERT_FALSE(b.value().uvs.empty());
+  std::vector<std::array<double, 5>> ca = texturedCorners(a.value()),
+                                     cb = texturedCorners(b.value());
+  EXPECT_EQ(ca.size(), 3u * 1368u);
+  ASSERT_EQ(ca.size(), cb.size());
+  std::sort(ca.begin(), ca.end());
+  std::sort(cb.begin(), cb.end());
+  // assimp keeps the file's numbers in floats: 1e-5 of the spider's 200-unit size apart.
+  size_t differ = 0;
+  for (size_t i = 0; i < ca.size(); ++i)
+    for (size_t k = 0; k < 5; ++k) differ += std::abs(ca[i][k] - cb[i][k]) > 1e-4;
+  EXPECT_EQ(differ, 0u);
 }
 
 // The 1 m cube as binary and text glTF and as Collada written in centimetres (<unit

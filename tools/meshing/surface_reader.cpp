@@ -177,14 +177,29 @@ bool parseIndex(const std::string& s, int64_t& v) {
   return ec == std::errc() && p == e && b != e;
 }
 
-// Reads v and f lines; polygons become fans; vt, vn, groups and materials are ignored.
-Result<SurfaceFile> readObj(const std::string& path) {
+// The texture index of a face corner "i/t" or "i/t/n": true with t (0: none given) when the
+// field is absent, empty or a number; false when it is something else.
+bool parseTextureIndex(const std::string& s, int64_t& t) {
+  t = 0;
+  const size_t slash = s.find('/');
+  if (slash == std::string::npos) return true;
+  const std::string field = s.substr(slash + 1, s.find('/', slash + 1) - slash - 1);
+  if (field.empty()) return true;
+  auto [p, ec] = std::from_chars(field.data(), field.data() + field.size(), t);
+  return ec == std::errc() && p == field.data() + field.size() && t != 0;
+}
+
+// Reads v and f lines, and with `uvs` vt lines and the faces' texture indices; polygons become
+// fans; vn, groups and materials are ignored.
+Result<SurfaceFile> readObj(const std::string& path, bool uvs) {
   std::ifstream in(path);
   if (!in) return fail(path, ": cannot open");
   SurfaceFile s;
   s.path = path;
   std::string line, tok;
   int64_t ln = 0;
+  std::vector<float> textureCoords;  // 2 per vt line
+  std::vector<int64_t> cornerUv;     // per triangle corner, 0-based; -1: none
   while (std::getline(in, line)) {
     ++ln;
     const std::string where = path + ":" + std::to_string(ln) + ": ";
@@ -200,11 +215,20 @@ Result<SurfaceFile> readObj(const std::string& path) {
       }
       s.positions.insert(s.positions.end(), x, x + 3);
       s.vertexLine.push_back(ln);
+    } else if (tok == "vt" && uvs) {
+      double t[2];
+      for (int k = 0; k < 2; ++k) {
+        if (!(ss >> tok)) return fail(where, "texture coordinate needs u and v");
+        const std::string why = numberProblem(tok, t[k]);
+        if (!why.empty()) return fail(where, "texture coordinate ", k ? "v" : "u", ": ", why);
+      }
+      textureCoords.insert(textureCoords.end(), {float(t[0]), float(t[1])});
     } else if (tok == "f") {
-      std::vector<int64_t> poly;
+      std::vector<int64_t> poly, polyUv;
       const int64_t nv = static_cast<int64_t>(s.vertexCount());
+      const int64_t nt = static_cast<int64_t>(textureCoords.size() / 2);
       while (ss >> tok) {
-        int64_t i = 0;
+        int64_t i = 0, t = 0;
         if (!parseIndex(tok, i) || i == 0) return fail(where, "bad face index '", tok, "'");
         if (i < 0) {
           i += nv;  // relative to the vertices so far
@@ -213,11 +237,20 @@ Result<SurfaceFile> readObj(const std::string& path) {
           i -= 1;
         }
         poly.push_back(i);
+        if (!uvs) continue;
+        if (!parseTextureIndex(tok, t)) return fail(where, "bad texture index in '", tok, "'");
+        if (t < 0) t += nt + 1;  // relative to the vt lines so far
+        if (t < 0 || t > nt) {
+          return fail(where, "texture index in '", tok, "' is outside the ", std::to_string(nt),
+                      " 'vt' lines before it");
+        }
+        polyUv.push_back(t - 1);
       }
       if (poly.size() < 3) return fail(where, "face needs at least 3 vertices");
       for (size_t k = 1; k + 1 < poly.size(); ++k) {
         s.triangles.insert(s.triangles.end(), {poly[0], poly[k], poly[k + 1]});
         s.faceTag.push_back(ln);
+        if (uvs) cornerUv.insert(cornerUv.end(), {polyUv[0], polyUv[k], polyUv[k + 1]});
       }
     }
   }
@@ -231,6 +264,28 @@ Result<SurfaceFile> readObj(const std::string& path) {
                   std::to_string(s.triangles[i] + 1), " exceeds the ", std::to_string(nv),
                   " vertices of the file");
     }
+  }
+  // UVs only when every corner has one (as the assimp reader: some faces without them would
+  // leave their texture lookups meaningless). A vertex used with several UVs (a seam) becomes
+  // one vertex per UV, as assimp splits them; its line stays the position's.
+  if (uvs && std::find(cornerUv.begin(), cornerUv.end(), -1) == cornerUv.end()) {
+    std::map<std::pair<int64_t, int64_t>, int64_t> split;
+    SurfaceFile out = s;
+    out.positions.clear();
+    out.vertexLine.clear();
+    for (size_t c = 0; c < s.triangles.size(); ++c) {
+      const int64_t v = s.triangles[c];
+      const auto [it, added] = split.try_emplace({v, cornerUv[c]}, int64_t(split.size()));
+      if (added) {
+        out.positions.insert(out.positions.end(), &s.positions[3 * size_t(v)],
+                             &s.positions[3 * size_t(v)] + 3);
+        out.vertexLine.push_back(s.vertexLine[size_t(v)]);
+        out.uvs.insert(out.uvs.end(), {textureCoords[2 * size_t(cornerUv[c])],
+                                       textureCoords[2 * size_t(cornerUv[c]) + 1]});
+      }
+      out.triangles[c] = it->second;
+    }
+    return out;
   }
   return s;
 }
@@ -473,7 +528,8 @@ Result<SurfaceFile> readSurfaceFile(const std::string& path, const SurfaceReadOp
   Result<SurfaceFormat> format = detectFormat(path, haveAssimp());
   if (!format) return format.error();
   if (format.value() == SurfaceFormat::kAssimp) return detail::readWithAssimp(path, options);
-  Result<SurfaceFile> r = format.value() == SurfaceFormat::kPly ? readPly(path) : readObj(path);
+  Result<SurfaceFile> r =
+      format.value() == SurfaceFormat::kPly ? readPly(path) : readObj(path, options.uvs);
   if (!r) return r;
   // OBJ and PLY carry no unit or axis: metres and Y up unless told.
   SurfaceFile& s = r.value();

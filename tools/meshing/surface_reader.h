@@ -42,8 +42,10 @@ struct SurfaceFile {
   // assimp only: the mesh of each vertex and triangle, an index into meshNames.
   std::vector<int32_t> vertexMesh, faceMesh;
   std::vector<std::string> meshNames;  // "mesh 'Cube'" or "mesh 'Wheel' in node 'Wheel.L'"
-  // assimp only: 2 per vertex (u right, v up from the image's bottom left, assimp's convention)
-  // from the first texture coordinate set, when every mesh read has one; else empty.
+  // 2 per vertex (u right, v up from the image's bottom left, assimp's and OBJ's convention):
+  // assimp, the first texture coordinate set when every mesh read has one; OBJ, read with
+  // SurfaceReadOptions::uvs, when every face corner has one (a vertex with several becomes
+  // one vertex per UV); else empty.
   std::vector<float> uvs;
   // What was read and converted, for the summary: "FBX (Autodesk FBX Importer), 2 meshes";
   // "unit 0.01 m (FBX UnitScaleFactor 1), up +Y (FBX axis system)".
@@ -68,6 +70,7 @@ struct SurfaceReadOptions {
   double scale = 0;     // metres per file unit; 0: the file's unit (FBX, Collada), else 1
   char up = 0;          // 'x', 'y' or 'z': the model's up axis; 0: the file's, else y
   bool assimp = false;  // read OBJ and PLY through assimp as well
+  bool uvs = false;     // OBJ: read texture coordinates, splitting vertices at UV seams
 };
 
 /// Reads a triangle surface; polygons become triangles, points and lines are skipped (and

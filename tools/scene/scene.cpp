@@ -264,7 +264,7 @@ glm::dvec3 readScale(const json& v, const std::string& path) {
 
 // The "surface", "unit" and "up" keys of "mesh" and "render_mesh": the file, read with the
 // units and up axis they give (or the file's own).
-meshing::SurfaceFile readSurfaceKeys(ObjReader& o, const std::string& baseDir) {
+meshing::SurfaceFile readSurfaceKeys(ObjReader& o, const std::string& baseDir, bool uvs = false) {
   const std::string file = readString(o.require("surface"), o.at("surface"));
   const std::string resolved = resolvePath(file, baseDir);
   std::error_code ec;
@@ -272,6 +272,7 @@ meshing::SurfaceFile readSurfaceKeys(ObjReader& o, const std::string& baseDir) {
     throw SceneError{o.at("surface"), "no such file \"" + resolved + "\""};
   }
   meshing::SurfaceReadOptions read;
+  read.uvs = uvs;
   if (const json* unit = o.find("unit")) read.scale = readPositive(*unit, o.at("unit"));
   if (const json* up = o.find("up")) read.up = readChoice(*up, o.at("up"), {"x", "y", "z"})[0];
   Result<meshing::SurfaceFile> loaded = meshing::readSurfaceFile(resolved, read);
@@ -343,7 +344,7 @@ RenderMesh readRenderMesh(const json& v, const std::string& path, const std::str
   o.keys({"surface", "unit", "up", "scale", "texture"});
   glm::dvec3 k(1);
   if (const json* scale = o.find("scale")) k = readScale(*scale, o.at("scale"));
-  const meshing::SurfaceFile surface = readSurfaceKeys(o, baseDir);
+  const meshing::SurfaceFile surface = readSurfaceKeys(o, baseDir, true);
   RenderMesh m;
   m.positions = surface.positions;
   for (size_t i = 0; i < surface.vertexCount(); ++i) {
@@ -359,8 +360,8 @@ RenderMesh readRenderMesh(const json& v, const std::string& path, const std::str
       throw SceneError{o.at("texture"),
                        "the render mesh \"" + surface.path +
                            "\" has no texture coordinates (UVs) to map it with (UVs are read "
-                           "through assimp, e.g. from glTF, Collada or FBX, and only when every "
-                           "mesh in the file has them)"};
+                           "from OBJ when every face corner has one, and through assimp, e.g. "
+                           "from glTF, Collada or FBX, when every mesh in the file has them)"};
     }
   }
   return m;
