@@ -626,34 +626,22 @@ Result<void> GlRenderer::upload(Slot& slot, const MeshFrame& mesh, FrameStats& s
         return fail("index ", std::to_string(i), " is out of range (", std::to_string(vertices),
                     " vertices)");
     glBindVertexArray(slot.vao);
-    glBindBuffer(GL_ARRAY_BUFFER, slot.positions);
-    glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(mesh.positions.size_bytes()), mesh.positions.data(),
-                 GL_DYNAMIC_DRAW);
-    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 0, nullptr);
-    glEnableVertexAttribArray(0);
-    glBindBuffer(GL_ARRAY_BUFFER, slot.normals);
-    glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(mesh.normals.size_bytes()), mesh.normals.data(),
-                 GL_DYNAMIC_DRAW);
-    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 0, nullptr);
-    glEnableVertexAttribArray(1);
-    if (hasScalar) {
-      glBindBuffer(GL_ARRAY_BUFFER, slot.scalar);
-      glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(mesh.scalar.size_bytes()), mesh.scalar.data(),
-                   GL_DYNAMIC_DRAW);
-      glVertexAttribPointer(2, 1, GL_FLOAT, GL_FALSE, 0, nullptr);
-      glEnableVertexAttribArray(2);
-    } else {
-      glDisableVertexAttribArray(2);  // reads the constant set in render()
-    }
-    if (hasUv) {
-      glBindBuffer(GL_ARRAY_BUFFER, slot.uv);
-      glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(mesh.uvs.size_bytes()), mesh.uvs.data(),
-                   GL_STATIC_DRAW);
-      glVertexAttribPointer(3, 2, GL_FLOAT, GL_FALSE, 0, nullptr);
-      glEnableVertexAttribArray(3);
-    } else {
-      glDisableVertexAttribArray(3);
-    }
+    // One float attribute stream; absent, the location reads the constant set in render().
+    const auto stream = [](GLuint location, GLuint buffer, std::span<const float> data,
+                           GLint components, GLenum usage) {
+      if (data.empty()) {
+        glDisableVertexAttribArray(location);
+        return;
+      }
+      glBindBuffer(GL_ARRAY_BUFFER, buffer);
+      glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(data.size_bytes()), data.data(), usage);
+      glVertexAttribPointer(location, components, GL_FLOAT, GL_FALSE, 0, nullptr);
+      glEnableVertexAttribArray(location);
+    };
+    stream(0, slot.positions, mesh.positions, 3, GL_DYNAMIC_DRAW);
+    stream(1, slot.normals, mesh.normals, 3, GL_DYNAMIC_DRAW);
+    stream(2, slot.scalar, hasScalar ? mesh.scalar : std::span<const float>{}, 1, GL_DYNAMIC_DRAW);
+    stream(3, slot.uv, hasUv ? mesh.uvs : std::span<const float>{}, 2, GL_STATIC_DRAW);
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, slot.indices);  // recorded in the VAO
     glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(mesh.indices.size_bytes()),
                  mesh.indices.data(), GL_DYNAMIC_DRAW);
