@@ -461,6 +461,47 @@ TEST(MeshFromSurfaceAssimp, OneModelInStlPlyAndObjReadsTheSame) {
   expectSameShape(stl, shape(kModels / "OBJ" / "WusonOBJ.obj", viaAssimp), 1e-6, "OBJ (assimp)");
 }
 
+// PLY texture coordinates (per vertex, under each of the names writers use), in ASCII and
+// binary: the corners draw the UVs written, and assimp reads the same file alike.
+TEST(MeshFromSurfaceAssimp, PlyUvsReadAsWrittenAndAsAssimpReadsThem) {
+  REQUIRE_ASSIMP();
+  const fs::path dir = scratch("plyuv");
+  const double uv[4][2] = {{0, 0}, {0.25, 0}, {0.25, 0.5}, {0, 0.75}};
+  for (const auto& [u, v] :
+       {std::pair{"u", "v"}, std::pair{"s", "t"}, std::pair{"texture_u", "texture_v"}}) {
+    const fs::path path = dir / (std::string(u) + ".ply");
+    {
+      std::ofstream out(path);
+      out << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+             "property float z\nproperty float "
+          << u << "\nproperty float " << v
+          << "\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+      const double xyz[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+      for (int k = 0; k < 4; ++k)
+        out << xyz[k][0] << " " << xyz[k][1] << " " << xyz[k][2] << " " << uv[k][0] << " "
+            << uv[k][1] << "\n";
+      out << "4 0 1 2 3\n";
+    }
+    gf::meshing::SurfaceReadOptions viaAssimp;
+    viaAssimp.assimp = true;
+    gf::Result<gf::meshing::SurfaceFile> a = gf::meshing::readSurfaceFile(path.string()),
+                                         b = gf::meshing::readSurfaceFile(path.string(), viaAssimp);
+    ASSERT_TRUE(a.ok()) << a.error().message;
+    ASSERT_EQ(a.value().uvs.size(), 8u) << u;
+    for (int k = 0; k < 4; ++k) {
+      EXPECT_EQ(a.value().uvs[2 * k], float(uv[k][0])) << u;
+      EXPECT_EQ(a.value().uvs[2 * k + 1], float(uv[k][1])) << u;
+    }
+    ASSERT_TRUE(b.ok()) << b.error().message;
+    ASSERT_FALSE(b.value().uvs.empty()) << u << " (assimp)";
+    std::vector<std::array<double, 5>> ca = texturedCorners(a.value()),
+                                       cb = texturedCorners(b.value());
+    std::sort(ca.begin(), ca.end());
+    std::sort(cb.begin(), cb.end());
+    EXPECT_EQ(ca, cb) << u;
+  }
+}
+
 // The spider's OBJ (1368 faces, a UV per corner) read by the OBJ reader and through assimp:
 // the same textured corners, whatever order and numbering each gives them.
 TEST(MeshFromSurfaceAssimp, ObjUvsReadTheSameAsAssimp) {

@@ -501,8 +501,9 @@ TEST(Scene, RenderMeshTextureIsCheckedAtLoad) {
   EXPECT_EQ(error(R"({"surface": "meshes/bunny.obj", "texture": "meshes/duckCM.png"})"),
             "inline: bodies[0].render_mesh.texture: the render mesh \"" + dir +
                 "/meshes/bunny.obj\" has no texture coordinates (UVs) to map it with (UVs are "
-                "read from OBJ when every face corner has one, and through assimp, e.g. from "
-                "glTF, Collada or FBX, when every mesh in the file has them)");
+                "read from OBJ when every face corner has one, from PLY's per-vertex u and v, "
+                "and through assimp, e.g. from glTF, Collada or FBX, when every mesh in the "
+                "file has them)");
 }
 
 // The shipped bunny with its own surface, thrown at the ball as in the scene until it breaks

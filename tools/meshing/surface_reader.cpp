@@ -447,6 +447,22 @@ Result<SurfaceFile> readPly(const std::string& path) {
       return fail(path, ": PLY vertex element has no '", axis, "' property");
     }
   }
+  // Texture coordinates by the names the common writers use (assimp reads the same).
+  std::string uName, vName;
+  for (const auto& [u, v] :
+       {std::pair{"u", "v"}, std::pair{"s", "t"}, std::pair{"texture_u", "texture_v"},
+        std::pair{"texture_s", "texture_t"}}) {
+    const auto& props = vertexElement->properties;
+    const auto has = [&](const char* name) {
+      return std::any_of(props.begin(), props.end(),
+                         [&](const PlyProperty& p) { return p.name == name && !p.countType.size; });
+    };
+    if (has(u) && has(v)) {
+      uName = u;
+      vName = v;
+      break;
+    }
+  }
   const auto faceElement = find("face");
   if (faceElement == elements.end() || faceElement->count == 0) {
     return fail(path, ": PLY file has no faces (a point cloud cannot be meshed)");
@@ -459,6 +475,7 @@ Result<SurfaceFile> readPly(const std::string& path) {
     for (int64_t i = 0; i < e.count; ++i) {
       auto where = [&] { return path + ": " + e.name + " " + std::to_string(i) + ": "; };
       double xyz[3] = {0, 0, 0};
+      float uv[2] = {0, 0};
       std::vector<int64_t> poly;
       for (const PlyProperty& p : e.properties) {
         double v = 0;
@@ -466,6 +483,11 @@ Result<SurfaceFile> readPly(const std::string& path) {
           if (!values.next(p.type, v)) return fail(where(), p.name, ": ", values.problem());
           if (isVertex && p.name.size() == 1 && p.name[0] >= 'x' && p.name[0] <= 'z') {
             xyz[p.name[0] - 'x'] = v;
+          }
+          if (isVertex && !uName.empty() && (p.name == uName || p.name == vName)) {
+            if (!std::isfinite(v))
+              return fail(where(), p.name, ": ", formatDouble(v), " is not finite");
+            uv[p.name == vName] = float(v);
           }
           continue;
         }
@@ -484,6 +506,7 @@ Result<SurfaceFile> readPly(const std::string& path) {
       }
       if (isVertex) {
         s.positions.insert(s.positions.end(), xyz, xyz + 3);
+        if (!uName.empty()) s.uvs.insert(s.uvs.end(), uv, uv + 2);
       } else if (isFace) {
         if (poly.size() < 3) return fail(where(), "face needs at least 3 vertices");
         for (size_t k = 1; k + 1 < poly.size(); ++k) {

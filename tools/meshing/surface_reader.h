@@ -45,7 +45,8 @@ struct SurfaceFile {
   // 2 per vertex (u right, v up from the image's bottom left, assimp's and OBJ's convention):
   // assimp, the first texture coordinate set when every mesh read has one; OBJ, read with
   // SurfaceReadOptions::uvs, when every face corner has one (a vertex with several becomes
-  // one vertex per UV); else empty.
+  // one vertex per UV); PLY, the vertices' u and v (or s and t, texture_u and texture_v,
+  // texture_s and texture_t) properties; else empty.
   std::vector<float> uvs;
   // What was read and converted, for the summary: "FBX (Autodesk FBX Importer), 2 meshes";
   // "unit 0.01 m (FBX UnitScaleFactor 1), up +Y (FBX axis system)".

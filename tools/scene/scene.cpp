@@ -360,8 +360,9 @@ RenderMesh readRenderMesh(const json& v, const std::string& path, const std::str
       throw SceneError{o.at("texture"),
                        "the render mesh \"" + surface.path +
                            "\" has no texture coordinates (UVs) to map it with (UVs are read "
-                           "from OBJ when every face corner has one, and through assimp, e.g. "
-                           "from glTF, Collada or FBX, when every mesh in the file has them)"};
+                           "from OBJ when every face corner has one, from PLY's per-vertex u "
+                           "and v, and through assimp, e.g. from glTF, Collada or FBX, when "
+                           "every mesh in the file has them)"};
     }
   }
   return m;
