@@ -446,6 +446,49 @@ INSTANTIATE_TEST_SUITE_P(Swept, BodyContactStack, ::testing::ValuesIn(sweptStack
 INSTANTIATE_TEST_SUITE_P(DISABLED_SweptFailing, BodyContactStack,
                          ::testing::ValuesIn(sweptFailingStackCases()), stackName);
 
+// Without friction, a block set sliding over a slab that rests on a frictionless floor keeps its
+// velocity and the slab stays still: only vertical half-spaces act. Cells of 2.5 cm over 10 cm;
+// speeds 0.2 to 4 m/s along x and diagonally. FAILS today (docs/validation.md, "Body-body and
+// self contact"): slab top nodes that the block's leading face passes over are pushed out
+// through that face (their surface meets it at right angles and the facing test's sign is
+// round-off's), and a 2 m/s block keeps a third of its speed after one step; with friction the
+// two bodies are thrown at metres a second. A facing margin fixed this case but cost the
+// head-on collision its parting order, so it is not in.
+TEST(BodyContact, DISABLED_FrictionlessBlockSlidesOverASlabAtConstantVelocity) {
+  for (const glm::dvec3 v :
+       {glm::dvec3(0.2, 0, 0), glm::dvec3(2, 0, 0), glm::dvec3(-4, 0, 0), glm::dvec3(1, 0, 1)}) {
+    WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
+    wd.colliders.push_back(Collider{});  // the floor, frictionless
+    World world(wd);
+    BodyDef slab, block;
+    slab.mesh = movedBox(2.4, 0.1, 1.2, 24, 2, 12, {-1.2, 0, -0.6});
+    block.mesh = movedBox(0.1, 0.04, 0.1, 4, 2, 4, {-0.05, 0.1, -0.05});
+    for (BodyDef* d : {&slab, &block}) {
+      d->material = Material::stableNeoHookean(1e7, 0.3, 1000);
+      d->friction = 0;
+      d->contact = true;
+      d->solver.linearSolver = LinearSolverKind::Direct;
+    }
+    const BodyId s = world.createBody(slab).value(), b = world.createBody(block).value();
+    for (int k = 0; k < 30; ++k) ASSERT_TRUE(world.step(1.0 / 60).ok());
+    ASSERT_TRUE(world.setVelocity(b, v).ok());
+    const double m = world.stats(b).mass;
+    double worstSpeed = 0, worstSlab = 0;
+    for (int k = 0; k < 24; ++k) {
+      ASSERT_TRUE(world.step(1.0 / 60).ok());
+      const glm::dvec3 vb = world.stats(b).linearMomentum / m, ps = world.stats(s).linearMomentum;
+      worstSpeed = std::max(worstSpeed, glm::length(glm::dvec3(vb.x, 0, vb.z) - v));
+      worstSlab = std::max(worstSlab, glm::length(glm::dvec3(ps.x, 0, ps.z)));
+    }
+    std::printf(
+        "block at (%.1f, 0, %.1f) m/s over a slab: its velocity off by at most %.2e m/s, the "
+        "slab's horizontal momentum at most %.2e of the block's\n",
+        v.x, v.z, worstSpeed, worstSlab / (m * glm::length(v)));
+    EXPECT_LT(worstSpeed, 0.01 * glm::length(v));
+    EXPECT_LT(worstSlab, 0.01 * m * glm::length(v));
+  }
+}
+
 // Two free bodies of different sizes and meshes meet head-on without gravity: the total
 // linear momentum stays what it was to 1e-6 of its scale, the mechanical energy never rises,
 // the bodies part again in the right order, and momentum changed hands.
