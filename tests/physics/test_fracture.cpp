@@ -309,13 +309,19 @@ int32_t shatterBar(int regions) {
   EXPECT_TRUE(id.ok());
   for (int s = 0; s < 40; ++s) (void)world.step(1.0 / 60);
   EXPECT_TRUE(test::stateFinite(world, id.value()));
-  return world.fractureStats(id.value()).fragments;
+  const FractureStats st = world.fractureStats(id.value());
+  std::printf("brittle bar, %d regions: %d fragments, %d of them chips\n", regions, st.fragments,
+              st.chips);
+  EXPECT_GE(st.fragments, 2);
+  return st.fragments - st.chips;
 }
 
+// Pieces (fragments with a whole tet): the loose nodes the planes used to leave counted as
+// fragments too, and the criterion's breaks at the grips still leave some.
 TEST(Fracture, MoreBrittleRegionsMakeMoreFragments) {
   const int32_t f1 = shatterBar(1), f3 = shatterBar(3), f6 = shatterBar(6);
-  std::printf("brittle bar: fragments with 1 / 3 / 6 regions: %d / %d / %d\n", f1, f3, f6);
-  EXPECT_GE(f1, 2);
+  std::printf("brittle bar: pieces with 1 / 3 / 6 regions: %d / %d / %d\n", f1, f3, f6);
+  EXPECT_GE(f1, 1);
   EXPECT_GT(f3, f1);
   EXPECT_GT(f6, f3);
 }

@@ -170,7 +170,8 @@ struct ReplayMesh {
 // others; releases without keepSlices are a function of the broken flags alone, so the
 // criterion's and the planes' batches replay as one.
 void stepAndReplay(World& world, BodyId id, const TetMesh& mesh, int steps, double dt,
-                   const char* what, const std::vector<Blade>& blades = {}) {
+                   const char* what, const std::vector<Blade>& blades = {},
+                   bool mustRelease = true) {
   ReplayMesh replay(world, id, mesh);
   int severed = 0;
   Replay last;
@@ -200,7 +201,9 @@ void stepAndReplay(World& world, BodyId id, const TetMesh& mesh, int steps, doub
       what, world.fractureStats(id).brokenEdges, last.released, severed,
       world.fractureStats(id).fragments, last.chips, last.looseNodes);
   // The case meets the rule: it releases edges, or keeps a slice (a chip of several nodes).
-  EXPECT_GT(last.released + last.chips - last.looseNodes, 0) << what;
+  if (mustRelease) {
+    EXPECT_GT(last.released + last.chips - last.looseNodes, 0) << what;
+  }
   EXPECT_EQ(severed, last.released) << what;
 }
 
@@ -294,7 +297,11 @@ TEST(SeveredEdges, BrittlePlanesReleaseSeveredEdges) {
     World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
     const BodyId id = world.createBody(def).value();
     const std::string what = "brittle bar, " + std::to_string(regions) + " regions";
-    stepAndReplay(world, id, def.mesh, 25, 1.0 / 60, what.c_str());
+    // Several planes release little or nothing now: the nodes they left with no whole tet go
+    // to a piece (keepNodesInPieces), and the edges that freed them are Severed events of the
+    // planes' batch, which the replay's rule must release too. One plane and the criterion's
+    // breaks after it still do.
+    stepAndReplay(world, id, def.mesh, 25, 1.0 / 60, what.c_str(), {}, regions == 1);
   }
 }
 

@@ -16,8 +16,9 @@
 // thesis's rule) even from a region stressed below the strength; an edge whose strength (per
 // edge, as World::setEdgeStrengths sets it) exceeds that holds, and the fill does not go on
 // from a tet in which an edge held, so the crack front stops there (a strong inclusion or a
-// reinforced seam arrests it). Planes do not stop at earlier cracks. Serial apart from the
-// principal stresses; events sorted by edge id.
+// reinforced seam arrests it). Planes do not stop at earlier cracks. A node the planes leave
+// with no whole tet goes to a piece (brittle.cpp, keepNodesInPieces), not out as a loose node.
+// Serial apart from the principal stresses; events sorted by edge id.
 #pragma once
 
 #include <cstdint>
@@ -36,6 +37,10 @@ struct BrittleOptions {
   /// Radius of a seed region in mean edge lengths (at least R_d is used); seeds are more than
   /// twice this apart.
   double seedRadius = 2;
+  /// Give a node that the planes left with no whole tet to a piece (keeping some of the plane
+  /// edges at it) instead of leaving it a loose node (brittle.cpp, keepNodesInPieces). Off
+  /// only to measure what it changes.
+  bool keepNodesWhole = true;
 };
 
 /// One crack plane started by startBrittleCracks.
@@ -48,13 +53,19 @@ struct BrittleSeed {
   int32_t tetsCut = 0;       ///< Tets the plane crossed.
   int32_t edgesBroken = 0;   ///< Edges this plane broke that were not broken before.
   int32_t tetsArrested = 0;  ///< Cut tets where an edge stronger than `carried` held.
+  int32_t edgesKept = 0;     ///< Edges it crossed, left unbroken so a node keeps a whole tet.
+  /// Severed edges broken with its planes' batch (keepNodesInPieces: only split tets, and they
+  /// could join two pieces); their events follow all the planes' breaks.
+  int32_t edgesReleased = 0;
 };
 
 /// Starts up to model.settings.regions crack planes from the tets of highest maximum
 /// principal stress of `tetStress` (6 per tet, Voigt, material frame; pass the criterion's
 /// averaged stress when R_d > 0); `strength` holds the current per-edge strengths. Only tensile
 /// tets (principal > 0) seed. Sets broken flags, appends events sorted by edge id (position from
-/// `positions` when given, else rest), and returns the seeds in the order chosen. Fails when the
+/// `positions` when given, else rest) and after them, also sorted, the severed edges released
+/// with the planes (BrittleSeed::edgesReleased in all), and returns the seeds in the order
+/// chosen. Fails when the
 /// model has no face adjacency (build it with settings.brittle or
 /// FractureModel::buildFaceAdjacency) or the sizes disagree.
 Result<std::vector<BrittleSeed>> startBrittleCracks(

@@ -354,16 +354,21 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     m_data.brittleFired = true;
     const RestMeshView rest{fem.restPositions.data(), fem.tets.data(), fem.nodeCount, fem.tetCount};
     const double* seedStress = m_stress.data();
+    std::vector<double> averaged;  // once per body: no need to keep it
     if (m_model.nonLocal()) {
-      std::vector<double> averaged(m_stress.size());  // once per body: no need to keep it
+      averaged.resize(m_stress.size());
       averageStress(m_model, m_stress.data(), averaged.data(), jobs);
-      (void)startBrittleCracks(m_model, m_graph, rest, m_data.strength.data(), averaged.data(),
-                               m_data.broken, m_data.breaks, jobs, x);
-    } else {
-      (void)startBrittleCracks(m_model, m_graph, rest, m_data.strength.data(), seedStress,
-                               m_data.broken, m_data.breaks, jobs, x);
+      seedStress = averaged.data();
     }
+    const auto seeds = startBrittleCracks(m_model, m_graph, rest, m_data.strength.data(),
+                                          seedStress, m_data.broken, m_data.breaks, jobs, x);
     m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::BrittlePlane));
+    // The severed edges the planes' batch released itself (a node it gave to a piece) come last.
+    size_t released = 0;
+    if (seeds.ok())
+      for (const BrittleSeed& s : seeds.value()) released += size_t(s.edgesReleased);
+    std::fill(m_data.breakCause.end() - std::ptrdiff_t(released), m_data.breakCause.end(),
+              cause(FractureEvent::Cause::Severed));
     // The planes split tets of their own; the criterion's releases above saw none of them.
     if (fem.fracture.releaseEveryBatch) releaseSevered(brittleFirst, x, false);
   }
