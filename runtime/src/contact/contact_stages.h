@@ -29,6 +29,11 @@ constexpr double kContactLateral = 0.1;
 // went in through another face (or is on the far side of the other body): this face's plane
 // would push it out sideways, so the pair is not kept.
 constexpr double kContactBehind = 2.0;
+// A vertex's pair with a face whose normal meets its surface's within this cosine of a right
+// angle is dropped when the vertex also meets a face of the same group more head on than
+// kContactHeadOn (the cosine between its surface's normal and the face's, opposed).
+constexpr double kContactSide = 0.05;
+constexpr double kContactHeadOn = 0.7;
 // A face spanning more grid cells than this (a face moving many cells in one step) stays out
 // of the hash and is tested by every vertex: it cannot be missed, only tested more often.
 constexpr int64_t kContactMaxCellsPerFace = 4096;
@@ -521,6 +526,23 @@ struct ContactVertexPairStage {
         ++count;
       };
       scene.grid.forFaces(vbox, visit);
+      // A vertex that meets another group's face head on does not also meet that group's
+      // faces at right angles: a slab's top node under a sliding block's bottom face was
+      // pushed out through the block's leading face too (the facing test's sign there is
+      // round-off's), which kicked the block back at every node it came over.
+      if (out && count > 1) {
+        ContactHalfSpace* h = out + start[i];
+        const double len = norm(vn);
+        int32_t kept = 0;
+        for (int32_t a = 0; a < count; ++a) {
+          bool headOn = false;
+          if (dot(vn, h[a].normal) > -kContactSide * len)
+            for (int32_t c = 0; c < count && !headOn; ++c)
+              headOn = h[c].partner == h[a].partner && dot(vn, h[c].normal) < -kContactHeadOn * len;
+          if (!headOn) h[kept++] = h[a];
+        }
+        count = kept;
+      }
     }
     if (out) {
       sortByFace(out + start[i], count);
