@@ -45,6 +45,16 @@ Body makeBody(TetMesh mesh, int regions, bool brittle = true) {
   return b;
 }
 
+// sig n n^T in Voigt order (xx, yy, zz, xy, xz, yz), n a unit vector.
+void writeUniaxial(double sig, Vec3 n, double* v) {
+  v[0] = sig * n.x * n.x;
+  v[1] = sig * n.y * n.y;
+  v[2] = sig * n.z * n.z;
+  v[3] = sig * n.x * n.y;
+  v[4] = sig * n.x * n.z;
+  v[5] = sig * n.y * n.z;
+}
+
 // Per-tet stress sigma(x_c) * n n^T at the tet's rest centroid.
 template <class Profile>
 std::vector<double> uniaxial(const Body& b, Vec3 n, Profile profile) {
@@ -52,13 +62,7 @@ std::vector<double> uniaxial(const Body& b, Vec3 n, Profile profile) {
   std::vector<double> s(6 * b.mesh.tetCount());
   for (size_t t = 0; t < b.mesh.tetCount(); ++t) {
     const double sig = profile(b.model.centroids[3 * t]);
-    double* v = &s[6 * t];
-    v[0] = sig * n.x * n.x;
-    v[1] = sig * n.y * n.y;
-    v[2] = sig * n.z * n.z;
-    v[3] = sig * n.x * n.y;
-    v[4] = sig * n.x * n.z;
-    v[5] = sig * n.y * n.z;
+    writeUniaxial(sig, n, &s[6 * t]);
   }
   return s;
 }
@@ -317,13 +321,7 @@ std::vector<double> regionStress(const Body& b, const std::vector<Region>& regio
     const Vec3 n = (1.0 / norm(regions[k].normal)) * regions[k].normal;
     const double r = norm(c - regions[k].peak);
     const double sig = 1e6 * (2 - 0.01 * double(k)) * (1 + std::exp(-r * r / 0.09));
-    double* v = &s[6 * t];
-    v[0] = sig * n.x * n.x;
-    v[1] = sig * n.y * n.y;
-    v[2] = sig * n.z * n.z;
-    v[3] = sig * n.x * n.y;
-    v[4] = sig * n.x * n.z;
-    v[5] = sig * n.y * n.z;
+    writeUniaxial(sig, n, &s[6 * t]);
   }
   return s;
 }
