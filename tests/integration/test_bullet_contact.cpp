@@ -1,8 +1,9 @@
 // Two-way contact between Bullet rigid bodies and FEM bodies: a moving collider's
 // reported impulse is the body's momentum change, a Bullet ball or turned box thrown at a free
 // soft block conserves the total momentum, the ball takes exactly minus the collider's impulse,
-// and a ball dropped on a block resting on a Bullet floor comes to rest with the impulses
-// balancing the weights.
+// a ball dropped on a block resting on a Bullet floor comes to rest with the impulses
+// balancing the weights, and with Bridge::setDynamicFriction a dynamic crate carries a block
+// and Bullet's rolling and spinning friction slow a resting ball's spin.
 #include <btBulletDynamicsCommon.h>
 #include <graphfrac/bullet/bridge.h>
 #include <gtest/gtest.h>
@@ -337,6 +338,198 @@ TEST(BulletContact, KinematicPlatformCarriesABlockByFriction) {
       }
     }
     dyn.world.removeRigidBody(&platform);
+  }
+}
+
+// A dynamic Bullet box (20 x 10 x 20 cm, 5 kg, friction mu) resting on a stiff deformable slab
+// (friction mu: they meet mu) that lies on the world's floor (friction 1), given v0 along x,
+// with Bridge::setDynamicFriction: it should stop after v0^2 / (2 mu g), the box losing the
+// tangential momentum the slab gains, the floor's reported impulse taking the rest. DISABLED,
+// fails: the staggered penalty contact holds the box 6.5 mm deep in the slab (its nodes'
+// penalty), it ploughs the nodes its leading face meets and rocks, and it stops after -56 % to
+// +1030 % of that distance (the momentum balance holds to 7e-7 N s while it stays on the slab).
+// Frictionless (without setDynamicFriction) it stops too, after -58, -54, +250 and -47 %.
+TEST(BulletContact, DISABLED_DynamicBoxSlidingOnASlabStopsAfterItsFrictionDistance) {
+  const double g = 9.81, dt = 1.0 / 60, boxMass = 5;
+  for (const double mu : {0.3, 0.6}) {
+    for (const double v0 : {1.0, 2.0}) {
+      Collider floor;  // y = 0
+      floor.friction = 1;
+      World world(WorldDef{glm::vec3(0, -float(g), 0), Backend::Cpu, nullptr, 1, {floor}});
+      BodyDef def;
+      def.mesh = gen::box(1.2, 0.04, 0.3, 24, 2, 6);
+      def.material = Material::stableNeoHookean(1e7, 0.3, 100);
+      def.friction = mu;
+      const BodyId slab = world.createBody(def).value();
+      test::BulletWorld dyn(btVector3(0, -float(g), 0), /*withFloor=*/false);
+      btBoxShape shape(btVector3(0.1f, 0.05f, 0.1f));
+      btVector3 inertia;
+      shape.calculateLocalInertia(btScalar(boxMass), inertia);
+      btRigidBody::btRigidBodyConstructionInfo ci(btScalar(boxMass), nullptr, &shape, inertia);
+      ci.m_startWorldTransform.setOrigin(btVector3(0.2f, 0.0905f, 0.15f));
+      btRigidBody box(ci);
+      box.setFriction(btScalar(mu));
+      box.setActivationState(DISABLE_DEACTIVATION);
+      dyn.world.addRigidBody(&box);
+      {
+        bullet::Bridge bridge(world, dyn.world);
+        ASSERT_EQ(bridge.addCollider(&box).value(), 1);
+        bridge.setDynamicFriction(true);
+        for (int s = 0; s < 30; ++s) ASSERT_EQ(bridge.step(dt).flags & kStepNanContained, 0u);
+        box.setLinearVelocity(btVector3(btScalar(v0), 0, 0));
+        const double x0 = box.getCenterOfMassPosition().x();
+        const auto px = [&] {
+          return boxMass * box.getLinearVelocity().x() + world.stats(slab).linearMomentum.x;
+        };
+        const double p0 = px();
+        double floorJ = 0, stopped = -1, worst = 0;
+        for (int s = 0; s < 150 && stopped < 0; ++s) {
+          ASSERT_EQ(bridge.step(dt).flags & kStepNanContained, 0u);
+          floorJ += world.colliderImpulses()[0].x;
+          // What the box and slab gained together along x is what the floor gave.
+          worst = std::max(worst, std::abs(px() - p0 - floorJ));
+          if (box.getLinearVelocity().x() <= 0.01 * v0) stopped = box.getCenterOfMassPosition().x();
+        }
+        const double expected = v0 * v0 / (2 * mu * g);
+        std::printf(
+            "box on slab, mu %.1f, v0 %.0f m/s: stops after %.4f m (v0^2 / (2 mu g) %.4f, "
+            "%+.2f %%); worst |d(p_box + p_slab) - J_floor| %.2e N s (m v0 %.1f)\n",
+            mu, v0, stopped - x0, expected, 100 * ((stopped - x0) / expected - 1), worst,
+            boxMass * v0);
+        ASSERT_GE(stopped, 0) << "the box did not stop";
+        EXPECT_NEAR(stopped - x0, expected, 0.05 * expected);
+        EXPECT_LT(worst, 1e-5 * boxMass * v0);  // single-precision Bullet
+      }
+      dyn.world.removeRigidBody(&box);
+    }
+  }
+}
+
+// A stiff block (10 cm, 1 kg, friction mu 0.5) resting on a dynamic Bullet crate (1 x 0.2 x 1
+// m, 50 kg, friction mu; they meet mu) that runs on frictionless rails (Bullet's linear and
+// angular factors hold it level; on a Bullet floor plane it rocked and sank 2 cm in 0.5 s
+// with or without the block's friction), pushed along x at a < mu g: with
+// Bridge::setDynamicFriction the crate's friction carries the block. The coupling is
+// staggered, so the block follows the crate's velocity of one step before: a dt behind, and
+// a dt t behind in position. Crate and block together gain exactly the push's momentum.
+TEST(BulletContact, DynamicCratePushedAlongCarriesABlockByFriction) {
+  const double g = 9.81, dt = 1.0 / 60, mu = 0.5, crateMass = 50;
+  for (const double accel : {1.0, 3.0}) {
+    World world(WorldDef{glm::vec3(0, -float(g), 0), Backend::Cpu, nullptr, 1, {}});
+    BodyDef def;
+    def.mesh = gen::box(0.1, 0.1, 0.1, 4, 4, 4);
+    for (size_t n = 0; n < def.mesh.nodeCount(); ++n) {
+      def.mesh.positions[3 * n] -= 0.05;
+      def.mesh.positions[3 * n + 1] += 0.2;
+      def.mesh.positions[3 * n + 2] -= 0.05;
+    }
+    def.material = Material::stableNeoHookean(1e7, 0.3, 1000);
+    def.friction = mu;
+    const BodyId block = world.createBody(def).value();
+    test::BulletWorld dyn(btVector3(0, -float(g), 0), /*withFloor=*/false);
+    btBoxShape shape(btVector3(0.5f, 0.1f, 0.5f));
+    btVector3 inertia;
+    shape.calculateLocalInertia(btScalar(crateMass), inertia);
+    btRigidBody::btRigidBodyConstructionInfo ci(btScalar(crateMass), nullptr, &shape, inertia);
+    ci.m_startWorldTransform.setOrigin(btVector3(0, 0.1f, 0));
+    btRigidBody crate(ci);
+    crate.setFriction(btScalar(mu));
+    crate.setLinearFactor(btVector3(1, 0, 1));  // on frictionless rails
+    crate.setAngularFactor(0);
+    crate.setActivationState(DISABLE_DEACTIVATION);
+    dyn.world.addRigidBody(&crate);
+    {
+      bullet::Bridge bridge(world, dyn.world);
+      ASSERT_EQ(bridge.addCollider(&crate).value(), 0);
+      bridge.setDynamicFriction(true);
+      const auto mean = [](std::span<const double> a) {
+        glm::dvec3 sum(0);
+        for (size_t n = 0; n < a.size() / 3; ++n)
+          sum += glm::dvec3(a[3 * n], a[3 * n + 1], a[3 * n + 2]);
+        return sum / double(a.size() / 3);
+      };
+      for (int s = 0; s < 30; ++s) ASSERT_EQ(bridge.step(dt).flags & kStepNanContained, 0u);
+      const double blockX0 = mean(world.positions(block)).x;
+      const double crateX0 = crate.getCenterOfMassPosition().x();
+      const double blockMass = world.stats(block).mass;
+      const auto px = [&] {
+        return crateMass * crate.getLinearVelocity().x() + world.stats(block).linearMomentum.x;
+      };
+      const double p0 = px(), force = (crateMass + blockMass) * accel;
+      double worst = 0;
+      for (int s = 1; s <= 60; ++s) {
+        // Bullet clears applied forces after each of its steps.
+        crate.applyCentralForce(btVector3(btScalar(force), 0, 0));
+        ASSERT_EQ(bridge.step(dt).flags & kStepNanContained, 0u);
+        // Friction only moves momentum between them: together they gain the push's.
+        worst = std::max(worst, std::abs(px() - p0 - force * s * dt));
+      }
+      const double crateV = crate.getLinearVelocity().x();
+      const double blockV = mean(world.velocities(block)).x;
+      const double slip = (mean(world.positions(block)).x - blockX0) -
+                          (crate.getCenterOfMassPosition().x() - crateX0);
+      std::printf(
+          "crate pushed at %.0f m/s^2: after 1 s crate %.4f m/s (a t %.4f), block %.4f m/s, "
+          "slipped %.2e m; worst |d(p_crate + p_block) - F t| %.2e N s\n",
+          accel, crateV, accel * 60 * dt, blockV, slip, worst);
+      EXPECT_NEAR(crateV, accel * 60 * dt, 0.01 * accel * 60 * dt);
+      EXPECT_NEAR(blockV, crateV - accel * dt, 0.01 * crateV);
+      EXPECT_NEAR(slip, -accel * dt * 60 * dt, 0.2 * accel * dt * 60 * dt);
+      EXPECT_LT(worst, 1e-5 * force * 60 * dt);  // single-precision Bullet
+    }
+    dyn.world.removeRigidBody(&crate);
+  }
+}
+
+// Bullet's rolling and spinning friction on a ball resting on a frictionless soft block (the
+// contact's reaction purely normal, so only they turn the spin), with
+// Bridge::setDynamicFriction: spun about a horizontal axis (rolling friction c) or the vertical
+// (spinning friction c), its spin falls at c M g / I, Bullet's bound coefficient x normal
+// impulse per step, until it stops.
+TEST(BulletContact, RollingAndSpinningFrictionSlowABallsSpinAtCMgOverI) {
+  const double g = 9.81, dt = 1.0 / 60, ballMass = 2, radius = 0.04, c = 0.002, w0 = 10;
+  for (const bool rolling : {true, false}) {
+    World world(WorldDef{glm::vec3(0, -float(g), 0), Backend::Cpu, nullptr, 1, {}});
+    BodyDef def = softBlock(300);
+    def.material.massDamping = 2;
+    def.friction = 0;
+    world.createBody(def).value();
+    test::BulletWorld dyn(btVector3(0, -float(g), 0), /*withFloor=*/false);
+    btStaticPlaneShape floorShape(btVector3(0, 1, 0), 0);
+    btRigidBody floor(0, nullptr, &floorShape);
+    dyn.world.addRigidBody(&floor);
+    {
+      Ball ball(dyn.world, float(radius), float(ballMass), btVector3(0.1f, 0.24f, 0.1f),
+                btVector3(0, 0, 0));
+      (rolling ? ball.body->setRollingFriction(btScalar(c))
+               : ball.body->setSpinningFriction(btScalar(c)));
+      bullet::Bridge bridge(world, dyn.world);
+      bridge.setDynamicFriction(true);
+      ASSERT_EQ(bridge.addCollider(&floor).value(), 0);
+      ASSERT_EQ(bridge.addCollider(ball.body.get()).value(), 1);
+      for (int s = 0; s < 60; ++s) ASSERT_EQ(bridge.step(dt).flags & kStepNanContained, 0u);
+      const btVector3 axis = rolling ? btVector3(1, 0, 0) : btVector3(0, 1, 0);
+      ball.body->setAngularVelocity(btScalar(w0) * axis);
+      const int steps = 10;
+      for (int s = 0; s < steps; ++s) ASSERT_EQ(bridge.step(dt).flags & kStepNanContained, 0u);
+      const double inertia = 0.4 * ballMass * radius * radius;
+      const double expected = w0 - c * ballMass * g * steps * dt / inertia;
+      const double w = ball.body->getAngularVelocity().dot(axis);
+      const double off = (ball.body->getAngularVelocity() - btScalar(w) * axis).length();
+      std::printf(
+          "%s friction %.3f m: spin %.4f rad/s after %.3f s (w0 - c M g t / I %.4f), "
+          "%.2e off its axis\n",
+          rolling ? "rolling" : "spinning", c, w, steps * dt, expected, off);
+      EXPECT_NEAR(w0 - w, w0 - expected, 0.05 * (w0 - expected));
+      // The contact's moment turns the spin off its axis by 0.1-0.15 rad/s, with or without
+      // these coefficients.
+      EXPECT_LT(off, 0.05 * w0);
+      for (int s = 0; s < 20; ++s) ASSERT_EQ(bridge.step(dt).flags & kStepNanContained, 0u);
+      const double after = ball.body->getAngularVelocity().dot(axis);
+      std::printf("  after another %.3f s: %.2e rad/s about the axis\n", 20 * dt, after);
+      EXPECT_LT(std::abs(after), 1e-3 * w0);  // stopped, not reversed
+    }
+    dyn.world.removeRigidBody(&floor);
   }
 }
 

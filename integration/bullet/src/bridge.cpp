@@ -130,14 +130,14 @@ void Bridge::mirrorColliders() {
     const btTransform& T = b->getCenterOfMassTransform();
     Collider c;
     c.point = glm::vec3(toGlm(T.getOrigin()));
-    // A static or kinematic body's friction is met with sqrt(friction * BodyDef::friction),
-    // a kinematic one's surface moving with its velocity and spin (a platform or turntable the
-    // game drives carries what rests on it). A dynamic one stays frictionless: with its spin
-    // and friction, a ball resting on a soft block rolled back and forth in the block's dimple
-    // for seconds (0.02 m/s at 3 s), as nothing here gives a contact patch's rolling
-    // resistance.
+    // A static or kinematic body's friction is met with sqrt(friction * BodyDef::friction), a
+    // kinematic one's surface moving with its velocity and spin (a platform or turntable the
+    // game drives carries what rests on it). A dynamic one is frictionless unless
+    // setDynamicFriction: the exchange is explicit (the body moves at its old velocity during
+    // the FEM step), and a ball resting in a soft block's dimple chatters, its velocity and
+    // spin flipping every step (0.024 m/s at 3 s), the reaction overshooting its sliding.
     // (A kinematic body made from a massless one keeps Bullet's static flag too.)
-    if (b->isStaticOrKinematicObject()) c.friction = b->getFriction();
+    if (b->isStaticOrKinematicObject() || m_dynamicFriction) c.friction = b->getFriction();
     if (b->isKinematicObject() || !b->isStaticObject()) {
       c.velocity = glm::vec3(toGlm(b->getLinearVelocity()));
       c.angularVelocity = glm::vec3(toGlm(b->getAngularVelocity()));
@@ -192,8 +192,39 @@ void Bridge::applyContactImpulses() {
     if (c >= J.size() || b->isStaticOrKinematicObject()) continue;
     if (J[c] == glm::dvec3(0) && L[c] == glm::dvec3(0)) continue;
     b->activate(true);
+    // The impulse includes the friction's, and its moment about the centre of mass the
+    // friction's torque: the body loses exactly the tangential momentum the nodes gain.
     b->applyCentralImpulse(toBt(-J[c]));
     b->applyTorqueImpulse(toBt(-L[c]));
+    if (m_dynamicFriction) resistRolling(*b, -J[c]);
+  }
+}
+
+void Bridge::resistRolling(btRigidBody& b, glm::dvec3 reaction) {
+  // Bullet's meaning of the coefficients (btSequentialImpulseConstraintSolver's rolling
+  // friction rows): at a contact whose normal impulse is N, an angular impulse about the
+  // tangent axes of at most rollingFriction * N [m * N s], and about the normal of at most
+  // spinningFriction * N, drives the spin relative to the other body towards zero without
+  // reversing it. A ball's penalty forces are radial and give it no such torque. The FEM
+  // surface's own spin is not known here: the spin resisted is the body's. N is the contact
+  // reaction's magnitude (its friction part included, at most sqrt(1 + mu^2) times the normal
+  // one) and its direction the normal, as for one contact patch. Bullet's further clamp of the
+  // bound to the coefficient itself (a length compared with an angular impulse) is not mirrored.
+  const double rolling = b.getRollingFriction(), spinning = b.getSpinningFriction();
+  const double N = glm::length(reaction);
+  if ((rolling <= 0 && spinning <= 0) || !(N > 0)) return;
+  const btMatrix3x3 invI = b.getInvInertiaTensorWorld();
+  if (!(std::abs(double(invI.determinant())) > 0)) return;  // locked axes: leave them
+  const glm::dmat3 I = glm::inverse(toGlm(invI));
+  const glm::dvec3 n = reaction / N;
+  const glm::dvec3 w = toGlm(b.getAngularVelocity());
+  const glm::dvec3 spin = glm::dot(w, n) * n;
+  const std::pair<glm::dvec3, double> parts[] = {{w - spin, rolling}, {spin, spinning}};
+  for (const auto& [part, coefficient] : parts) {
+    if (coefficient <= 0) continue;
+    const glm::dvec3 stop = I * part;  // the angular impulse that ends this part of the spin
+    const double length = glm::length(stop);
+    if (length > 0) b.applyTorqueImpulse(toBt(-stop * std::min(1.0, coefficient * N / length)));
   }
 }
 

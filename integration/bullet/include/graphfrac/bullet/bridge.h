@@ -19,7 +19,9 @@
 // that moves more than about half the FEM body's thickness or node spacing per step can pass
 // between nodes (no continuous detection). A static or kinematic body's friction is the
 // collider's (Collider::friction, met with BodyDef::friction), a kinematic one's surface moving
-// with its velocity and spin (Collider::angularVelocity); a dynamic body is frictionless. A
+// with its velocity and spin (Collider::angularVelocity); a dynamic body is frictionless unless
+// setDynamicFriction (experimental: the friction's reaction goes back to it with the normal
+// one, exchanged explicitly, which leaves a body resting on a held FEM body chattering). A
 // handed-off fragment collides only with Bullet objects. Concave fragments get the hull of their
 // nodes (no convex decomposition yet). A piece of a body in CutMode::Xfem gets the hull of its
 // closed surface (its exact cut faces included); the last piece left in that body's Is-XFEM system
@@ -92,6 +94,14 @@ class Bridge {
   /// Unregisters a body (before the game deletes it); the ones registered after it move down
   /// one index. Error for a body not registered.
   Result<void> removeCollider(btRigidBody* body);
+  /// Experimental, off by default: dynamic registered bodies are mirrored with their friction
+  /// too (met as a static body's), the friction's reaction (in colliderImpulses and their
+  /// moments) goes back to them, and their getRollingFriction() / getSpinningFriction() resist
+  /// their spin as in Bullet's solver (resistRolling). Momentum is exchanged exactly, but
+  /// explicitly: a body resting on a FEM body that is held (by a floor, by its stiffness) takes
+  /// a reaction that overshoots its sliding each step, and a ball in a soft block's dimple
+  /// chatters at +-0.02 m/s instead of coming to rest (docs/validation.md, Spinning colliders).
+  void setDynamicFriction(bool on) { m_dynamicFriction = on; }
   /// Before World::step: the registered bodies as colliders at their current pose and velocity.
   void mirrorColliders();
   /// After World::step: each dynamic registered body takes minus its collider's impulse and
@@ -113,6 +123,8 @@ class Bridge {
 
  private:
   struct Entry;
+  // Rolling and spinning resistance of a dynamic body from the contact reaction it was given.
+  static void resistRolling(btRigidBody& body, glm::dvec3 reaction);
   struct Policy {
     BodyId body;
     HandoffPolicy policy = HandoffPolicy::Never;
@@ -128,6 +140,7 @@ class Bridge {
   std::vector<RigidFragment> m_fragments;  // parallel to m_entries
   std::vector<int32_t> m_nodeCount;        // scratch: nodes per fragment of the body scanned
   std::vector<int32_t> m_candidates;       // scratch: its fragments not yet in Bullet
+  bool m_dynamicFriction = false;
 };
 
 }  // namespace gf::bullet
