@@ -165,7 +165,12 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     t.iterate = b.iterate;
     t.nodeMass = b.state->nodeMass.data();
     t.fixed = b.state->fixedNode.data();
-    t.fragment = b.nodeFragment.empty() ? nullptr : b.nodeFragment.data();
+    // The groups as the pairs are found: a body that breaks while it steps relabels its
+    // fragments before the exchange, whose clusters must still be these (it read the new
+    // labels past its group count).
+    Slot& slot = m_bodies[si];
+    slot.fragment.assign(b.nodeFragment.begin(), b.nodeFragment.end());
+    t.fragment = slot.fragment.empty() ? nullptr : slot.fragment.data();
     t.faces = b.surface->faces().data();
     t.neighbours = b.surface->neighbours().data();
     t.vertices = b.surface->vertices().data();

@@ -186,6 +186,7 @@ class BodyContact {
     std::vector<double> muLambda;   // per half-space
     std::vector<double> stiffness;  // per half-space [N/m]
     std::vector<Vec3> faceMotion;   // per half-space
+    std::vector<int32_t> fragment;  // per node: the body's fragments when the pairs were found
     std::vector<double> impulse;    // 3 per half-space
     bool active = false;
     BodyContactBalance balance;
