@@ -867,6 +867,76 @@ TEST(BodyContact, FragmentsOfACutBodyDoNotPassThroughEachOther) {
   EXPECT_GT(off, 10 * on);  // the scene does need the contact
 }
 
+// A block cut by 1, 2 or 3 planes through its middle (2, 4, 8 pieces) and dropped 30 cm: its
+// pieces land together and should not pass into each other (point-in-tet, under 2 % of a cell)
+// nor gain mechanical energy. DISABLED, fails (docs/validation.md, "Pieces of a cut block
+// landing together"): at E = 1e6 a node of one piece lies 11.5, 19.9 and 60.3 % of a cell in
+// another; at E = 1e7 with 2 pieces none does, with 4 the body diverges five steps after
+// landing (a broken body takes no contact sweeps).
+TEST(BodyContact, DISABLED_PiecesOfACutBlockLandTogether) {
+  const glm::vec3 normals[3] = {glm::normalize(glm::vec3(1, 0.3f, 0.1f)),
+                                glm::normalize(glm::vec3(0.2f, 1, -0.3f)),
+                                glm::normalize(glm::vec3(-0.1f, 0.2f, 1))};
+  for (const double E : {1e6, 1e7})
+    for (int planes = 1; planes <= 3; ++planes) {
+      WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
+      Collider ground;
+      ground.friction = 0.5;
+      wd.colliders.push_back(ground);
+      World world(wd);
+      BodyDef def;
+      def.mesh = movedBox(0.2, 0.3, 0.2, 6, 9, 6, {0, 0.31, 0});
+      def.material = Material::stableNeoHookean(E, 0.3, 1000);
+      def.fracture.enabled = true;
+      def.fracture.strength = 1e12;  // only the cuts break
+      def.contact = true;
+      const BodyId id = world.createBody(def).value();
+      for (int p = 0; p < planes; ++p) {
+        const glm::vec3 n = normals[p], o(0.1f, 0.46f, 0.1f);
+        const glm::vec3 t1 = glm::normalize(glm::cross(n, glm::vec3(0.3f, 0.5f, 0.8f)));
+        const glm::vec3 t2 = glm::cross(n, t1);
+        Blade blade;
+        blade.vertices = {o - t1 - t2, o + t1 - t2, o + t1 + t2, o - t1 + t2};
+        blade.triangles = {0, 1, 2, 0, 2, 3};
+        ASSERT_TRUE(world.cut(id, blade).ok());
+      }
+      const auto mechanical = [&] {
+        const BodyStats s = world.stats(id);
+        return s.kineticEnergy + s.elasticEnergy + s.gravityEnergy + s.contactEnergy;
+      };
+      const double e0 = mechanical();
+      double deepest = 0, gained = 0;
+      std::vector<Part> parts;
+      for (int s = 0; s < 60; ++s) {
+        const StepStatus st = world.step(1.0 / 60);
+        ASSERT_FALSE(st.has(kStepNanContained))
+            << planes << " planes, E " << E << ": " << st.message;
+        gained = std::max(gained, mechanical() - e0);
+        const auto frag = world.nodeFragments(id);
+        parts.assign(size_t(world.fractureStats(id).fragments), Part{id, {}, {}});
+        for (int32_t n = 0; n < int32_t(frag.size()); ++n)
+          parts[size_t(frag[n])].nodes.push_back(n);
+        for (int32_t t = 0; t < int32_t(def.mesh.tetCount()); ++t) {
+          const int32_t* k = &def.mesh.tets[4 * size_t(t)];
+          if (frag[k[0]] == frag[k[1]] && frag[k[0]] == frag[k[2]] && frag[k[0]] == frag[k[3]])
+            parts[size_t(frag[k[0]])].tets.push_back(t);
+        }
+        for (size_t i = 0; i < parts.size(); ++i)
+          for (size_t j = 0; j < parts.size(); ++j)
+            if (i != j && !parts[i].tets.empty() && !parts[j].tets.empty())
+              deepest =
+                  std::max(deepest, deepestInside(world, def.mesh, parts[i], def.mesh, parts[j]));
+      }
+      const double cell = 0.2 / 6;
+      std::printf(
+          "%d planes, E %.0e: deepest node in another piece %.3g m (%.1f %% of a cell), "
+          "mechanical energy at most %.3g J above its start\n",
+          planes, E, deepest, 100 * deepest / cell, gained);
+      EXPECT_LT(deepest, 0.02 * cell);
+      EXPECT_LE(gained, 1e-3 * std::abs(e0));
+    }
+}
+
 // The pair lists are built serially in slot and node order, so the contact step gives the same
 // bits for any thread count (tests/physics/test_determinism.cpp).
 std::vector<double> stackState(JobSystem* jobs, int sweeps = 1) {
