@@ -109,7 +109,9 @@ void main() {
   vec3 v = normalize(uEye - vWorldPos);
   // The triangle's own plane, for flat-shaded crack facets (in uniform control flow).
   vec3 facet = cross(dFdx(vWorldPos), dFdy(vWorldPos));
-  bool crack = uHasCrack != 0 && texelFetch(uCrackMask, gl_PrimitiveID).r != 0u;
+  // gl_PrimitiveID counts from the draw's first triangle: uGround.z is that triangle's index.
+  bool crack =
+      uHasCrack != 0 && texelFetch(uCrackMask, gl_PrimitiveID + int(uGround.z)).r != 0u;
   vec3 n = normalize(vNormal);
   // Two-sided: crack slits are seen from both sides.
   if (!gl_FrontFacing) n = -n;
@@ -587,8 +589,16 @@ Result<void> GlRenderer::upload(Slot& slot, const MeshFrame& mesh, FrameStats& s
     return fail("dirty range [", std::to_string(mesh.dirtyBegin), ", ",
                 std::to_string(mesh.dirtyEnd), ") is outside 0..", std::to_string(vertices));
   const bool hasScalar = !mesh.scalar.empty(), hasCrack = !mesh.crackMask.empty();
-  const bool hasUv = mesh.texture != nullptr;
-  if (mesh.texture && mesh.uvs.size() != 2 * vertices)
+  bool hasUv = mesh.texture != nullptr;
+  for (const DrawRange& r : mesh.ranges) {
+    if (uint64_t(r.firstTriangle) + r.triangleCount > triangles ||
+        r.firstTriangle >= kMaxRangeStart)
+      return fail("range of triangles [", std::to_string(r.firstTriangle), ", ",
+                  std::to_string(uint64_t(r.firstTriangle) + r.triangleCount), ") is outside 0..",
+                  std::to_string(triangles), " (or starts past 2^24)");
+    hasUv = hasUv || r.texture != nullptr;
+  }
+  if (hasUv && mesh.uvs.size() != 2 * vertices)
     return fail("uvs has ", std::to_string(mesh.uvs.size()), " values for ",
                 std::to_string(vertices), " vertices (2 each, needed with a texture)");
   if (vertices > UINT32_MAX)
@@ -782,21 +792,28 @@ Result<FrameStats> GlRenderer::render(std::span<const MeshFrame> meshes, const C
     const Slot& slot = m_slots[i];
     if (slot.triangles == 0) continue;
     glUniformMatrix4fv(m_uModel, 1, GL_FALSE, glm::value_ptr(mesh.model));
-    glUniform3fv(m_uColour, 1, glm::value_ptr(mesh.colour));
     glUniform3fv(m_uCrackColour, 1, glm::value_ptr(mesh.crackColour));
     glUniform1i(m_uHasScalar, slot.hasScalar ? 1 : 0);
     glUniform1i(m_uHasCrack, slot.hasCrack ? 1 : 0);
     glUniform4f(m_uLook, mesh.crackLook.specular, mesh.crackLook.shininess, mesh.crackLook.grain,
                 mesh.crackLook.metallic);
-    glUniform4f(m_uGround, mesh.gridSpacing, slot.hasUv ? 1.0f : 0.0f, 0.0f, 0.0f);
-    if (slot.hasUv) {
-      glActiveTexture(GL_TEXTURE2);
-      glBindTexture(GL_TEXTURE_2D, textureFor(mesh.texture));
-      glActiveTexture(GL_TEXTURE0);
-    }
     glBindTexture(GL_TEXTURE_BUFFER, slot.crackTexture);
     glBindVertexArray(slot.vao);
-    glDrawElements(GL_TRIANGLES, GLsizei(3 * slot.triangles), GL_UNSIGNED_INT, nullptr);
+    const DrawRange whole{0, slot.triangles, mesh.colour, slot.hasUv ? mesh.texture : nullptr};
+    for (const DrawRange& r :
+         mesh.ranges.empty() ? std::span<const DrawRange>(&whole, 1) : mesh.ranges) {
+      if (r.triangleCount == 0) continue;
+      glUniform3fv(m_uColour, 1, glm::value_ptr(r.colour));
+      glUniform4f(m_uGround, mesh.gridSpacing, r.texture ? 1.0f : 0.0f, float(r.firstTriangle),
+                  0.0f);
+      if (r.texture) {
+        glActiveTexture(GL_TEXTURE2);
+        glBindTexture(GL_TEXTURE_2D, textureFor(r.texture));
+        glActiveTexture(GL_TEXTURE0);
+      }
+      glDrawElements(GL_TRIANGLES, GLsizei(3 * r.triangleCount), GL_UNSIGNED_INT,
+                     reinterpret_cast<const void*>(uintptr_t(r.firstTriangle) * 12));
+    }
   }
   glBindVertexArray(0);
   glBindTexture(GL_TEXTURE_BUFFER, 0);

@@ -67,6 +67,15 @@ Result<std::shared_ptr<const Texture>> makeTexture(Image image);
 /// names the file and the reason.
 Result<std::shared_ptr<const Texture>> loadTexture(const std::string& path);
 
+/// A run of a mesh's triangles drawn in a material of its own (MeshFrame::ranges).
+struct DrawRange {
+  uint32_t firstTriangle = 0, triangleCount = 0;
+  glm::vec3 colour{0.8f, 0.8f, 0.8f};      ///< linear RGB, in place of MeshFrame::colour
+  std::shared_ptr<const Texture> texture;  ///< multiplied into colour (needs uvs); null: none
+};
+/// Triangles a range may start at: its offset reaches the shaders as an exact float.
+inline constexpr uint32_t kMaxRangeStart = 1u << 24;
+
 /// One mesh this frame. Mesh i of a frame keeps its GPU buffers in slot i across frames: the
 /// renderer re-uploads vertices and indices when topologyVersion (or the size) changes, and
 /// otherwise only the vertices in [dirtyBegin, dirtyEnd). The spans are read during render()
@@ -84,6 +93,10 @@ struct MeshFrame {
   /// Multiplied into `colour` (or the colour map) on the original surface; crack faces keep
   /// crackColour. Needs uvs; null: drawn in the plain colour, exactly as without textures.
   std::shared_ptr<const Texture> texture;
+  /// Non-empty: the mesh is drawn as these runs of its triangles, each in its own colour and
+  /// texture (crack faces keep crackColour), in place of `colour` and `texture`; triangles in no
+  /// range are not drawn (the shadow pass draws them all). Empty: drawn whole, as before.
+  std::span<const DrawRange> ranges;
   uint64_t topologyVersion = 0;
   uint32_t dirtyBegin = 0, dirtyEnd = 0;
   glm::mat4 model{1.0f};                      ///< model to world

@@ -34,6 +34,27 @@ void addQuad(ShapeMesh& m, const glm::dvec3& c, const glm::dvec3& a, const glm::
 
 }  // namespace
 
+void groupByMaterial(std::span<const uint32_t> indices, std::span<const uint8_t> crackMask,
+                     std::span<const uint16_t> materials, std::vector<uint32_t>& outIndices,
+                     std::vector<uint8_t>& outCrack, std::span<DrawRange> ranges) {
+  const size_t n = materials.size(), count = ranges.size();
+  auto group = [&](uint16_t m) { return m < count ? size_t(m) : size_t(0); };
+  std::vector<uint32_t> next(count + 1, 0);
+  for (uint16_t m : materials) ++next[group(m) + 1];
+  for (size_t k = 0; k < count; ++k) {
+    ranges[k].firstTriangle = next[k];
+    ranges[k].triangleCount = next[k + 1];
+    next[k + 1] += next[k];
+  }
+  outIndices.resize(3 * n);
+  outCrack.resize(crackMask.empty() ? 0 : n);
+  for (size_t t = 0; t < n; ++t) {
+    const uint32_t at = next[group(materials[t])]++;
+    std::copy_n(indices.begin() + 3 * ptrdiff_t(t), 3, outIndices.begin() + 3 * ptrdiff_t(at));
+    if (!crackMask.empty()) outCrack[at] = crackMask[t];
+  }
+}
+
 scene::SceneRigidBody colliderShape(const Collider& c) {
   scene::SceneRigidBody r;
   r.position = glm::dvec3(c.point);
@@ -219,6 +240,18 @@ SceneDrawing::SceneDrawing(const scene::Scene& sc)
     m_lastVertices.push_back(0);
     m_lastTriangles.push_back(0);
   }
+  for (size_t i = 0; i < m_bodyCount; ++i) {
+    const std::vector<scene::SceneBody::Material>& table = sc.bodies[i].materials;
+    if (table.size() < 2) continue;
+    MaterialDraw md;
+    md.body = i;
+    md.ranges.resize(table.size());
+    md.textures.resize(table.size());
+    for (size_t k = 0; k < table.size(); ++k) md.ranges[k].colour = table[k].colour;
+    // Without material ids (a body whose render mesh is gone) it is drawn in the first one's.
+    m_meshes[i].colour = table[0].colour;
+    m_materialBodies.push_back(std::move(md));
+  }
 }
 
 Result<void> SceneDrawing::loadTextures(const scene::Scene& scene) {
@@ -228,11 +261,46 @@ Result<void> SceneDrawing::loadTextures(const scene::Scene& scene) {
     if (!t) return fail("body '", scene.bodies[i].name, "': texture ", t.error().message);
     m_textures[i] = t.value();
   }
+  for (MaterialDraw& md : m_materialBodies) {
+    const scene::SceneBody& body = scene.bodies[md.body];
+    for (size_t k = 0; k < md.textures.size() && k < body.materials.size(); ++k) {
+      if (body.materials[k].texture.empty()) continue;
+      Result<std::shared_ptr<const Texture>> t = loadTexture(body.materials[k].texture);
+      if (!t)
+        return fail("body '", body.name, "': material '", body.materials[k].name, "': texture ",
+                    t.error().message);
+      md.textures[k] = t.value();
+    }
+  }
   return {};
+}
+
+void SceneDrawing::drawMaterials(MaterialDraw& md, const SurfaceView& v) {
+  MeshFrame& m = m_meshes[md.body];
+  const size_t triangles = v.indices.size() / 3;
+  if (v.materials.size() != triangles) {
+    m.ranges = {};
+    return;
+  }
+  if (md.version != v.topologyVersion || md.triangles != triangles)
+    groupByMaterial(v.indices, v.crackMask, v.materials, md.indices, md.crackMask, md.ranges);
+  md.version = v.topologyVersion;
+  md.triangles = triangles;
+  bool textured = false;
+  for (size_t k = 0; k < md.ranges.size(); ++k) {
+    md.ranges[k].texture = v.uvs.empty() ? nullptr : md.textures[k];
+    textured = textured || md.ranges[k].texture;
+  }
+  m.indices = md.indices;
+  m.crackMask = md.crackMask;
+  m.ranges = md.ranges;
+  m.texture = nullptr;
+  m.uvs = textured ? v.uvs : std::span<const float>{};
 }
 
 DrawingChanges SceneDrawing::update(scene::BulletScene& sim, double strainMax) {
   World& world = sim.world();
+  size_t nextMaterialBody = 0;
   for (size_t i = 0; i < m_bodyCount; ++i) {
     const SurfaceView v = world.surface(sim.body(i));
     MeshFrame& m = m_meshes[i];
@@ -258,6 +326,8 @@ DrawingChanges SceneDrawing::update(scene::BulletScene& sim, double strainMax) {
     } else {
       m.scalar = {};
     }
+    if (nextMaterialBody < m_materialBodies.size() && m_materialBodies[nextMaterialBody].body == i)
+      drawMaterials(m_materialBodies[nextMaterialBody++], v);
   }
   for (size_t k = 0; k < m_shapes.size(); ++k) {
     MeshFrame& m = m_meshes[m_bodyCount + k];

@@ -52,6 +52,15 @@ struct DrawingChanges {
   uint64_t dirtyVertices = 0;  ///< Dirty vertices of the unchanged meshes.
 };
 
+/// Orders a surface's triangles by material (SurfaceView::materials) for MeshFrame::ranges:
+/// `outIndices` and `outCrack` (empty when `crackMask` is) are the triangles material by
+/// material, in their order within each, and ranges[k] is set to material k's run (its colour
+/// and texture are left as they are). Crack faces (kInteriorMaterial) and ids past the ranges go
+/// with material 0; their flag draws them in the crack colour whatever the range.
+void groupByMaterial(std::span<const uint32_t> indices, std::span<const uint8_t> crackMask,
+                     std::span<const uint16_t> materials, std::vector<uint32_t>& outIndices,
+                     std::vector<uint8_t>& outCrack, std::span<DrawRange> ranges);
+
 class SceneDrawing {
  public:
   /// The slots of `scene`'s bodies, then its rigid bodies, then its static colliders.
@@ -100,6 +109,21 @@ class SceneDrawing {
     std::vector<uint32_t> indices;
   };
   std::vector<BladeSlot> m_blades;
+  /// A body whose render mesh has materials (SceneBody::materials): drawn in its slot in one
+  /// range per material over its triangles grouped by material, grouped again when the
+  /// topology changes.
+  struct MaterialDraw {
+    size_t body = 0;
+    std::vector<uint32_t> indices;
+    std::vector<uint8_t> crackMask;
+    std::vector<DrawRange> ranges;
+    std::vector<std::shared_ptr<const Texture>> textures;  ///< per material; null: none
+    uint64_t version = ~uint64_t(0);
+    size_t triangles = 0;
+  };
+  std::vector<MaterialDraw> m_materialBodies;
+  /// Points a material body's slot (filled from `v` already) at its grouped triangles.
+  void drawMaterials(MaterialDraw& md, const SurfaceView& v);
   bool m_first = true;
 };
 

@@ -754,12 +754,21 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
     if (m.dirtyBegin > m.dirtyEnd || m.dirtyEnd > p.vertices)
       return fail(name, "dirty range [", std::to_string(m.dirtyBegin), ", ",
                   std::to_string(m.dirtyEnd), ") is outside 0..", std::to_string(p.vertices));
-    if (m.texture && m.uvs.size() != 2 * size_t(p.vertices))
+    bool textured = m.texture != nullptr;
+    for (const DrawRange& r : m.ranges) {
+      if (uint64_t(r.firstTriangle) + r.triangleCount > p.triangles ||
+          r.firstTriangle >= kMaxRangeStart)
+        return fail(name, "range of triangles [", std::to_string(r.firstTriangle), ", ",
+                    std::to_string(uint64_t(r.firstTriangle) + r.triangleCount), ") is outside 0..",
+                    std::to_string(p.triangles), " (or starts past 2^24)");
+      textured = textured || r.texture != nullptr;
+    }
+    if (textured && m.uvs.size() != 2 * size_t(p.vertices))
       return fail(name, "uvs has ", std::to_string(m.uvs.size()), " values for ",
                   std::to_string(p.vertices), " vertices (2 each, needed with a texture)");
     p.hasScalar = !m.scalar.empty();
     p.hasCrack = !m.crackMask.empty();
-    p.hasUv = m.texture != nullptr;
+    p.hasUv = textured;
     const VkDeviceSize vertexBytes = p.hasScalar ? 28 : 24;
     const VkDeviceSize fullBytes = p.vertices * vertexBytes +
                                    VkDeviceSize(p.triangles) * (p.hasCrack ? 16 : 12) +
@@ -792,15 +801,30 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
 
   // Each mesh's texture set (the white one without a texture); textures not yet on the device
   // are copied, every mip level, at the start of this frame's commands.
+  // A mesh drawn in ranges (MeshFrame::ranges) has one per range, after the meshes' own.
   std::vector<GpuTexture*> textures(meshes.size());
+  std::vector<size_t> rangeTextures(meshes.size(), 0);
   std::vector<GpuTexture*> fresh;
-  for (size_t i = 0; i < meshes.size(); ++i) {
-    Result<GpuTexture*> t = textureFor(plans[i].hasUv ? meshes[i].texture : m_white);
+  auto use = [&](const std::shared_ptr<const Texture>& texture) -> Result<GpuTexture*> {
+    Result<GpuTexture*> t = textureFor(texture ? texture : m_white);
     if (!t) return t.error();
-    textures[i] = t.value();
     if (!t.value()->uploaded && std::find(fresh.begin(), fresh.end(), t.value()) == fresh.end()) {
       fresh.push_back(t.value());
       for (const Image& l : t.value()->source->levels) stagingBytes += l.rgba.size();
+    }
+    return t.value();
+  };
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    Result<GpuTexture*> t = use(plans[i].hasUv ? meshes[i].texture : nullptr);
+    if (!t) return t.error();
+    textures[i] = t.value();
+  }
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    rangeTextures[i] = textures.size();
+    for (const DrawRange& r : meshes[i].ranges) {
+      Result<GpuTexture*> t = use(r.texture);
+      if (!t) return t.error();
+      textures.push_back(t.value());
     }
   }
 
@@ -943,7 +967,24 @@ Result<FrameStats> VulkanRenderer::renderFrame(std::span<const MeshFrame> meshes
       const VkDeviceSize offsets[2] = {0, s.normalOffset};
       vkCmdBindVertexBuffers(cmd, 0, shadowPass ? 1 : 2, buffers, offsets);
       vkCmdBindIndexBuffer(cmd, s.buffer.buffer, s.indexOffset, VK_INDEX_TYPE_UINT32);
-      vkCmdDrawIndexed(cmd, 3 * p.triangles, 1, 0, 0, 0);
+      if (shadowPass || m.ranges.empty()) {
+        vkCmdDrawIndexed(cmd, 3 * p.triangles, 1, 0, 0, 0);
+        continue;
+      }
+      for (size_t k = 0; k < m.ranges.size(); ++k) {
+        const DrawRange& r = m.ranges[k];
+        if (r.triangleCount == 0) continue;
+        draw.colour = glm::vec4(r.colour, draw.colour.w);
+        draw.ground =
+            glm::vec4(m.gridSpacing, r.texture ? 1.0f : 0.0f, float(r.firstTriangle), 0.0f);
+        vkCmdPushConstants(cmd, m_pipelineLayout,
+                           VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
+                           sizeof draw, &draw);
+        const VkDescriptorSet set = textures[rangeTextures[i] + k]->set;
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, m_pipelineLayout, 2, 1, &set,
+                                0, nullptr);
+        vkCmdDrawIndexed(cmd, 3 * r.triangleCount, 1, 3 * r.firstTriangle, 0, 0);
+      }
     }
   };
 

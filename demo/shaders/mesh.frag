@@ -28,7 +28,7 @@ layout(push_constant) uniform Draw {
   vec4 colour;       // w: 1 when the mesh has a scalar stream
   vec4 crackColour;  // w: 1 when the mesh has crack flags
   vec4 look;         // crack faces: specular, shininess, grain, metallic
-  vec4 ground;       // x: grid cell [m], 0 = none; y: 1 = textured
+  vec4 ground;       // x: grid cell [m], 0 = none; y: 1 = textured; z: first triangle
 }
 draw;
 
@@ -79,7 +79,9 @@ void main() {
   const vec3 v = normalize(frame.eye.xyz - worldPosition);
   // The triangle's own plane, for flat-shaded crack facets (taken here, in uniform control flow).
   const vec3 facet = cross(dFdx(worldPosition), dFdy(worldPosition));
-  const bool crack = draw.crackColour.w != 0.0 && cracks.flag[gl_PrimitiveID] != 0u;
+  // gl_PrimitiveID counts from the draw's first triangle: ground.z is that triangle's index.
+  const bool crack =
+      draw.crackColour.w != 0.0 && cracks.flag[gl_PrimitiveID + int(draw.ground.z)] != 0u;
   vec3 n = normalize(worldNormal);
   // Two-sided: crack slits are seen from both sides.
   if (!gl_FrontFacing) n = -n;

@@ -26,7 +26,7 @@ layout(push_constant) uniform Draw {
   vec4 colour;       // w: 1 when the mesh has a scalar stream
   vec4 crackColour;  // w: 1 when the mesh has crack flags
   vec4 look;         // crack faces: specular, shininess, grain, metallic
-  vec4 ground;       // x: grid cell [m], 0 = none; y: 1 = textured
+  vec4 ground;       // x: grid cell [m], 0 = none; y: 1 = textured; z: first triangle
 }
 draw;
 

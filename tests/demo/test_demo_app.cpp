@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <glm/ext/matrix_clip_space.hpp>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <numbers>
@@ -24,7 +25,9 @@
 #include <string>
 #include <vector>
 
+#include "common/render_mesh_checks.h"
 #include "common/temp_dir.h"
+#include "demo/render_checks.h"
 #include "demo_app.h"
 #include "renderer.h"
 #include "scene/bullet_scene.h"
@@ -701,6 +704,76 @@ TEST(DemoApp, CommandLineErrorsAndVideo) {
   EXPECT_GT(fs::file_size(dir / "out" / "demo.mp4"), 0u);
 }
 
+// A body whose render mesh has two materials (the unit cube's surface, x < 0.5 material 0 in
+// red, x > 0.5 material 1 in green) is drawn by SceneDrawing with each triangle in its own
+// material's colour by both back ends: pixels of the front face (z = 1) left and right of x = 0.5
+// against the shading model evaluated on the CPU; with the same table and no ids it is one colour.
+TEST(DemoMaterials, EachTriangleIsDrawnInItsMaterialsColourByBothBackEnds) {
+  Result<scene::Scene> parsed = scene::parseScene(
+      R"({"gravity": [0, 0, 0], "bodies": [{"name": "cube", "mesh": {"generator": "box",
+          "size": [1, 1, 1], "cells": 2}, "material": {"E": 1e6, "nu": 0.3, "rho": 1000},
+          "colour": [0.2, 0.3, 0.9]}]})",
+      "inline", "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  scene::Scene sc = parsed.value();
+  // Normals from the triangles: (0, 0, 1) on the front face away from its edges' cells.
+  RenderMesh rm = test::boxSurface(glm::dvec3(0), glm::dvec3(1), 8, 8, 8);
+  rm.normals.clear();
+  for (size_t t = 0; t < rm.triangleCount(); ++t) {
+    double cx = 0;
+    for (int k = 0; k < 3; ++k) cx += rm.positions[3 * size_t(rm.indices[3 * t + size_t(k)])] / 3;
+    rm.materials.push_back(cx < 0.5 ? 0 : 1);
+  }
+  sc.bodies[0].def.renderMesh = rm;
+  const glm::vec3 red(0.8f, 0.1f, 0.1f), green(0.1f, 0.7f, 0.2f);
+  sc.bodies[0].materials = {{"red", red, ""}, {"green", green, ""}};
+  Camera cam;
+  cam.eye = {0.5f, 0.5f, 3.0f};
+  cam.target = {0.5f, 0.5f, 0.5f};
+  const int w = 64, h = 64;
+  const glm::mat4 viewProj = glm::perspective(glm::radians(cam.fovYDegrees), float(w) / float(h),
+                                              cam.nearPlane, cam.farPlane) *
+                             glm::lookAt(cam.eye, cam.target, cam.up);
+  int backEnds = 0;
+  for (RendererKind kind : {RendererKind::Vulkan, RendererKind::Gl}) {
+    RendererOptions ro;
+    ro.kind = kind;
+    ro.width = w;
+    ro.height = h;
+    ro.samples = 1;
+    Result<std::unique_ptr<Renderer>> renderer = createRenderer(ro);
+    if (!renderer) continue;
+    ++backEnds;
+    for (bool withIds : {true, false}) {
+      scene::Scene one = sc;
+      if (!withIds) one.bodies[0].def.renderMesh->materials.clear();
+      Result<std::unique_ptr<scene::BulletScene>> made = scene::BulletScene::create(one);
+      ASSERT_TRUE(made.ok()) << made.error().message;
+      SceneDrawing drawing(one);
+      ASSERT_TRUE(drawing.loadTextures(one));
+      (void)drawing.update(*made.value(), 0);
+      Image im;
+      Result<FrameStats> r = renderer.value()->render(drawing.meshes(), cam, im);
+      ASSERT_TRUE(r) << r.error().message;
+      for (const float x : {0.2f, 0.3f, 0.4f, 0.6f, 0.7f, 0.8f})
+        for (const float y : {0.2f, 0.5f, 0.8f}) {
+          const glm::vec4 c = viewProj * glm::vec4(x, y, 1.0f, 1.0f);
+          const int px = int((c.x / c.w * 0.5f + 0.5f) * w),
+                    py = int((0.5f - c.y / c.w * 0.5f) * h);
+          const glm::vec3 base = withIds ? (x < 0.5f ? red : green) : red;
+          const glm::dvec3 want = test::shade(glm::dvec3(base), {0, 0, 1}, {x, y, 1}, cam.eye);
+          const uint8_t* got = &im.rgba[4 * (size_t(py) * size_t(w) + size_t(px))];
+          for (int k = 0; k < 3; ++k)
+            EXPECT_NEAR(double(got[k]), want[k], 4.0)
+                << renderer.value()->description() << (withIds ? "" : ", no ids") << ": x " << x
+                << ", y " << y << ", channel " << k;
+        }
+    }
+  }
+  if (backEnds == 0) GTEST_SKIP() << "no renderer here";
+}
+
 }  // namespace
 }  // namespace gf::demo
+
 #endif  // GF_HAS_DEMO_APP

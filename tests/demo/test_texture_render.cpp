@@ -153,6 +153,81 @@ TEST_P(TextureRender, PixelsShowTheTextureAndCrackFacesTheirColour) {
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(double(got[c]), expected[c], 1.5) << "channel " << c;
 }
 
+// A mesh drawn in ranges (MeshFrame::ranges, a render mesh's materials): the quad's lower
+// triangle in a plain red range, its upper one in a textured green range, against the CPU
+// reference; crack flags go with the triangles of whichever range draws them (each range's
+// gl_PrimitiveID starts at 0), and a range outside the triangles is an error.
+TEST_P(TextureRender, RangesDrawTheirOwnColourAndTextureAndKeepCrackFlags) {
+  const int w = 72, h = 72;
+  std::string skip;
+  auto renderer = makeRenderer(GetParam(), w, h, skip);
+  if (!renderer) GTEST_SKIP() << skip;
+  const std::vector<float> positions = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0};
+  const std::vector<float> normals = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
+  const std::vector<float> uvs = {0, 0, 1, 0, 1, 1, 0, 1};
+  const std::vector<uint32_t> indices = {0, 1, 2, 0, 2, 3};
+  const std::shared_ptr<const Texture> texture = makeTexture(checker2x2()).value();
+  std::vector<DrawRange> ranges(2);
+  ranges[0] = {0, 1, {0.8f, 0.1f, 0.1f}, nullptr};
+  ranges[1] = {1, 1, {0.3f, 0.9f, 0.4f}, texture};
+  MeshFrame frame;
+  frame.positions = positions;
+  frame.normals = normals;
+  frame.indices = indices;
+  frame.uvs = uvs;
+  frame.ranges = ranges;
+  frame.dirtyEnd = 4;
+  frame.colour = {0.1f, 0.1f, 0.9f};  // not used: the ranges give the colours
+  frame.crackColour = {0.95f, 0.85f, 0.2f};
+  Camera cam;
+  cam.eye = {0.15f, 0.1f, 2.6f};
+  cam.target = {0, 0, 0};
+  cam.fovYDegrees = 50;
+  const glm::mat4 inv =
+      glm::inverse(glm::perspective(glm::radians(cam.fovYDegrees), float(w) / float(h),
+                                    cam.nearPlane, cam.farPlane) *
+                   glm::lookAt(cam.eye, cam.target, cam.up));
+  const std::vector<uint8_t> masks[3] = {{}, {0, 1}, {1, 0}};
+  for (int c = 0; c < 3; ++c) {
+    frame.crackMask = masks[c];
+    frame.topologyVersion = uint64_t(10 + c);
+    Image im;
+    Result<FrameStats> r = renderer->render({&frame, 1}, cam, im);
+    ASSERT_TRUE(r) << r.error().message;
+    int checked[2] = {0, 0};
+    for (int py = 2; py < h; py += 3)
+      for (int px = 2; px < w; px += 3) {
+        const float nx = 2.0f * (px + 0.5f) / w - 1.0f, ny = 1.0f - 2.0f * (py + 0.5f) / h;
+        const glm::vec4 a = inv * glm::vec4(nx, ny, -1, 1), b = inv * glm::vec4(nx, ny, 1, 1);
+        const glm::vec3 o = glm::vec3(a) / a.w, d = glm::vec3(b) / b.w - o;
+        const glm::vec3 p = o - (o.z / d.z) * d;
+        if (std::abs(p.x) > 0.92f || std::abs(p.y) > 0.92f || std::abs(p.x - p.y) < 0.08f) continue;
+        const int tri = p.y > p.x ? 1 : 0;
+        const bool crack = !masks[c].empty() && masks[c][size_t(tri)] != 0;
+        glm::dvec3 base = glm::dvec3(ranges[size_t(tri)].colour);
+        if (tri == 1) base *= sampleBilinear(texture->levels[0], 0.5 * (p.x + 1), 0.5 * (p.y + 1));
+        if (crack) base = glm::dvec3(frame.crackColour);
+        const glm::dvec3 expected = test::shade(base, {0, 0, 1}, glm::dvec3(p), cam.eye);
+        const uint8_t* got = &im.rgba[4 * (size_t(py) * w + px)];
+        for (int k = 0; k < 3; ++k)
+          ASSERT_NEAR(double(got[k]), expected[k], 2.5)
+              << renderer->description() << ", mask " << c << ": pixel " << px << "," << py
+              << " (triangle " << tri << ") channel " << k;
+        ++checked[tri];
+      }
+    EXPECT_GT(checked[0], 100);
+    EXPECT_GT(checked[1], 100);
+  }
+  ranges[1].triangleCount = 2;
+  frame.topologyVersion = 20;
+  Image im;
+  Result<FrameStats> bad = renderer->render({&frame, 1}, cam, im);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("range of triangles [1, 3) is outside 0..2"),
+            std::string::npos)
+      << bad.error().message;
+}
+
 // A textured mesh without its UVs is an error naming them, not a read past the end.
 TEST_P(TextureRender, TextureWithoutUvsIsAnError) {
   std::string skip;

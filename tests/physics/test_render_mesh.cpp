@@ -753,6 +753,12 @@ TEST(RenderMesh, BadRenderMeshIsRefusedAndNothingChanges) {
       {"BodyDef.renderMesh.indices[5]: vertex 99999 out of range",
        [](RenderMesh& m) { m.indices[5] = 99999; }},
       {"BodyDef.renderMesh.uvs: ", [](RenderMesh& m) { m.uvs.pop_back(); }},
+      {"BodyDef.renderMesh.materials: 3 ids for ", [](RenderMesh& m) { m.materials.assign(3, 1); }},
+      {"BodyDef.renderMesh.materials[4]: 65535 is reserved",
+       [](RenderMesh& m) {
+         m.materials.assign(m.triangleCount(), 2);
+         m.materials[4] = kInteriorMaterial;
+       }},
       {"BodyDef.renderMesh.positions[0]: (-5, 0, 0) lies",
        [](RenderMesh& m) { m.positions[0] = -5; }},
   };

@@ -759,5 +759,105 @@ TEST(RenderMesh, DrawnVerticesStayWithTheirFragmentAsPiecesFlyApart) {
   }
 }
 
+// The artist's triangle (of `source`, rest frame) that holds rest point P: within 1e-6 m of its
+// plane and deepest inside it (largest weakest barycentric coordinate); -1 if none is that close.
+int64_t holdingTriangle(const RenderMesh& source, glm::dvec3 P) {
+  int64_t best = -1;
+  double bestDepth = -1e-6;
+  for (size_t t = 0; t < source.triangleCount(); ++t) {
+    const glm::dvec3 a = at(source.positions, source.indices[3 * t]),
+                     b = at(source.positions, source.indices[3 * t + 1]),
+                     c = at(source.positions, source.indices[3 * t + 2]);
+    const glm::dvec3 n = glm::cross(b - a, c - a);
+    const double area2 = glm::dot(n, n);
+    if (std::abs(glm::dot(P - a, n)) > 1e-6 * std::sqrt(area2)) continue;
+    const double wa = glm::dot(glm::cross(c - b, P - b), n) / area2,
+                 wb = glm::dot(glm::cross(a - c, P - c), n) / area2, wc = 1 - wa - wb;
+    const double depth = std::min({wa, wb, wc});
+    if (depth > bestDepth) {
+      bestDepth = depth;
+      best = int64_t(t);
+    }
+  }
+  return best;
+}
+
+// Materials survive refinement and crack cutting: a cube whose render mesh carries four
+// materials (two halves split by the plane x = 0.05, each alternating by triangle) is cut by two
+// blades across that plane and pulled apart; at rest, every drawn triangle that is not a crack face
+// carries the material of the artist's triangle that holds it (found here by geometry alone), and
+// every crack face the interior id. Render meshes coarser than the cells (refined on the first
+// break) and finer ones; a body without materials shows none.
+TEST(RenderMesh, MaterialsSurviveRefinementAndCrackCutting) {
+  for (int n : {1, 2, 15}) {
+    BodyDef def;
+    def.mesh = gen::box(0.1, 0.1, 0.1, 10, 10, 10);
+    def.material = Material::stableNeoHookean(1e7, 0.2, 2500);
+    def.fracture.enabled = true;
+    def.fracture.strength = 1e5;
+    RenderMesh surface = boxSurface(glm::dvec3(0), glm::dvec3(0.1), n, n, n);
+    for (size_t t = 0; t < surface.triangleCount(); ++t) {
+      glm::dvec3 c(0.0);
+      for (int k = 0; k < 3; ++k) c += at(surface.positions, surface.indices[3 * t + size_t(k)]);
+      surface.materials.push_back(uint16_t((c.x / 3 < 0.05 ? 1 : 5) + int(t % 2)));
+    }
+    def.renderMesh = surface;
+    Grip left, right;
+    left.nodes = selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
+    right.nodes = selectNodes(def.mesh, [](double x, double, double) { return x > 0.1 - 1e-9; });
+    left.velocity = glm::vec3(-0.05f, 0, 0);
+    right.velocity = glm::vec3(0.05f, 0, 0);
+    def.grips = {left, right};
+    World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+    const BodyId id = world.createBody(def).value();
+    {
+      const SurfaceView whole = world.surface(id);
+      ASSERT_EQ(whole.materials.size(), surface.triangleCount());
+      EXPECT_TRUE(
+          std::equal(whole.materials.begin(), whole.materials.end(), surface.materials.begin()));
+    }
+    cutCubeIntoThree(world, id);
+    shatter(world, id, 30);
+    ASSERT_GE(world.fractureStats(id).fragments, 3);
+    ASSERT_TRUE(world.setPositions(id, def.mesh.positions).ok());
+    const SurfaceView sv = world.surface(id);
+    const size_t nt = sv.indices.size() / 3;
+    ASSERT_EQ(sv.materials.size(), nt);
+    int wrong = 0, unheld = 0, cracks = 0, pieces = 0;
+    std::set<uint16_t> seen;
+    for (size_t t = 0; t < nt; ++t) {
+      if (sv.crackMask[t]) {
+        ++cracks;
+        wrong += sv.materials[t] != kInteriorMaterial ? 1 : 0;
+        continue;
+      }
+      glm::dvec3 c(0.0);
+      for (int k = 0; k < 3; ++k) c += pos(sv.positions, sv.indices[3 * t + size_t(k)]) / 3.0;
+      const int64_t s = holdingTriangle(surface, c);
+      if (s < 0) {
+        ++unheld;
+        continue;
+      }
+      ++pieces;
+      seen.insert(sv.materials[t]);
+      if (sv.materials[t] != surface.materials[size_t(s)]) ++wrong;
+    }
+    std::printf(
+        "%zu-triangle render mesh with 4 materials, broken: %zu drawn triangles (%d crack faces), "
+        "%d with a wrong material, %d off the artist's surface\n",
+        surface.triangleCount(), nt, cracks, wrong, unheld);
+    EXPECT_GT(nt, surface.triangleCount());
+    EXPECT_GT(cracks, 0);
+    EXPECT_EQ(wrong, 0);
+    EXPECT_EQ(unheld, 0);
+    EXPECT_EQ(seen, (std::set<uint16_t>{1, 2, 5, 6}));
+    EXPECT_GT(pieces, 0);
+  }
+  BodyDef plain = brittleBar();
+  World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+  const BodyId id = world.createBody(plain).value();
+  EXPECT_TRUE(world.surface(id).materials.empty());
+}
+
 }  // namespace
 }  // namespace gf

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
@@ -19,6 +20,7 @@
 #include <string>
 
 #include "common/render_mesh_checks.h"
+#include "common/temp_dir.h"
 #include "meshing/surface_reader.h"
 #include "scene/scene.h"
 
@@ -504,6 +506,182 @@ TEST(Scene, RenderMeshTextureIsCheckedAtLoad) {
                 "read from OBJ when every face corner has one, from PLY's per-vertex u and v, "
                 "and through assimp, e.g. from glTF, Collada or FBX, when every mesh in the "
                 "file has them)");
+}
+
+// A glTF 2.0 file of the square [0.2, 0.8]^2 at z = 0.5 in two triangles, each a primitive of
+// its own material: "red" (base colour only) below the diagonal, "green" (base colour and the
+// texture `texture`, with texture coordinates) above it; the buffer beside it.
+std::string writeTwoMaterialGltf(const fs::path& dir, const std::string& texture) {
+  const float positions[12] = {0.2f, 0.2f, 0.5f, 0.8f, 0.2f, 0.5f,
+                               0.8f, 0.8f, 0.5f, 0.2f, 0.8f, 0.5f};
+  const float uvs[8] = {0, 0, 1, 0, 1, 1, 0, 1};
+  const uint32_t indices[6] = {0, 1, 2, 0, 2, 3};
+  {
+    std::FILE* f = std::fopen((dir / "square.bin").c_str(), "wb");
+    std::fwrite(positions, sizeof positions, 1, f);
+    std::fwrite(uvs, sizeof uvs, 1, f);
+    std::fwrite(indices, sizeof indices, 1, f);
+    std::fclose(f);
+  }
+  const std::string gltf = R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+    "nodes": [{"mesh": 0}],
+    "buffers": [{"uri": "square.bin", "byteLength": 104}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                    {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+                    {"buffer": 0, "byteOffset": 80, "byteLength": 12},
+                    {"buffer": 0, "byteOffset": 92, "byteLength": 12}],
+    "accessors": [
+      {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+       "min": [0.2, 0.2, 0.5], "max": [0.8, 0.8, 0.5]},
+      {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+      {"bufferView": 2, "componentType": 5125, "count": 3, "type": "SCALAR"},
+      {"bufferView": 3, "componentType": 5125, "count": 3, "type": "SCALAR"}],
+    "meshes": [{"primitives": [
+      {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0},
+      {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 3, "material": 1}]}],
+    "materials": [
+      {"name": "red", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.1, 0.1, 1]}},
+      {"name": "green", "pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.7, 0.2, 1],
+                                                 "baseColorTexture": {"index": 0}}}],
+    "textures": [{"source": 0}], "images": [{"uri": ")" +
+                           texture + R"("}]})";
+  const fs::path path = dir / "square.gltf";
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  std::fputs(gltf.c_str(), f);
+  std::fclose(f);
+  return path.string();
+}
+
+// An asset's materials: the importer reads each triangle's material, its base colour and its
+// texture; a scene draws them by default, each texture resolved against the asset's folder and
+// checked at load; "texture" or "materials": false draw the mesh in one colour as before; a
+// missing texture names the material and the asset.
+TEST(Scene, RenderMeshMaterialsComeFromTheAsset) {
+  if (!gf::meshing::haveAssimp()) GTEST_SKIP() << "needs assimp to read glTF";
+  test::TempDir tmp("scene_materials");
+  const std::string png = GF_SOURCE_DIR "/scenes/meshes/duckCM.png";
+  fs::copy_file(png, tmp.path / "leaf.png");
+  const std::string asset = writeTwoMaterialGltf(tmp.path, "leaf.png");
+
+  const Result<meshing::SurfaceFile> read = meshing::readSurfaceFile(asset);
+  ASSERT_TRUE(read.ok()) << read.error().message;
+  const meshing::SurfaceFile& file = read.value();
+  ASSERT_EQ(file.materials.size(), 2u);
+  ASSERT_EQ(file.faceMaterial.size(), 2u);
+  // Each triangle's material by where it lies: below the diagonal y = x is "red".
+  for (size_t t = 0; t < 2; ++t) {
+    double cx = 0, cy = 0;
+    for (int k = 0; k < 3; ++k) {
+      cx += file.positions[3 * size_t(file.triangles[3 * t + size_t(k)])] / 3;
+      cy += file.positions[3 * size_t(file.triangles[3 * t + size_t(k)]) + 1] / 3;
+    }
+    EXPECT_EQ(file.materials[file.faceMaterial[t]].name, cy < cx ? "red" : "green");
+  }
+  const meshing::SurfaceFile::Material& red =
+      file.materials[0].name == "red" ? file.materials[0] : file.materials[1];
+  const meshing::SurfaceFile::Material& green =
+      file.materials[0].name == "red" ? file.materials[1] : file.materials[0];
+  EXPECT_NEAR(red.colour[0], 0.8f, 1e-6f);
+  EXPECT_NEAR(red.colour[1], 0.1f, 1e-6f);
+  EXPECT_NEAR(green.colour[1], 0.7f, 1e-6f);
+  EXPECT_EQ(red.texture, "");
+  EXPECT_EQ(green.texture, "leaf.png");
+
+  // The scene in another folder than the asset: textures go by the asset's.
+  const auto parse = [&](const std::string& keys) {
+    return parseScene(R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1], "cells": 2},
+        "render_mesh": {"surface": ")" +
+                          asset + "\"" + keys + R"(}, "material": {"E": 1, "nu": 0, "rho": 1}}]})",
+                      "inline", GF_SOURCE_DIR "/scenes");
+  };
+  const Result<Scene> sc = parse("");
+  if (!sc.ok() && sc.error().message.find("reads no images") != std::string::npos)
+    GTEST_SKIP() << sc.error().message;
+  ASSERT_TRUE(sc.ok()) << sc.error().message;
+  const SceneBody& body = sc.value().bodies[0];
+  ASSERT_EQ(body.materials.size(), 2u);
+  ASSERT_TRUE(body.def.renderMesh.has_value());
+  const RenderMesh& rm = *body.def.renderMesh;
+  ASSERT_EQ(rm.materials.size(), rm.triangleCount());
+  for (size_t t = 0; t < rm.triangleCount(); ++t)
+    EXPECT_EQ(body.materials[rm.materials[t]].name, file.materials[file.faceMaterial[t]].name);
+  for (const SceneBody::Material& m : body.materials) {
+    if (m.name == "red") {
+      EXPECT_EQ(m.colour, glm::vec3(0.8f, 0.1f, 0.1f));
+      EXPECT_EQ(m.texture, "");
+    } else {
+      EXPECT_EQ(m.colour, glm::vec3(0.1f, 0.7f, 0.2f));
+      EXPECT_EQ(m.texture, (tmp.path / "leaf.png").string());
+    }
+  }
+  for (const std::string& keys : {std::string(R"(, "materials": false)"),
+                                  std::string(R"(, "texture": "meshes/duckCM.png")")}) {
+    const Result<Scene> one = parse(keys);
+    ASSERT_TRUE(one.ok()) << one.error().message;
+    EXPECT_TRUE(one.value().bodies[0].materials.empty()) << keys;
+    EXPECT_TRUE(one.value().bodies[0].def.renderMesh->materials.empty()) << keys;
+  }
+  const Result<Scene> notBool = parse(R"(, "materials": "yes")");
+  ASSERT_FALSE(notBool.ok());
+  EXPECT_NE(notBool.error().message.find("bodies[0].render_mesh.materials"), std::string::npos)
+      << notBool.error().message;
+
+  const std::string missing = writeTwoMaterialGltf(tmp.path, "gone.png");
+  const Result<Scene> bad = parse("");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.error().message, "inline: bodies[0].render_mesh.surface: material 'green' of \"" +
+                                     missing + "\": texture no such file \"" +
+                                     (tmp.path / "gone.png").string() + "\"");
+}
+
+// An OBJ render mesh's materials (usemtl, with newmtl, Kd and map_Kd from its mtllib): two
+// quads of the square at z = 0.5, the left one "bark" (plain), the right one "leaf" (textured);
+// faces before any usemtl would be "default". The scene draws them as the glTF's.
+TEST(Scene, RenderMeshObjMaterialsComeFromUsemtl) {
+  test::TempDir tmp("scene_obj_materials");
+  fs::copy_file(GF_SOURCE_DIR "/scenes/meshes/duckCM.png", tmp.path / "leaf.png");
+  std::ofstream(tmp.path / "square.mtl") << "newmtl bark\nKd 0.4 0.25 0.1\n\nnewmtl leaf\n"
+                                            "Kd 0.2 0.8 0.3\nmap_Kd leaf.png\n";
+  std::ofstream(tmp.path / "square.obj")
+      << "mtllib square.mtl\nv 0.2 0.2 0.5\nv 0.5 0.2 0.5\nv 0.8 0.2 0.5\nv 0.2 0.8 0.5\n"
+         "v 0.5 0.8 0.5\nv 0.8 0.8 0.5\nvt 0 0\nvt 0.5 0\nvt 1 0\nvt 0 1\nvt 0.5 1\nvt 1 1\n"
+         "usemtl leaf\nf 2/2 3/3 6/6 5/5\nusemtl bark\nf 1/1 2/2 5/5 4/4\n";
+  meshing::SurfaceReadOptions ro;
+  ro.uvs = true;
+  const Result<meshing::SurfaceFile> read =
+      meshing::readSurfaceFile((tmp.path / "square.obj").string(), ro);
+  ASSERT_TRUE(read.ok()) << read.error().message;
+  const meshing::SurfaceFile& file = read.value();
+  ASSERT_EQ(file.materials.size(), 2u);
+  EXPECT_EQ(file.materials[0].name, "leaf");  // in the order first used
+  EXPECT_EQ(file.materials[0].texture, "leaf.png");
+  EXPECT_NEAR(file.materials[0].colour[1], 0.8f, 1e-6f);
+  EXPECT_EQ(file.materials[1].name, "bark");
+  EXPECT_EQ(file.materials[1].texture, "");
+  EXPECT_NEAR(file.materials[1].colour[0], 0.4f, 1e-6f);
+  ASSERT_EQ(file.faceMaterial.size(), 4u);
+  for (size_t t = 0; t < 4; ++t) {
+    double cx = 0;
+    for (int k = 0; k < 3; ++k)
+      cx += file.positions[3 * size_t(file.triangles[3 * t + size_t(k)])] / 3;
+    EXPECT_EQ(file.faceMaterial[t], cx > 0.5 ? 0 : 1) << "triangle " << t;
+  }
+  // Read as a tet mesh's surface (no uvs), materials are not read.
+  EXPECT_TRUE(
+      meshing::readSurfaceFile((tmp.path / "square.obj").string()).value().materials.empty());
+
+  const Result<Scene> sc = parseScene(
+      R"({"bodies": [{"mesh": {"generator": "box", "size": [1, 1, 1], "cells": 2},
+          "render_mesh": {"surface": ")" +
+          (tmp.path / "square.obj").string() + R"("}, "material": {"E": 1, "nu": 0, "rho": 1}}]})",
+      "inline", "");
+  if (!sc.ok() && sc.error().message.find("reads no images") != std::string::npos)
+    GTEST_SKIP() << sc.error().message;
+  ASSERT_TRUE(sc.ok()) << sc.error().message;
+  const SceneBody& body = sc.value().bodies[0];
+  ASSERT_EQ(body.materials.size(), 2u);
+  EXPECT_EQ(body.materials[0].texture, (tmp.path / "leaf.png").string());
+  EXPECT_EQ(body.def.renderMesh->materials.size(), body.def.renderMesh->triangleCount());
 }
 
 // The shipped bunny with its own surface, thrown at the ball as in the scene until it breaks

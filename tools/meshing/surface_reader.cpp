@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -189,8 +190,36 @@ bool parseTextureIndex(const std::string& s, int64_t& t) {
   return ec == std::errc() && p == field.data() + field.size() && t != 0;
 }
 
-// Reads v and f lines, and with `uvs` vt lines and the faces' texture indices; polygons become
-// fans; vn, groups and materials are ignored.
+// The materials of an MTL file (newmtl, Kd, map_Kd), appended to `out`; a file that cannot be
+// opened adds none (its materials' faces are then drawn white), as assimp does.
+// The rest of a line after its keyword, without surrounding blanks (and a CRLF file's '\r').
+std::string restOfLine(std::istringstream& ss) {
+  std::string s;
+  std::getline(ss >> std::ws, s);
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  return s;
+}
+
+void readMtl(const std::string& path, std::vector<SurfaceFile::Material>& out) {
+  std::ifstream in(path);
+  std::string line, tok;
+  while (std::getline(in, line)) {
+    std::istringstream ss(line);
+    if (!(ss >> tok)) continue;
+    if (tok == "newmtl") {
+      out.emplace_back();
+      out.back().name = restOfLine(ss);
+    } else if (tok == "Kd" && !out.empty()) {
+      for (float& c : out.back().colour) ss >> c;
+    } else if (tok == "map_Kd" && !out.empty()) {
+      // Options come first; the file name is the last field.
+      while (ss >> tok) out.back().texture = tok;
+    }
+  }
+}
+
+// Reads v and f lines, and with `uvs` (render meshes) vt lines and the faces' texture indices,
+// and the materials (mtllib, usemtl); polygons become fans; vn and groups are ignored.
 Result<SurfaceFile> readObj(const std::string& path, bool uvs) {
   std::ifstream in(path);
   if (!in) return fail(path, ": cannot open");
@@ -198,8 +227,11 @@ Result<SurfaceFile> readObj(const std::string& path, bool uvs) {
   s.path = path;
   std::string line, tok;
   int64_t ln = 0;
-  std::vector<float> textureCoords;  // 2 per vt line
-  std::vector<int64_t> cornerUv;     // per triangle corner, 0-based; -1: none
+  std::vector<float> textureCoords;   // 2 per vt line
+  std::vector<int64_t> cornerUv;      // per triangle corner, 0-based; -1: none
+  std::vector<int32_t> faceMaterial;  // per triangle: index in s.materials; -1: before usemtl
+  int32_t material = -1;
+  bool usemtl = false;
   while (std::getline(in, line)) {
     ++ln;
     const std::string where = path + ":" + std::to_string(ln) + ": ";
@@ -223,6 +255,20 @@ Result<SurfaceFile> readObj(const std::string& path, bool uvs) {
         if (!why.empty()) return fail(where, "texture coordinate ", k ? "v" : "u", ": ", why);
       }
       textureCoords.insert(textureCoords.end(), {float(t[0]), float(t[1])});
+    } else if (tok == "mtllib" && uvs) {
+      const std::string file = restOfLine(ss);
+      readMtl((std::filesystem::path(path).parent_path() / file).string(), s.materials);
+    } else if (tok == "usemtl" && uvs) {
+      const std::string name = restOfLine(ss);
+      usemtl = true;
+      material = -1;
+      for (size_t m = 0; m < s.materials.size() && material < 0; ++m)
+        if (s.materials[m].name == name) material = int32_t(m);
+      if (material < 0) {
+        material = int32_t(s.materials.size());
+        s.materials.emplace_back();
+        s.materials.back().name = name;
+      }
     } else if (tok == "f") {
       std::vector<int64_t> poly, polyUv;
       const int64_t nv = static_cast<int64_t>(s.vertexCount());
@@ -250,6 +296,7 @@ Result<SurfaceFile> readObj(const std::string& path, bool uvs) {
       for (size_t k = 1; k + 1 < poly.size(); ++k) {
         s.triangles.insert(s.triangles.end(), {poly[0], poly[k], poly[k + 1]});
         s.faceTag.push_back(ln);
+        faceMaterial.push_back(material);
         if (uvs) cornerUv.insert(cornerUv.end(), {polyUv[0], polyUv[k], polyUv[k + 1]});
       }
     }
@@ -258,6 +305,25 @@ Result<SurfaceFile> readObj(const std::string& path, bool uvs) {
   const int64_t nv = static_cast<int64_t>(s.vertexCount());
   if (nv == 0) return fail(path, ": no vertices ('v' lines)");
   if (s.triangles.empty()) return fail(path, ": no faces ('f' lines)");
+  // Only the materials faces use, in the order first used, as the assimp reader keeps them;
+  // faces before any usemtl get a white "default".
+  if (usemtl) {
+    std::vector<SurfaceFile::Material> defined = std::move(s.materials);
+    std::vector<int32_t> used(defined.size() + 1, -1);
+    s.materials.clear();
+    for (int32_t m : faceMaterial) {
+      int32_t& u = used[size_t(m + 1)];
+      if (u < 0) {
+        u = int32_t(s.materials.size());
+        s.materials.push_back(m < 0 ? SurfaceFile::Material{"default", {1, 1, 1}, ""}
+                                    : defined[size_t(m)]);
+      }
+      s.faceMaterial.push_back(uint16_t(u));
+    }
+    if (s.materials.size() > 0xFFFE) return fail(path, ": more than 65534 materials");
+  } else {
+    s.materials.clear();
+  }
   for (size_t i = 0; i < s.triangles.size(); ++i) {
     if (s.triangles[i] >= nv) {
       return fail(path, ":", std::to_string(s.faceTag[i / 3]), ": face index ",

@@ -48,6 +48,17 @@ struct SurfaceFile {
   // one vertex per UV); PLY, the vertices' u and v (or s and t, texture_u and texture_v,
   // texture_s and texture_t) properties; else empty.
   std::vector<float> uvs;
+  // Per triangle an index into `materials` (the file's materials that some triangle uses, in
+  // the order first used): assimp, and OBJ read with SurfaceReadOptions::uvs (usemtl, with
+  // newmtl, Kd and map_Kd from its mtllib); empty otherwise.
+  std::vector<uint16_t> faceMaterial;
+  struct Material {
+    std::string name;             // the file's name for it, or "material N"
+    float colour[3] = {1, 1, 1};  // base colour (glTF baseColorFactor) or diffuse colour
+    std::string texture;          // its base colour or diffuse texture as the file names it
+                                  // (relative to the file's folder), or empty; "*N" = embedded
+  };
+  std::vector<Material> materials;
   // What was read and converted, for the summary: "FBX (Autodesk FBX Importer), 2 meshes";
   // "unit 0.01 m (FBX UnitScaleFactor 1), up +Y (FBX axis system)".
   std::string format, conversion;

@@ -113,8 +113,33 @@ struct Walk {
   const aiScene* scene;
   std::vector<unsigned> uses;  // how many nodes instance each mesh
   SurfaceFile* out;
-  bool allHaveUvs = true;  // every mesh so far had texture coordinates (set 0)
+  bool allHaveUvs = true;     // every mesh so far had texture coordinates (set 0)
+  std::vector<int32_t> used;  // per file material: its index in SurfaceFile::materials, or -1
 };
+
+// A material's base colour and colour texture: glTF's PBR base colour where the file has one,
+// else the classic diffuse.
+SurfaceFile::Material readMaterial(const aiMaterial* m, unsigned index) {
+  SurfaceFile::Material out;
+  aiString name;
+  out.name = m->Get(AI_MATKEY_NAME, name) == AI_SUCCESS && name.length > 0
+                 ? name.C_Str()
+                 : "material " + std::to_string(index);
+  aiColor4D c;
+  if (m->Get(AI_MATKEY_BASE_COLOR, c) == AI_SUCCESS ||
+      m->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS) {
+    out.colour[0] = c.r;
+    out.colour[1] = c.g;
+    out.colour[2] = c.b;
+  }
+  aiString texture;
+  for (aiTextureType type : {aiTextureType_BASE_COLOR, aiTextureType_DIFFUSE})
+    if (m->GetTextureCount(type) > 0 && m->GetTexture(type, 0, &texture) == AI_SUCCESS) {
+      out.texture = texture.C_Str();
+      break;
+    }
+  return out;
+}
 
 // Appends the triangles of the node's meshes, placed by t (the node's transform included).
 void addMeshes(Walk& w, const aiNode* node, const Affine& t) {
@@ -140,6 +165,16 @@ void addMeshes(Walk& w, const aiNode* node, const Affine& t) {
     }
     // A mirroring transform turns faces inside out; reversing them keeps them outward.
     const bool mirror = t.det() < 0;
+    uint16_t material = 0;
+    if (mesh->mMaterialIndex < w.scene->mNumMaterials) {
+      int32_t& u = w.used[mesh->mMaterialIndex];
+      if (u < 0) {
+        u = int32_t(s.materials.size());
+        s.materials.push_back(
+            readMaterial(w.scene->mMaterials[mesh->mMaterialIndex], mesh->mMaterialIndex));
+      }
+      material = uint16_t(u);
+    }
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
       if (face.mNumIndices == 1) ++s.skippedPoints;
@@ -150,6 +185,7 @@ void addMeshes(Walk& w, const aiNode* node, const Affine& t) {
       s.triangles.insert(s.triangles.end(), {base + a, base + b, base + c});
       s.faceTag.push_back(f);
       s.faceMesh.push_back(id);
+      s.faceMaterial.push_back(material);
     }
   }
 }
@@ -247,11 +283,13 @@ Result<SurfaceFile> readWithAssimp(const std::string& path, const SurfaceReadOpt
     upSays = std::string("up +") + static_cast<char>(std::toupper(options.up)) + " (--up)";
   }
   for (double& x : axes) x *= unit;
-  Walk w{scene, std::vector<unsigned>(scene->mNumMeshes, 0), &s};
+  Walk w{scene, std::vector<unsigned>(scene->mNumMeshes, 0), &s, true,
+         std::vector<int32_t>(scene->mNumMaterials, -1)};
   countUses(scene->mRootNode, w.uses);
   collect(w, scene->mRootNode, Affine::linear(axes) * root);
   // UVs from some meshes only would leave the others' texture lookups meaningless.
   if (!w.allHaveUvs) s.uvs.clear();
+  if (s.materials.size() > 0xFFFE) return fail(path, ": more than 65534 materials");
 
   s.format +=
       ", " + std::to_string(s.meshNames.size()) + (s.meshNames.size() == 1 ? " mesh" : " meshes");

@@ -313,19 +313,19 @@ TetMesh readSurfaceMesh(ObjReader& o, const std::string& baseDir) {
 // body's "translate" like the tets, so the two stay in register. Normals come from the triangles.
 // "texture": the image file, checked here (it exists, opens, and its header is one stb_image
 // decodes) so that a typo fails at load rather than in the renderer; the demo decodes it.
-std::string readTexture(ObjReader& o, const std::string& baseDir) {
-  const std::string at = o.at("texture");
-  const std::string resolved = resolvePath(readString(o.require("texture"), at), baseDir);
+// `what` names the file's origin in messages when it came from an asset rather than the scene.
+std::string checkTexture(const std::string& resolved, const std::string& at,
+                         const std::string& what = "") {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(resolved, ec)) {
-    throw SceneError{at, "no such file \"" + resolved + "\""};
+    throw SceneError{at, what + "no such file \"" + resolved + "\""};
   }
   std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(resolved.c_str(), "rb"), &std::fclose);
-  if (!f) throw SceneError{at, "cannot open \"" + resolved + "\": " + std::strerror(errno)};
+  if (!f) throw SceneError{at, what + "cannot open \"" + resolved + "\": " + std::strerror(errno)};
 #ifdef GF_SCENE_HAS_STB_IMAGE
   int w = 0, h = 0, channels = 0;
   if (!stbi_info_from_file(f.get(), &w, &h, &channels)) {
-    throw SceneError{at, "\"" + resolved +
+    throw SceneError{at, what + "\"" + resolved +
                              "\" is not an image stb_image reads (PNG, JPEG, TGA, "
                              "BMP, PSD, GIF, HDR, PIC, PNM): " +
                              stbi_failure_reason()};
@@ -338,10 +338,42 @@ std::string readTexture(ObjReader& o, const std::string& baseDir) {
   return resolved;
 }
 
+std::string readTexture(ObjReader& o, const std::string& baseDir) {
+  const std::string at = o.at("texture");
+  return checkTexture(resolvePath(readString(o.require("texture"), at), baseDir), at);
+}
+
+// The asset's materials, when its triangles use two or more: ids into the table, each material's
+// texture resolved against the asset's folder and checked like "texture".
+void readAssetMaterials(const meshing::SurfaceFile& surface, const std::string& at, RenderMesh& m,
+                        std::vector<SceneBody::Material>& materials) {
+  if (surface.materials.size() < 2 || surface.faceMaterial.size() != m.triangleCount()) return;
+  const std::string folder = std::filesystem::path(surface.path).parent_path().string();
+  for (const meshing::SurfaceFile::Material& f : surface.materials) {
+    SceneBody::Material s;
+    s.name = f.name;
+    s.colour = glm::vec3(f.colour[0], f.colour[1], f.colour[2]);
+    const std::string what = "material '" + f.name + "' of \"" + surface.path + "\": texture ";
+    if (!f.texture.empty() && f.texture[0] == '*')
+      throw SceneError{at, what + "\"" + f.texture +
+                               "\" is embedded in the file; graphfrac reads texture files only "
+                               "(export the images beside the asset)"};
+    if (!f.texture.empty()) {
+      if (m.uvs.empty())
+        throw SceneError{at, what + "\"" + f.texture +
+                                 "\" has no texture coordinates (UVs) in the mesh to map it with"};
+      s.texture = checkTexture(resolvePath(f.texture, folder), at, what);
+    }
+    materials.push_back(std::move(s));
+  }
+  m.materials = surface.faceMaterial;
+}
+
 RenderMesh readRenderMesh(const json& v, const std::string& path, const std::string& baseDir,
-                          const glm::dvec3& translate, std::string& texture) {
+                          const glm::dvec3& translate, std::string& texture,
+                          std::vector<SceneBody::Material>& materials) {
   ObjReader o(v, path);
-  o.keys({"surface", "unit", "up", "scale", "texture"});
+  o.keys({"surface", "unit", "up", "scale", "texture", "materials"});
   glm::dvec3 k(1);
   if (const json* scale = o.find("scale")) k = readScale(*scale, o.at("scale"));
   const meshing::SurfaceFile surface = readSurfaceKeys(o, baseDir, true);
@@ -353,6 +385,9 @@ RenderMesh readRenderMesh(const json& v, const std::string& path, const std::str
   }
   m.indices.assign(surface.triangles.begin(), surface.triangles.end());
   m.uvs = surface.uvs;
+  // The asset's own materials unless "texture" paints the whole mesh or "materials" is false.
+  const bool own = o.has("materials") ? readBool(*o.find("materials"), o.at("materials")) : true;
+  if (own && !o.has("texture")) readAssetMaterials(surface, o.at("surface"), m, materials);
   if (Result<void> r = m.check(); !r.ok()) throw SceneError{o.at("surface"), r.error().message};
   if (o.has("texture")) {
     texture = readTexture(o, baseDir);
@@ -1168,7 +1203,7 @@ SceneBody readBody(const json& v, const std::string& path, size_t index,
   }
   if (const json* rm = o.find("render_mesh")) {
     body.def.renderMesh =
-        readRenderMesh(*rm, o.at("render_mesh"), baseDir, translate, body.texture);
+        readRenderMesh(*rm, o.at("render_mesh"), baseDir, translate, body.texture, body.materials);
     // The texture's own colours unless "colour" tints them.
     if (!body.texture.empty()) body.colour = glm::vec3(1.0f);
   }

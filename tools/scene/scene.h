@@ -40,6 +40,15 @@ struct SceneBody {
   /// Image file drawn on the render mesh by its UVs ("render_mesh": {"texture": ...}), resolved
   /// against the scene's folder; empty for none. Checked at load; decoded by the demo.
   std::string texture;
+  /// The render mesh's materials, indexed by RenderMesh::materials, when its asset names two or
+  /// more and "render_mesh" gives no "texture" (docs/scene_format.md): each drawn in its own
+  /// colour and texture (resolved, checked at load) instead of `colour` and `texture`.
+  struct Material {
+    std::string name;
+    glm::vec3 colour{1.0f};  ///< Linear RGB.
+    std::string texture;     ///< Image file, resolved; empty for none.
+  };
+  std::vector<Material> materials;
   /// The JSON entry of each def.grips, in order ("pins[0]", "grips[1]"): pins and grips
   /// share BodyDef::grips, and an entry whose nodes were all held already makes none.
   std::vector<std::string> gripNames;

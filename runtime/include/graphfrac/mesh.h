@@ -50,6 +50,9 @@ struct TetMesh {
   double volume() const;
 };
 
+/// The material id of crack faces (SurfaceView::materials); not valid in RenderMesh::materials.
+inline constexpr uint16_t kInteriorMaterial = 0xFFFF;
+
 /// An artist's triangle mesh drawn in place of a body's tet boundary (BodyDef::renderMesh;
 /// thesis sec 7.3.2, the multi-resolution framework): each vertex is bound at body creation to
 /// the tet that contains it (or the nearest one, for vertices slightly outside) by barycentric
@@ -59,6 +62,10 @@ struct RenderMesh {
   std::vector<float> normals;     ///< 3 per vertex, or empty: area-weighted from the triangles
   std::vector<float> uvs;         ///< 2 per vertex, or empty
   std::vector<uint32_t> indices;  ///< 3 per triangle, counter-clockwise seen from outside
+  /// Per triangle: its material's id (the importer's table, kept on the tools' side), or empty:
+  /// every triangle material 0. Kept through refinement and crack cutting (SurfaceView::
+  /// materials); kInteriorMaterial is reserved for crack faces.
+  std::vector<uint16_t> materials;
 
   size_t vertexCount() const { return positions.size() / 3; }
   size_t triangleCount() const { return indices.size() / 3; }

@@ -20,6 +20,10 @@ struct SurfaceView {
   /// 2 per vertex when the body's render mesh has UVs (crack-face vertices get 0, 0), else
   /// empty.
   std::span<const float> uvs;
+  /// Per triangle when the body's render mesh has materials (RenderMesh::materials): the
+  /// material of the artist's triangle it was cut from, kInteriorMaterial (mesh.h) on crack
+  /// faces (crackMask 1). Empty otherwise: every triangle material 0.
+  std::span<const uint16_t> materials;
   uint64_t topologyVersion = 0;  ///< changes only when fractures change the triangles
   /// The vertices whose position or normal changed since the previous World::surface call for
   /// this body lie in [dirtyBegin, dirtyEnd); empty (begin == end) when none did. Every vertex

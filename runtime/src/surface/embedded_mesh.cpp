@@ -72,6 +72,7 @@ Result<EmbeddedBinding> EmbeddedBinding::bind(const TetMesh& rest, const RenderM
   b.rest = mesh.positions;
   b.uv = mesh.uvs;
   b.indices = mesh.indices;
+  b.material = mesh.materials;
 
   // Rest normals: the artist's, or area-weighted from the triangles where none are given.
   b.restNormal.assign(3 * nv, 0.0);
@@ -244,9 +245,11 @@ EmbeddedBinding EmbeddedBinding::refined(const TetMesh& tets, double maxEdge) co
   r.restNormal = restNormal;
   r.uv = uv;
   r.indices = indices;
+  r.material = material;
   const double max2 = maxEdge * maxEdge;
   std::unordered_map<uint64_t, uint32_t> mid;
   std::vector<uint32_t> next;
+  std::vector<uint16_t> nextMaterial;
   for (int round = 0; round < kMaxRefineRounds; ++round) {
     // Each long edge gets one midpoint, keyed by its two vertices, so the two triangles of the
     // edge share it and the surface stays conforming (no T-junction opens it).
@@ -271,6 +274,7 @@ EmbeddedBinding EmbeddedBinding::refined(const TetMesh& tets, double maxEdge) co
       return int64_t(it->second);
     };
     next.clear();
+    nextMaterial.clear();
     const size_t ntri = r.indices.size() / 3;
     for (size_t t = 0; t < ntri; ++t) {
       const uint32_t id[3] = {r.indices[3 * t], r.indices[3 * t + 1], r.indices[3 * t + 2]};
@@ -279,6 +283,7 @@ EmbeddedBinding EmbeddedBinding::refined(const TetMesh& tets, double maxEdge) co
       const int marked = int(m[0] >= 0) + int(m[1] >= 0) + int(m[2] >= 0);
       auto emit = [&](int64_t a, int64_t b, int64_t c) {
         next.insert(next.end(), {uint32_t(a), uint32_t(b), uint32_t(c)});
+        if (!r.material.empty()) nextMaterial.push_back(r.material[t]);
       };
       if (marked == 0) {
         emit(id[0], id[1], id[2]);
@@ -310,6 +315,7 @@ EmbeddedBinding EmbeddedBinding::refined(const TetMesh& tets, double maxEdge) co
       }
     }
     r.indices.swap(next);
+    if (!r.material.empty()) r.material.swap(nextMaterial);
     if (mid.empty()) break;
   }
   // The new points lie on the artist's triangles, whose corners passed bind()'s distance check.
@@ -573,15 +579,18 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   m_vNode.clear();
   m_vFragment.clear();
   m_renderIndices.clear();
+  m_renderMaterial.clear();
 
   // Marching triangles on the cut edges (design note: cutting the render triangles). Each
   // piece's side of a cut, in the piece's orientation, is a segment of its side's rim.
+  size_t tri = 0;
   auto emit = [&](uint32_t a, uint32_t c1, uint32_t c2) {
     m_renderIndices.insert(m_renderIndices.end(), {a, c1, c2});
+    if (!b.material.empty()) m_renderMaterial.push_back(b.material[tri]);
   };
   auto rim = [&](uint32_t from, uint32_t to) { m_segments.push_back({from, to}); };
   const size_t ntri = b.indices.size() / 3;
-  for (size_t tri = 0; tri < ntri; ++tri) {
+  for (tri = 0; tri < ntri; ++tri) {
     const uint32_t* id = &b.indices[3 * tri];
     // cut[i]: the edge from corner i to corner i + 1.
     const bool cut[3] = {apart(id[0], id[1]), apart(id[1], id[2]), apart(id[2], id[0])};
@@ -775,6 +784,8 @@ void EmbeddedSurface::compose(const CrackSurface& crack) {
   m_crackFrom.clear();
   m_indices.assign(m_renderIndices.begin(), m_renderIndices.end());
   m_triCrack.assign(m_renderIndices.size() / 3, 0);
+  m_triMaterial.assign(m_renderMaterial.begin(), m_renderMaterial.end());
+  const bool materials = !m_binding->material.empty();
   for (uint32_t c = 0; c < ncap; ++c) {
     const int32_t b = m_capStart[c], e = m_capStart[c + 1];
     for (int32_t k = b; k < e; ++k) {
@@ -782,6 +793,7 @@ void EmbeddedSurface::compose(const CrackSurface& crack) {
       m_indices.insert(m_indices.end(),
                        {ne + c, uint32_t(m_capRim[size_t(next)]), uint32_t(m_capRim[size_t(k)])});
       m_triCrack.push_back(1);
+      if (materials) m_triMaterial.push_back(kInteriorMaterial);
     }
   }
   for (size_t t = 0; t < flags.size(); ++t) {
@@ -796,6 +808,9 @@ void EmbeddedSurface::compose(const CrackSurface& crack) {
       m_indices.push_back(uint32_t(m_crackMap[cv]));
     }
     m_triCrack.push_back(flags[t]);
+    // A piece drawn with its tet faces has no artist's triangle to take a material from: its
+    // outer faces show material 0.
+    if (materials) m_triMaterial.push_back(flags[t] ? kInteriorMaterial : uint16_t(0));
   }
   const size_t nv = ne + ncap + m_crackFrom.size();
   m_vertexNode.assign(m_vNode.begin(), m_vNode.end());

@@ -174,6 +174,7 @@ struct EmbeddedBinding {
   std::vector<double> restNormal;  ///< 3 per vertex, unit
   std::vector<float> uv;           ///< 2 per vertex, or empty
   std::vector<uint32_t> indices;   ///< 3 per triangle
+  std::vector<uint16_t> material;  ///< per triangle, or empty (RenderMesh::materials)
   std::vector<int32_t> tet;        ///< per vertex: the tet it is bound to
   std::vector<double> weight;      ///< 4 per vertex: its barycentric coordinates there
   int32_t outsideCount = 0;        ///< vertices outside every tet
@@ -235,6 +236,9 @@ class EmbeddedSurface {
   std::span<const uint32_t> indices() const { return m_indices; }
   /// Per triangle: 1 for a crack face (caps included), 0 for a render-mesh triangle.
   std::span<const uint8_t> crackFlags() const { return m_triCrack; }
+  /// Per triangle when the render mesh has materials: the source triangle's, kInteriorMaterial
+  /// on crack faces; else empty.
+  std::span<const uint16_t> materials() const { return m_triMaterial; }
   /// Per vertex: the node of its group with the largest weight (crack vertices: CrackSurface's).
   std::span<const int32_t> vertexNode() const { return m_vertexNode; }
   /// Per vertex: its fragment (every triangle's vertices share it).
@@ -311,6 +315,7 @@ class EmbeddedSurface {
   std::vector<uint8_t> m_vGroup;
   std::vector<int32_t> m_vNode, m_vFragment;
   std::vector<uint32_t> m_renderIndices;
+  std::vector<uint16_t> m_renderMaterial;  // per m_renderIndices triangle, when materials
 
   // The faces taken from CrackSurface: its vertex for each of ours after the caps' centres.
   std::vector<int32_t> m_crackFrom, m_crackMap;
@@ -322,6 +327,7 @@ class EmbeddedSurface {
   std::vector<float> m_positionsF, m_normalsF, m_uv;
   std::vector<uint32_t> m_indices;
   std::vector<uint8_t> m_triCrack;
+  std::vector<uint16_t> m_triMaterial;
   std::vector<int32_t> m_vertexNode, m_vertexFragment;
   uint64_t m_topologyVersion = 0;
 };

@@ -352,6 +352,13 @@ Result<void> RenderMesh::check() const {
   if (!uvs.empty() && uvs.size() != 2 * nv)
     return fail("uvs: ", std::to_string(uvs.size()), " values for ", std::to_string(nv),
                 " vertices (2 per vertex, or empty)");
+  if (!materials.empty() && materials.size() != indices.size() / 3)
+    return fail("materials: ", std::to_string(materials.size()), " ids for ",
+                std::to_string(indices.size() / 3), " triangles (1 per triangle, or empty)");
+  for (size_t t = 0; t < materials.size(); ++t)
+    if (materials[t] == kInteriorMaterial)
+      return fail("materials[", std::to_string(t), "]: ", std::to_string(kInteriorMaterial),
+                  " is reserved for crack faces");
   for (size_t i = 0; i < positions.size(); ++i)
     if (!std::isfinite(positions[i]) || std::fabs(positions[i]) > 1e9)
       return fail("positions[", std::to_string(i / 3), "]: not finite or beyond 1e9 m");

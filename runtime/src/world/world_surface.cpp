@@ -96,6 +96,7 @@ SurfaceView World::surface(BodyId id) {
     v.uvs = e->uvs();
     v.indices = e->indices();
     v.crackMask = e->crackFlags();
+    v.materials = e->materials();
     v.vertexFragment = e->vertexFragment();
     v.vertexNode = e->vertexNode();
     v.topologyVersion = e->topologyVersion();
