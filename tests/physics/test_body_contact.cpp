@@ -487,54 +487,74 @@ TEST(BodyContact, FrictionlessBlockSlidesOverASlabAtConstantVelocity) {
   }
 }
 
-// Two free bodies of different sizes and meshes meet head-on without gravity: the total
-// linear momentum stays what it was to 1e-6 of its scale, the mechanical energy never rises,
-// the bodies part again in the right order, and momentum changed hands.
-void headOnCollision(int sweeps) {
-  WorldDef wd{glm::vec3(0, 0, 0), Backend::Cpu, nullptr, 1, {}};
-  wd.contactSweeps = sweeps;
-  World world(wd);
+// Two free bodies without gravity meeting head-on: a 20 cm block (4^3 cells) at `speed` along x
+// into a 30 cm one of `cells` a side at -1 m/s, offset so that they meet off-centre; the second
+// may fracture. Their total linear momentum and mechanical energy, for the laws they keep.
+struct HeadOn {
   BodyDef left, right;
-  left.mesh = movedBox(0.2, 0.2, 0.2, 4, 4, 4, {0, 0, 0});
-  right.mesh = movedBox(0.3, 0.3, 0.3, 5, 5, 5, {0.22, -0.04, -0.05});
-  left.initialVelocity = glm::vec3(2, 0, 0);
-  right.initialVelocity = glm::vec3(-1, 0, 0);
-  for (BodyDef* d : {&left, &right}) {
-    d->material = Material::stableNeoHookean(1e6, 0.3, 1000);
-    d->solver.linearSolver = LinearSolverKind::Direct;
-    d->contact = true;
+  World world;
+  BodyId a, b;
+
+  static WorldDef def(int sweeps) {
+    WorldDef wd{glm::vec3(0, 0, 0), Backend::Cpu, nullptr, 1, {}};
+    wd.contactSweeps = sweeps;
+    return wd;
   }
-  const BodyId a = world.createBody(left).value(), b = world.createBody(right).value();
-  auto momentum = [&] { return world.stats(a).linearMomentum + world.stats(b).linearMomentum; };
-  auto energy = [&] {
+  HeadOn(int sweeps, double speed, int cells, const FractureSettings& fracture)
+      : world(def(sweeps)) {
+    left.mesh = movedBox(0.2, 0.2, 0.2, 4, 4, 4, {0, 0, 0});
+    right.mesh = movedBox(0.3, 0.3, 0.3, cells, cells, cells, {0.22, -0.04, -0.05});
+    left.initialVelocity = glm::vec3(float(speed), 0, 0);
+    right.initialVelocity = glm::vec3(-1, 0, 0);
+    for (BodyDef* d : {&left, &right}) {
+      d->material = Material::stableNeoHookean(1e6, 0.3, 1000);
+      d->solver.linearSolver = LinearSolverKind::Direct;
+      d->contact = true;
+    }
+    right.fracture = fracture;
+    a = world.createBody(left).value();
+    b = world.createBody(right).value();
+  }
+  glm::dvec3 momentum() const {
+    return world.stats(a).linearMomentum + world.stats(b).linearMomentum;
+  }
+  // |p1| + |p2|: the scale a momentum error is measured against.
+  double momentumScale() const {
+    return glm::length(world.stats(a).linearMomentum) + glm::length(world.stats(b).linearMomentum);
+  }
+  double energy() const {
     const BodyStats sa = world.stats(a), sb = world.stats(b);
     return sa.kineticEnergy + sa.elasticEnergy + sb.kineticEnergy + sb.elasticEnergy;
-  };
-  const glm::dvec3 p0 = momentum();
-  const double scale =
-      glm::length(world.stats(a).linearMomentum) + glm::length(world.stats(b).linearMomentum);
-  const double e0 = energy();
+  }
+};
+
+// The head-on collision: the total linear momentum stays what it was to 1e-6 of its scale, the
+// mechanical energy never rises, the bodies part again in the right order, and momentum
+// changed hands.
+void headOnCollision(int sweeps) {
+  HeadOn h(sweeps, 2, 5, FractureSettings{});
+  const glm::dvec3 p0 = h.momentum();
+  const double scale = h.momentumScale(), e0 = h.energy();
   double worstMomentum = 0, maxEnergy = e0;
   int64_t pairs = 0;
   for (int s = 0; s < 30; ++s) {
-    ASSERT_TRUE(world.step(1.0 / 60).ok());
-    pairs += world.timings().contactPairs;
-    worstMomentum = std::max(worstMomentum, glm::length(momentum() - p0) / scale);
-    maxEnergy = std::max(maxEnergy, energy());
+    ASSERT_TRUE(h.world.step(1.0 / 60).ok());
+    pairs += h.world.timings().contactPairs;
+    worstMomentum = std::max(worstMomentum, glm::length(h.momentum() - p0) / scale);
+    maxEnergy = std::max(maxEnergy, h.energy());
   }
-  const double va = world.stats(a).linearMomentum.x / world.stats(a).mass;
-  const double vb = world.stats(b).linearMomentum.x / world.stats(b).mass;
+  const double va = h.world.stats(h.a).linearMomentum.x / h.world.stats(h.a).mass;
+  const double vb = h.world.stats(h.b).linearMomentum.x / h.world.stats(h.b).mass;
   std::printf(
       "head-on, %d sweeps: %lld pairs; momentum error %.3g of |p1| + |p2|; energy %.4f J -> max "
-      "%.4f J, "
-      "end %.4f J; velocities 2, -1 -> %.3f, %.3f m/s\n",
-      sweeps, (long long)pairs, worstMomentum, e0, maxEnergy, energy(), va, vb);
+      "%.4f J, end %.4f J; velocities 2, -1 -> %.3f, %.3f m/s\n",
+      sweeps, (long long)pairs, worstMomentum, e0, maxEnergy, h.energy(), va, vb);
   EXPECT_GT(pairs, 0);
   EXPECT_LT(worstMomentum, 1e-6);
   EXPECT_LE(maxEnergy, e0 * (1 + 1e-9));
   EXPECT_LT(va, vb + 0.01);  // they stuck or bounced apart, not passed through
-  const Part pa = wholeBody(a, left.mesh), pb = wholeBody(b, right.mesh);
-  EXPECT_LT(deepestInside(world, left.mesh, pa, right.mesh, pb), 1e-3);
+  const Part pa = wholeBody(h.a, h.left.mesh), pb = wholeBody(h.b, h.right.mesh);
+  EXPECT_LT(deepestInside(h.world, h.left.mesh, pa, h.right.mesh, pb), 1e-3);
 }
 TEST(BodyContact, HeadOnCollisionConservesMomentumAndLosesEnergy) { headOnCollision(1); }
 // With sweeps the last sweep's half-spaces are against the others' previous iterate, not an
@@ -549,43 +569,24 @@ TEST(BodyContact, HeadOnCollisionConservesMomentumAndLosesEnergyWithSweeps) { he
 TEST(BodyContact, ABodyThatBreaksWhileTouchingKeepsMomentumAndEnergy) {
   for (const int sweeps : {1, 4})
     for (const auto& [speed, strength] : {std::pair{10.0, 1e4}, std::pair{6.0, 5e3}}) {
-      WorldDef wd{glm::vec3(0, 0, 0), Backend::Cpu, nullptr, 1, {}};
-      wd.contactSweeps = sweeps;
-      World world(wd);
-      BodyDef left, right;
-      left.mesh = movedBox(0.2, 0.2, 0.2, 4, 4, 4, {0, 0, 0});
-      right.mesh = movedBox(0.3, 0.3, 0.3, 6, 6, 6, {0.22, -0.04, -0.05});
-      left.initialVelocity = glm::vec3(float(speed), 0, 0);
-      right.initialVelocity = glm::vec3(-1, 0, 0);
-      for (BodyDef* d : {&left, &right}) {
-        d->material = Material::stableNeoHookean(1e6, 0.3, 1000);
-        d->solver.linearSolver = LinearSolverKind::Direct;
-        d->contact = true;
-      }
-      right.fracture.enabled = true;
-      right.fracture.strength = strength;
-      right.fracture.brittle = true;
-      right.fracture.regions = 4;
-      const BodyId a = world.createBody(left).value(), b = world.createBody(right).value();
-      auto momentum = [&] { return world.stats(a).linearMomentum + world.stats(b).linearMomentum; };
-      auto energy = [&] {
-        const BodyStats sa = world.stats(a), sb = world.stats(b);
-        return sa.kineticEnergy + sa.elasticEnergy + sb.kineticEnergy + sb.elasticEnergy;
-      };
-      const glm::dvec3 p0 = momentum();
-      const double scale =
-          glm::length(world.stats(a).linearMomentum) + glm::length(world.stats(b).linearMomentum);
-      const double e0 = energy();
+      FractureSettings fracture;
+      fracture.enabled = true;
+      fracture.strength = strength;
+      fracture.brittle = true;
+      fracture.regions = 4;
+      HeadOn h(sweeps, speed, 6, fracture);
+      const glm::dvec3 p0 = h.momentum();
+      const double scale = h.momentumScale(), e0 = h.energy();
       double worstMomentum = 0, maxEnergy = e0;
       int32_t fragments = 1, brokeWhileTouching = 0;
       for (int s = 0; s < 40; ++s) {
-        const StepStatus st = world.step(1.0 / 60);
+        const StepStatus st = h.world.step(1.0 / 60);
         ASSERT_FALSE(st.has(kStepNanContained)) << st.message;
-        const int32_t now = world.fractureStats(b).fragments;
-        if (world.timings().contactPairs > 0) brokeWhileTouching += now - fragments;
+        const int32_t now = h.world.fractureStats(h.b).fragments;
+        if (h.world.timings().contactPairs > 0) brokeWhileTouching += now - fragments;
         fragments = now;
-        worstMomentum = std::max(worstMomentum, glm::length(momentum() - p0) / scale);
-        maxEnergy = std::max(maxEnergy, energy());
+        worstMomentum = std::max(worstMomentum, glm::length(h.momentum() - p0) / scale);
+        maxEnergy = std::max(maxEnergy, h.energy());
       }
       std::printf(
           "%d sweeps, %.0f m/s into a brittle block of strength %.0e: %d fragments (%d new in "
