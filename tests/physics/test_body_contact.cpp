@@ -121,6 +121,19 @@ Part wholeBody(BodyId id, const TetMesh& mesh) {
   return p;
 }
 
+// The fragments of a body as parts: each fragment's nodes and its whole tets.
+std::vector<Part> fragmentParts(const World& world, BodyId id, const TetMesh& mesh) {
+  const auto frag = world.nodeFragments(id);
+  std::vector<Part> parts(size_t(world.fractureStats(id).fragments), Part{id, {}, {}});
+  for (int32_t n = 0; n < int32_t(frag.size()); ++n) parts[size_t(frag[n])].nodes.push_back(n);
+  for (int32_t t = 0; t < int32_t(mesh.tetCount()); ++t) {
+    const int32_t* k = &mesh.tets[4 * size_t(t)];
+    if (frag[k[0]] == frag[k[1]] && frag[k[0]] == frag[k[2]] && frag[k[0]] == frag[k[3]])
+      parts[size_t(frag[k[0]])].tets.push_back(t);
+  }
+  return parts;
+}
+
 TetMesh movedBox(double sx, double sy, double sz, int nx, int ny, int nz, glm::dvec3 offset) {
   TetMesh m = gen::box(sx, sy, sz, nx, ny, nz);
   for (size_t n = 0; n < m.nodeCount(); ++n)
@@ -828,19 +841,10 @@ double thrownPiece(bool contact, int64_t* pairsOut, int32_t* fragmentsOut) {
   EXPECT_TRUE(world.setVelocities(id, v).ok());
   double deepest = 0;
   int64_t pairs = 0;
-  std::vector<Part> parts;
   for (int s = 0; s < 60; ++s) {
     EXPECT_TRUE(world.step(1.0 / 60).ok());
     pairs += world.timings().contactPairs;
-    const auto frag = world.nodeFragments(id);
-    const int32_t count = world.fractureStats(id).fragments;
-    parts.assign(size_t(count), Part{id, {}, {}});
-    for (int32_t n = 0; n < int32_t(frag.size()); ++n) parts[size_t(frag[n])].nodes.push_back(n);
-    for (int32_t t = 0; t < int32_t(def.mesh.tetCount()); ++t) {
-      const int32_t* k = &def.mesh.tets[4 * size_t(t)];
-      if (frag[k[0]] == frag[k[1]] && frag[k[0]] == frag[k[2]] && frag[k[0]] == frag[k[3]])
-        parts[size_t(frag[k[0]])].tets.push_back(t);
-    }
+    const std::vector<Part> parts = fragmentParts(world, id, def.mesh);
     for (size_t i = 0; i < parts.size(); ++i)
       for (size_t j = 0; j < parts.size(); ++j)
         if (i != j && parts[i].nodes.size() > 1 && parts[j].tets.size() > 0)
@@ -907,21 +911,12 @@ TEST(BodyContact, DISABLED_PiecesOfACutBlockLandTogether) {
       };
       const double e0 = mechanical();
       double deepest = 0, gained = 0;
-      std::vector<Part> parts;
       for (int s = 0; s < 60; ++s) {
         const StepStatus st = world.step(1.0 / 60);
         ASSERT_FALSE(st.has(kStepNanContained))
             << planes << " planes, E " << E << ": " << st.message;
         gained = std::max(gained, mechanical() - e0);
-        const auto frag = world.nodeFragments(id);
-        parts.assign(size_t(world.fractureStats(id).fragments), Part{id, {}, {}});
-        for (int32_t n = 0; n < int32_t(frag.size()); ++n)
-          parts[size_t(frag[n])].nodes.push_back(n);
-        for (int32_t t = 0; t < int32_t(def.mesh.tetCount()); ++t) {
-          const int32_t* k = &def.mesh.tets[4 * size_t(t)];
-          if (frag[k[0]] == frag[k[1]] && frag[k[0]] == frag[k[2]] && frag[k[0]] == frag[k[3]])
-            parts[size_t(frag[k[0]])].tets.push_back(t);
-        }
+        const std::vector<Part> parts = fragmentParts(world, id, def.mesh);
         for (size_t i = 0; i < parts.size(); ++i)
           for (size_t j = 0; j < parts.size(); ++j)
             if (i != j && !parts[i].tets.empty() && !parts[j].tets.empty())
