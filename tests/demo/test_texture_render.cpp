@@ -68,15 +68,22 @@ class TextureRender : public testing::TestWithParam<RendererKind> {};
 
 // The quad [-1, 1]^2 in the x-y plane, facing +z, UVs (0, 0) at (-1, -1) to (1, 1) at (1, 1);
 // triangles (0, 1, 2) below the diagonal y = x and (0, 2, 3) above it.
+struct Quad {
+  std::vector<float> positions = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0};
+  std::vector<float> normals = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
+  std::vector<float> uvs = {0, 0, 1, 0, 1, 1, 0, 1};
+  std::vector<uint32_t> indices = {0, 1, 2, 0, 2, 3};
+};
+
+// The quad's pixels against a CPU ray cast.
 TEST_P(TextureRender, PixelsShowTheTextureAndCrackFacesTheirColour) {
   const int w = 72, h = 72;
   std::string skip;
   auto renderer = makeRenderer(GetParam(), w, h, skip);
   if (!renderer) GTEST_SKIP() << skip;
-  const std::vector<float> positions = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0};
-  const std::vector<float> normals = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
-  const std::vector<float> uvs = {0, 0, 1, 0, 1, 1, 0, 1};
-  const std::vector<uint32_t> indices = {0, 1, 2, 0, 2, 3};
+  const Quad quad;
+  const std::vector<float>&positions = quad.positions, &normals = quad.normals, &uvs = quad.uvs;
+  const std::vector<uint32_t>& indices = quad.indices;
   const std::vector<uint8_t> cracks = {0, 1};
   Result<std::shared_ptr<const Texture>> texture = makeTexture(checker2x2());
   ASSERT_TRUE(texture) << texture.error().message;
@@ -162,10 +169,9 @@ TEST_P(TextureRender, RangesDrawTheirOwnColourAndTextureAndKeepCrackFlags) {
   std::string skip;
   auto renderer = makeRenderer(GetParam(), w, h, skip);
   if (!renderer) GTEST_SKIP() << skip;
-  const std::vector<float> positions = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0};
-  const std::vector<float> normals = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
-  const std::vector<float> uvs = {0, 0, 1, 0, 1, 1, 0, 1};
-  const std::vector<uint32_t> indices = {0, 1, 2, 0, 2, 3};
+  const Quad quad;
+  const std::vector<float>&positions = quad.positions, &normals = quad.normals, &uvs = quad.uvs;
+  const std::vector<uint32_t>& indices = quad.indices;
   const std::shared_ptr<const Texture> texture = makeTexture(checker2x2()).value();
   std::vector<DrawRange> ranges(2);
   ranges[0] = {0, 1, {0.8f, 0.1f, 0.1f}, nullptr};
@@ -266,10 +272,9 @@ TEST(TextureRenderVulkan, ValidationLayersStaySilent) {
   o.validation = true;
   Result<std::unique_ptr<Renderer>> r = createRenderer(o);
   if (!r) GTEST_SKIP() << r.error().message;
-  const std::vector<float> positions = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0};
-  const std::vector<float> normals = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
-  const std::vector<float> uvs = {0, 0, 1, 0, 1, 1, 0, 1};
-  const std::vector<uint32_t> indices = {0, 1, 2, 0, 2, 3};
+  const Quad quad;
+  const std::vector<float>&positions = quad.positions, &normals = quad.normals, &uvs = quad.uvs;
+  const std::vector<uint32_t>& indices = quad.indices;
   const std::shared_ptr<const Texture> texture = makeTexture(checker2x2()).value();
   Camera cam;
   cam.eye = {0, 0, 3};

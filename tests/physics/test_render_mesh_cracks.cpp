@@ -467,6 +467,16 @@ TEST(RenderMesh, RefinedRenderMeshIsTheSameSurface) {
 
 // Cuts the 0.1 m cube at the origin with a plane across it and one across the half beyond it,
 // tilted so no mesh face lies in them: three pieces meeting along a line.
+// Grips on the 10 cm cube's faces x = 0 and x = 0.1 pulling them apart at 5 cm/s each.
+void pullApartAlongX(BodyDef& def) {
+  Grip left, right;
+  left.nodes = selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
+  right.nodes = selectNodes(def.mesh, [](double x, double, double) { return x > 0.1 - 1e-9; });
+  left.velocity = glm::vec3(-0.05f, 0, 0);
+  right.velocity = glm::vec3(0.05f, 0, 0);
+  def.grips = {left, right};
+}
+
 void cutCubeIntoThree(World& world, BodyId id) {
   Blade across, half;
   across.vertices = {{0.053f, -1, -1}, {0.056f, 1, -1}, {0.053f, 1, 1}, {0.05f, -1, 1}};
@@ -493,12 +503,7 @@ TEST(RenderMesh, CoarseRenderMeshClosesEveryFragment) {
     def.fracture.enabled = true;
     def.fracture.strength = 1e5;
     def.renderMesh = boxSurface(glm::dvec3(0), glm::dvec3(0.1), n, n, n);
-    Grip left, right;
-    left.nodes = selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
-    right.nodes = selectNodes(def.mesh, [](double x, double, double) { return x > 0.1 - 1e-9; });
-    left.velocity = glm::vec3(-0.05f, 0, 0);
-    right.velocity = glm::vec3(0.05f, 0, 0);
-    def.grips = {left, right};
+    pullApartAlongX(def);
     World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
     const BodyId id = world.createBody(def).value();
     cutCubeIntoThree(world, id);
@@ -802,12 +807,7 @@ TEST(RenderMesh, MaterialsSurviveRefinementAndCrackCutting) {
       surface.materials.push_back(uint16_t((c.x / 3 < 0.05 ? 1 : 5) + int(t % 2)));
     }
     def.renderMesh = surface;
-    Grip left, right;
-    left.nodes = selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
-    right.nodes = selectNodes(def.mesh, [](double x, double, double) { return x > 0.1 - 1e-9; });
-    left.velocity = glm::vec3(-0.05f, 0, 0);
-    right.velocity = glm::vec3(0.05f, 0, 0);
-    def.grips = {left, right};
+    pullApartAlongX(def);
     World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
     const BodyId id = world.createBody(def).value();
     {
