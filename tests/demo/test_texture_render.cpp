@@ -73,7 +73,22 @@ struct Quad {
   std::vector<float> normals = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
   std::vector<float> uvs = {0, 0, 1, 0, 1, 1, 0, 1};
   std::vector<uint32_t> indices = {0, 1, 2, 0, 2, 3};
+  // The camera the quad is seen through, slightly off its axis.
+  static Camera camera() {
+    Camera cam;
+    cam.eye = {0.15f, 0.1f, 2.6f};
+    cam.target = {0, 0, 0};
+    cam.fovYDegrees = 50;
+    return cam;
+  }
 };
+
+// Pixel rays of the CPU reference come from the inverse of the camera's view-projection.
+glm::mat4 inverseViewProjection(const Camera& cam, int w, int h) {
+  return glm::inverse(glm::perspective(glm::radians(cam.fovYDegrees), float(w) / float(h),
+                                       cam.nearPlane, cam.farPlane) *
+                      glm::lookAt(cam.eye, cam.target, cam.up));
+}
 
 // The quad's pixels against a CPU ray cast.
 TEST_P(TextureRender, PixelsShowTheTextureAndCrackFacesTheirColour) {
@@ -99,14 +114,8 @@ TEST_P(TextureRender, PixelsShowTheTextureAndCrackFacesTheirColour) {
   frame.dirtyEnd = 4;
   frame.colour = {0.9f, 0.8f, 1.0f};  // tints the texture
   frame.crackColour = {0.3f, 0.6f, 0.35f};
-  Camera cam;
-  cam.eye = {0.15f, 0.1f, 2.6f};
-  cam.target = {0, 0, 0};
-  cam.fovYDegrees = 50;
-  const glm::mat4 inv =
-      glm::inverse(glm::perspective(glm::radians(cam.fovYDegrees), float(w) / float(h),
-                                    cam.nearPlane, cam.farPlane) *
-                   glm::lookAt(cam.eye, cam.target, cam.up));
+  const Camera cam = Quad::camera();
+  const glm::mat4 inv = inverseViewProjection(cam, w, h);
 
   for (const bool withCracks : {false, true}) {
     frame.crackMask = withCracks ? std::span<const uint8_t>(cracks) : std::span<const uint8_t>();
@@ -185,14 +194,8 @@ TEST_P(TextureRender, RangesDrawTheirOwnColourAndTextureAndKeepCrackFlags) {
   frame.dirtyEnd = 4;
   frame.colour = {0.1f, 0.1f, 0.9f};  // not used: the ranges give the colours
   frame.crackColour = {0.95f, 0.85f, 0.2f};
-  Camera cam;
-  cam.eye = {0.15f, 0.1f, 2.6f};
-  cam.target = {0, 0, 0};
-  cam.fovYDegrees = 50;
-  const glm::mat4 inv =
-      glm::inverse(glm::perspective(glm::radians(cam.fovYDegrees), float(w) / float(h),
-                                    cam.nearPlane, cam.farPlane) *
-                   glm::lookAt(cam.eye, cam.target, cam.up));
+  const Camera cam = Quad::camera();
+  const glm::mat4 inv = inverseViewProjection(cam, w, h);
   const std::vector<uint8_t> masks[3] = {{}, {0, 1}, {1, 0}};
   for (int c = 0; c < 3; ++c) {
     frame.crackMask = masks[c];

@@ -134,6 +134,15 @@ std::vector<Part> fragmentParts(const World& world, BodyId id, const TetMesh& me
   return parts;
 }
 
+// Gravity and the ground y = 0 (friction 0.5), one thread.
+WorldDef groundWorld() {
+  WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
+  Collider ground;
+  ground.friction = 0.5;
+  wd.colliders.push_back(ground);
+  return wd;
+}
+
 TetMesh movedBox(double sx, double sy, double sz, int nx, int ny, int nz, glm::dvec3 offset) {
   TetMesh m = gen::box(sx, sy, sz, nx, ny, nz);
   for (size_t n = 0; n < m.nodeCount(); ++n)
@@ -146,10 +155,7 @@ TetMesh movedBox(double sx, double sy, double sz, int nx, int ny, int nz, glm::d
 // once at rest, neither lies inside the other by more than 1 % of a
 // cell, with no growth over 5 s.
 TEST(BodyContact, TwoBlocksComeToRestStacked) {
-  WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
-  Collider ground;  // y = 0
-  ground.friction = 0.5;
-  wd.colliders.push_back(ground);
+  WorldDef wd = groundWorld();
   World world(wd);
   const double cell = 0.05;
   BodyDef lower, upper;
@@ -237,10 +243,7 @@ struct StackResult {
 };
 
 StackResult runStack(const StackCase& c) {
-  WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
-  Collider ground;  // y = 0
-  ground.friction = 0.5;
-  wd.colliders.push_back(ground);
+  WorldDef wd = groundWorld();
   wd.contactSweeps = c.sweeps;
   World world(wd);
   std::vector<BodyDef> defs(c.boxes.size());
@@ -631,10 +634,7 @@ TetMesh turnedCube(double size, int cells, int axis, glm::dvec3 centre) {
 // the upper one turned 45 degrees about z (an edge below, along z), dropped edge on edge. No
 // edge-edge test runs: the nodes along each edge meet the faces beside the other's edge.
 TEST(BodyContact, CrossedEdgesDoNotPassThrough) {
-  WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
-  Collider ground;
-  ground.friction = 0.5;
-  wd.colliders.push_back(ground);
+  WorldDef wd = groundWorld();
   World world(wd);
   BodyDef lower, upper;
   const double half = 0.1 * std::sqrt(2.0);
@@ -684,10 +684,7 @@ struct EdgeResult {
 };
 
 EdgeResult edgeOnEdge(double dt) {
-  WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
-  Collider ground;
-  ground.friction = 0.5;
-  wd.colliders.push_back(ground);
+  WorldDef wd = groundWorld();
   World world(wd);
   const double size = 0.2, half = 0.5 * size * std::sqrt(2.0);
   BodyDef lower, upper;
@@ -812,10 +809,7 @@ TEST(BodyContact, ClosestPointsOfSegmentsMatchSampling) {
 // each fragment's nodes against the other's tets, and against the same run without contact,
 // in which the upper piece falls into the lower one.
 double thrownPiece(bool contact, int64_t* pairsOut, int32_t* fragmentsOut) {
-  WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
-  Collider ground;
-  ground.friction = 0.5;
-  wd.colliders.push_back(ground);
+  WorldDef wd = groundWorld();
   World world(wd);
   BodyDef def;
   def.mesh = gen::box(0.1, 0.4, 0.1, 4, 16, 4);
@@ -884,10 +878,7 @@ TEST(BodyContact, DISABLED_PiecesOfACutBlockLandTogether) {
                                 glm::normalize(glm::vec3(-0.1f, 0.2f, 1))};
   for (const double E : {1e6, 1e7})
     for (int planes = 1; planes <= 3; ++planes) {
-      WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
-      Collider ground;
-      ground.friction = 0.5;
-      wd.colliders.push_back(ground);
+      WorldDef wd = groundWorld();
       World world(wd);
       BodyDef def;
       def.mesh = movedBox(0.2, 0.3, 0.2, 6, 9, 6, {0, 0.31, 0});

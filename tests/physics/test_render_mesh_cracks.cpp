@@ -467,6 +467,16 @@ TEST(RenderMesh, RefinedRenderMeshIsTheSameSurface) {
 
 // Cuts the 0.1 m cube at the origin with a plane across it and one across the half beyond it,
 // tilted so no mesh face lies in them: three pieces meeting along a line.
+// A 10 cm cube of 10 cells a side, breakable (strength 1e5 Pa).
+BodyDef brittleCube() {
+  BodyDef def;
+  def.mesh = gen::box(0.1, 0.1, 0.1, 10, 10, 10);
+  def.material = Material::stableNeoHookean(1e7, 0.2, 2500);
+  def.fracture.enabled = true;
+  def.fracture.strength = 1e5;
+  return def;
+}
+
 // Grips on the 10 cm cube's faces x = 0 and x = 0.1 pulling them apart at 5 cm/s each.
 void pullApartAlongX(BodyDef& def) {
   Grip left, right;
@@ -497,11 +507,7 @@ void cutCubeIntoThree(World& world, BodyId id) {
 // cube; docs/design.md, render meshes).
 TEST(RenderMesh, CoarseRenderMeshClosesEveryFragment) {
   for (int n : {1, 2, 15}) {
-    BodyDef def;
-    def.mesh = gen::box(0.1, 0.1, 0.1, 10, 10, 10);
-    def.material = Material::stableNeoHookean(1e7, 0.2, 2500);
-    def.fracture.enabled = true;
-    def.fracture.strength = 1e5;
+    BodyDef def = brittleCube();
     def.renderMesh = boxSurface(glm::dvec3(0), glm::dvec3(0.1), n, n, n);
     pullApartAlongX(def);
     World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
@@ -795,11 +801,7 @@ int64_t holdingTriangle(const RenderMesh& source, glm::dvec3 P) {
 // break) and finer ones; a body without materials shows none.
 TEST(RenderMesh, MaterialsSurviveRefinementAndCrackCutting) {
   for (int n : {1, 2, 15}) {
-    BodyDef def;
-    def.mesh = gen::box(0.1, 0.1, 0.1, 10, 10, 10);
-    def.material = Material::stableNeoHookean(1e7, 0.2, 2500);
-    def.fracture.enabled = true;
-    def.fracture.strength = 1e5;
+    BodyDef def = brittleCube();
     RenderMesh surface = boxSurface(glm::dvec3(0), glm::dvec3(0.1), n, n, n);
     for (size_t t = 0; t < surface.triangleCount(); ++t) {
       glm::dvec3 c(0.0);
