@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "common/random_rotation.h"
 #include "kernels/eigen_sym.h"
 #include "kernels/materials.h"
 #include "kernels/svd3.h"
@@ -20,6 +21,9 @@ using gf::Mat3;
 using gf::Mat9;
 using gf::MaterialCoeffs;
 using gf::Vec3;
+using gf::test::frob;
+using gf::test::frob9;
+using gf::test::randomRotation;
 
 constexpr double kE = 1e6;
 constexpr double kNu = 0.3;
@@ -31,31 +35,6 @@ Mat3 diag(double a, double b, double c) {
   m(1, 1) = b;
   m(2, 2) = c;
   return m;
-}
-
-double frob(const Mat3& a) { return std::sqrt(gf::frobeniusDot(a, a)); }
-double frob9(const Mat9& a) { return std::sqrt(gf::frobeniusDot(a, a)); }
-
-/// Uniformly random rotation from a normalised Gaussian quaternion.
-Mat3 randomRotation(std::mt19937& rng) {
-  std::normal_distribution<double> n(0, 1);
-  double w = n(rng), x = n(rng), y = n(rng), z = n(rng);
-  const double l = std::sqrt(w * w + x * x + y * y + z * z);
-  w /= l;
-  x /= l;
-  y /= l;
-  z /= l;
-  Mat3 r;
-  r(0, 0) = 1 - 2 * (y * y + z * z);
-  r(0, 1) = 2 * (x * y - z * w);
-  r(0, 2) = 2 * (x * z + y * w);
-  r(1, 0) = 2 * (x * y + z * w);
-  r(1, 1) = 1 - 2 * (x * x + z * z);
-  r(1, 2) = 2 * (y * z - x * w);
-  r(2, 0) = 2 * (x * z - y * w);
-  r(2, 1) = 2 * (y * z + x * w);
-  r(2, 2) = 1 - 2 * (x * x + y * y);
-  return r;
 }
 
 struct NamedF {

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <random>
 
+#include "common/random_rotation.h"
 #include "fem/fem_body.h"
 #include "fracture/fracture_body.h"
 #include "graphfrac/jobs.h"
@@ -22,11 +23,10 @@ namespace {
 using gf::Mat3;
 using gf::MaterialCoeffs;
 using gf::PlasticParams;
+using gf::test::frob;
 
 constexpr double kE = 1e6;
 constexpr double kNu = 0.3;
-
-double frob(const Mat3& a) { return std::sqrt(gf::frobeniusDot(a, a)); }
 
 Mat3 diag(double a, double b, double c) {
   Mat3 m;
