@@ -59,8 +59,10 @@ void ContactSurface::update(const FemModel& model, const int32_t* nodeFragment,
   if (key == m_key) return;
   m_key = key;
   m_faces.clear();
+  m_inner.clear();
   auto add = [&](int32_t f, bool flip) {
     const int32_t* k = &m_faceNodes[3 * size_t(f)];
+    m_inner.push_back(m_faceOpposite[2 * size_t(f) + (flip ? 1 : 0)]);
     m_faces.push_back(k[0]);
     m_faces.push_back(flip ? k[2] : k[1]);
     m_faces.push_back(flip ? k[1] : k[2]);

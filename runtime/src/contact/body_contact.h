@@ -110,6 +110,9 @@ class ContactSurface {
               const uint8_t* excluded, uint64_t key);
   /// 3 nodes per face, counter-clockwise seen from outside.
   std::span<const int32_t> faces() const { return m_faces; }
+  /// Per contact face: the node opposite it in its tet inside the fragment (the face's inward
+  /// side; collider contact at points on faces, fem/face_stage.h).
+  std::span<const int32_t> inner() const { return m_inner; }
   /// Per contact face, per edge k (nodes k and k + 1): the contact face across it, -1 where
   /// the edge does not join exactly two faces.
   std::span<const int32_t> neighbours() const { return m_neighbours; }
@@ -133,7 +136,7 @@ class ContactSurface {
   std::vector<int32_t> m_faceNodes;     // 3 per mesh face, oriented away from m_faceOpposite[0]
   std::vector<int32_t> m_faceOpposite;  // 2 per face: the node opposite on each side, -1 none
   std::vector<int32_t> m_boundary;      // faces with one tet
-  std::vector<int32_t> m_faces, m_vertices, m_neighbours, m_nodeVertex;
+  std::vector<int32_t> m_faces, m_inner, m_vertices, m_neighbours, m_nodeVertex;
   std::vector<int32_t> m_vertexFaceStart, m_vertexFaces, m_vertexEdgeStart, m_vertexEdges;
   std::vector<std::array<int32_t, 3>> m_edgeKeys;  // (lower node, higher node, face * 3 + k)
   SegmentLists m_vertexSegments, m_nodeSegments;

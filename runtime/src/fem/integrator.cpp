@@ -8,6 +8,7 @@
 #include <tuple>
 #include <utility>
 
+#include "contact/body_contact.h"
 #include "fem/piece_merge.h"
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
@@ -101,6 +102,8 @@ Integrator::Integrator(const FemModel& model) {
   }
 }
 
+Integrator::~Integrator() = default;
+
 Result<void> Integrator::setupSolver(const FemModel& model, const FemState& state) {
   if (model.solver.linearSolver != LinearSolverKind::Multigrid) return {};
   m_multigrid = std::make_unique<MultigridSolver>();
@@ -124,6 +127,7 @@ Result<void> Integrator::restoreSolver(const FemModel& model, const FemState& st
                                        const std::vector<int32_t>& history) {
   // The restored fragments may be another partition under the same version number.
   m_piecesKey = kNoPieces;
+  m_facesKey = kNoPieces;
   if (history == m_rebindHistory) return {};
   m_rebindHistory = history;
   m_boundBrokenCount = history.empty() ? 0 : history.back();
@@ -297,42 +301,33 @@ void Integrator::prepareFaces(const FemModel& model, const StepContext& ctx, boo
   bool any = false;
   for (int c = 0; c < ctx.colliderCount; ++c) any |= ctx.colliders[c].kind != kColliderPlane;
   if (!any) return;
-  if (!m_facesBuilt) {
-    m_facesBuilt = true;
-    // A tet's face (the corners other than k) is on the boundary when no other tet has it.
-    const int32_t nt = model.tetCount;
-    struct Face {
-      int32_t a, b, c, ref;
-    };
-    std::vector<Face> all(4 * size_t(nt));
-    for (int32_t t = 0; t < nt; ++t)
-      for (int k = 0; k < 4; ++k) {
-        int32_t v[3], j = 0;
-        for (int i = 0; i < 4; ++i)
-          if (i != k) v[j++] = model.tets[4 * size_t(t) + i];
-        std::sort(v, v + 3);
-        all[4 * size_t(t) + k] = {v[0], v[1], v[2], 4 * t + k};
-      }
-    auto key = [](const Face& f) { return std::tie(f.a, f.b, f.c); };
-    std::sort(all.begin(), all.end(), [&](const Face& p, const Face& q) {
-      return key(p) < key(q) || (key(p) == key(q) && p.ref < q.ref);
-    });
-    m_faceNodes.clear();
-    for (size_t i = 0; i < all.size();) {
-      size_t j = i + 1;
-      while (j < all.size() && key(all[j]) == key(all[i])) ++j;
-      if (j == i + 1) {
-        const int32_t t = all[i].ref / 4, k = all[i].ref % 4;
-        for (int c = 1; c <= 4; ++c) m_faceNodes.push_back(model.tets[4 * size_t(t) + (k + c) % 4]);
-      }
-      i = j;
+  // The faces that meet colliders follow the fragments (issue 15, item 3): a piece's crack
+  // faces take part like the outer boundary, as body contact's surface defines them.
+  const size_t nn = size_t(model.nodeCount);
+  const Fragments* fragments = m_fracture ? &m_fracture->fragments() : nullptr;
+  if (fragments && fragments->nodeFragment().size() != nn) fragments = nullptr;
+  const uint64_t key = fragments ? fragments->version() : kNoPieces - 1;
+  if (!m_faceSurface || key != m_facesKey) {
+    if (!m_faceSurface) {
+      m_faceSurface = std::make_unique<ContactSurface>();
+      m_faceSurface->init(model);
     }
-    const int32_t nf = int32_t(m_faceNodes.size() / 4), nn = model.nodeCount;
+    m_facesKey = key;
+    // Its own count: a restore may bring back another partition under the same version.
+    m_faceSurface->update(model, fragments ? fragments->nodeFragment().data() : nullptr,
+                          fragments ? fragments->count() : 1, nullptr, ++m_faceSurfaceKey);
+    const std::span<const int32_t> faces = m_faceSurface->faces(), inner = m_faceSurface->inner();
+    const int32_t nf = int32_t(inner.size());
+    m_faceNodes.resize(4 * size_t(nf));
+    for (int32_t f = 0; f < nf; ++f) {
+      for (int i = 0; i < 3; ++i) m_faceNodes[4 * size_t(f) + i] = faces[3 * size_t(f) + i];
+      m_faceNodes[4 * size_t(f) + 3] = inner[size_t(f)];
+    }
     m_faceCount = nf;
     m_faceGather = ElementGather::build(m_faceNodes.data(), size_t(nf), m_A);
-    m_faceRefStart.assign(size_t(nn) + 1, 0);
+    m_faceRefStart.assign(nn + 1, 0);
     for (int32_t v : m_faceNodes) ++m_faceRefStart[v + 1];
-    for (int32_t i = 0; i < nn; ++i) m_faceRefStart[i + 1] += m_faceRefStart[i];
+    for (size_t i = 0; i < nn; ++i) m_faceRefStart[i + 1] += m_faceRefStart[i];
     m_faceRef.resize(m_faceNodes.size());
     std::vector<int32_t> fill(m_faceRefStart.begin(), m_faceRefStart.end() - 1);
     for (size_t k = 0; k < m_faceNodes.size(); ++k) m_faceRef[fill[m_faceNodes[k]]++] = int32_t(k);
@@ -345,7 +340,7 @@ void Integrator::prepareFaces(const FemModel& model, const StepContext& ctx, boo
     m_faceGrad.assign(12 * size_t(nf), 0.0);
     m_faceHess.assign(144 * size_t(nf), 0.0);
     m_faceTotal.assign(6 * size_t(nf), 0.0);
-    m_faceNodeGrad.assign(3 * size_t(nn), 0.0);
+    m_faceNodeGrad.assign(3 * nn, 0.0);
   }
   m_faceOn = m_faceCount > 0;
   // A collider that a node's path would have passed through this step (an impact at a cell or

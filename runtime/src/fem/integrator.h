@@ -41,6 +41,7 @@
 namespace gf::detail {
 
 class CpuExecutor;
+class ContactSurface;
 
 /// What the world passes to a body step.
 struct StepContext {
@@ -80,6 +81,7 @@ struct EnergyBreakdown {
 class Integrator {
  public:
   explicit Integrator(const FemModel& model);
+  ~Integrator();
   /// Builds what the chosen linear solver needs beyond the pattern (the multigrid hierarchy);
   /// an error names the setting that cannot be built. Call once, before the first step.
   Result<void> setupSolver(const FemModel& model, const FemState& state);
@@ -191,8 +193,9 @@ class Integrator {
   // (DeepContactTerm); true when any was.
   bool stiffenDeepContacts(const FemModel& model, const FemState& state, const StepContext& ctx,
                            JobSystem& jobs);
-  // Whether this step has a box, sphere or capsule collider (m_faceOn), building the body's
-  // boundary faces the first time one appears: a world with only planes pays nothing. crossed:
+  // Whether this step has a box, sphere or capsule collider (m_faceOn), building the faces of
+  // the body's fragments (boundary and crack faces) when one appears and again when the
+  // fragments change: a world with only planes pays nothing. crossed:
   // the sweep found a node whose path would pass a collider (kStepContactSwept).
   void prepareFaces(const FemModel& model, const StepContext& ctx, bool crossed);
   // The face contacts at x (FacePlaneStage) into the m_face* arrays; true when any.
@@ -246,8 +249,12 @@ class Integrator {
   std::vector<double> m_balanceTerms;      // BodyContactBalanceStage's
   std::vector<double> m_adx;               // A dx, the Newton model's curvature along dx
   // Boundary faces as 4-node elements (FaceContacts::faces), their gather plans and per-face
-  // contacts (fem/face_stage.h); built when the first box, sphere or capsule collider appears.
-  bool m_facesBuilt = false;
+  // contacts (fem/face_stage.h); built when the first box, sphere or capsule collider appears,
+  // and again when the fragments change (their version, m_facesKey): each fragment's boundary,
+  // crack faces included, from body contact's surface (contact/body_contact.h).
+  std::unique_ptr<ContactSurface> m_faceSurface;
+  uint64_t m_facesKey = ~uint64_t(0);
+  uint64_t m_faceSurfaceKey = 0;
   bool m_faceOn = false;   // this step has a box, sphere or capsule collider
   bool m_faceAny = false;  // the last linearisation has a face contact
   int32_t m_faceCount = 0;
