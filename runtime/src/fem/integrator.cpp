@@ -462,15 +462,16 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
   // from there, and the contact impulses spun it from 6.6 to 52.6 rad/s (+7.8 E0; stability
   // suite, Nu0p4999). Starting such a piece at x_n but keeping the turned target was no cure:
   // the end spin then read the turn the solve had not made as the deformation's and doubled
-  // it every step (+8.8 E0 at 10 m/s). So a cracked body's piece that its turn presses deeper
-  // into a collider than x_n is stepped by plain backward Euler, as a thin piece is, which
-  // cannot gain energy. An intact body keeps its turn: a block rocking under another needs it
-  // (BodyContact.TwoBlocksComeToRestStacked).
+  // it every step (+8.8 E0 at 10 m/s). So a cracked body's piece that its turn, or its motion
+  // over the step (PiecePressTerms), presses deeper into a collider than x_n is stepped by
+  // plain backward Euler, as a thin piece is, which cannot gain energy. An intact body keeps its
+  // turn: a block rocking under another needs it (BodyContact.TwoBlocksComeToRestStacked).
   if (ctx.colliderCount > 0 && m_fracture && m_fracture->brokenCount() > 0) {
     m_piecePressed.resize(size_t(pieces));
-    exec.run(nn, kNodeGrain,
-             PiecePressTerms{state.x.data(), m_x.data(), m_pieces.data(), m_pieceOfNode.data(),
-                             ctx.colliders, ctx.colliderCount, m_swept, m_pieceTerms.data()});
+    exec.run(
+        nn, kNodeGrain,
+        PiecePressTerms{state.x.data(), m_x.data(), m_pieces.data(), m_pieceOfNode.data(),
+                        ctx.colliders, ctx.colliderCount, m_swept, fullDt, m_pieceTerms.data()});
     segmentedReduce<MaxOp>(exec, m_pieceLists.view(), m_pieceTerms.data(), nn, 1,
                            m_piecePartials.data(), m_pieceSums.data());
     exec.run(pieces, kPieceGrain,
