@@ -481,6 +481,14 @@ struct HalfSpaceContacts {
   const double* muLambda = nullptr;
   const Vec3* faceMotion = nullptr;
   double slipEps = 0;  ///< nodeFriction's smoothing length (slip speed times dt)
+  /// Per half-space the group on the other side (null: none known), and the body's own groups
+  /// [ownFirst, ownEnd): a self pair's half-space that let go of its node within the step has the
+  /// step go on (Integrator::releasedBodyContact).
+  const int32_t* partner = nullptr;
+  int32_t ownFirst = 0, ownEnd = 0;
+  GF_HD bool self(int32_t k) const {
+    return partner && partner[k] >= ownFirst && partner[k] < ownEnd;
+  }
 
   /// Half-space k of a node at x: its depth (> 0 behind the plane).
   GF_HD double depth(int32_t k, Vec3 x) const { return dot(point[k] - x, normal[k]); }

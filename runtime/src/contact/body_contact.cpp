@@ -165,6 +165,7 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     t.x = b.x ? b.x : b.state->x.data();
     t.v = b.v ? b.v : b.state->v.data();
     t.iterate = b.iterate;
+    t.rest = b.model->restPositions.data();
     t.nodeMass = b.state->nodeMass.data();
     t.fixed = b.state->fixedNode.data();
     // The groups as the pairs are found: a body that breaks while it steps relabels its
@@ -184,6 +185,7 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     t.vertexCount = int32_t(b.surface->vertices().size());
     t.nodeCount = b.model->nodeCount;
     groups += b.fragmentCount;
+    slot.groupEnd = groups;
     faces += t.faceCount;
   }
   m_groups = groups;
@@ -338,6 +340,9 @@ HalfSpaceContacts BodyContact::halfSpaces(size_t si) const {
   h.muLambda = s.muLambda.data();
   h.faceMotion = s.faceMotion.data();
   h.slipEps = m_slipEps;
+  h.partner = s.partner.data();
+  h.ownFirst = m_table[si].groupBase;
+  h.ownEnd = s.groupEnd;
   return h;
 }
 

@@ -295,6 +295,14 @@ bool Integrator::enteredUnseenContact(const FemModel& model, const FemState& sta
   return exec.reduce<MaxOp>(model.nodeCount, unseen) > 0;
 }
 
+bool Integrator::releasedBodyContact(const FemModel& model, const FemState& state,
+                                     const StepContext& ctx, JobSystem& jobs) const {
+  if (!ctx.bodyContacts.start) return false;
+  return CpuExecutor(jobs).reduce<MaxOp>(
+             model.nodeCount, ReleasedContactTerm{m_x.data(), m_xLin.data(), state.fixedNode.data(),
+                                                  ctx.bodyContacts}) > 0;
+}
+
 void Integrator::prepareFaces(const FemModel& model, const StepContext& ctx, bool crossed) {
   m_faceOn = false;
   m_faceAny = false;
@@ -912,6 +920,12 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
         converged = true;
         break;
       }
+    } else if (releasedBodyContact(model, state, ctx, jobs)) {
+      // From here on to convergence: where the released half-spaces no longer act.
+      swept = true;
+      iterationCap = it + 1 + kMaxSweptIterations;
+      newReference = true;
+      converged = false;
     } else if (!modelOvershot && !enteredUnseenContact(model, state, ctx, jobs)) {
       break;
     }

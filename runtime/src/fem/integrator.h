@@ -189,6 +189,10 @@ class Integrator {
   // True when a free node now penetrates a collider that the last linearisation missed.
   bool enteredUnseenContact(const FemModel& model, const FemState& state, const StepContext& ctx,
                             JobSystem& jobs) const;
+  // Whether a body half-space that acted at the last linearisation let go of its node
+  // (ReleasedContactTerm).
+  bool releasedBodyContact(const FemModel& model, const FemState& state, const StepContext& ctx,
+                           JobSystem& jobs) const;
   // Stiffens the contacts that hold a pressed node at m_x deeper than its bound
   // (DeepContactTerm); true when any was.
   bool stiffenDeepContacts(const FemModel& model, const FemState& state, const StepContext& ctx,

@@ -184,6 +184,27 @@ struct UnseenContactTerm {
   }
 };
 
+/// 1 when free node n was behind one of its self-contact half-spaces at the last linearisation's
+/// point xLin and ends in front of it at x, else 0: a max-reduction term. The penalty is linear in
+/// x where it acts, so that step solved it as a two-sided spring and pulled the node back towards
+/// the plane. A plane set at the other side's predicted face lies ahead of x_n when both move
+/// together, and that pull dragged the pieces of a falling cut body apart.
+struct ReleasedContactTerm {
+  const double* x = nullptr;
+  const double* xLin = nullptr;
+  const uint8_t* fixedNode = nullptr;
+  HalfSpaceContacts bodies;
+
+  GF_HD double operator()(int32_t n) const {
+    if (fixedNode[n] || bodies.start[n] == bodies.start[n + 1]) return 0.0;
+    const Vec3 xi{x[3 * int64_t(n)], x[3 * int64_t(n) + 1], x[3 * int64_t(n) + 2]};
+    const Vec3 xl{xLin[3 * int64_t(n)], xLin[3 * int64_t(n) + 1], xLin[3 * int64_t(n) + 2]};
+    for (int32_t k = bodies.start[n]; k < bodies.start[n + 1]; ++k)
+      if (bodies.self(k) && bodies.depth(k, xl) > 0 && bodies.depth(k, xi) < 0) return 1.0;
+    return 0.0;
+  }
+};
+
 /// The end of a backward-Euler step: x = the solved positions, v = (x - x_n) / dt on free
 /// nodes and exactly the grip velocity on prescribed ones; one entry per item.
 struct EndOfStepStage {
