@@ -32,8 +32,9 @@ constexpr double kCell = 0.05;
 constexpr double kSupportFriction = 0.5;
 
 // A 20 x 10 x 20 cm block of 5 cm cells, its bottom at y = 0, centred on x = z = 0.
-TetMesh blockMesh() {
-  TetMesh m = gen::box(0.2, 0.1, 0.2, 4, 2, 4);
+// A 20 x `height` x 20 cm block of 5 cm cells centred on x = z = 0, its bottom at y = 0.
+TetMesh blockMesh(double height = 0.1) {
+  TetMesh m = gen::box(0.2, height, 0.2, 4, int(std::lround(height / 0.05)), 4);
   for (size_t n = 0; n < m.nodeCount(); ++n) {
     m.positions[3 * n] -= 0.1;
     m.positions[3 * n + 2] -= 0.1;
@@ -43,8 +44,9 @@ TetMesh blockMesh() {
 
 using Tri = std::array<int32_t, 3>;
 
-// The boundary triangles of `m` whose nodes all have coordinate `axis` equal to `value`.
-std::vector<Tri> facesAt(const TetMesh& m, int axis, double value) {
+// The triangles of `m` whose nodes all have coordinate `axis` equal to `value`, once each: only
+// those on the boundary (of one tet), or with `inner` also those between two tets.
+std::vector<Tri> facesAt(const TetMesh& m, int axis, double value, bool inner = false) {
   std::map<Tri, int> count;
   for (size_t t = 0; t < m.tetCount(); ++t)
     for (int k = 0; k < 4; ++k) {
@@ -57,7 +59,7 @@ std::vector<Tri> facesAt(const TetMesh& m, int axis, double value) {
     }
   std::vector<Tri> out;
   for (const auto& [f, c] : count) {
-    bool on = c == 1;
+    bool on = inner || c == 1;
     for (int32_t v : f) on &= std::abs(m.positions[3 * v + axis] - value) < 1e-9;
     if (on) out.push_back(f);
   }
@@ -178,12 +180,11 @@ void expectRests(const Rest& r, const char* name) {
   EXPECT_LT(r.endSpeed, 0.05) << name;
 }
 
-// Four points of the bottom face, one per quadrant, each at `where` within the bottom triangle
-// whose centre is nearest (+-5 cm, +-5 cm): 0 the triangle's centre, 1 near an edge (85 % of
-// the way from the centre to an edge's midpoint), 2 near a vertex (80 % of the way to it).
-std::vector<glm::dvec2> points(int where) {
-  const TetMesh m = blockMesh();
-  const std::vector<Tri> tris = facesAt(m, 1, 0.0);
+// Four (x, z) points on the triangles `tris` of `m` (all in one plane y = const), one per
+// quadrant, each at `where` within the triangle whose centre is nearest (+-5 cm, +-5 cm): 0 the
+// triangle's centre, 1 near an edge (85 % of the way from the centre to an edge's midpoint), 2
+// near a vertex (80 % of the way to it). points(where): on the block's bottom face.
+std::vector<glm::dvec2> pointsOn(const TetMesh& m, const std::vector<Tri>& tris, int where) {
   std::vector<glm::dvec2> out;
   for (const double sx : {-1.0, 1.0})
     for (const double sz : {-1.0, 1.0}) {
@@ -203,6 +204,11 @@ std::vector<glm::dvec2> points(int where) {
       out.push_back(pick);
     }
   return out;
+}
+
+std::vector<glm::dvec2> points(int where) {
+  const TetMesh m = blockMesh();
+  return pointsOn(m, facesAt(m, 1, 0.0), where);
 }
 
 TEST(FaceContact, BlockRestsOnSmallSpheresBetweenItsNodes) {
@@ -331,57 +337,6 @@ struct PieceRest {
   int fragments = 0;
 };
 
-// The tet faces of `m` whose nodes all have coordinate `axis` equal to `value`, once each.
-std::vector<Tri> layerFaces(const TetMesh& m, int axis, double value) {
-  std::map<Tri, int> count;
-  for (size_t t = 0; t < m.tetCount(); ++t)
-    for (int k = 0; k < 4; ++k) {
-      Tri f{};
-      int j = 0;
-      for (int i = 0; i < 4; ++i)
-        if (i != k) f[j++] = m.tets[4 * t + i];
-      std::sort(f.begin(), f.end());
-      bool on = true;
-      for (int32_t v : f) on &= std::abs(m.positions[3 * v + axis] - value) < 1e-9;
-      if (on) ++count[f];
-    }
-  std::vector<Tri> out;
-  for (const auto& [f, c] : count) out.push_back(f);
-  return out;
-}
-
-TetMesh cutBlockMesh() {
-  TetMesh m = gen::box(0.2, 0.15, 0.2, 4, 3, 4);
-  for (size_t n = 0; n < m.nodeCount(); ++n) {
-    m.positions[3 * n] -= 0.1;
-    m.positions[3 * n + 2] -= 0.1;
-  }
-  return m;
-}
-
-// points(where) on the crack face's triangles.
-std::vector<glm::dvec2> crackPoints(int where) {
-  const TetMesh m = cutBlockMesh();
-  const std::vector<Tri> tris = layerFaces(m, 1, 0.1);
-  std::vector<glm::dvec2> out;
-  for (const double sx : {-1.0, 1.0})
-    for (const double sz : {-1.0, 1.0}) {
-      const glm::dvec2 aim(0.05 * sx + 0.01, 0.05 * sz + 0.01);
-      double best = 1e300;
-      glm::dvec2 pick(0);
-      for (const Tri& f : tris) {
-        glm::dvec2 v[3];
-        for (int i = 0; i < 3; ++i) v[i] = {m.positions[3 * f[i]], m.positions[3 * f[i] + 2]};
-        const glm::dvec2 c = (v[0] + v[1] + v[2]) / 3.0;
-        if (glm::length(c - aim) >= best) continue;
-        best = glm::length(c - aim);
-        pick = where == 0 ? c : c + 0.85 * (0.5 * (v[0] + v[1]) - c);
-      }
-      out.push_back(pick);
-    }
-  return out;
-}
-
 // Supports given with their tops at y = 0 are raised to 3 mm above the crack face's rest height
 // (y = 10 cm), so the cut layer between the pieces hangs in tension (a closed crack of the
 // projection model would carry part of the weight in compression). No ground: the lower piece
@@ -399,7 +354,7 @@ PieceRest pieceRestsOn(const std::vector<Collider>& supports, const std::vector<
   }
   World world(WorldDef{glm::vec3(0, float(-kG), 0), Backend::Cpu, nullptr, 1, {}});
   BodyDef def;
-  def.mesh = cutBlockMesh();
+  def.mesh = blockMesh(0.15);
   for (size_t n = 0; n < def.mesh.nodeCount(); ++n) def.mesh.positions[3 * n + 1] += lift;
   def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
   def.fracture.enabled = true;
@@ -414,7 +369,7 @@ PieceRest pieceRestsOn(const std::vector<Collider>& supports, const std::vector<
   EXPECT_TRUE(world.step(dt).ok());
   EXPECT_TRUE(world.setVelocities(id, std::vector<double>(3 * def.mesh.nodeCount(), 0.0)).ok());
   EXPECT_TRUE(world.setColliders(colliders).ok());
-  const std::vector<Tri> face = layerFaces(cutBlockMesh(), 1, 0.1);
+  const std::vector<Tri> face = facesAt(blockMesh(0.15), 1, 0.1, true);
   const int steps = int(std::lround(seconds / dt));
   PieceRest r;
   int counted = 0;
@@ -455,6 +410,12 @@ PieceRest pieceRestsOn(const std::vector<Collider>& supports, const std::vector<
     r.deepest = std::max(r.deepest, std::isnan(y) ? 1.0 : crack - y);
   }
   return r;
+}
+
+// (x, z) points on the crack face (y = 10 cm) of the cut block, as points(where).
+std::vector<glm::dvec2> crackPoints(int where) {
+  const TetMesh m = blockMesh(0.15);
+  return pointsOn(m, facesAt(m, 1, 0.1, true), where);
 }
 
 TEST(FaceContact, BrokenPieceRestsOnItsCrackFace) {
