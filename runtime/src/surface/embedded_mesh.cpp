@@ -3,10 +3,14 @@
 #include "surface/embedded_mesh.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <numbers>
+#include <queue>
 
 #include "kernels/contact.h"
 #include "mesh/mesh_internal.h"
@@ -62,6 +66,28 @@ int strongest(const double* w, unsigned mask) {
     if ((mask >> k & 1u) && (best < 0 || w[k] > w[best])) best = k;
   return best;
 }
+
+using Triple = std::array<int32_t, 3>;
+
+Triple sorted(int32_t a, int32_t b, int32_t c) {
+  Triple t{a, b, c};
+  std::sort(t.begin(), t.end());
+  return t;
+}
+
+// The lines inside the tets where three fragments' cells meet (design note: junctions), at
+// rest: segments between face centroids, tet centroids and chips' nodes, each with the three
+// fragments whose cells meet there, and the scratch of the shortest paths along them.
+struct TripleLines {
+  std::vector<Vec3> point;
+  std::vector<int32_t> ends;                             // 2 per segment
+  std::vector<Triple> labels;                            // per segment, ascending
+  std::vector<int32_t> start, segments;                  // per point: its segments (CSR)
+  std::map<Triple, std::vector<int32_t>> onLine;         // per triple: the points of its segments
+  std::map<std::pair<int32_t, int32_t>, int32_t> tetOf;  // (point, fragment): a tet with its node
+  std::vector<double> dist;
+  std::vector<int32_t> from, via, touched;
+};
 
 }  // namespace
 
@@ -350,7 +376,8 @@ uint32_t EmbeddedSurface::addCopy(int32_t source, int32_t tet, const double* w, 
   m_vTet.push_back(tet);
   m_vSource.push_back(source);
   m_vSeparated.push_back(0);
-  m_vJunction.push_back(0);
+  m_vJunction.push_back(-1);
+  m_vAcross.push_back(-1);
   m_vWeight.insert(m_vWeight.end(), w, w + 4);
   m_vGroup.push_back(uint8_t(group));
   m_vNode.push_back(n[strongest(w, group)]);
@@ -430,7 +457,11 @@ uint32_t EmbeddedSurface::cutCopy(uint32_t u, uint32_t v, uint32_t side) {
                       s * double(b.uv[2 * size_t(hi) + size_t(c)]));
     const uint32_t cl = pointCopy(P, N, uv, lo);
     const uint32_t ch = pointCopy(P, N, uv, hi);
-    if (m_home[lo] != m_home[hi]) m_vSeparated[cl] = m_vSeparated[ch] = 1;
+    if (m_home[lo] != m_home[hi]) {
+      m_vSeparated[cl] = m_vSeparated[ch] = 1;
+      m_vAcross[cl] = m_home[hi];
+      m_vAcross[ch] = m_home[lo];
+    }
     found = m_cut.emplace(key, std::make_pair(cl, ch)).first;
   }
   return side == lo ? found->second.first : found->second.second;
@@ -571,6 +602,7 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   m_vSource.clear();
   m_vSeparated.clear();
   m_vJunction.clear();
+  m_vAcross.clear();
   m_vWeight.clear();
   m_vRest.clear();
   m_vRestNormal.clear();
@@ -638,7 +670,7 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
         // Three fragments meet here: the caps are split at this point (below).
         if (m_home[id[0]] != m_home[id[1]] && m_home[id[1]] != m_home[id[2]] &&
             m_home[id[2]] != m_home[id[0]])
-          m_vJunction[m] = 1;
+          m_vJunction[m] = int32_t(tri);
         emit(h, c1, m);
         emit(h, m, c2);
         rim(c1, m);
@@ -723,40 +755,7 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   for (size_t c = 0; c < ncopy; ++c)
     while (nextOut[c] < outStart[c + 1]) walk(c);
 
-  // Junctions. A cycle through points where three fragments meet (the centroids of render
-  // triangles with three labels) is split there: each run between two such points, closed by
-  // the chord between them, is a cap of its own, centred on the run's cut points, which the
-  // neighbour across the run shares, so neighbouring caps are the same fan reversed; with two
-  // junction points the two chords cancel (the three fragments' chords all lie on the triple
-  // line), with more a last cap closes the polygon of the junction points.
-  {
-    std::vector<int32_t> start, rim;
-    start.push_back(0);
-    const size_t ncap = m_capStart.size() - 1;
-    for (size_t c = 0; c < ncap; ++c) {
-      const int32_t b = m_capStart[c], e = m_capStart[c + 1];
-      std::vector<int32_t> at;
-      for (int32_t k = b; k < e; ++k)
-        if (m_vJunction[size_t(m_capRim[size_t(k)])]) at.push_back(k - b);
-      const int32_t n = e - b;
-      if (at.size() < 2) {
-        rim.insert(rim.end(), m_capRim.begin() + b, m_capRim.begin() + e);
-        start.push_back(int32_t(rim.size()));
-        continue;
-      }
-      for (size_t j = 0; j < at.size(); ++j) {
-        const int32_t from = at[j], to = j + 1 < at.size() ? at[j + 1] : at[0] + n;
-        for (int32_t k = from; k <= to; ++k) rim.push_back(m_capRim[size_t(b + k % n)]);
-        start.push_back(int32_t(rim.size()));
-      }
-      if (at.size() >= 3) {
-        for (int32_t k : at) rim.push_back(m_capRim[size_t(b + k)]);
-        start.push_back(int32_t(rim.size()));
-      }
-    }
-    m_capStart.swap(start);
-    m_capRim.swap(rim);
-  }
+  splitAtJunctions();
 
   // Fragments without a render vertex: drawn with their tet faces when inside the render mesh.
   // Chips are not: their cells are drawn by the neighbours whose caps enclose them.
@@ -773,6 +772,351 @@ void EmbeddedSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment
   m_nodeFragment = nullptr;
   m_broken = nullptr;
   m_composed = false;
+}
+
+void EmbeddedSurface::splitAtJunctions() {
+  const EmbeddedBinding& bd = *m_binding;
+  const double* X = m_rest->positions.data();
+  TripleLines lines;
+  bool built = false;
+  // The triple lines of the cells {w_k = max over the drawn nodes} (the labels): where all four
+  // nodes are drawn, three fragments' cells meet on the segment from the centroid of a face whose
+  // nodes are in three fragments to the tet centroid (crack_surface.h: corner cells); where one is
+  // a chip, on the segment from the face of the other three to the chip's node, where all three
+  // have weight 0; where two are, on the edge between the two chips, with the cells of every tet
+  // around it. Only made when a cycle has two junctions or more.
+  auto build = [&] {
+    built = true;
+    std::map<std::array<int32_t, 4>, int32_t> key;
+    auto point = [&](std::array<int32_t, 4> k, Vec3 P) {
+      auto [it, added] = key.emplace(k, int32_t(lines.point.size()));
+      if (added) lines.point.push_back(P);
+      return it->second;
+    };
+    auto segment = [&](int32_t a, int32_t b, Triple l) {
+      lines.ends.insert(lines.ends.end(), {a, b});
+      lines.labels.push_back(l);
+    };
+    std::map<std::pair<int32_t, int32_t>, std::map<int32_t, int32_t>> chipEdges;
+    for (size_t t = 0; t < m_rest->tetCount(); ++t) {
+      const int32_t* n = &m_rest->tets[4 * t];
+      const unsigned drawn = drawnNodes(int32_t(t));
+      const int count = std::popcount(drawn);
+      int32_t f[4];
+      for (int k = 0; k < 4; ++k) f[k] = m_nodeFragment[n[k]];
+      if (count <= 2) {
+        // One or two drawn nodes: every drawn node's weight is 0 on an edge between two chips,
+        // so there their cells meet those of the other tets around the edge.
+        for (int j = 0; j < 6; ++j) {
+          const int a = kTetEdgeNodes[j][0], c = kTetEdgeNodes[j][1];
+          if ((drawn >> a & 1u) || (drawn >> c & 1u)) continue;
+          auto& around = chipEdges[{std::min(n[a], n[c]), std::max(n[a], n[c])}];
+          for (int k = 0; k < 4; ++k)
+            if (drawn >> k & 1u) around.emplace(f[k], int32_t(t));
+        }
+        continue;
+      }
+      for (int l = 0; l < 4; ++l) {
+        const int* c = kTetFaces[l];
+        if ((drawn >> l & 1u) && count == 3) continue;  // only the face opposite the chip
+        if (f[c[0]] == f[c[1]] || f[c[1]] == f[c[2]] || f[c[2]] == f[c[0]]) continue;
+        const Triple face = sorted(n[c[0]], n[c[1]], n[c[2]]);
+        const int32_t a = point({0, face[0], face[1], face[2]},
+                                (1.0 / 3) * (load(X, size_t(face[0])) + load(X, size_t(face[1])) +
+                                             load(X, size_t(face[2]))));
+        const int32_t b = count == 4 ? point({1, int32_t(t), 0, 0},
+                                             0.25 * (load(X, size_t(n[0])) + load(X, size_t(n[1])) +
+                                                     load(X, size_t(n[2])) + load(X, size_t(n[3]))))
+                                     : point({2, n[l], 0, 0}, load(X, size_t(n[l])));
+        segment(a, b, sorted(f[c[0]], f[c[1]], f[c[2]]));
+        for (int q = 0; q < 3; ++q)
+          for (int32_t v : {a, b}) lines.tetOf.emplace(std::pair{v, f[c[q]]}, int32_t(t));
+      }
+    }
+    // An edge between two chips around which three fragments or more draw cells: a segment for
+    // every three of them.
+    for (const auto& [edge, around] : chipEdges) {
+      if (around.size() < 3) continue;
+      const int32_t a = point({2, edge.first, 0, 0}, load(X, size_t(edge.first)));
+      const int32_t b = point({2, edge.second, 0, 0}, load(X, size_t(edge.second)));
+      for (auto p = around.begin(); p != around.end(); ++p)
+        for (auto q = std::next(p); q != around.end(); ++q)
+          for (auto r = std::next(q); r != around.end(); ++r)
+            segment(a, b, Triple{p->first, q->first, r->first});
+      for (const auto& [fragment, t] : around)
+        for (int32_t v : {a, b}) lines.tetOf.emplace(std::pair{v, fragment}, t);
+    }
+    const size_t np = lines.point.size(), ns = lines.labels.size();
+    lines.start.assign(np + 1, 0);
+    for (int32_t v : lines.ends) ++lines.start[size_t(v) + 1];
+    for (size_t v = 0; v < np; ++v) lines.start[v + 1] += lines.start[v];
+    lines.segments.resize(2 * ns);
+    std::vector<int32_t> fill(lines.start.begin(), lines.start.end() - 1);
+    for (size_t s = 0; s < ns; ++s)
+      for (int e = 0; e < 2; ++e) {
+        const int32_t v = lines.ends[2 * s + size_t(e)];
+        lines.segments[size_t(fill[size_t(v)]++)] = int32_t(s);
+        lines.onLine[lines.labels[s]].push_back(v);
+      }
+    lines.dist.assign(np, HUGE_VAL);
+    lines.from.assign(np, -1);
+    lines.via.assign(np, -1);
+  };
+  auto has = [](const Triple& l, int32_t f) { return l[0] == f || l[1] == f || l[2] == f; };
+  // The point of the triple line through junction j (a render triangle's centroid) nearest to
+  // it, on a line of the triangle's three fragments, which must include f and g; -1 when none is
+  // within two mean tet edges.
+  auto labelsOf = [&](uint32_t j) {
+    const uint32_t* id = &bd.indices[3 * size_t(m_vJunction[j])];
+    return sorted(m_home[id[0]], m_home[id[1]], m_home[id[2]]);
+  };
+  auto entry = [&](uint32_t j, int32_t f, int32_t g) {
+    const Triple l = labelsOf(j);
+    int32_t best = -1;
+    const auto it = lines.onLine.find(l);
+    if (!has(l, f) || !has(l, g) || it == lines.onLine.end()) return best;
+    const Vec3 P = load(m_vRest.data(), j);
+    double bestDist = 2 * m_meanEdge;
+    for (int32_t v : it->second) {
+      const double d = norm(lines.point[size_t(v)] - P);
+      if (d < bestDist) {
+        bestDist = d;
+        best = v;
+      }
+    }
+    return best;
+  };
+  // The shortest path (rest length) from point a to point b along the lines that bound f's and
+  // g's cells, into `out` (a first); whether it runs along lines of the three fragments `plain`
+  // alone. Searched from the lower of the two, so both fragments get the same points.
+  auto path = [&](int32_t a, int32_t b, int32_t f, int32_t g, const Triple& plain,
+                  std::vector<int32_t>& out, bool& alongPlain) {
+    out.clear();
+    const bool flip = a > b;
+    if (flip) std::swap(a, b);
+    for (int32_t v : lines.touched) lines.dist[size_t(v)] = HUGE_VAL;
+    lines.touched.assign(1, a);
+    using Item = std::pair<double, int32_t>;
+    std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
+    lines.dist[size_t(a)] = 0;
+    lines.from[size_t(a)] = -1;
+    queue.push({0.0, a});
+    while (!queue.empty()) {
+      const auto [d, v] = queue.top();
+      queue.pop();
+      if (v == b) break;
+      if (d > lines.dist[size_t(v)]) continue;
+      for (int32_t i = lines.start[size_t(v)]; i < lines.start[size_t(v) + 1]; ++i) {
+        const size_t s = size_t(lines.segments[size_t(i)]);
+        if (!has(lines.labels[s], f) || !has(lines.labels[s], g)) continue;
+        const int32_t w = lines.ends[2 * s] == v ? lines.ends[2 * s + 1] : lines.ends[2 * s];
+        const double dw = d + norm(lines.point[size_t(w)] - lines.point[size_t(v)]);
+        if (dw >= lines.dist[size_t(w)]) continue;
+        if (lines.dist[size_t(w)] == HUGE_VAL) lines.touched.push_back(w);
+        lines.dist[size_t(w)] = dw;
+        lines.from[size_t(w)] = v;
+        lines.via[size_t(w)] = int32_t(s);
+        queue.push({dw, w});
+      }
+    }
+    if (lines.dist[size_t(b)] == HUGE_VAL) return false;
+    alongPlain = true;
+    for (int32_t v = b; v >= 0; v = lines.from[size_t(v)]) {
+      out.push_back(v);
+      if (v != a) alongPlain = alongPlain && lines.labels[size_t(lines.via[size_t(v)])] == plain;
+    }
+    if (!flip) std::reverse(out.begin(), out.end());
+    return true;
+  };
+
+  // Per cycle with two junction points or more: its junction offsets, each run's neighbour key
+  // and closing path (CSR), and whether all its runs have one.
+  struct Cycle {
+    int32_t begin = 0, end = 0, fragment = 0;
+    std::vector<int32_t> at, closing, closingStart{0};
+    std::vector<std::array<int32_t, 4>> keys;  // per run: (fragments, junction triangles)
+    bool usable = true;
+  };
+  std::vector<Cycle> cycles;
+  std::vector<int32_t> found;
+  const size_t ncap = m_capStart.size() - 1;
+  for (size_t c = 0; c < ncap; ++c) {
+    Cycle cy;
+    cy.begin = m_capStart[c];
+    cy.end = m_capStart[c + 1];
+    cy.fragment = m_vFragment[size_t(m_capRim[size_t(cy.begin)])];
+    const int32_t n = cy.end - cy.begin;
+    for (int32_t k = cy.begin; k < cy.end; ++k)
+      if (m_vJunction[size_t(m_capRim[size_t(k)])] >= 0) cy.at.push_back(k - cy.begin);
+    if (cy.at.size() >= 2) {
+      if (!built) build();
+      const int32_t f = cy.fragment;
+      auto copyAt = [&](int32_t k) { return m_capRim[size_t(cy.begin + k % n)]; };
+      for (size_t j = 0; j < cy.at.size(); ++j) {
+        const int32_t from = cy.at[j], to = j + 1 < cy.at.size() ? cy.at[j + 1] : cy.at[0] + n;
+        // The run's neighbour: the other fragment of its cut points, when they agree.
+        int32_t g = -2;
+        for (int32_t k = from + 1; k < to; ++k) {
+          const int32_t across = m_vAcross[size_t(copyAt(k))];
+          if (across >= 0) g = g == -2 || g == across ? across : -1;
+        }
+        const uint32_t ja = uint32_t(copyAt(from)), jb = uint32_t(copyAt(to));
+        const int32_t ta = m_vJunction[ja], tb = m_vJunction[jb];
+        cy.keys.push_back({std::min(f, g), std::max(f, g), std::min(ta, tb), std::max(ta, tb)});
+        const int32_t ea = g >= 0 ? entry(ja, f, g) : -1, eb = g >= 0 ? entry(jb, f, g) : -1;
+        const Triple la = labelsOf(ja);
+        bool plain = false;
+        if (ea >= 0 && eb >= 0 && path(eb, ea, f, g, la, found, plain)) {
+          // A path along one triple line between two junctions of the same three fragments is
+          // closed by the chord, as all three fragments' runs there are: it encloses no fourth.
+          if (!(plain && la == labelsOf(jb)))
+            cy.closing.insert(cy.closing.end(), found.begin(), found.end());
+        } else {
+          cy.usable = false;
+        }
+        cy.closingStart.push_back(int32_t(cy.closing.size()));
+      }
+    }
+    cycles.push_back(std::move(cy));
+  }
+  // A run is closed by its path only when the neighbour's cycle closes the same run (the same
+  // fragments and junction triangles) by the same path, so the two caps stay the same fan
+  // reversed: cycles with a run that has no path, or whose run is not matched by a usable cycle,
+  // are closed by chords, until no more change.
+  std::map<std::array<int32_t, 4>, std::pair<int, int>> runs;  // key -> (runs, in usable cycles)
+  for (bool changed = true; changed;) {
+    changed = false;
+    runs.clear();
+    for (const Cycle& cy : cycles)
+      for (const auto& k : cy.keys) {
+        auto& r = runs[k];
+        ++r.first;
+        r.second += cy.usable ? 1 : 0;
+      }
+    for (Cycle& cy : cycles)
+      for (const auto& k : cy.keys)
+        if (cy.usable && (k[0] < 0 || runs[k].first != 2 || runs[k].second != 2)) {
+          cy.usable = false;
+          changed = true;
+        }
+  }
+
+  // Caps are first written with line points as -(point + 1), checked, then given copies.
+  std::vector<int32_t> start{0}, rim, capsStart;
+  std::vector<int64_t> caps, sequence, stack;
+  std::map<int64_t, size_t> onStack;
+  std::map<std::pair<int64_t, int64_t>, int> edges;
+  std::map<int32_t, uint32_t> made;
+  for (Cycle& cy : cycles) {
+    const int32_t b = cy.begin, e = cy.end, n = e - b;
+    const std::vector<int32_t>& at = cy.at;
+    if (at.size() < 2) {
+      rim.insert(rim.end(), m_capRim.begin() + b, m_capRim.begin() + e);
+      start.push_back(int32_t(rim.size()));
+      continue;
+    }
+    auto copyAt = [&](int32_t k) { return m_capRim[size_t(b + k % n)]; };
+    const int32_t f = cy.fragment;
+    const size_t runCount = at.size();
+    // Attempt 0 closes each run through the triple lines, attempt 1 (an unusable cycle, or one
+    // whose caps that would not close) by the chord between its junction points.
+    for (int attempt = cy.usable ? 0 : 1; attempt < 2; ++attempt) {
+      if (attempt == 1) {
+        cy.closing.clear();
+        cy.closingStart.assign(runCount + 1, 0);
+      }
+      const std::vector<int32_t>& closing = cy.closing;
+      const std::vector<int32_t>& closingStart = cy.closingStart;
+      // Each run, from its junction point to the next, back along its closing path; then what
+      // the paths leave, walked from the junction points back along each path and split into
+      // loops where it comes back to a point (a path there and back encloses nothing).
+      caps.clear();
+      capsStart.assign(1, 0);
+      sequence.clear();
+      for (size_t j = 0; j < runCount; ++j) {
+        const int32_t from = at[j], to = j + 1 < runCount ? at[j + 1] : at[0] + n;
+        for (int32_t k = from; k <= to; ++k) caps.push_back(copyAt(k));
+        for (int32_t i = closingStart[j]; i < closingStart[j + 1]; ++i)
+          caps.push_back(-int64_t(closing[size_t(i)]) - 1);
+        capsStart.push_back(int32_t(caps.size()));
+        sequence.push_back(copyAt(from));
+        for (int32_t i = closingStart[j + 1] - 1; i >= closingStart[j]; --i)
+          sequence.push_back(-int64_t(closing[size_t(i)]) - 1);
+      }
+      stack.clear();
+      onStack.clear();
+      auto loop = [&](size_t from) {
+        if (stack.size() - from >= 3) {
+          caps.insert(caps.end(), stack.begin() + ptrdiff_t(from), stack.end());
+          capsStart.push_back(int32_t(caps.size()));
+        }
+        for (size_t k = from + 1; k < stack.size(); ++k) onStack.erase(stack[k]);
+        stack.resize(from + 1);
+      };
+      for (int64_t v : sequence) {
+        const auto it = onStack.find(v);
+        if (it != onStack.end()) {
+          loop(it->second);
+        } else {
+          onStack.emplace(v, stack.size());
+          stack.push_back(v);
+        }
+      }
+      loop(0);
+      // Closed: the cycle's own edges once, in its direction; every other edge once each way.
+      edges.clear();
+      for (size_t q = 0; q + 1 < capsStart.size(); ++q)
+        for (int32_t k = capsStart[q]; k < capsStart[q + 1]; ++k) {
+          const int32_t next = k + 1 < capsStart[q + 1] ? k + 1 : capsStart[q];
+          ++edges[{caps[size_t(k)], caps[size_t(next)]}];
+        }
+      bool closed = true;
+      for (int32_t k = 0; k < n && closed; ++k) {
+        const int64_t u = copyAt(k), v = copyAt(k + 1);
+        closed = edges[{u, v}] == 1 && !edges.count({v, u});
+        edges.erase({u, v});
+      }
+      for (const auto& [uv, count] : edges) {
+        const auto back = edges.find({uv.second, uv.first});
+        closed = closed && uv.first != uv.second && count == 1 && back != edges.end() &&
+                 back->second == 1;
+      }
+      if (!closed && attempt == 0) continue;
+      // Copies of the line points for this cycle's fragment, bound in a tet of one of their
+      // segments that holds a node of it, following that node's group.
+      made.clear();
+      const Vec3 normal = load(m_vRestNormal.data(), size_t(copyAt(at[0])));
+      const float uv[2] = {0, 0};
+      for (size_t q = 0; q + 1 < capsStart.size(); ++q) {
+        for (int32_t k = capsStart[q]; k < capsStart[q + 1]; ++k) {
+          const int64_t v = caps[size_t(k)];
+          if (v >= 0) {
+            rim.push_back(int32_t(v));
+            continue;
+          }
+          const int32_t p = int32_t(-v - 1);
+          auto [it, added] = made.emplace(p, 0u);
+          if (added) {
+            const int32_t t = lines.tetOf.at({p, f});
+            const int32_t* nd = &m_rest->tets[4 * size_t(t)];
+            const Vec3 P = lines.point[size_t(p)];
+            double w[4];
+            barycentric(m_restInverse[t], load(X, size_t(nd[0])), P, w);
+            unsigned mine = 0;
+            for (int j = 0; j < 4; ++j) mine |= m_nodeFragment[nd[j]] == f ? 1u << j : 0u;
+            if (mine & drawnNodes(t)) mine &= drawnNodes(t);
+            const int strong = strongest(w, mine);
+            it->second = addCopy(-1, t, w, component(strong, joinedMask(t)), f, P, normal, uv);
+          }
+          rim.push_back(int32_t(it->second));
+        }
+        start.push_back(int32_t(rim.size()));
+      }
+      break;
+    }
+  }
+  m_capStart.swap(start);
+  m_capRim.swap(rim);
 }
 
 void EmbeddedSurface::compose(const CrackSurface& crack) {
