@@ -229,6 +229,9 @@ struct StackCase {
   double friction = -1;  // every box's BodyDef::friction; negative: the default
   double perturb = 0;    // the top box's start moved sideways by this fraction of its offset
   int sweeps = 1;        // WorldDef::contactSweeps
+  // Every box with fracture and plasticity on, neither ever reached: its steps must take the
+  // sweeps a plain box's take (before, such a body kept one sweep).
+  bool fractureAndPlasticity = false;
 };
 struct StackResult {
   double landing = 0, rest = 0, firstRest = 0, lastRest = 0;  // deepest node [m]
@@ -259,6 +262,12 @@ StackResult runStack(const StackCase& c) {
     defs[i].material.stiffnessDamping = 0.02;
     defs[i].contact = true;
     if (c.friction >= 0) defs[i].friction = c.friction;
+    if (c.fractureAndPlasticity) {
+      defs[i].fracture.enabled = true;
+      defs[i].fracture.strength = 1e12;
+      defs[i].plasticity.enabled = true;
+      defs[i].plasticity.yieldStress = 1e12;
+    }
     ids.push_back(world.createBody(defs[i]).value());
     parts.push_back(wholeBody(ids.back(), defs[i].mesh));
     y += b.size + c.gap;
@@ -436,6 +445,10 @@ std::vector<StackCase> sweptStackCases() {
     out.push_back({"dropped_30cm_three_120", {box, soft, stiff}, 1.0 / 120, 0.3});
   }
   for (StackCase& c : out) c.sweeps = 4;
+  StackCase unbroken = out[0];
+  unbroken.name = "two_equal_small_60_fracture_plasticity";
+  unbroken.fractureAndPlasticity = true;
+  out.push_back(unbroken);
   // The frictional drops whose outcome a last-bit shift decided with one sweep.
   for (const StackCase& c : perturbedStackCases(-1, 4))
     if (std::string(c.name).find("_60_") != std::string::npos &&
@@ -612,6 +625,40 @@ TEST(BodyContact, ABodyThatBreaksWhileTouchingKeepsMomentumAndEnergy) {
       EXPECT_LT(worstMomentum, 1e-6);
       EXPECT_LE(maxEnergy, e0 * (1 + 1e-9));
     }
+}
+
+// A body that breaks while it touches, swept: a restore repeats its steps bit for bit (the
+// sweeps re-step it from the substep's start with the first sweep's damage; nothing of that
+// outlives the step) and reports the same breaks once each.
+TEST(BodyContact, RestoreRepeatsTheSweepsOfABodyThatBreaks) {
+  FractureSettings fracture;
+  fracture.enabled = true;
+  fracture.strength = 1e4;
+  fracture.brittle = true;
+  fracture.regions = 4;
+  HeadOn h(4, 10, 6, fracture);
+  ASSERT_TRUE(h.world.step(1.0 / 60).ok());
+  const WorldSnapshot snap = h.world.snapshot();
+  const int32_t brokenAtSnapshot = h.world.fractureStats(h.b).brokenEdges;
+  const auto run = [&](std::vector<int32_t>* brokenEdges) {
+    for (int s = 0; s < 12; ++s) {
+      EXPECT_FALSE(h.world.step(1.0 / 60).has(kStepNanContained));
+      for (const FractureEvent& e : h.world.fractureEvents()) brokenEdges->push_back(e.edge);
+    }
+    return h.world.stateHash();
+  };
+  std::vector<int32_t> first, again;
+  const uint64_t hash = run(&first);
+  ASSERT_TRUE(h.world.restore(snap).ok());
+  EXPECT_EQ(run(&again), hash);
+  EXPECT_EQ(again, first);
+  // Each edge broke once.
+  std::vector<int32_t> sorted = first;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(std::adjacent_find(sorted.begin(), sorted.end()), sorted.end());
+  // One event per edge broken since the snapshot.
+  EXPECT_EQ(int32_t(first.size()), h.world.fractureStats(h.b).brokenEdges - brokenAtSnapshot);
+  EXPECT_GT(first.size(), 0u);
 }
 
 // A cube of `size` and `cells` a side, turned 45 degrees about `axis`, centred at `centre`.
@@ -866,62 +913,97 @@ TEST(BodyContact, FragmentsOfACutBodyDoNotPassThroughEachOther) {
   EXPECT_GT(off, 10 * on);  // the scene does need the contact
 }
 
-// A block cut by 1, 2 or 3 planes through its middle (2, 4, 8 pieces) and dropped 30 cm: its
-// pieces land together and should not pass into each other (point-in-tet, under 2 % of a cell)
-// nor gain mechanical energy. DISABLED, fails (docs/validation.md, "Pieces of a cut block
-// landing together"): at E = 1e6 a node of one piece lies 11.5, 19.9 and 60.3 % of a cell in
-// another; at E = 1e7 with 2 pieces none does, with 4 the body diverges five steps after
-// landing (a broken body takes no contact sweeps).
-TEST(BodyContact, DISABLED_PiecesOfACutBlockLandTogether) {
+// A 20 x 30 x 20 cm block (6 x 9 x 6 cells) of Young's modulus E cut by `planes` (1 to 3)
+// planes through its middle (2, 4, 8 pieces) and dropped 30 cm onto the ground for 1 s at
+// steps of dt with `sweeps` contact sweeps: the deepest node of one piece inside another's
+// tets (point-in-tet, over the whole run) and how far the mechanical energy rose above its
+// start.
+struct CutBlockLanding {
+  double deepest = 0, gained = 0, e0 = 0;
+  bool contained = true;  // no step rolled back
+  std::string message;
+};
+CutBlockLanding cutBlockLanding(double E, int planes, int sweeps, double dt) {
   const glm::vec3 normals[3] = {glm::normalize(glm::vec3(1, 0.3f, 0.1f)),
                                 glm::normalize(glm::vec3(0.2f, 1, -0.3f)),
                                 glm::normalize(glm::vec3(-0.1f, 0.2f, 1))};
+  WorldDef wd = groundWorld();
+  wd.contactSweeps = sweeps;
+  World world(wd);
+  BodyDef def;
+  def.mesh = movedBox(0.2, 0.3, 0.2, 6, 9, 6, {0, 0.31, 0});
+  def.material = Material::stableNeoHookean(E, 0.3, 1000);
+  def.fracture.enabled = true;
+  def.fracture.strength = 1e12;  // only the cuts break
+  def.contact = true;
+  const BodyId id = world.createBody(def).value();
+  for (int p = 0; p < planes; ++p) {
+    const glm::vec3 n = normals[p], o(0.1f, 0.46f, 0.1f);
+    const glm::vec3 t1 = glm::normalize(glm::cross(n, glm::vec3(0.3f, 0.5f, 0.8f)));
+    const glm::vec3 t2 = glm::cross(n, t1);
+    Blade blade;
+    blade.vertices = {o - t1 - t2, o + t1 - t2, o + t1 + t2, o - t1 + t2};
+    blade.triangles = {0, 1, 2, 0, 2, 3};
+    EXPECT_TRUE(world.cut(id, blade).ok());
+  }
+  const auto mechanical = [&] {
+    const BodyStats s = world.stats(id);
+    return s.kineticEnergy + s.elasticEnergy + s.gravityEnergy + s.contactEnergy;
+  };
+  CutBlockLanding r;
+  r.e0 = mechanical();
+  const int steps = int(std::lround(1.0 / dt));
+  for (int s = 0; s < steps; ++s) {
+    const StepStatus st = world.step(dt);
+    if (st.has(kStepNanContained)) {
+      r.contained = false;
+      r.message = st.message;
+      break;
+    }
+    r.gained = std::max(r.gained, mechanical() - r.e0);
+    const std::vector<Part> parts = fragmentParts(world, id, def.mesh);
+    for (size_t i = 0; i < parts.size(); ++i)
+      for (size_t j = 0; j < parts.size(); ++j)
+        if (i != j && !parts[i].tets.empty() && !parts[j].tets.empty())
+          r.deepest =
+              std::max(r.deepest, deepestInside(world, def.mesh, parts[i], def.mesh, parts[j]));
+  }
+  const double cell = 0.2 / 6;
+  std::printf(
+      "%d planes, E %.0e, %.0f Hz, %d sweeps: deepest node in another piece %.3g m (%.1f %% of a "
+      "cell), mechanical energy at most %.3g J above its start%s%s\n",
+      planes, E, 1 / dt, sweeps, r.deepest, 100 * r.deepest / cell, r.gained,
+      r.contained ? "" : "; rolled back: ", r.message.c_str());
+  return r;
+}
+
+// The cut block's pieces land together and should not pass into each other (under 2 % of a
+// cell) nor gain mechanical energy. DISABLED, fails with one sweep (docs/validation.md, "Pieces
+// of a cut block landing together"): at E = 1e6 a node of one piece lies 11.5, 19.9 and 60.3 %
+// of a cell in another; at E = 1e7 with 2 pieces none does, with 4 the body diverges five steps
+// after landing.
+TEST(BodyContact, DISABLED_PiecesOfACutBlockLandTogether) {
   for (const double E : {1e6, 1e7})
     for (int planes = 1; planes <= 3; ++planes) {
-      WorldDef wd = groundWorld();
-      World world(wd);
-      BodyDef def;
-      def.mesh = movedBox(0.2, 0.3, 0.2, 6, 9, 6, {0, 0.31, 0});
-      def.material = Material::stableNeoHookean(E, 0.3, 1000);
-      def.fracture.enabled = true;
-      def.fracture.strength = 1e12;  // only the cuts break
-      def.contact = true;
-      const BodyId id = world.createBody(def).value();
-      for (int p = 0; p < planes; ++p) {
-        const glm::vec3 n = normals[p], o(0.1f, 0.46f, 0.1f);
-        const glm::vec3 t1 = glm::normalize(glm::cross(n, glm::vec3(0.3f, 0.5f, 0.8f)));
-        const glm::vec3 t2 = glm::cross(n, t1);
-        Blade blade;
-        blade.vertices = {o - t1 - t2, o + t1 - t2, o + t1 + t2, o - t1 + t2};
-        blade.triangles = {0, 1, 2, 0, 2, 3};
-        ASSERT_TRUE(world.cut(id, blade).ok());
-      }
-      const auto mechanical = [&] {
-        const BodyStats s = world.stats(id);
-        return s.kineticEnergy + s.elasticEnergy + s.gravityEnergy + s.contactEnergy;
-      };
-      const double e0 = mechanical();
-      double deepest = 0, gained = 0;
-      for (int s = 0; s < 60; ++s) {
-        const StepStatus st = world.step(1.0 / 60);
-        ASSERT_FALSE(st.has(kStepNanContained))
-            << planes << " planes, E " << E << ": " << st.message;
-        gained = std::max(gained, mechanical() - e0);
-        const std::vector<Part> parts = fragmentParts(world, id, def.mesh);
-        for (size_t i = 0; i < parts.size(); ++i)
-          for (size_t j = 0; j < parts.size(); ++j)
-            if (i != j && !parts[i].tets.empty() && !parts[j].tets.empty())
-              deepest =
-                  std::max(deepest, deepestInside(world, def.mesh, parts[i], def.mesh, parts[j]));
-      }
-      const double cell = 0.2 / 6;
-      std::printf(
-          "%d planes, E %.0e: deepest node in another piece %.3g m (%.1f %% of a cell), "
-          "mechanical energy at most %.3g J above its start\n",
-          planes, E, deepest, 100 * deepest / cell, gained);
-      EXPECT_LT(deepest, 0.02 * cell);
-      EXPECT_LE(gained, 1e-3 * std::abs(e0));
+      const CutBlockLanding r = cutBlockLanding(E, planes, 1, 1.0 / 60);
+      ASSERT_TRUE(r.contained) << planes << " planes, E " << E << ": " << r.message;
+      EXPECT_LT(r.deepest, 0.02 * 0.2 / 6);
+      EXPECT_LE(r.gained, 1e-3 * std::abs(r.e0));
     }
+}
+
+// The same with four contact sweeps, at 60 and 120 Hz. DISABLED, fails too (docs/validation.md,
+// "Pieces of a cut block landing together": sweeps lower the energy gain in most cases but no
+// case passes).
+TEST(BodyContact, DISABLED_PiecesOfACutBlockLandTogetherWithSweeps) {
+  for (const double dt : {1.0 / 60, 1.0 / 120})
+    for (const double E : {1e6, 1e7})
+      for (int planes = 1; planes <= 3; ++planes) {
+        const CutBlockLanding r = cutBlockLanding(E, planes, 4, dt);
+        ASSERT_TRUE(r.contained) << planes << " planes, E " << E << ": " << r.message;
+        EXPECT_LT(r.deepest, 0.02 * 0.2 / 6);
+        EXPECT_LE(r.gained, 1e-3 * std::abs(r.e0));
+      }
 }
 
 // The pair lists are built serially in slot and node order, so the contact step gives the same
@@ -981,8 +1063,11 @@ TEST(BodyContact, SameBitsForAnyThreadCountWithSweeps) {
 // Many groups at once: a cut body whose upper piece is thrown onto its lower one (self contact
 // between fragments) beside two stacks of two blocks, so the broad phase, the hash, the pair
 // lists and the exchange's clusters (three of them) all run with several slots and groups.
-std::vector<double> manyGroupsState(JobSystem* jobs, int64_t* pairsOut, int32_t* fragmentsOut) {
+// `plastic`: the lower block of the first stack yields where the upper one lands on it.
+std::vector<double> manyGroupsState(JobSystem* jobs, int64_t* pairsOut, int32_t* fragmentsOut,
+                                    int sweeps = 1, bool plastic = false) {
   WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, jobs, 1, {}};
+  wd.contactSweeps = sweeps;
   Collider ground;
   ground.friction = 0.5;
   wd.colliders.push_back(ground);
@@ -1002,8 +1087,12 @@ std::vector<double> manyGroupsState(JobSystem* jobs, int64_t* pairsOut, int32_t*
     for (BodyDef* d : {&lower, &upper}) {
       d->material = Material::stableNeoHookean(2e5, 0.3, 1000);
       d->contact = true;
-      ids.push_back(world.createBody(*d).value());
     }
+    if (plastic && x < 0.5) {
+      lower.plasticity.enabled = true;
+      lower.plasticity.yieldStress = 2e3;
+    }
+    for (BodyDef* d : {&lower, &upper}) ids.push_back(world.createBody(*d).value());
   }
   Blade blade;  // the plane y = 0.206, off the nodes
   blade.vertices = {{-1, 0.206f, -1}, {1, 0.206f, -1}, {1, 0.206f, 1}, {-1, 0.206f, 1}};
@@ -1019,7 +1108,13 @@ std::vector<double> manyGroupsState(JobSystem* jobs, int64_t* pairsOut, int32_t*
   EXPECT_TRUE(world.setVelocities(ids[0], v).ok());
   int64_t pairs = 0;
   for (int s = 0; s < 45; ++s) {
-    EXPECT_TRUE(world.step(1.0 / 60).ok());
+    const StepStatus st = world.step(1.0 / 60);
+    EXPECT_FALSE(st.has(kStepNanContained)) << st.message;
+    // With sweeps the cut body's self pairs stop one step at the Newton cap (the iterates
+    // still contract, by 0.75 an iteration); what this harness checks is the bits.
+    if (sweeps == 1) {
+      EXPECT_TRUE(st.ok()) << st.message;
+    }
     pairs += world.timings().contactPairs;
   }
   *pairsOut = pairs;
@@ -1050,6 +1145,31 @@ TEST(BodyContact, SameBitsForAnyThreadCountWithManyBodiesAndFragments) {
   ASSERT_EQ(serial.size(), four.size());
   EXPECT_EQ(0, std::memcmp(serial.data(), two.data(), serial.size() * sizeof(double)));
   EXPECT_EQ(0, std::memcmp(serial.data(), four.data(), serial.size() * sizeof(double)));
+}
+
+// The same with four sweeps and a block that yields: the cut body and the plastic block are
+// stepped again in the sweeps (fracture judged in the first, plastic flow after the last).
+TEST(BodyContact, SameBitsForAnyThreadCountWithSweepsOverCutAndPlasticBodies) {
+  ThreadPoolJobSystem pool2(2), pool4(4);
+  int64_t pairs[4] = {};
+  int32_t fragments[4] = {};
+  const std::vector<double> serial = manyGroupsState(nullptr, &pairs[0], &fragments[0], 4, true);
+  const std::vector<double> two = manyGroupsState(&pool2, &pairs[1], &fragments[1], 4, true);
+  const std::vector<double> four = manyGroupsState(&pool4, &pairs[2], &fragments[2], 4, true);
+  std::printf("many groups, 4 sweeps: %lld pairs, %d fragments of the cut body\n",
+              (long long)pairs[0], fragments[0]);
+  EXPECT_GT(pairs[0], 0);
+  EXPECT_GE(fragments[0], 2);
+  EXPECT_EQ(pairs[1], pairs[0]);
+  EXPECT_EQ(pairs[2], pairs[0]);
+  ASSERT_EQ(serial.size(), two.size());
+  ASSERT_EQ(serial.size(), four.size());
+  EXPECT_EQ(0, std::memcmp(serial.data(), two.data(), serial.size() * sizeof(double)));
+  EXPECT_EQ(0, std::memcmp(serial.data(), four.data(), serial.size() * sizeof(double)));
+  // The sweeps ran on these bodies: the state is not the single pass's.
+  const std::vector<double> once = manyGroupsState(nullptr, &pairs[3], &fragments[3], 1, true);
+  ASSERT_EQ(serial.size(), once.size());
+  EXPECT_NE(0, std::memcmp(serial.data(), once.data(), serial.size() * sizeof(double)));
 }
 
 }  // namespace

@@ -465,8 +465,8 @@ struct WorldDef {
   /// touch are stepped, each again from the substep's start against the others' latest
   /// end-of-step positions (block Jacobi), until no node moves by more than 1e-4 of a cell
   /// between two sweeps. 1: once, against the others' positions predicted at the step's start.
-  /// Bodies with fracture, Is-XFEM cuts or plasticity in contact keep one sweep (their step
-  /// changes more than positions and velocities). docs/design.md, Contact.
+  /// A body's fracture is judged in the first sweep only and its plastic flow taken after the
+  /// last. docs/design.md, Contact.
   int contactSweeps = 1;
   /// Empty when valid; otherwise names the field ("WorldDef.colliders[2].stiffness: ...") and
   /// the reason.

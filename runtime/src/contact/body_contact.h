@@ -90,7 +90,9 @@
 //   (ContactBodyView::x, v) and its latest end-of-step iterate (iterate): the pairs are chosen
 //   on the predictions as in the first pass (chosen at the iterates they toggled from sweep to
 //   sweep and let a landing box through), the planes, the give-way and friction's face motion
-//   are taken at the iterates, and the world steps the touching bodies again against them.
+//   are taken at the iterates, and the world steps the touching bodies again against them. A
+//   body that broke in the first sweep is still seen with the labels and surface its pairs were
+//   first found with (the world passes a copy), so the groups and the exchange stay those.
 #pragma once
 
 #include <array>

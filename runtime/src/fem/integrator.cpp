@@ -1056,7 +1056,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   // Moving grips shift the start point away from x_n, so fracture is judged on x_n first. After
   // a backward-Euler step that was not rolled back, x_n is where that step's last element pass
   // looked, so its tets take their SVDs from the cache; anywhere else they miss and are computed.
-  if (m_fracture && state.movingGrips) {
+  if (m_fracture && state.movingGrips && ctx.judgeFracture) {
     const auto tf = Clock::now();
     m_fracture->detect(model, state, state.x.data(), jobs, /*stressesReady=*/false,
                        m_svdCache.data());
@@ -1064,7 +1064,7 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
   }
   StepContext inner = ctx;
   double psi = 0;
-  for (bool judgeFracture = true;; judgeFracture = false) {
+  for (bool judgeFracture = ctx.judgeFracture;; judgeFracture = false) {
     inner.dt = theta * ctx.dt;
     const uint32_t flagsBefore = rep.flags;
     psi = solve(model, state, inner, ctx.dt, judgeFracture, jobs, rep);

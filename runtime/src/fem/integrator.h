@@ -55,6 +55,9 @@ struct StepContext {
   double* colliderImpulse = nullptr;
   /// This body's half-spaces of body-body and self contact (World: contact/body_contact.h).
   HalfSpaceContacts bodyContacts;
+  /// False in a contact sweep after the substep's first (World::Impl::contactSweeps): the
+  /// first judged the fracture at this start already, and the damage stays as it left it.
+  bool judgeFracture = true;
 };
 
 /// What a body step reports.
@@ -96,8 +99,9 @@ class Integrator {
     m_fracture = fracture;
     m_piecesKey = kNoPieces;
   }
-  /// Advances `state` by ctx.dt. With fracture attached, the first element pass also yields
-  /// the stresses of the fracture criterion, which runs before the solve (FractureBody::detect).
+  /// Advances `state` by ctx.dt. With fracture attached (and ctx.judgeFracture), the first
+  /// element pass also yields the stresses of the fracture criterion, which runs before the
+  /// solve (FractureBody::detect).
   /// On a NaN/Inf the state is restored and flagged.
   BodyStepReport step(const FemModel& model, FemState& state, const StepContext& ctx,
                       JobSystem& jobs);

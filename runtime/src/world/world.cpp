@@ -145,6 +145,16 @@ void World::Impl::plasticUpdate(BodyRecord& b, double h, JobSystem& js) {
   detail::CpuExecutor(js).run(m.tetCount, 256, stage);
 }
 
+void World::Impl::plasticFlow(size_t si, double h, JobSystem& js) {
+  BodyRecord& b = *slots[si].body;
+  plasticityMs[si] = 0;
+  // A rolled-back body is where it was before the substep: nothing flowed.
+  if (b.xfem || !b.model.plasticity.enabled || (reports[si].flags & kStepNanContained)) return;
+  const auto tp = detail::Clock::now();
+  plasticUpdate(b, h, js);
+  plasticityMs[si] = detail::msSince(tp);
+}
+
 void World::Impl::stepBody(size_t si, const detail::StepContext& ctx, JobSystem& js) {
   BodyRecord* b = slots[si].body.get();
   detail::BodyStepReport& r = reports[si];
@@ -162,12 +172,7 @@ void World::Impl::stepBody(size_t si, const detail::StepContext& ctx, JobSystem&
     bodyContact.setBalance(
         si, b->integrator->bodyContactImpulses(b->state, own, (r.flags & kStepNanContained) != 0,
                                                bodyContact.impulseBuffer(si), js));
-  // A rolled-back body is where it was before the substep: nothing flowed.
-  if (b->model.plasticity.enabled && !(r.flags & kStepNanContained)) {
-    const auto tp = detail::Clock::now();
-    plasticUpdate(*b, own.dt, js);
-    plasticityMs[si] = detail::msSince(tp);
-  }
+  if (!sweeping) plasticFlow(si, own.dt, js);
 }
 
 int64_t World::Impl::findContacts(const detail::CpuExecutor& exec, double h) {
@@ -215,35 +220,43 @@ void World::Impl::stepBodies(const detail::StepContext& ctx) {
   });
 }
 
-bool World::Impl::canSweep() const {
-  // A body that fractures, is cut by Is-XFEM or yields changes more than x and v in its step
-  // (its damage, its cuts, Fp), and a step taken again would judge its fracture twice: such a
-  // body keeps the single pass, and so does every body with it (its impulses must match the
-  // half-spaces it stepped against).
-  for (size_t si = 0; si < slots.size(); ++si) {
-    if (!contactViews[si].model) continue;
-    const BodyRecord* b = slots[si].body.get();
-    if (b->fracture || b->xfem || b->model.plasticity.enabled) return false;
-  }
-  return true;
+void World::Impl::flowBodies(double h) {
+  for (uint32_t si : single) plasticFlow(si, h, *jobs);
+  detail::forRanges(*jobs, uint32_t(batched.size()), 1, [&](uint32_t lo, uint32_t hi) {
+    for (uint32_t k = lo; k < hi; ++k) plasticFlow(batched[k], h, serialJobs());
+  });
 }
 
+// A step changes more of a body than x and v: its fracture (damage, fragments, events) and its
+// plastic flow (Fp, delta). A sweep restores only x and v, so the fracture is judged in the
+// first sweep alone (StepContext::judgeFracture; judged again it would break edges twice, the
+// second time against the stresses of the first one's damage) and the flow waits for the last
+// (flowBodies), which gives the flow of the single step that ends where the sweeps end.
+// (Is-XFEM bodies take no body contact.)
 void World::Impl::saveSweepStart() {
   sweepX0.resize(slots.size());
   sweepV0.resize(slots.size());
   sweepIterate.resize(slots.size());
+  sweepFragment.resize(slots.size());
   sweepTouched.assign(slots.size(), 0);
   for (size_t si = 0; si < slots.size(); ++si) {
-    if (!contactViews[si].model) continue;
+    detail::ContactBodyView& view = contactViews[si];
+    if (!view.model) continue;
     sweepX0[si] = contactStates[si]->x;
     sweepV0[si] = contactStates[si]->v;
     sweepTouched[si] = bodyContact.halfSpaces(si).start != nullptr;
+    // The view borrows the body's labels, which the first sweep's fracture may change; the
+    // later sweeps find the pairs on the surfaces and groups of the first.
+    sweepFragment[si].assign(view.nodeFragment.begin(), view.nodeFragment.end());
+    if (!view.nodeFragment.empty()) view.nodeFragment = sweepFragment[si];
   }
 }
 
 int World::Impl::contactSweeps(const detail::CpuExecutor& exec, const detail::StepContext& ctx,
                                double h) {
   std::vector<uint32_t> allSingle = single, allBatched = batched;
+  detail::StepContext again = ctx;
+  again.judgeFracture = false;
   int sweeps = 1;
   double threshold = HUGE_VAL;
   for (size_t si = 0; si < slots.size(); ++si)
@@ -291,10 +304,11 @@ int World::Impl::contactSweeps(const detail::CpuExecutor& exec, const detail::St
         timings.elementsMs += r.elementsMs;
         timings.assemblyMs += r.assemblyMs;
         timings.solveMs += r.solveMs;
+        timings.fractureMs += r.fractureMs;
         contactStates[si]->x = sweepX0[si];
         contactStates[si]->v = sweepV0[si];
       }
-    stepBodies(ctx);
+    stepBodies(again);
   }
   single = allSingle;
   batched = allBatched;
@@ -456,11 +470,15 @@ StepStatus World::step(double dt) {
     auto tc = detail::Clock::now();
     const int64_t pairs = w.findContacts(exec, h);
     w.timings.contactPairs += pairs;
-    const bool sweep = pairs > 0 && w.def.contactSweeps > 1 && w.canSweep();
-    if (sweep) w.saveSweepStart();
+    w.sweeping = pairs > 0 && w.def.contactSweeps > 1;
+    if (w.sweeping) w.saveSweepStart();
     w.timings.contactMs += detail::msSince(tc);
     w.stepBodies(ctx);
-    if (sweep) w.contactSweeps(exec, ctx, h);
+    if (w.sweeping) {
+      w.contactSweeps(exec, ctx, h);
+      w.flowBodies(h);
+      w.sweeping = false;
+    }
     tc = detail::Clock::now();
     w.bodyContact.exchange(exec, w.contactStates);
     w.timings.contactMs += detail::msSince(tc);

@@ -188,9 +188,13 @@ struct World::Impl {
   std::vector<detail::ContactBodyView> contactViews;
   std::vector<detail::FemState*> contactStates;
   // The contact sweeps' (contactSweeps): per slot, the substep's start positions and
-  // velocities and the latest iterate of its end.
+  // velocities and the latest iterate of its end, and the fragment labels the substep's pairs
+  // were found with (the first sweep's fracture relabels the body's own).
   std::vector<std::vector<double>> sweepX0, sweepV0, sweepIterate;
-  std::vector<uint8_t> sweepTouched;                  // per slot: had half-spaces in some sweep
+  std::vector<std::vector<int32_t>> sweepFragment;
+  std::vector<uint8_t> sweepTouched;  // per slot: had half-spaces in some sweep
+  // This substep's bodies may be stepped again: their plastic flow waits for the last sweep.
+  bool sweeping = false;
   std::vector<glm::dvec3> impulses, angularImpulses;  // of the last step
   StepTimings timings;
   std::vector<FractureEvent> fractureEvents;
@@ -243,23 +247,28 @@ struct World::Impl {
   std::string xfemColliderError(std::span<const Collider> colliders, const char* where) const;
   // Multiplicative plasticity after the step (eq 2.3-2.5): only yielding elements change.
   void plasticUpdate(BodyRecord& b, double h, JobSystem& js);
+  // The plastic flow of the body in slot si over its substep of h, unless that was rolled back.
+  void plasticFlow(size_t si, double h, JobSystem& js);
   // One substep of the body in slot si with `js` for its loops: its report into reports[si],
-  // its collider impulses into its share of bodyImpulse.
+  // its collider impulses into its share of bodyImpulse; its plastic flow unless `sweeping`.
   void stepBody(size_t si, const detail::StepContext& ctx, JobSystem& js);
 
   // The substep's contact pairs (BodyContact::find) among the bodies that take part; returns
   // their count.
   int64_t findContacts(const detail::CpuExecutor& exec, double h);
-  // Whether every body taking part in contact can be stepped again from the same start.
-  bool canSweep() const;
-  // Keeps the contact bodies' x and v at the substep's start for contactSweeps.
+  // Keeps the contact bodies' x and v at the substep's start, and the fragment labels their
+  // pairs were found with, for contactSweeps.
   void saveSweepStart();
   // Steps the bodies in `batched` and `single` once (one substep of ctx.dt).
   void stepBodies(const detail::StepContext& ctx);
+  // The plastic flow of the bodies in `batched` and `single` after the last sweep.
+  void flowBodies(double h);
   // Block Jacobi over the bodies that touch (docs/design.md, Contact): the pairs found again
   // against every body's latest end-of-step iterate, and the bodies that have half-spaces
-  // stepped again from the substep's start, until the iterates stop moving. Call after the
-  // first stepBodies of a substep whose findContacts returned pairs; returns the sweeps run.
+  // stepped again from the substep's start, until the iterates stop moving. A body's fracture
+  // is judged in the first sweep only; the later ones keep the damage it left. Call after the
+  // first stepBodies of a substep whose findContacts returned pairs, with `sweeping` set;
+  // returns the sweeps run.
   int contactSweeps(const detail::CpuExecutor& exec, const detail::StepContext& ctx, double h);
 
   // Keeps a requested render surface in step with the body: topology only after fractures.
