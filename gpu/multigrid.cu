@@ -80,7 +80,9 @@ bool DeviceMultigrid::upload(const detail::BlockSparseMatrix& A, const HostMulti
            mirror(hp.pRow, blocks, dp.pRow) &&
            mirror(hp.kind == Prolongation::kSmoothed ? hp.pValues : nullptr, blocks * 12 * B,
                   dp.pValues) &&
-           mirror(hp.ptStart, handles + 1, dp.ptStart) && mirror(hp.ptBlock, blocks, dp.ptBlock) &&
+           mirror(hp.kind == Prolongation::kSmoothed ? hp.ptValues : nullptr, blocks * 12 * B,
+                  dp.ptValues) &&
+           mirror(hp.ptStart, handles + 1, dp.ptStart) && mirror(hp.ptRow, blocks, dp.ptRow) &&
            mirror(hp.kind == Prolongation::kTentativeNodes ? hp.coord : nullptr, 3 * n, dp.coord) &&
            mirror(hp.kind == Prolongation::kTentativeHandles ? hp.childOffset : nullptr, 3 * n,
                   dp.childOffset);

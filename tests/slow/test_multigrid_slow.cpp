@@ -34,13 +34,18 @@ struct Setting {
   Smoother smoother;
   int sweeps;
   bool smoothed = true;
+  int coarseSweeps = -1;  ///< on the coarse levels above the coarsest; -1: `sweeps`
+  double filter = 0;      ///< MultigridSettings::prolongationFilter
 };
 
 std::string settingName(const Setting& set) {
   std::string name;
   for (int32_t c : set.levels) name += std::to_string(c) + "/";
   name += set.levels.empty() ? "auto " : "all ";
-  return name + (set.smoothed ? "SA " : "tentative ");
+  name += set.smoothed ? "SA " : "tentative ";
+  if (set.filter > 0) name += "filter " + std::to_string(set.filter).substr(0, 4) + " ";
+  if (set.coarseSweeps >= 0) name += "coarse " + std::to_string(set.coarseSweeps) + "+ ";
+  return name;
 }
 
 const char* smootherName(Smoother s) {
@@ -67,6 +72,7 @@ struct Result {
   bool factorOk = true;
   double laterGalerkinMs = 0, laterMs = 0;
   std::vector<int32_t> handles;
+  std::string blocks;  ///< P's and the coarse operator's blocks per coarse level, finest first
 };
 
 // V-cycles alone (first cycle, then the geometric mean per cycle) and MG-CG to 1e-6.
@@ -77,6 +83,8 @@ Result run(const gf::test::ElasticSystem& s, const Setting& set, const std::vect
   ms.smoother = set.smoother;
   ms.preSweeps = ms.postSweeps = set.sweeps;
   ms.smoothedProlongation = set.smoothed;
+  ms.coarsePreSweeps = ms.coarsePostSweeps = set.coarseSweeps;
+  ms.prolongationFilter = set.filter;
   ms.cycles = 6;
   Result out;
   ms.preconditionCG = false;
@@ -112,6 +120,9 @@ Result run(const gf::test::ElasticSystem& s, const Setting& set, const std::vect
   out.setupMs = st.setupMs;
   out.handles = st.handles;
   out.factorOk = st.coarseFactorOk;
+  for (int l = 1; l <= mg.hierarchy().coarseLevelCount(); ++l)
+    out.blocks += (l > 1 ? ", " : "") + std::to_string(mg.hierarchy().level(l).pCol.size()) +
+                  " / " + std::to_string(mg.hierarchy().level(l).A.col.size());
   if (ref) out.diff = relDiff(xm, *ref);
   // A second solve: the coarse operators again, with the prolongation kept (as every later
   // step until the next crack re-binding).
@@ -129,12 +140,12 @@ void print(const char* mat, size_t tets, const Setting& set, const Result& m) {
       "[ info ] %s %zu tets, %s%s %d+%d (handles %sall): first cycle %.3f, then %.3f per cycle "
       "(%.1fx) in %.0f ms for %d cycles; MG-CG %d its to %.1e in %.0f ms [refresh %.0f (galerkin "
       "%.0f, factor %.0f), smooth %.0f, coarse %.0f, transfer %.0f]; setup %.0f ms; |x - x_chol| "
-      "/ |x_chol| = %.1e%s; next solve %.0f ms (galerkin %.0f)\n",
+      "/ |x_chol| = %.1e%s; next solve %.0f ms (galerkin %.0f); blocks of P / A per level %s\n",
       mat, tets, settingName(set).c_str(), smootherName(set.smoother), set.sweeps, set.sweeps,
       hs.c_str(), m.first, m.factor, 1 / m.factor, m.cyclesMs, m.cycles, m.iterations, m.residual,
       m.cgMs, m.refreshMs, m.galerkinMs, m.factorMs, m.smoothMs, m.coarseMs, m.transferMs,
       m.setupMs, m.diff, m.factorOk ? "" : " COARSE FACTORISATION FAILED", m.laterMs,
-      m.laterGalerkinMs);
+      m.laterGalerkinMs, m.blocks.c_str());
   std::fflush(stdout);
 }
 
@@ -163,8 +174,9 @@ TEST_P(MultigridSlow, ThirtyThousandTetBeam) {
   ASSERT_TRUE(chol.analyze(s.A).ok());
   std::vector<double> xc(s.b.size(), 0.0);
   ASSERT_TRUE(chol.solve(s.A, s.b.data(), xc.data()).converged);
-  std::printf("[ info ] %s: %zu tets, %zu nodes; block-Jacobi PCG %d its to 1e-6 (%.0f ms)\n",
-              mat.name, s.mesh.tetCount(), s.mesh.nodeCount(), rp.iterations, pcgMs);
+  std::printf(
+      "[ info ] %s: %zu tets, %zu nodes, %zu blocks; block-Jacobi PCG %d its to 1e-6 (%.0f ms)\n",
+      mat.name, s.mesh.tetCount(), s.mesh.nodeCount(), s.A.col.size(), rp.iterations, pcgMs);
   EXPECT_GE(rp.iterations, 200);
 
   // Measured on 2 shared cores, 2 threads (steel / rubber), per V-cycle after the first, MG-CG
@@ -175,21 +187,28 @@ TEST_P(MultigridSlow, ThirtyThousandTetBeam) {
   //   auto smoothed GS 4+4: 5.4x / 3.1x, 7 / 8 its, 113 / 114 ms (45)
   //   224/all smoothed GS 2+2: 3.8x / 2.1x, 9 / 12 its, 144 / 160 ms (47)
   //   224/all smoothed GS 4+4: 7.0x / 3.4x, 7 / 8 its, 146 / 160 ms (47)
+  //   auto smoothed GS 4+4, coarse levels 2+2: 4.8x / 2.9x, 8 / 9 its
+  //   auto smoothed GS 4+4, coarse levels 1+1: 3.6x / 2.4x, 9 / 11 its
+  //   the same, prolongationFilter 0.1: 2.9x / 2.1x, 10 / 11 its; 0.2: 1.7x / 1.7x, 14 / 16
+  // The level-1 operator of the auto smoothed hierarchy holds 6908 12x12 blocks (995k entries,
+  // 1.33x the fine matrix's 82911 3x3 blocks); the filter cuts it to 5102 (0.1) and 3458 (0.2).
   // One coarse level converges best, but its exact coarse solve is dear: the coarsest
   // factorisation takes ~120 ms (10 for 28/224/all) and each V-cycle ~3 ms of transfers. In
   // `graphfrac bench multigrid` (1 thread, refresh_interval 30) its solve stage still takes
   // 1.25-1.8x the default's on the Charpy bar and the hanging sphere, 1.05x at 162k tets
   // (issue 14), so it is recorded here, not the default.
   const std::vector<Setting> settings = {
-      {{}, Smoother::GaussSeidel, 2, false},   {{64}, Smoother::GaussSeidel, 2, false},
-      {{}, Smoother::GaussSeidel, 2, true},    {{}, Smoother::GaussSeidel, 4, true},
-      {{224}, Smoother::GaussSeidel, 2, true}, {{224}, Smoother::GaussSeidel, 4, true}};
+      {{}, Smoother::GaussSeidel, 2, false},        {{64}, Smoother::GaussSeidel, 2, false},
+      {{}, Smoother::GaussSeidel, 2, true},         {{}, Smoother::GaussSeidel, 4, true},
+      {{224}, Smoother::GaussSeidel, 2, true},      {{224}, Smoother::GaussSeidel, 4, true},
+      {{}, Smoother::GaussSeidel, 4, true, 2},      {{}, Smoother::GaussSeidel, 4, true, 1},
+      {{}, Smoother::GaussSeidel, 4, true, 1, 0.1}, {{}, Smoother::GaussSeidel, 4, true, 1, 0.2}};
   for (const Setting& set : settings) {
     const Result m = run(s, set, &xc, jobs);
     print(mat.name, s.mesh.tetCount(), set, m);
     EXPECT_LT(m.iterations, 25) << settingName(set);
     EXPECT_LT(m.diff, 1e-4) << settingName(set);
-    if (set.smoothed && set.sweeps == 4) {
+    if (set.smoothed && set.sweeps == 4 && set.coarseSweeps < 0 && set.filter == 0) {
       // Issue 14's figures, reached with the smoothed prolongation: <= 8 MG-CG iterations,
       // and >= 5x per V-cycle on steel (rubber, nu = 0.45, 3.1x).
       EXPECT_LE(m.iterations, 8);

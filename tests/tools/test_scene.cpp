@@ -930,7 +930,8 @@ TEST(Scene, MultigridKeysLoadEveryValue) {
       "solver": {"linear": "multigrid", "multigrid": {"levels": "50/1000/all",
         "smoother": "chebyshev", "pre_sweeps": 3, "post_sweeps": 1, "mode": "cycles",
         "cycles": 4, "refresh_interval": 5, "refresh_slack": 3, "crack_rebinding": false,
-        "smoothed_prolongation": true}}}]})";
+        "smoothed_prolongation": true, "coarse_pre_sweeps": 1, "coarse_post_sweeps": 0,
+        "prolongation_filter": 0.125}}}]})";
   const Result<Scene> r = parseScene(text, "inline", "");
   ASSERT_TRUE(r.ok()) << r.error().message;
   const SolverSettings& s = r.value().bodies[0].def.solver;
@@ -945,6 +946,9 @@ TEST(Scene, MultigridKeysLoadEveryValue) {
   EXPECT_EQ(s.multigrid.coarseRefreshSlack, 3);
   EXPECT_FALSE(s.multigrid.crackRebinding);
   EXPECT_TRUE(s.multigrid.smoothedProlongation);
+  EXPECT_EQ(s.multigrid.coarsePreSweeps, 1);
+  EXPECT_EQ(s.multigrid.coarsePostSweeps, 0);
+  EXPECT_EQ(s.multigrid.prolongationFilter, 0.125);
   // "auto": the levels are chosen from the body's size (no counts).
   std::string autoText = text;
   autoText.replace(autoText.find("50/1000/all"), 11, "auto");

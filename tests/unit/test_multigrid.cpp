@@ -1,8 +1,9 @@
 // Galerkin multigrid (SPEC §5, thesis sec 6.2): furthest-point sampling against all-pairs
 // geodesic distances, the prolongation against affine fields, the coarse operators against a
-// dense U^T A U, degenerate aggregates, convergence on elastic beams against PCG and Cholesky,
-// crack re-binding and identical bits for 1 and 2 threads; the Gauss-Seidel V-cycle against plain
-// coloured Gauss-Seidel sweeps.
+// dense U^T A U, the smoothed and the filtered smoothed prolongations against dense ones,
+// degenerate aggregates, convergence on elastic beams against PCG and Cholesky, crack re-binding
+// and identical bits for 1 and 2 threads; the Gauss-Seidel V-cycle against plain coloured
+// Gauss-Seidel sweeps.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -12,6 +13,7 @@
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <map>
 #include <random>
 #include <set>
 #include <string>
@@ -541,6 +543,179 @@ TEST(Multigrid, SmoothedProlongationIsOneJacobiStepOverUnbrokenEdges) {
   EXPECT_GT(nearCrack, 1e-6);  // the filtered rows do move: the check above is not vacuous
 }
 
+// The tentative block of finer row `row` of level l written for handle H (not necessarily the
+// row's own): level 1 [(X_row - X_H) / s_1; 1] (x) I3 (eq 6.6); deeper, eq 6.8's change of
+// reference point from H to the finer handle `row`.
+Eigen::MatrixXd tentativeFrom(const MultigridHierarchy& h, int l, int32_t row, int32_t H,
+                              const std::vector<double>& rest) {
+  const auto& lv = h.level(l);
+  const int32_t rn = l == 1 ? row : h.level(l - 1).handleNode[row];
+  const int32_t Hn = lv.handleNode[H];
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(l == 1 ? 3 : 12, 12);
+  const int t0 = l == 1 ? 0 : 9;  // the rows of the translation
+  if (l > 1)
+    for (int j = 0; j < 9; ++j) T(j, j) = h.level(l - 1).scale / lv.scale;
+  for (int k = 0; k < 3; ++k) {
+    for (int a = 0; a < 3; ++a)
+      T(t0 + k, 3 * a + k) = (rest[3 * rn + a] - rest[3 * Hn + a]) / lv.scale;
+    T(t0 + k, 9 + k) = 1;
+  }
+  return T;
+}
+
+// prolongationFilter on a crack-free slab, two smoothed levels, against a dense computation
+// from the definition: a row keeps its block for a neighbouring aggregate reached by at least
+// the fraction f of its terms (itself and its neighbours in A_F); every other term of the
+// smoothing step enters the row's own block with the own handle's affine map. The coarse
+// operators stay P^T A P, the transfers P and P^T (the restriction through P's transposed
+// copy), the affine fields map exactly as with the unfiltered P, and the filter removes blocks
+// of P and of the coarse operators.
+TEST(Multigrid, FilteredSmoothedProlongationLumpsIntoTheOwnHandle) {
+  gf::ThreadPoolJobSystem jobs(2);
+  const ElasticSystem s = gf::test::assembleElasticSystem(
+      gf::gen::box(1.0, 0.25, 0.5, 12, 3, 6), kSteel.E, kSteel.nu, 0.0, kDt,
+      [](double x, double, double) { return x < 1e-9; }, jobs);
+  const std::vector<double>& rest = s.mesh.positions;
+  constexpr double kFilter = 0.25;
+  MultigridHierarchy full, h;
+  ASSERT_TRUE(full.build({24, 5}, rest.data(), s.fixed.data(), s.A, true).ok());
+  ASSERT_TRUE(h.build({24, 5}, rest.data(), s.fixed.data(), s.A, true, kFilter).ok());
+  full.assemble(s.A, jobs);
+  h.assemble(s.A, jobs);
+  ASSERT_EQ(h.coarseLevelCount(), 2);
+
+  // Dense filtered P_l from the finer matrix Af (with its neighbour pattern `nb`).
+  auto filteredDense = [&](int l, const Eigen::MatrixXd& Af,
+                           const std::vector<std::vector<int32_t>>& nb) {
+    const auto& lv = h.level(l);
+    const int B = l == 1 ? 3 : 12;
+    const std::vector<int32_t>& parent = l == 1 ? lv.nodeHandle : lv.finerParent;
+    const int32_t rows = static_cast<int32_t>(parent.size());
+    Eigen::MatrixXd P = Eigen::MatrixXd::Zero(B * rows, 12 * h.handleCount(l));
+    for (int32_t r = 0; r < rows; ++r) {
+      const int32_t own = parent[r];
+      if (own < 0 || (l == 1 && s.fixed[r])) continue;
+      std::vector<int32_t> terms = {r};
+      for (int32_t j : nb[r])
+        if (j != r && parent[j] >= 0) terms.push_back(j);
+      std::map<int32_t, int> count;
+      for (int32_t j : terms) ++count[parent[j]];
+      const Eigen::MatrixXd Dinv = Af.block(B * r, B * r, B, B).inverse();
+      std::map<int32_t, Eigen::MatrixXd> acc;
+      for (int32_t j : terms) {
+        const bool kept = parent[j] == own || count[parent[j]] >= kFilter * terms.size();
+        const int32_t K = kept ? parent[j] : own;
+        if (!acc.count(K)) acc[K] = Eigen::MatrixXd::Zero(B, 12);
+        acc[K] += Af.block(B * r, B * j, B, B) * tentativeFrom(h, l, j, K, rest);
+      }
+      for (const auto& [K, sum] : acc)
+        P.block(B * r, 12 * K, B, 12) =
+            (K == own ? tentativeFrom(h, l, r, own, rest) : Eigen::MatrixXd::Zero(B, 12)) -
+            lv.omega * Dinv * sum;
+    }
+    return P;
+  };
+  const Eigen::MatrixXd A = toDense(s.A);
+  const NodeGraph& g = h.graph();
+  std::vector<std::vector<int32_t>> nb1(g.n);
+  for (int32_t i = 0; i < g.n; ++i)
+    for (int32_t k = g.start[i]; k < g.start[i + 1]; ++k) nb1[i].push_back(g.adj[k]);
+  EXPECT_EQ(h.level(1).omega, full.level(1).omega);  // rho(D^-1 A_F) does not depend on P
+  const Eigen::MatrixXd P1 = filteredDense(1, A, nb1);
+  EXPECT_LE((denseP(h, 1) - P1).norm(), 1e-12 * P1.norm());
+  Eigen::MatrixXd A1 = P1.transpose() * A * P1;
+  const auto& l1 = h.level(1);
+  for (int32_t p = 0; p < h.handleCount(1); ++p) {
+    const double delta = A1.block<12, 12>(12 * p, 12 * p).trace() / 12;
+    const Eigen::Map<const Eigen::Matrix4d> proj(&l1.nullProjector[16 * p]);
+    A1.block<12, 12>(12 * p, 12 * p) +=
+        delta * Eigen::kroneckerProduct(proj, Eigen::Matrix3d::Identity());
+  }
+  EXPECT_LE((denseCoarse(l1.A) - A1).norm(), 1e-12 * A1.norm());
+  std::vector<std::vector<int32_t>> nb2(h.handleCount(1));
+  for (int32_t a = 0; a < l1.A.n; ++a)
+    for (int32_t k = l1.A.rowStart[a]; k < l1.A.rowStart[a + 1]; ++k) nb2[a].push_back(l1.A.col[k]);
+  const Eigen::MatrixXd P2 = filteredDense(2, A1, nb2);
+  EXPECT_LE((denseP(h, 2) - P2).norm(), 1e-11 * P2.norm());
+  const Eigen::MatrixXd A2 = P2.transpose() * A1 * P2;
+  EXPECT_LE((denseCoarse(h.level(2).A) - A2).norm(), 1e-11 * A2.norm());
+
+  // The restriction reads P's transposed copy: the same blocks, and P^T v.
+  for (int l = 1; l <= 2; ++l) {
+    const auto& lv = h.level(l);
+    ASSERT_EQ(lv.ptValues.size(), lv.pValues.size());
+    const size_t BC = (l == 1 ? 3 : 12) * 12;
+    for (size_t t = 0; t < lv.ptBlock.size(); ++t) {
+      ASSERT_EQ(lv.ptRow[t], lv.pRow[lv.ptBlock[t]]);
+      ASSERT_EQ(std::memcmp(&lv.ptValues[BC * t], &lv.pValues[BC * lv.ptBlock[t]], 8 * BC), 0);
+    }
+  }
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::VectorXd v(P1.rows());
+  for (auto& c : v) c = u(rng);
+  std::vector<double> mid(12 * h.handleCount(1)), coarse(12 * h.handleCount(2));
+  h.restrictTo(0, v.data(), mid.data(), jobs);
+  h.restrictTo(1, mid.data(), coarse.data(), jobs);
+  EXPECT_LE((Eigen::VectorXd::Map(mid.data(), mid.size()) - P1.transpose() * v).norm(),
+            1e-12 * (P1.transpose() * v).norm());
+  const Eigen::VectorXd w = P2.transpose() * P1.transpose() * v;
+  EXPECT_LE((Eigen::VectorXd::Map(coarse.data(), coarse.size()) - w).norm(), 1e-12 * w.norm());
+
+  // An affine field given to every level-1 handle maps to the same fine values with and
+  // without the filter, at every node. (Deeper, P_2 smooths with A_1, which the filter changes.)
+  Eigen::Matrix3d M;
+  Eigen::Vector3d t;
+  for (auto& c : M.reshaped()) c = u(rng);
+  for (auto& c : t) c = u(rng);
+  std::vector<double> q(12 * h.handleCount(1));
+  for (int32_t p = 0; p < h.handleCount(1); ++p) {
+    const Eigen::Vector3d Xh = Eigen::Vector3d::Map(&rest[3 * l1.handleNode[p]]);
+    for (int a = 0; a < 3; ++a) Eigen::Vector3d::Map(&q[12 * p + 3 * a]) = M.col(a) * l1.scale;
+    Eigen::Vector3d::Map(&q[12 * p + 9]) = M * Xh + t;
+  }
+  std::vector<double> filtered(3 * g.n, 0.0), unfiltered(3 * g.n, 0.0);
+  h.prolongAdd(0, q.data(), filtered.data(), jobs);
+  full.prolongAdd(0, q.data(), unfiltered.data(), jobs);
+  double worst = 0, scale = 0;
+  for (size_t i = 0; i < filtered.size(); ++i) {
+    worst = std::max(worst, std::abs(filtered[i] - unfiltered[i]));
+    scale = std::max(scale, std::abs(unfiltered[i]));
+  }
+  std::printf("[ info ] affine field: filtered P_1 against unfiltered %.1e\n", worst / scale);
+  EXPECT_LE(worst, 1e-12 * scale);
+
+  // Fewer blocks: of P and of the coarse operators.
+  for (int l = 1; l <= 2; ++l) {
+    const size_t pf = h.level(l).pCol.size(), pu = full.level(l).pCol.size();
+    const size_t af = h.level(l).A.col.size(), au = full.level(l).A.col.size();
+    std::printf(
+        "[ info ] level %d, filter %.2f: P blocks %zu (unfiltered %zu), A blocks %zu (%zu)\n", l,
+        kFilter, pf, pu, af, au);
+    EXPECT_LT(pf, pu);
+    EXPECT_LE(af, au);
+  }
+  EXPECT_LT(h.level(1).A.col.size(), full.level(1).A.col.size());
+
+  // MG-CG with the filtered hierarchy and 1+1 coarse sweeps reaches the Cholesky solution (a
+  // random load on the free nodes: the slab has no mass, so no gravity load).
+  MultigridSettings st = settingsFor({5, 24}, Smoother::GaussSeidel, 3, true);
+  st.smoothedProlongation = true;
+  st.prolongationFilter = kFilter;
+  st.coarsePreSweeps = st.coarsePostSweeps = 1;
+  MultigridSolver mg;
+  ASSERT_TRUE(mg.setup(st, rest.data(), s.fixed.data(), s.A).ok());
+  std::vector<double> load(s.b.size(), 0.0), x(s.b.size(), 0.0), xc(s.b.size(), 0.0);
+  for (size_t i = 0; i < load.size(); ++i) load[i] = s.fixed[i / 3] ? 0.0 : u(rng);
+  const SolveReport r = mg.solve(s.A, load.data(), x.data(), 200, 1e-10, jobs);
+  CholeskySolver chol;
+  ASSERT_TRUE(chol.analyze(s.A).ok());
+  ASSERT_TRUE(chol.solve(s.A, load.data(), xc.data()).converged);
+  std::printf("[ info ] MG-CG, filtered, coarse sweeps 1+1: %d its\n", r.iterations);
+  EXPECT_TRUE(r.converged);
+  EXPECT_LE(relDiff(x, xc), 1e-8);
+}
+
 // The system of the brief at 3750 tets: MG-CG against PCG and Cholesky, the V-cycle factor
 // of the setting that reaches the 5x, zero displacement at the clamp.
 class MultigridBeam : public ::testing::TestWithParam<MaterialCase> {};
@@ -712,6 +887,13 @@ TEST(Multigrid, InvalidSettingsAreRejectedWithTheField) {
   st.coarseRefreshSlack = -1;
   EXPECT_NE(tryLevels(st).find("coarseRefreshSlack"), std::string::npos);
   st.coarseRefreshSlack = 2;
+  st.coarsePostSweeps = -2;
+  EXPECT_NE(tryLevels(st).find("coarsePreSweeps"), std::string::npos);
+  st.coarsePostSweeps = 0;
+  EXPECT_EQ(tryLevels(st), "");
+  st.prolongationFilter = 1;
+  EXPECT_NE(tryLevels(st).find("prolongationFilter"), std::string::npos);
+  st.prolongationFilter = 0;
   // A solver that is not set up for this pattern returns zero, not NaN.
   std::vector<double> x(s.b.size(), 1.0);
   const SolveReport r = mg.solve(s.A, s.b.data(), x.data(), 10, 1e-6, jobs);
@@ -1021,13 +1203,17 @@ TEST(Multigrid, IdenticalBitsForOneAndTwoThreads) {
   gf::ThreadPoolJobSystem one(1), two(2);
   const ElasticSystem s = beam(kRubber, 25, 5, 0.2, one);
   // The three smoothers, then Gauss-Seidel with the smoothed prolongation (its power
-  // iteration, smoothing and P^T A P products).
-  for (int variant = 0; variant < 4; ++variant) {
+  // iteration, smoothing and P^T A P products), unfiltered and filtered with 1+1 coarse sweeps.
+  for (int variant = 0; variant < 5; ++variant) {
     const Smoother sm = variant == 1   ? Smoother::Jacobi
                         : variant == 2 ? Smoother::Chebyshev
                                        : Smoother::GaussSeidel;
     MultigridSettings st = settingsFor({16, 128}, sm, 2, true);
-    st.smoothedProlongation = variant == 3;
+    st.smoothedProlongation = variant >= 3;
+    if (variant == 4) {
+      st.prolongationFilter = 0.25;
+      st.coarsePreSweeps = st.coarsePostSweeps = 1;
+    }
     MultigridSolver m1, m2;
     ASSERT_TRUE(m1.setup(st, s.mesh.positions.data(), s.fixed.data(), s.A).ok());
     ASSERT_TRUE(m2.setup(st, s.mesh.positions.data(), s.fixed.data(), s.A).ok());

@@ -582,8 +582,9 @@ std::vector<int32_t> readLevels(const json& v, const std::string& path) {
 
 MultigridSettings readMultigrid(const json& v, const std::string& path) {
   ObjReader o(v, path);
-  o.keys({"levels", "smoother", "pre_sweeps", "post_sweeps", "mode", "cycles", "refresh_interval",
-          "refresh_slack", "crack_rebinding", "smoothed_prolongation"});
+  o.keys({"levels", "smoother", "pre_sweeps", "post_sweeps", "coarse_pre_sweeps",
+          "coarse_post_sweeps", "mode", "cycles", "refresh_interval", "refresh_slack",
+          "crack_rebinding", "smoothed_prolongation", "prolongation_filter"});
   MultigridSettings m;
   if (const json* x = o.find("levels")) m.levels = readLevels(*x, o.at("levels"));
   if (const json* x = o.find("smoother")) {
@@ -594,6 +595,12 @@ MultigridSettings readMultigrid(const json& v, const std::string& path) {
   }
   if (const json* x = o.find("pre_sweeps")) m.preSweeps = readInteger(*x, o.at("pre_sweeps"));
   if (const json* x = o.find("post_sweeps")) m.postSweeps = readInteger(*x, o.at("post_sweeps"));
+  if (const json* x = o.find("coarse_pre_sweeps")) {
+    m.coarsePreSweeps = readInteger(*x, o.at("coarse_pre_sweeps"));
+  }
+  if (const json* x = o.find("coarse_post_sweeps")) {
+    m.coarsePostSweeps = readInteger(*x, o.at("coarse_post_sweeps"));
+  }
   if (const json* x = o.find("mode")) {
     m.preconditionCG = readChoice(*x, o.at("mode"), {"cg", "cycles"}) == "cg";
   }
@@ -609,6 +616,9 @@ MultigridSettings readMultigrid(const json& v, const std::string& path) {
   }
   if (const json* x = o.find("smoothed_prolongation")) {
     m.smoothedProlongation = readBool(*x, o.at("smoothed_prolongation"));
+  }
+  if (const json* x = o.find("prolongation_filter")) {
+    m.prolongationFilter = readNumber(*x, o.at("prolongation_filter"));
   }
   o.finish();
   requireValid(m.check(), path, kMultigridNames);

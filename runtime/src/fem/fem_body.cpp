@@ -129,10 +129,10 @@ double estimateBodyBytes(const BodyDef& def) {
   if (solver == LinearSolverKind::Multigrid) {
     // Coarse levels and their patterns; Gauss-Seidel's colour-ordered copy of the matrix
     // (values, column, source block); per node the prolongation block (3x12), about two blocks
-    // of A P and their term lists. The smoothed prolongation holds about three blocks per node
-    // and ten of A P.
+    // of A P and their term lists. The smoothed prolongation holds about three blocks per node,
+    // twice (by row, and by handle for the restriction), and ten of A P.
     bytes += 0.5 * blocks * (9 * d + 4) + blocks * (9 * d + 8);
-    bytes += def.solver.multigrid.smoothedProlongation ? nodes * (13 * 36 * d + 400)
+    bytes += def.solver.multigrid.smoothedProlongation ? nodes * (16 * 36 * d + 400)
                                                        : nodes * (3 * 36 * d + 64);
   }
   if (solver == LinearSolverKind::Direct) bytes += 4 * blocks * (9 * d + 4);

@@ -316,6 +316,8 @@ struct MultigridSolver::Impl {
     return {static_cast<CycleSmoother>(settings.smoother),
             settings.preSweeps,
             settings.postSweeps,
+            settings.coarsePreSweeps < 0 ? settings.preSweeps : settings.coarsePreSweeps,
+            settings.coarsePostSweeps < 0 ? settings.postSweeps : settings.coarsePostSweeps,
             kChebyshevLow,
             kPowerIterations,
             kLambdaMargin};
@@ -387,7 +389,8 @@ Result<void> MultigridSolver::setup(const MultigridSettings& settings, const dou
     counts = MultigridHierarchy::defaultCounts(freeNodes, settings.smoothedProlongation);
   }
   if (Result<void> r =
-          s.hierarchy.build(counts, restPositions, fixedNode, A, settings.smoothedProlongation);
+          s.hierarchy.build(counts, restPositions, fixedNode, A, settings.smoothedProlongation,
+                            settings.prolongationFilter);
       !r.ok())
     return r;
   s.settings = settings;

@@ -57,9 +57,10 @@ struct CycleLevel {
 
 struct CycleSettings {
   CycleSmoother smoother = CycleSmoother::kGaussSeidel;
-  int preSweeps = 2, postSweeps = 2;
-  double chebyshevLow = 0.1;  ///< Chebyshev targets [low, 1] x lambda_max
-  int powerIterations = 12;   ///< of estimateLambda
+  int preSweeps = 2, postSweeps = 2;              ///< level 0
+  int coarsePreSweeps = 2, coarsePostSweeps = 2;  ///< the levels between it and the coarsest
+  double chebyshevLow = 0.1;                      ///< Chebyshev targets [low, 1] x lambda_max
+  int powerIterations = 12;                       ///< of estimateLambda
   double lambdaMargin = 1.1;  ///< put on its estimate (the Rayleigh quotient is below it)
 };
 
@@ -127,12 +128,14 @@ class VCycle {
       return;
     }
     m_exec.run(len, kEntryGrain, FillStage{0.0, x});
+    const int pre = l == 0 ? m_s.preSweeps : m_s.coarsePreSweeps;
+    const int post = l == 0 ? m_s.postSweeps : m_s.coarsePostSweeps;
     auto t0 = Clock::now();
-    smooth<B>(lv, b, x, m_s.preSweeps, true);
+    smooth<B>(lv, b, x, pre, true);
     m_times.smoothMs += msSince(t0);
     if (L == 0) {
       t0 = Clock::now();
-      smooth<B>(lv, b, x, m_s.postSweeps, false);
+      smooth<B>(lv, b, x, post, false);
       m_times.smoothMs += msSince(t0);
       return;
     }
@@ -146,7 +149,7 @@ class VCycle {
     m_exec.run(lv.n, B == 3 ? 256 : kHandleGrain * 8, ProlongAddStage{lv.P, next.x, x});  // eq 6.3
     m_times.transferMs += msSince(t0);
     t0 = Clock::now();
-    smooth<B>(lv, b, x, m_s.postSweeps, false);
+    smooth<B>(lv, b, x, post, false);
     m_times.smoothMs += msSince(t0);
   }
 

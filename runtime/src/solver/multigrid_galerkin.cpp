@@ -130,6 +130,12 @@ void MultigridHierarchy::smoothProlongation(int l, const BlockSparseMatrix& A, J
                 }
               }
             });
+  const uint32_t handles = static_cast<uint32_t>(lv.ptStart.size()) - 1;
+  forRanges(jobs, handles, kHandleGrain, [&](uint32_t begin, uint32_t end) {
+    for (int32_t t = lv.ptStart[begin]; t < lv.ptStart[end]; ++t)
+      std::copy_n(lv.pValues.data() + BC * static_cast<size_t>(lv.ptBlock[t]), BC,
+                  lv.ptValues.data() + BC * static_cast<size_t>(t));
+  });
   lv.prolongationFresh = true;
 }
 
@@ -182,7 +188,8 @@ ProlongationView MultigridHierarchy::prolongation(int level) const {
   P.pRow = lv.pRow.data();
   P.pValues = lv.pValues.data();
   P.ptStart = lv.ptStart.data();
-  P.ptBlock = lv.ptBlock.data();
+  P.ptRow = lv.ptRow.data();
+  P.ptValues = lv.ptValues.data();
   P.coord = lv.coord.data();
   P.childOffset = lv.childOffset.data();
   P.childRatio = lv.childRatio;

@@ -18,6 +18,24 @@ namespace gf::detail {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// MultigridSettings::prolongationFilter on one finer row's smoothing terms (handle, j, block):
+// a handle other than the row's own that fewer than `filter` of the terms reach loses its
+// block, and its terms join the own handle's block. The smoothing evaluates a term with the
+// affine map of the block's handle, and every handle's affine map of one affine field gives
+// the same values, so P maps the affine fields as without the filter.
+void lumpWeakHandles(std::vector<std::array<int32_t, 3>>& cand, int32_t own, double filter) {
+  std::sort(cand.begin(), cand.end());
+  const double least = filter * static_cast<double>(cand.size());
+  for (size_t c = 0; c < cand.size();) {
+    size_t e = c;
+    while (e < cand.size() && cand[e][0] == cand[c][0]) ++e;
+    if (cand[c][0] != own && static_cast<double>(e - c) < least)
+      for (size_t k = c; k < e; ++k) cand[k][0] = own;
+    c = e;
+  }
+}
+
 // A fragment with fewer free nodes than this gets no handle of its own when cracks cut it off:
 // its few nodes are left to the smoother (zero rows of U, like Dirichlet nodes), which resolves
 // them in a sweep or two, instead of adding coarse unknowns that would be mostly null.
@@ -202,7 +220,7 @@ std::vector<int32_t> MultigridHierarchy::defaultCounts(int32_t freeNodes, bool s
 
 Result<void> MultigridHierarchy::build(const std::vector<int32_t>& counts,
                                        const double* restPositions, const uint8_t* fixedNode,
-                                       const BlockSparseMatrix& A, bool smooth) {
+                                       const BlockSparseMatrix& A, bool smooth, double filter) {
   for (size_t l = 0; l < counts.size(); ++l) {
     if (counts[l] <= 0)
       return fail("multigrid.levels: handle count ", std::to_string(counts[l]), " is not positive");
@@ -212,6 +230,7 @@ Result<void> MultigridHierarchy::build(const std::vector<int32_t>& counts,
   }
   const size_t n = static_cast<size_t>(A.n);
   m_smooth = smooth;
+  m_filter = filter;
   m_rest.assign(restPositions, restPositions + 3 * n);
   m_fixed.assign(fixedNode, fixedNode + n);
   m_fineRowStart = A.rowStart;
@@ -481,6 +500,7 @@ void MultigridHierarchy::buildPatterns() {
         if (smoothHere && parent[r] >= 0) {
           for (int32_t f = fStart[r]; f < fStart[r + 1]; ++f)
             if (parent[fCol[f]] >= 0) cand.push_back({parent[fCol[f]], fCol[f], fBlock[f]});
+          if (m_filter > 0) lumpWeakHandles(cand, parent[r], m_filter);
         } else if (parent[r] >= 0) {
           cand.push_back({parent[r], r, -1});
         }
@@ -513,6 +533,9 @@ void MultigridHierarchy::buildPatterns() {
       std::vector<int32_t> put(lv.ptStart.begin(), lv.ptStart.end() - 1);
       for (size_t b = 0; b < pBlocks; ++b) lv.ptBlock[put[lv.pCol[b]]++] = static_cast<int32_t>(b);
     }
+    lv.ptRow.resize(pBlocks);
+    for (size_t t = 0; t < pBlocks; ++t) lv.ptRow[t] = lv.pRow[lv.ptBlock[t]];
+    lv.ptValues.assign(smoothHere ? pBlocks * static_cast<size_t>(B) * 12 : 0, 0.0);
 
     // Q = A P: only rows that P uses (P^T Q reads no other); terms (A_rj, P_jK) by increasing j.
     lv.qStart.assign(static_cast<size_t>(rows) + 1, 0);

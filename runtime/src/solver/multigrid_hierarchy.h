@@ -99,6 +99,10 @@ struct CoarseLevel {
   std::vector<int32_t> pStart, pCol, pRow;
   std::vector<double> pValues;
   std::vector<int32_t> ptStart, ptBlock;  ///< per handle, its P blocks by increasing finer row
+  /// The transpose in that order, for the restriction P^T r to stream: the finer row of each
+  /// entry and, smoothed, a copy of its block (the same B x 12 values as pValues).
+  std::vector<int32_t> ptRow;
+  std::vector<double> ptValues;
   /// The filtered finer-level matrix A_F of the smoothing, block-CSR over the finer rows, the
   /// diagonal block first: on level 1 the blocks of unbroken edges, deeper the alive blocks of
   /// level l-1; fBlock indexes the finer matrix's blocks.
@@ -141,9 +145,11 @@ class MultigridHierarchy {
 
   /// Builds the levels for `counts` handles per coarse level, finest coarse level first
   /// (strictly decreasing). Counts above the number of free nodes are clamped. smooth: smoothed
-  /// aggregation (one damped-Jacobi step on each tentative prolongator), else tentative only.
+  /// aggregation (one damped-Jacobi step on each tentative prolongator), else tentative only;
+  /// filter: MultigridSettings::prolongationFilter.
   Result<void> build(const std::vector<int32_t>& counts, const double* restPositions,
-                     const uint8_t* fixedNode, const BlockSparseMatrix& A, bool smooth = false);
+                     const uint8_t* fixedNode, const BlockSparseMatrix& A, bool smooth = false,
+                     double filter = 0);
   /// Crack re-binding (SPEC §5): re-binds every level by Dijkstra over unbroken edges from the
   /// existing handles, gives a handle to each fragment that has none (so counts can grow),
   /// rebuilds the patterns, and marks the prolongators for re-smoothing at the next assemble.
@@ -189,6 +195,7 @@ class MultigridHierarchy {
 
   NodeGraph m_graph;
   bool m_smooth = true;
+  double m_filter = 0;
   std::vector<double> m_rest;
   std::vector<uint8_t> m_fixed;
   std::vector<int32_t> m_fineRow;  ///< block row of each fine block

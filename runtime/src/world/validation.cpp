@@ -72,6 +72,11 @@ Result<void> MultigridSettings::check() const {
   if (preSweeps < 0 || postSweeps < 0 || preSweeps + postSweeps < 1)
     return fail("preSweeps, postSweeps: must be >= 0 and together >= 1 (got ",
                 std::to_string(preSweeps), ", ", std::to_string(postSweeps), ")");
+  if (coarsePreSweeps < -1 || coarsePostSweeps < -1)
+    return fail("coarsePreSweeps, coarsePostSweeps: must be >= -1 (got ",
+                std::to_string(coarsePreSweeps), ", ", std::to_string(coarsePostSweeps), ")");
+  if (!(prolongationFilter >= 0 && prolongationFilter < 1))
+    return fail("prolongationFilter: must be in [0, 1), got ", std::to_string(prolongationFilter));
   if (cycles < 1) return fail("cycles: must be >= 1, got ", std::to_string(cycles));
   if (coarseRefreshInterval < 1)
     return fail("coarseRefreshInterval: must be >= 1, got ", std::to_string(coarseRefreshInterval));
