@@ -112,8 +112,11 @@
 //   whose triangles span several tets at a junction (the shattered bunny's surface vertices are
 //   its boundary nodes), where a junction triangle's three fragments meet in no tet: 6 of its
 //   183 cycles with junctions close by paths, and the rest leave cores covered by no fragment
-//   (the bunny's pieces hold 0.84 of its volume). Tried and dropped: sharing each core out as
-//   cones from the mean of its junction points, carried by each fragment. At
+//   (the bunny's pieces hold 0.84 of its volume). Refining the render mesh to a third of the mean
+//   edge does not change that (still 6; docs/validation.md): most failing runs are between
+//   fragments whose cells touch only at a chip's node or edge, which no triple line bounds.
+//   Tried and dropped: sharing each core out as cones from the mean of its junction points,
+//   carried by each fragment. At
 //   rest that fills the body (the bunny's pieces: 0.998 of its volume, 0.25 % covered twice),
 //   but a core spans much of a shattered body, so each piece carries a cone to a far point that
 //   is not its own volume (pieces drawn with 0.8 to 1.6 of their cells' volume), its apex
