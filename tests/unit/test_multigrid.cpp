@@ -211,6 +211,20 @@ Eigen::MatrixXd denseCoarse(const gf::detail::CoarseMatrix& C) {
   return d;
 }
 
+// The Galerkin operator P^T A P with each degenerate aggregate's null directions carried by its
+// block's mean diagonal, as the hierarchy regularises level `lv`.
+Eigen::MatrixXd regularisedGalerkin(const Eigen::MatrixXd& P, const Eigen::MatrixXd& A,
+                                    const gf::detail::CoarseLevel& lv) {
+  Eigen::MatrixXd C = P.transpose() * A * P;
+  for (int32_t p = 0; p < int32_t(C.rows() / 12); ++p) {
+    const double delta = C.block<12, 12>(12 * p, 12 * p).trace() / 12;
+    const Eigen::Map<const Eigen::Matrix4d> proj(&lv.nullProjector[16 * p]);
+    C.block<12, 12>(12 * p, 12 * p) +=
+        delta * Eigen::kroneckerProduct(proj, Eigen::Matrix3d::Identity());
+  }
+  return C;
+}
+
 TEST(Multigrid, FurthestPointSamplingIsNestedAndFurthest) {
   gf::SerialJobSystem jobs;
   const ElasticSystem s = beam(kRubber, 6, 3, 0.5, jobs);
@@ -273,14 +287,7 @@ TEST(Multigrid, ProlongationIsAffineAndCoarseOperatorsAreGalerkin) {
     const Eigen::MatrixXd U = denseU(h, l, rest);
     Eigen::MatrixXd ref;
     if (l == 1) {
-      ref = U.transpose() * A * U;
-      // Degenerate aggregates carry their null directions times the block's mean diagonal.
-      for (int32_t p = 0; p < h.handleCount(l); ++p) {
-        const double delta = ref.block<12, 12>(12 * p, 12 * p).trace() / 12;
-        const Eigen::Map<const Eigen::Matrix4d> proj(&h.level(l).nullProjector[16 * p]);
-        ref.block<12, 12>(12 * p, 12 * p) +=
-            delta * Eigen::kroneckerProduct(proj, Eigen::Matrix3d::Identity());
-      }
+      ref = regularisedGalerkin(U, A, h.level(l));
       finerRef = ref;
     } else {
       // Level by level: the composed U is U_1 T_2 (nested levels, eq 6.8), and level 2 is the
@@ -443,13 +450,7 @@ TEST(Multigrid, SmoothedProlongationIsOneJacobiStepOverUnbrokenEdges) {
       differ += l1.nodeHandle[eg.edgeNodes[2 * e]] != l1.nodeHandle[eg.edgeNodes[2 * e + 1]];
   EXPECT_GT(differ, 0);
 
-  Eigen::MatrixXd A1 = P1.transpose() * A * P1;
-  for (int32_t p = 0; p < h.handleCount(1); ++p) {
-    const double delta = A1.block<12, 12>(12 * p, 12 * p).trace() / 12;
-    const Eigen::Map<const Eigen::Matrix4d> proj(&l1.nullProjector[16 * p]);
-    A1.block<12, 12>(12 * p, 12 * p) +=
-        delta * Eigen::kroneckerProduct(proj, Eigen::Matrix3d::Identity());
-  }
+  const Eigen::MatrixXd A1 = regularisedGalerkin(P1, A, l1);
   EXPECT_LE((denseCoarse(l1.A) - A1).norm(), 1e-12 * A1.norm());
 
   // Level 2 smooths with the blocks of A_1 that P_1^T A_F P_1 has (a chain of unbroken edges
@@ -623,14 +624,8 @@ TEST(Multigrid, FilteredSmoothedProlongationLumpsIntoTheOwnHandle) {
   EXPECT_EQ(h.level(1).omega, full.level(1).omega);  // rho(D^-1 A_F) does not depend on P
   const Eigen::MatrixXd P1 = filteredDense(1, A, nb1);
   EXPECT_LE((denseP(h, 1) - P1).norm(), 1e-12 * P1.norm());
-  Eigen::MatrixXd A1 = P1.transpose() * A * P1;
   const auto& l1 = h.level(1);
-  for (int32_t p = 0; p < h.handleCount(1); ++p) {
-    const double delta = A1.block<12, 12>(12 * p, 12 * p).trace() / 12;
-    const Eigen::Map<const Eigen::Matrix4d> proj(&l1.nullProjector[16 * p]);
-    A1.block<12, 12>(12 * p, 12 * p) +=
-        delta * Eigen::kroneckerProduct(proj, Eigen::Matrix3d::Identity());
-  }
+  const Eigen::MatrixXd A1 = regularisedGalerkin(P1, A, l1);
   EXPECT_LE((denseCoarse(l1.A) - A1).norm(), 1e-12 * A1.norm());
   std::vector<std::vector<int32_t>> nb2(h.handleCount(1));
   for (int32_t a = 0; a < l1.A.n; ++a)
