@@ -603,6 +603,88 @@ TEST(RenderMesh, PiecesMeetingAtOnePointInsideFillTheBody) {
   }
 }
 
+// A chip (a fragment with no whole tet) between pieces is given whole to one neighbouring piece
+// for drawing, so the pieces' cells meet along faces, not at a chip's node or edge (design note:
+// chips). Cubes cut by three oblique blades through one point leave chips between the eight
+// pieces: at rest the pieces fill the cube (< 0.15 % covered by none, < 0.1 % by two; with a
+// chip's cells shared out tet by tet among its neighbours, 0.25 % was covered by none in the
+// first case), every one closed. Then every chip's nodes fly off by half a metre: the pieces that
+// draw their cells do not follow them (each drawn vertex of a piece stays where it was), and
+// every fragment stays closed.
+TEST(RenderMesh, ChipsAreDrawnByOneNeighbourAndLeftBehindWhenTheyFlyOff) {
+  struct Case {
+    int n;
+    glm::vec3 c, normal[3];
+  };
+  const glm::vec3 first[3] = {{1, 0.35f, 0.15f}, {0.2f, 1, -0.4f}, {-0.3f, 0.25f, 1}};
+  const glm::vec3 second[3] = {{1, -0.4f, 0.25f}, {0.3f, 1, 0.2f}, {0.15f, -0.35f, 1}};
+  const glm::vec3 a(0.046f, 0.057f, 0.051f), b(0.055f, 0.048f, 0.052f);
+  for (const Case& k :
+       {Case{1, a, {first[0], first[1], first[2]}}, Case{15, a, {first[0], first[1], first[2]}},
+        Case{1, b, {second[0], second[1], second[2]}},
+        Case{15, b, {second[0], second[1], second[2]}}}) {
+    BodyDef def = brittleCube();
+    def.renderMesh = boxSurface(glm::dvec3(0), glm::dvec3(0.1), k.n, k.n, k.n);
+    World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
+    const BodyId id = world.createBody(def).value();
+    for (const glm::vec3& normal : k.normal)
+      ASSERT_TRUE(world.cut(id, planeBlade(k.c, normal)).ok());
+    shatter(world, id, 2);
+    const FractureStats fs = world.fractureStats(id);
+    ASSERT_TRUE(world.setPositions(id, def.mesh.positions).ok());
+    const SurfaceView rest = world.surface(id);
+    int open = 0;
+    for (const auto& [f, c] : closure(rest)) open += c.openEdges;
+    const Coverage cov = coverage(rest, glm::dvec3(0), glm::dvec3(0.1), 60);
+    const double want = 1e-3;
+    const std::vector<float> before(rest.positions.begin(), rest.positions.end());
+    const std::vector<uint32_t> indices(rest.indices.begin(), rest.indices.end());
+    const std::vector<int32_t> vertexFragment(rest.vertexFragment.begin(),
+                                              rest.vertexFragment.end());
+
+    const std::span<const int32_t> nodeFragment = world.nodeFragments(id);
+    const std::span<const uint8_t> chip = world.chipFlags(id);
+    std::vector<double> x = def.mesh.positions;
+    int chipNodes = 0;
+    for (size_t n = 0; n < nodeFragment.size(); ++n)
+      if (chip[size_t(nodeFragment[n])]) {
+        x[3 * n] += 0.5;
+        ++chipNodes;
+      }
+    ASSERT_TRUE(world.setPositions(id, x).ok());
+    const SurfaceView flown = world.surface(id);
+    ASSERT_TRUE(
+        std::equal(indices.begin(), indices.end(), flown.indices.begin(), flown.indices.end()));
+    int openAfter = 0;
+    for (const auto& [f, c] : closure(flown)) openAfter += c.openEdges;
+    double moved = 0;
+    int chipVertices = 0;
+    for (size_t v = 0; v < vertexFragment.size(); ++v) {
+      if (chip[size_t(vertexFragment[v])]) {
+        ++chipVertices;
+        continue;
+      }
+      for (int c = 0; c < 3; ++c)
+        moved = std::max(moved, double(std::abs(flown.positions[3 * v + size_t(c)] -
+                                                before[3 * v + size_t(c)])));
+    }
+    std::printf(
+        "oblique blades through (%.3f, %.3f, %.3f), render mesh of %d triangles: %d fragments "
+        "(%d chips, %d nodes), %zu drawn triangles, %d open edges; at rest covered twice %.3g of "
+        "the cube, not at all %.3g; chips moved by 0.5 m: pieces' vertices moved by %.3g m, %d "
+        "vertices drawn by chips, %d open edges\n",
+        double(k.c.x), double(k.c.y), double(k.c.z), 12 * k.n * k.n, fs.fragments, fs.chips,
+        chipNodes, indices.size() / 3, open, cov.overlap / want, cov.gap / want, moved,
+        chipVertices, openAfter);
+    EXPECT_GT(fs.chips, 0);
+    EXPECT_EQ(open, 0);
+    EXPECT_LT(cov.gap, 0.0015 * want);
+    EXPECT_LT(cov.overlap, 0.001 * want);
+    EXPECT_LT(moved, 1e-7);
+    EXPECT_EQ(openAfter, 0);
+  }
+}
+
 // Where three fragments meet, each caps its own cut, split at the junction points, so that
 // neighbouring caps are the same triangles where the cycles agree: measured at rest as the volume
 // covered by two fragments at once or by none, against the fragments' interface area (half the
@@ -757,10 +839,14 @@ TEST(RenderMesh, PartialCrackMeetingAFragmentCutIsClosed) {
 // A glass box thrown at a ball shatters and its pieces fly apart, as the bunny of
 // scenes/bunny_render.json does. A brittle batch leaves unbroken edges inside split tets that
 // no stress holds (docs/design.md, Severed edges), so nodes of one fragment drift many cells
-// apart while its graph stays joined. Each drawn render-mesh vertex must still lie within two
+// apart while its graph stays joined. Each drawn render-mesh vertex must still lie within three
 // mean tet edges of its own fragment's nodes: a copy in a partial group took the mean of its
 // group nodes' predictions and was drawn between drifting nodes (7^3 box: 8.5 cells; the bunny:
-// 10.7 after 40 frames). Several sizes and speeds; before the fix the 7^3 box failed. The
+// 10.7 after 40 frames). The bound was two until chips were given whole to one neighbour: a
+// chip's cell then lies up to 2.5 edges from the nodes of the piece that draws it, a distance
+// that does not grow as they fly (5^3 and 7^3 boxes: 2.48 and 2.34, against 1.11 and 1.29 when
+// each tet gave the chip's share to its own neighbours). Several sizes and speeds; before the
+// fix the 7^3 box failed. The
 // longest render-triangle edge is printed, not bounded: a triangle whose corners lie on two
 // sides of such an edge is still stretched across the gap (16.8 cells here; docs/validation.md).
 TEST(RenderMesh, DrawnVerticesStayWithTheirFragmentAsPiecesFlyApart) {
@@ -828,7 +914,7 @@ TEST(RenderMesh, DrawnVerticesStayWithTheirFragmentAsPiecesFlyApart) {
         "fragment's nodes %.2f mean tet edges, longest render-triangle edge %.2f; open edges %d\n",
         c.cells, double(c.speed), fs.fragments, fs.brokenEdges, worst, longest, open);
     EXPECT_GT(fs.fragments, 4);
-    EXPECT_LT(worst, 2.0);
+    EXPECT_LT(worst, 3.0);
     EXPECT_EQ(open, 0);
   }
 }
