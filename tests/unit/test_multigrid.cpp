@@ -2,8 +2,8 @@
 // geodesic distances, the prolongation against affine fields, the coarse operators against a
 // dense U^T A U, the smoothed and the filtered smoothed prolongations against dense ones,
 // degenerate aggregates, convergence on elastic beams against PCG and Cholesky, crack re-binding
-// and identical bits for 1 and 2 threads; the Gauss-Seidel V-cycle against plain coloured
-// Gauss-Seidel sweeps.
+// (step by step against a full search and a fresh hierarchy) and identical bits for 1 and 2
+// threads; the Gauss-Seidel V-cycle against plain coloured Gauss-Seidel sweeps.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -1224,6 +1224,76 @@ TEST(Multigrid, IdenticalBitsForOneAndTwoThreads) {
       const auto& b = m2.hierarchy().level(l).A.values;
       ASSERT_EQ(a.size(), b.size());
       EXPECT_EQ(std::memcmp(a.data(), b.data(), 8 * a.size()), 0);
+    }
+  }
+}
+
+// Crack re-binding keeps each level's Dijkstra and re-searches only the nodes whose path to
+// their handle crossed a newly broken edge, and builds the patterns in chunks on the
+// JobSystem. A steel beam cut step by step through its section at x = 0.52 (the last step
+// splits it), then partly healed: after every step each level's binding equals a full
+// nearestSources, and the whole hierarchy equals a fresh one re-bound once, serially.
+TEST(Multigrid, IncrementalRebindingEqualsAFreshOneOnAnyThreadCount) {
+  gf::ThreadPoolJobSystem two(2);
+  const ElasticSystem s = beam(kSteel, 24, 4, 0.2, two);
+  const std::vector<double>& rest = s.mesh.positions;
+  const gf::detail::EdgeGraph eg =
+      gf::detail::EdgeGraph::build(s.mesh.tets.data(), s.mesh.tetCount(), s.mesh.nodeCount());
+  const std::vector<int32_t> counts{40, 8};
+  MultigridHierarchy h;
+  ASSERT_TRUE(h.build(counts, rest.data(), s.fixed.data(), s.A).ok());
+  ASSERT_GT(s.A.n, 512);  // more than one chunk of rows
+  std::vector<uint8_t> broken(eg.edgeCount, 0);
+  for (int step = 1; step <= 6; ++step) {
+    // Depth of the cut through the 0.2 m section; step 6 heals its lower half again.
+    const double depth = step <= 5 ? 0.21 * step / 5 : 0.1;
+    int32_t count = 0;
+    for (int32_t e = 0; e < eg.edgeCount; ++e) {
+      const int32_t a = eg.edgeNodes[2 * e], b = eg.edgeNodes[2 * e + 1];
+      broken[e] = (rest[3 * a] - 0.52) * (rest[3 * b] - 0.52) < 0 &&
+                  std::max(rest[3 * a + 2], rest[3 * b + 2]) < depth;
+      count += broken[e];
+    }
+    h.rebind(eg.edgeNodes.data(), broken.data(), eg.edgeCount, two);
+    std::vector<int32_t> component;
+    const int32_t pieces = h.graph().components(component);
+    std::printf("[ info ] step %d: %d broken edges, %d pieces, handles %d/%d\n", step, count,
+                pieces, h.handleCount(2), h.handleCount(1));
+    for (int l = 1; l <= h.coarseLevelCount(); ++l) {
+      const auto& lv = h.level(l);
+      std::vector<int32_t> owner;
+      std::vector<double> dist;
+      gf::detail::nearestSources(h.graph(), lv.handleNode.data(),
+                                 static_cast<int32_t>(lv.handleNode.size()), owner, dist);
+      EXPECT_EQ(lv.search.owner, owner) << "step " << step << " level " << l;
+      ASSERT_EQ(lv.search.dist.size(), dist.size());
+      EXPECT_EQ(std::memcmp(lv.search.dist.data(), dist.data(), 8 * dist.size()), 0)
+          << "step " << step << " level " << l;
+    }
+    if (step == 6) break;  // healing keeps the handles the split gave; a fresh build has none
+    MultigridHierarchy fresh;
+    ASSERT_TRUE(fresh.build(counts, rest.data(), s.fixed.data(), s.A).ok());
+    fresh.rebind(eg.edgeNodes.data(), broken.data(), eg.edgeCount);
+    ASSERT_EQ(fresh.coarseLevelCount(), h.coarseLevelCount());
+    for (int l = 1; l <= h.coarseLevelCount(); ++l) {
+      const auto& a = h.level(l);
+      const auto& b = fresh.level(l);
+      EXPECT_EQ(a.handleNode, b.handleNode) << "step " << step << " level " << l;
+      EXPECT_EQ(a.nodeHandle, b.nodeHandle);
+      EXPECT_EQ(a.coord, b.coord);
+      EXPECT_EQ(a.pCol, b.pCol);
+      EXPECT_EQ(a.ptBlock, b.ptBlock);
+      EXPECT_EQ(a.qStart, b.qStart);
+      EXPECT_EQ(a.qCol, b.qCol);
+      EXPECT_EQ(a.qcStart, b.qcStart);
+      EXPECT_EQ(a.qcA, b.qcA);
+      EXPECT_EQ(a.qcP, b.qcP);
+      EXPECT_EQ(a.A.rowStart, b.A.rowStart);
+      EXPECT_EQ(a.A.col, b.A.col);
+      EXPECT_EQ(a.gatherStart, b.gatherStart);
+      EXPECT_EQ(a.gatherP, b.gatherP);
+      EXPECT_EQ(a.gatherQ, b.gatherQ);
+      EXPECT_EQ(a.mirror, b.mirror);
     }
   }
 }

@@ -815,7 +815,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       // Cracks change the binding only when edges broke since the last solve (SPEC §5).
       if (m_fracture && m_fracture->brokenCount() != m_boundBrokenCount) {
         const EdgeGraph& g = m_fracture->graph();
-        m_multigrid->rebind(g.edgeNodes.data(), m_fracture->broken().data(), g.edgeCount);
+        m_multigrid->rebind(g.edgeNodes.data(), m_fracture->broken().data(), g.edgeCount, jobs);
         m_boundBrokenCount = m_fracture->brokenCount();
         m_rebindHistory.push_back(m_boundBrokenCount);
       }

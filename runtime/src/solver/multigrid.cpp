@@ -118,10 +118,10 @@ struct MultigridSolver::Impl {
   std::vector<uint8_t> pendingBroken;
   bool rebindPending = false;
 
-  void applyRebind() {
+  void applyRebind(JobSystem& jobs) {
     const auto t0 = Clock::now();
     hierarchy.rebind(pendingEdgeNodes.data(), pendingBroken.data(),
-                     static_cast<int32_t>(pendingBroken.size()));
+                     static_cast<int32_t>(pendingBroken.size()), jobs);
     rebindPending = false;
     patternsChanged = true;
     needRefresh = true;
@@ -134,7 +134,8 @@ struct MultigridSolver::Impl {
   // Coarsest level: lower triangle of its scalar expansion and the map into its values.
   using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
   SpMat coarseLower;
-  std::vector<int64_t> coarseMap;
+  std::vector<int64_t> coarseMap;  // -1: an analysed block the current operator lacks
+  std::vector<int32_t> analysedRowStart, analysedCol;  // the pattern coarseLower expands
 #if GF_HAVE_CHOLMOD
   Eigen::CholmodSupernodalLLT<SpMat, Eigen::Lower> coarseLlt;
 #else
@@ -147,10 +148,14 @@ struct MultigridSolver::Impl {
 
   int coarseCount() const { return hierarchy.coarseLevelCount(); }
 
-  void buildLevels(const BlockSparseMatrix& A) {
-    levels.assign(static_cast<size_t>(coarseCount()) + 1, Level{});
-    for (int l = 0; l <= coarseCount(); ++l) {
+  // fineKept: a crack re-binding, which leaves the fine pattern, its colouring and its
+  // Gauss-Seidel copy as they were (rebuilding them was a serial pass over every fine block).
+  void buildLevels(const BlockSparseMatrix& A, bool fineKept = false) {
+    const int first = fineKept && !levels.empty() && levels[0].n == A.n ? 1 : 0;
+    levels.resize(static_cast<size_t>(coarseCount()) + 1);
+    for (int l = first; l <= coarseCount(); ++l) {
       Level& lv = levels[static_cast<size_t>(l)];
+      lv = Level{};
       const int B = l == 0 ? 3 : 12;
       const int32_t n = l == 0 ? A.n : hierarchy.level(l).A.n;
       const int32_t* rs = l == 0 ? A.rowStart.data() : hierarchy.level(l).A.rowStart.data();
@@ -189,30 +194,58 @@ struct MultigridSolver::Impl {
     patternsChanged = false;
   }
 
-  // Column 12c + j of the scalar expansion holds rows 12r + i >= 12c + j of blocks (r, c).
+  // Whether every block of C lies in the analysed pattern (same handles).
+  bool withinAnalysed(const CoarseMatrix& C) const {
+    if (analysedRowStart.size() != static_cast<size_t>(C.n) + 1) return false;
+    for (int32_t r = 0; r < C.n; ++r) {
+      const int32_t* first = analysedCol.data() + analysedRowStart[r];
+      const int32_t* last = analysedCol.data() + analysedRowStart[r + 1];
+      for (int32_t k = C.rowStart[r]; k < C.rowStart[r + 1]; ++k) {
+        first = std::lower_bound(first, last, C.col[k]);
+        if (first == last || *first != C.col[k]) return false;
+      }
+    }
+    return true;
+  }
+
+  // Column 12c + j of the scalar expansion holds rows 12r + i >= 12c + j of blocks (r, c) of
+  // the analysed pattern. A re-binding mostly moves fine nodes between aggregates: the
+  // coarsest level keeps its handles and its couplings stay within those analysed before
+  // (a lost one enters the factorisation as explicit zeros), so the expansion and the
+  // symbolic analysis still hold and only the map into the values is rebuilt.
   void buildCoarsestPattern() {
     coarseMap.clear();
     coarseOk = false;
-    if (coarseCount() == 0) return;
+    if (coarseCount() == 0) {
+      analysedRowStart.clear();
+      analysedCol.clear();
+      return;
+    }
     const CoarseMatrix& C = hierarchy.level(coarseCount()).A;
-    const int64_t size = 12 * static_cast<int64_t>(C.n);
-    coarseLower.resize(size, size);
-    coarseLower.resizeNonZeros(0);
-    coarseLower.reserve(static_cast<int64_t>(C.col.size()) * 72 + 12 * C.n);
+    const bool reanalyse = !withinAnalysed(C);
+    if (reanalyse) {
+      analysedRowStart = C.rowStart;
+      analysedCol = C.col;
+      const int64_t size = 12 * static_cast<int64_t>(C.n);
+      coarseLower.resize(size, size);
+      coarseLower.resizeNonZeros(0);
+      coarseLower.reserve(static_cast<int64_t>(C.col.size()) * 72 + 12 * C.n);
+    }
     for (int32_t c = 0; c < C.n; ++c)
       for (int j = 0; j < 12; ++j) {
-        coarseLower.startVec(12 * c + j);
-        for (int32_t k = C.rowStart[c]; k < C.rowStart[c + 1]; ++k) {
-          const int32_t rr = C.col[k];
+        if (reanalyse) coarseLower.startVec(12 * c + j);
+        for (int32_t k = analysedRowStart[c]; k < analysedRowStart[c + 1]; ++k) {
+          const int32_t rr = analysedCol[k];
           if (rr < c) continue;
           const int64_t blk = C.find(rr, c);
           for (int i = 0; i < 12; ++i) {
             if (rr == c && i < j) continue;
-            coarseLower.insertBack(12 * rr + i, 12 * c + j) = 0.0;
-            coarseMap.push_back(144 * blk + 12 * i + j);
+            if (reanalyse) coarseLower.insertBack(12 * rr + i, 12 * c + j) = 0.0;
+            coarseMap.push_back(blk < 0 ? -1 : 144 * blk + 12 * i + j);
           }
         }
       }
+    if (!reanalyse) return;
     coarseLower.finalize();
 #if GF_HAVE_CHOLMOD
     coarseLlt.cholmod().print = 0;  // a failed factorisation is retried below, not printed
@@ -227,7 +260,8 @@ struct MultigridSolver::Impl {
     coarseOk = false;
     if (coarseCount() == 0 || coarseLower.cols() == 0) return;
     double* v = coarseLower.valuePtr();
-    for (size_t i = 0; i < coarseMap.size(); ++i) v[i] = values[coarseMap[i]];
+    for (size_t i = 0; i < coarseMap.size(); ++i)
+      v[i] = coarseMap[i] < 0 ? 0.0 : values[coarseMap[i]];
     const SerialOpenMpScope serial;
     coarseLlt.factorize(coarseLower);
     // Round-off can leave a regularised null direction a hair below zero: retry with a growing
@@ -344,8 +378,8 @@ struct MultigridSolver::Impl {
     const bool drifted = settings.preconditionCG && refreshIterations >= 0 &&
                          lastIterations > refreshIterations + settings.coarseRefreshSlack;
     const bool due = needRefresh || drifted || solvesSinceRefresh >= settings.coarseRefreshInterval;
-    if (due && rebindPending) applyRebind();
-    if (patternsChanged) buildLevels(A);
+    if (due && rebindPending) applyRebind(jobs);
+    if (patternsChanged) buildLevels(A, true);
     invertDiagonals<3>(0, A, jobs);
     // Jacobi and Chebyshev are tuned to lambda_max of the fine D^-1 A; with a stale estimate
     // below the current one (a longer step, fracture) they amplify the top modes and the
@@ -405,14 +439,15 @@ Result<void> MultigridSolver::setup(const MultigridSettings& settings, const dou
   return {};
 }
 
-void MultigridSolver::rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount) {
+void MultigridSolver::rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount,
+                             JobSystem& jobs) {
   Impl& s = *m_impl;
   if (!s.settings.crackRebinding || s.fineBlocks < 0) return;
   s.pendingEdgeNodes.assign(edgeNodes, edgeNodes + 2 * static_cast<size_t>(edgeCount));
   s.pendingBroken.assign(broken, broken + edgeCount);
   s.rebindPending = true;
   s.stats.rebindMs = 0;
-  if (s.settings.coarseRefreshInterval <= 1) s.applyRebind();
+  if (s.settings.coarseRefreshInterval <= 1) s.applyRebind(jobs);
 }
 
 bool MultigridSolver::ready(const BlockSparseMatrix& A) const {

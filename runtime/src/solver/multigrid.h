@@ -51,7 +51,8 @@ class MultigridSolver {
   /// Crack re-binding after edges broke (edgeNodes: 2 per edge; broken: 1/0 per edge, the
   /// full current state). No-op when settings.crackRebinding is false. With
   /// coarseRefreshInterval > 1 it is applied at the next refresh (the arrays are copied).
-  void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount);
+  void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount,
+              JobSystem& jobs = serialJobs());
   /// Solves A x = b (A with the pattern given to setup). x holds the initial guess. With
   /// preconditionCG, flexible CG with one V-cycle per iteration up to maxIterations; else up to
   /// settings.cycles V-cycles (each x += V(b - A x)). Both stop early at relativeTolerance.

@@ -53,6 +53,38 @@ constexpr double kNodesPerHandle = 64, kNodesPerHandleSmoothed = 27;
 constexpr double kCoarsening = 8;
 constexpr int32_t kCoarsestHandles = 128, kCoarsestHandlesSmoothed = 96;
 
+// The patterns of Q = A P and of P^T Q are built in fixed chunks of rows (handles), side by
+// side on the JobSystem, then joined in chunk order: the same arrays for any thread count.
+constexpr int32_t kRowsPerChunk = 512, kHandlesPerChunk = 16;
+
+// One chunk's part of a two-level pattern: per row its block count, per block its column and
+// term count, per term its two indices.
+struct PatternChunk {
+  std::vector<int32_t> perRow, col, terms, first, second;
+};
+
+size_t chunkCount(int32_t rows, int32_t perChunk) {
+  return static_cast<size_t>((rows + perChunk - 1) / perChunk);
+}
+
+// Joins the chunks into CSR arrays: rowStart/col over rows, termStart/first/second over blocks.
+void stitch(const std::vector<PatternChunk>& chunks, std::vector<int32_t>& rowStart,
+            std::vector<int32_t>& col, std::vector<int32_t>& termStart, std::vector<int32_t>& first,
+            std::vector<int32_t>& second) {
+  rowStart.assign(1, 0);
+  col.clear();
+  termStart.assign(1, 0);
+  first.clear();
+  second.clear();
+  for (const PatternChunk& ch : chunks) {
+    for (int32_t n : ch.perRow) rowStart.push_back(rowStart.back() + n);
+    col.insert(col.end(), ch.col.begin(), ch.col.end());
+    for (int32_t n : ch.terms) termStart.push_back(termStart.back() + n);
+    first.insert(first.end(), ch.first.begin(), ch.first.end());
+    second.insert(second.end(), ch.second.begin(), ch.second.end());
+  }
+}
+
 struct QueueItem {
   double d;
   int32_t owner;
@@ -166,18 +198,12 @@ std::vector<int32_t> furthestPointSample(const NodeGraph& g, const uint8_t* fixe
   return out;
 }
 
-void nearestSources(const NodeGraph& g, const int32_t* sources, int32_t sourceCount,
-                    std::vector<int32_t>& owner, std::vector<double>& dist) {
-  owner.assign(static_cast<size_t>(g.n), -1);
-  dist.assign(static_cast<size_t>(g.n), kInf);
-  MinQueue queue;
-  for (int32_t s = 0; s < sourceCount; ++s) {
-    const int32_t v = sources[s];
-    if (owner[v] >= 0) continue;
-    owner[v] = s;
-    dist[v] = 0;
-    queue.push({0.0, s, v});
-  }
+namespace {
+
+// Dijkstra from the queued items; relaxations keep (distance, owner) lexicographically least,
+// so the result is the unique fixed point dist[v] = min over alive neighbours u of
+// dist[u] + |uv| (ties to the lower owner) whatever the queue held first.
+void settle(const NodeGraph& g, MinQueue& queue, int32_t* owner, double* dist, int32_t* pred) {
   while (!queue.empty()) {
     const QueueItem top = queue.top();
     queue.pop();
@@ -190,10 +216,98 @@ void nearestSources(const NodeGraph& g, const int32_t* sources, int32_t sourceCo
       if (nd < dist[v] || (nd == dist[v] && top.owner < owner[v])) {
         dist[v] = nd;
         owner[v] = top.owner;
+        if (pred) pred[v] = top.node;
         queue.push({nd, top.owner, v});
       }
     }
   }
+}
+
+void searchAll(const NodeGraph& g, const int32_t* sources, int32_t sourceCount,
+               std::vector<int32_t>& owner, std::vector<double>& dist, int32_t* pred) {
+  owner.assign(static_cast<size_t>(g.n), -1);
+  dist.assign(static_cast<size_t>(g.n), kInf);
+  MinQueue queue;
+  for (int32_t s = 0; s < sourceCount; ++s) {
+    const int32_t v = sources[s];
+    if (owner[v] >= 0) continue;
+    owner[v] = s;
+    dist[v] = 0;
+    if (pred) pred[v] = -1;
+    queue.push({0.0, s, v});
+  }
+  settle(g, queue, owner.data(), dist.data(), pred);
+}
+
+}  // namespace
+
+void nearestSources(const NodeGraph& g, const int32_t* sources, int32_t sourceCount,
+                    std::vector<int32_t>& owner, std::vector<double>& dist) {
+  searchAll(g, sources, sourceCount, owner, dist, nullptr);
+}
+
+void NearestSearch::update(const NodeGraph& g, const std::vector<int32_t>& sources) {
+  const size_t n = static_cast<size_t>(g.n);
+  bool edgesOnlyBroke = aliveThen.size() == g.alive.size() && owner.size() == n;
+  for (size_t e = 0; e < g.alive.size() && edgesOnlyBroke; ++e)
+    edgesOnlyBroke = !(g.alive[e] && !aliveThen[e]);
+  aliveThen = g.alive;
+  if (!edgesOnlyBroke || sources != sourcesThen) {
+    sourcesThen = sources;
+    pred.assign(n, -1);
+    searchAll(g, sources.data(), static_cast<int32_t>(sources.size()), owner, dist, pred.data());
+    return;
+  }
+  // Breaking edges only lengthens paths: a node keeps its distance and owner unless its path
+  // to its handle crossed a newly broken edge, i.e. it lies below one in the predecessor tree.
+  // Those are cleared and searched again from their intact neighbours; the fixed point is
+  // unique, so the result equals a full search.
+  childStart.assign(n + 1, 0);
+  for (size_t v = 0; v < n; ++v)
+    if (pred[v] >= 0) ++childStart[static_cast<size_t>(pred[v]) + 1];
+  for (size_t v = 0; v < n; ++v) childStart[v + 1] += childStart[v];
+  child.resize(childStart[n]);
+  {
+    std::vector<int32_t> put(childStart.begin(), childStart.end() - 1);
+    for (size_t v = 0; v < n; ++v)
+      if (pred[v] >= 0)
+        child[static_cast<size_t>(put[static_cast<size_t>(pred[v])]++)] = static_cast<int32_t>(v);
+  }
+  cleared.clear();
+  for (int32_t u = 0; u < g.n; ++u)
+    for (int32_t k = g.start[u]; k < g.start[u + 1]; ++k) {
+      const int32_t v = g.adj[k];
+      if (g.alive[k] || pred[v] != u || owner[v] < 0) continue;
+      owner[v] = -1;  // -1 marks a cleared node until the search below
+      cleared.push_back(v);
+    }
+  for (size_t c = 0; c < cleared.size(); ++c) {
+    const int32_t u = cleared[c];
+    for (int32_t q = childStart[u]; q < childStart[u + 1]; ++q)
+      if (owner[child[q]] >= 0) {
+        owner[child[q]] = -1;
+        cleared.push_back(child[q]);
+      }
+  }
+  for (int32_t v : cleared) {
+    dist[v] = kInf;
+    pred[v] = -1;
+  }
+  MinQueue queue;
+  for (int32_t v : cleared)
+    for (int32_t k = g.start[v]; k < g.start[v + 1]; ++k) {
+      const int32_t u = g.adj[k];
+      if (!g.alive[k] || owner[u] < 0) continue;
+      const double nd = dist[u] + g.length[k];
+      if (nd < dist[v] || (nd == dist[v] && owner[u] < owner[v])) {
+        dist[v] = nd;
+        owner[v] = owner[u];
+        pred[v] = u;
+      }
+    }
+  for (int32_t v : cleared)
+    if (owner[v] >= 0) queue.push({dist[v], owner[v], v});
+  settle(g, queue, owner.data(), dist.data(), pred.data());
 }
 
 int32_t CoarseMatrix::find(int32_t r, int32_t c) const {
@@ -257,23 +371,23 @@ Result<void> MultigridHierarchy::build(const std::vector<int32_t>& counts,
     lv.handleNode.assign(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(k));
     m_levels.push_back(std::move(lv));
   }
-  bindAll();
-  buildPatterns();
+  bindAll(serialJobs());
+  buildPatterns(serialJobs());
   return {};
 }
 
-void MultigridHierarchy::rebind(const int32_t* edgeNodes, const uint8_t* broken,
-                                int32_t edgeCount) {
+void MultigridHierarchy::rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount,
+                                JobSystem& jobs) {
   m_graph.setBroken(edgeNodes, broken, edgeCount);
-  bindAll();
-  buildPatterns();
+  bindAll(jobs);
+  buildPatterns(jobs);
 }
 
 void MultigridHierarchy::invalidateProlongation() {
   for (CoarseLevel& lv : m_levels) lv.prolongationFresh = false;
 }
 
-void MultigridHierarchy::bindAll() {
+void MultigridHierarchy::bindAll(JobSystem& jobs) {
   const int32_t n = m_graph.n;
   std::vector<int32_t> component;
   const int32_t componentCount = m_graph.components(component);
@@ -285,8 +399,6 @@ void MultigridHierarchy::bindAll() {
     ++freeCount[component[i]];
   }
 
-  std::vector<int32_t> owner;
-  std::vector<double> dist;
   for (size_t l = 0; l < m_levels.size(); ++l) {
     CoarseLevel& lv = m_levels[l];
     // A fragment without a handle at this level gets one: on level 1 its lowest free node,
@@ -303,8 +415,17 @@ void MultigridHierarchy::bindAll() {
           lv.handleNode.push_back(h);
         }
     }
+  }
+  // Each level's Dijkstra reads only its own handles, so the levels' searches, the serial
+  // bulk of a re-binding, run side by side.
+  forRanges(jobs, static_cast<uint32_t>(m_levels.size()), 1, [&](uint32_t begin, uint32_t end) {
+    for (uint32_t l = begin; l < end; ++l)
+      m_levels[l].search.update(m_graph, m_levels[l].handleNode);
+  });
+  for (size_t l = 0; l < m_levels.size(); ++l) {
+    CoarseLevel& lv = m_levels[l];
     const int32_t k = static_cast<int32_t>(lv.handleNode.size());
-    nearestSources(m_graph, lv.handleNode.data(), k, owner, dist);
+    const std::vector<int32_t>& owner = lv.search.owner;
 
     // Composed binding: a fine node follows its finer handle, which follows the handle its own
     // node is nearest to (the tentative prolongators nest, eq 6.8).
@@ -418,7 +539,7 @@ void MultigridHierarchy::tentativeBlockFor(int l, int32_t row, int32_t handle, d
   }
 }
 
-void MultigridHierarchy::buildPatterns() {
+void MultigridHierarchy::buildPatterns(JobSystem& jobs) {
   const int32_t n = m_graph.n;
   size_t scratch = 0;
   // Fine blocks of the filtered matrix A_F: the diagonal and the unbroken edges.
@@ -538,33 +659,38 @@ void MultigridHierarchy::buildPatterns() {
     lv.ptValues.assign(smoothHere ? pBlocks * static_cast<size_t>(B) * 12 : 0, 0.0);
 
     // Q = A P: only rows that P uses (P^T Q reads no other); terms (A_rj, P_jK) by increasing j.
-    lv.qStart.assign(static_cast<size_t>(rows) + 1, 0);
-    lv.qCol.clear();
-    lv.qcStart.assign(1, 0);
-    lv.qcA.clear();
-    lv.qcP.clear();
-    std::vector<std::array<int32_t, 4>> qc;  // (handle, j, A block, P block)
-    for (int32_t r = 0; r < rows; ++r) {
-      if (lv.pStart[r + 1] > lv.pStart[r]) {
-        qc.clear();
-        for (int32_t a = rowStart[r]; a < rowStart[r + 1]; ++a) {
-          const int32_t j = colIdx[a];
-          for (int32_t p = lv.pStart[j]; p < lv.pStart[j + 1]; ++p)
-            qc.push_back({lv.pCol[p], j, a, p});
+    std::vector<PatternChunk> chunks(chunkCount(rows, kRowsPerChunk));
+    forRanges(jobs, static_cast<uint32_t>(chunks.size()), 1, [&](uint32_t begin, uint32_t end) {
+      std::vector<std::array<int32_t, 4>> qc;  // (handle, j, A block, P block)
+      for (uint32_t ci = begin; ci < end; ++ci) {
+        PatternChunk& ch = chunks[ci];
+        const int32_t r0 = static_cast<int32_t>(ci) * kRowsPerChunk;
+        for (int32_t r = r0; r < std::min(rows, r0 + kRowsPerChunk); ++r) {
+          const size_t before = ch.col.size();
+          if (lv.pStart[r + 1] > lv.pStart[r]) {
+            qc.clear();
+            for (int32_t a = rowStart[r]; a < rowStart[r + 1]; ++a) {
+              const int32_t j = colIdx[a];
+              for (int32_t p = lv.pStart[j]; p < lv.pStart[j + 1]; ++p)
+                qc.push_back({lv.pCol[p], j, a, p});
+            }
+            std::sort(qc.begin(), qc.end());
+            for (size_t c = 0; c < qc.size(); ++c) {
+              if (c == 0 || qc[c][0] != qc[c - 1][0]) {
+                ch.col.push_back(qc[c][0]);
+                ch.terms.push_back(0);
+              }
+              ++ch.terms.back();
+              ch.first.push_back(qc[c][2]);
+              ch.second.push_back(qc[c][3]);
+            }
+          }
+          ch.perRow.push_back(static_cast<int32_t>(ch.col.size() - before));
         }
-        std::sort(qc.begin(), qc.end());
-        for (size_t c = 0; c < qc.size(); ++c) {
-          if (c > 0 && qc[c][0] != qc[c - 1][0])
-            lv.qcStart.push_back(static_cast<int32_t>(lv.qcA.size()));
-          if (c == 0 || qc[c][0] != qc[c - 1][0]) lv.qCol.push_back(qc[c][0]);
-          lv.qcA.push_back(qc[c][2]);
-          lv.qcP.push_back(qc[c][3]);
-        }
-        if (!qc.empty()) lv.qcStart.push_back(static_cast<int32_t>(lv.qcA.size()));
       }
-      lv.qStart[r + 1] = static_cast<int32_t>(lv.qCol.size());
-    }
-    lv.qValues.assign(lv.qCol.size() * static_cast<size_t>(B) * 12, 0.0);
+    });
+    stitch(chunks, lv.qStart, lv.qCol, lv.qcStart, lv.qcA, lv.qcP);
+    lv.qValues.resize(lv.qCol.size() * static_cast<size_t>(B) * 12);  // rewritten per product
     // Which Q blocks the filtered product A_F P fills: a term through an alive finer block.
     std::vector<uint8_t> qAlive(lv.qCol.size(), 0);
     for (size_t q = 0; q < lv.qCol.size(); ++q)
@@ -574,37 +700,40 @@ void MultigridHierarchy::buildPatterns() {
     // A_l = P^T Q: per coarse row H, the pairs (P_rH, Q_rK) by increasing r; plus the diagonal.
     CoarseMatrix& C = lv.A;
     C.n = k;
-    C.rowStart.assign(static_cast<size_t>(k) + 1, 0);
-    C.col.clear();
-    lv.gatherStart.assign(1, 0);
-    lv.gatherP.clear();
-    lv.gatherQ.clear();
-    std::vector<std::array<int32_t, 4>> gc;  // (K, r, P block, Q block)
-    for (int32_t h = 0; h < k; ++h) {
-      gc.clear();
-      gc.push_back({h, -1, -1, -1});  // the diagonal block, even for an empty aggregate
-      for (int32_t t = lv.ptStart[h]; t < lv.ptStart[h + 1]; ++t) {
-        const int32_t p = lv.ptBlock[t];
-        const int32_t r = lv.pRow[p];
-        for (int32_t q = lv.qStart[r]; q < lv.qStart[r + 1]; ++q)
-          gc.push_back({lv.qCol[q], r, p, q});
-      }
-      std::sort(gc.begin(), gc.end());
-      for (size_t c = 0; c < gc.size(); ++c) {
-        const bool first = c == 0 || gc[c][0] != gc[c - 1][0];
-        if (first) {
-          if (c > 0) lv.gatherStart.push_back(static_cast<int32_t>(lv.gatherP.size()));
-          C.col.push_back(gc[c][0]);
+    chunks.assign(chunkCount(k, kHandlesPerChunk), PatternChunk{});
+    forRanges(jobs, static_cast<uint32_t>(chunks.size()), 1, [&](uint32_t begin, uint32_t end) {
+      std::vector<std::array<int32_t, 4>> gc;  // (K, r, P block, Q block)
+      for (uint32_t ci = begin; ci < end; ++ci) {
+        PatternChunk& ch = chunks[ci];
+        const int32_t h0 = static_cast<int32_t>(ci) * kHandlesPerChunk;
+        for (int32_t h = h0; h < std::min(k, h0 + kHandlesPerChunk); ++h) {
+          const size_t before = ch.col.size();
+          gc.clear();
+          gc.push_back({h, -1, -1, -1});  // the diagonal block, even for an empty aggregate
+          for (int32_t t = lv.ptStart[h]; t < lv.ptStart[h + 1]; ++t) {
+            const int32_t p = lv.ptBlock[t];
+            const int32_t r = lv.pRow[p];
+            for (int32_t q = lv.qStart[r]; q < lv.qStart[r + 1]; ++q)
+              gc.push_back({lv.qCol[q], r, p, q});
+          }
+          std::sort(gc.begin(), gc.end());
+          for (size_t c = 0; c < gc.size(); ++c) {
+            if (c == 0 || gc[c][0] != gc[c - 1][0]) {
+              ch.col.push_back(gc[c][0]);
+              ch.terms.push_back(0);
+            }
+            if (gc[c][2] >= 0 && gc[c][0] >= h) {  // the upper triangle; the lower mirrors it
+              ++ch.terms.back();
+              ch.first.push_back(gc[c][2]);
+              ch.second.push_back(gc[c][3]);
+            }
+          }
+          ch.perRow.push_back(static_cast<int32_t>(ch.col.size() - before));
         }
-        if (gc[c][2] >= 0 && gc[c][0] >= h) {  // the upper triangle; the lower mirrors it
-          lv.gatherP.push_back(gc[c][2]);
-          lv.gatherQ.push_back(gc[c][3]);
-        }
       }
-      lv.gatherStart.push_back(static_cast<int32_t>(lv.gatherP.size()));
-      C.rowStart[h + 1] = static_cast<int32_t>(C.col.size());
-    }
-    C.values.assign(144 * C.col.size(), 0.0);
+    });
+    stitch(chunks, C.rowStart, C.col, lv.gatherStart, lv.gatherP, lv.gatherQ);
+    C.values.resize(144 * C.col.size());  // rewritten per product
     lv.mirror.assign(C.col.size(), -1);
     for (int32_t h = 0; h < k; ++h)
       for (int32_t c = C.rowStart[h]; c < C.rowStart[h + 1]; ++c)

@@ -67,6 +67,19 @@ std::vector<int32_t> furthestPointSample(const NodeGraph& g, const uint8_t* fixe
 void nearestSources(const NodeGraph& g, const int32_t* sources, int32_t sourceCount,
                     std::vector<int32_t>& owner, std::vector<double>& dist);
 
+/// nearestSources kept from one re-binding to the next: after edges only broke (and the
+/// sources are the same), only the nodes whose shortest path crossed a newly broken edge are
+/// searched again; the result equals a full search.
+struct NearestSearch {
+  std::vector<int32_t> owner, pred;  ///< per node: index into the sources, predecessor node
+  std::vector<double> dist;
+  void update(const NodeGraph& g, const std::vector<int32_t>& sources);
+
+ private:
+  std::vector<int32_t> sourcesThen, childStart, child, cleared;
+  std::vector<uint8_t> aliveThen;
+};
+
 /// Square matrix of 12x12 blocks (a coarse level), block-CSR with the full symmetric pattern.
 /// Inside a block, index 3a + k is affine column a (0-2 linear, 3 translation) and axis k.
 struct CoarseMatrix {
@@ -84,6 +97,7 @@ struct CoarseMatrix {
 /// handles deeper, 12x12 blocks).
 struct CoarseLevel {
   std::vector<int32_t> handleNode;  ///< fine node of each handle
+  NearestSearch search;             ///< the binding's Dijkstra from handleNode
   /// Per fine node: its handle at this level (composed through the finer levels), or -1 for a
   /// Dirichlet node or a node of a fragment too small to get a handle.
   std::vector<int32_t> nodeHandle;
@@ -153,7 +167,9 @@ class MultigridHierarchy {
   /// Crack re-binding (SPEC §5): re-binds every level by Dijkstra over unbroken edges from the
   /// existing handles, gives a handle to each fragment that has none (so counts can grow),
   /// rebuilds the patterns, and marks the prolongators for re-smoothing at the next assemble.
-  void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount);
+  /// The searches and the patterns run on `jobs`, with the same result for any thread count.
+  void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount,
+              JobSystem& jobs = serialJobs());
   /// Recomputes every level's operator from the fine matrix (same pattern as at build); the
   /// prolongators are smoothed first when they are not fresh (after build and rebind, or
   /// after invalidateProlongation).
@@ -188,8 +204,8 @@ class MultigridHierarchy {
   void tentativeBlockFor(int l, int32_t row, int32_t handle, double* out) const;
 
  private:
-  void bindAll();
-  void buildPatterns();
+  void bindAll(JobSystem& jobs);
+  void buildPatterns(JobSystem& jobs);
   template <int B>
   void smoothProlongation(int l, const BlockSparseMatrix& A, JobSystem& jobs);
 
