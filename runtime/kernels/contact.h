@@ -121,6 +121,21 @@ GF_HD double colliderThickness(const ColliderData& c, Vec3 n) {
          (fabs(l.x) * c.halfExtents.x + fabs(l.y) * c.halfExtents.y + fabs(l.z) * c.halfExtents.z);
 }
 
+/// The point of a box, sphere or capsule collider that reaches farthest along direction n (unit).
+GF_HD Vec3 supportPoint(const ColliderData& c, Vec3 n) {
+  if (c.kind == kColliderSphere) return c.point + c.radius * n;
+  if (c.kind == kColliderCapsule) {
+    Vec3 a, along;
+    capsuleSegment(c, a, along);
+    return (dot(along, n) > 0 ? a + along : a) + c.radius * n;
+  }
+  const Vec3 l = transpose(c.rotation) * n;
+  const Vec3 corner{l.x < 0 ? -c.halfExtents.x : c.halfExtents.x,
+                    l.y < 0 ? -c.halfExtents.y : c.halfExtents.y,
+                    l.z < 0 ? -c.halfExtents.z : c.halfExtents.z};
+  return c.point + c.rotation * corner;
+}
+
 /// The first t in [0, 1] at which a + t d meets the sphere (centre, r), a outside it; or -1.
 GF_HD double sphereEntry(Vec3 a, Vec3 d, Vec3 centre, double r) {
   const Vec3 f = a - centre;

@@ -121,7 +121,8 @@ class Integrator {
   GatherStage gatherStage(const double* elemGrad, double* nodeGrad) const {
     return {m_nodeRefStart.data(), m_nodeRef.data(), elemGrad, nodeGrad};
   }
-  /// Elastic and contact energy at positions x. Touches no scratch buffer of the step.
+  /// Elastic and contact energy at positions x, the contact's at nodes and, on the faces of the
+  /// last step's fragments, at points on faces. Touches no scratch buffer of the step.
   EnergyBreakdown energies(const FemModel& model, const FemState& state, const double* x,
                            const StepContext& ctx, JobSystem& jobs) const;
   /// The impulse [N s] each half-space of ctx.bodyContacts gave its node over the last step, as
@@ -206,6 +207,15 @@ class Integrator {
   // fragments change: a world with only planes pays nothing. crossed:
   // the sweep found a node whose path would pass a collider (kStepContactSwept).
   void prepareFaces(const FemModel& model, const StepContext& ctx, bool crossed);
+  // The faces' entries into colliders of the step (FaceSweepStage), after prepareFaces, as
+  // swept contacts of the nodes around them (FaceEntryNodeStage, into m_swept's arrays); flags
+  // kStepContactSwept when a face's path would have passed a collider. Only where a node moves,
+  // relative to a collider, more than half its thinnest extent in the step.
+  void sweepFaces(const FemModel& model, const FemState& state, const StepContext& ctx,
+                  JobSystem& jobs, BodyStepReport& rep);
+  // FacePlaneStage at x with this step's sweeps, without its output arrays (fc, skip).
+  FacePlaneStage facePlaneStage(const FemModel& model, const FemState& state, const double* x,
+                                const StepContext& ctx) const;
   // The face contacts at x (FacePlaneStage) into the m_face* arrays; true when any.
   bool findFaceContacts(const FemModel& model, const FemState& state, const double* x,
                         const StepContext& ctx, JobSystem& jobs);
@@ -271,7 +281,12 @@ class Integrator {
   std::vector<Vec3> m_faceWeight, m_facePoint, m_faceNormal;
   std::vector<double> m_faceK, m_faceMuLambda, m_faceEnergy, m_faceGrad, m_faceHess, m_faceTotal;
   std::vector<uint8_t> m_faceSeen;
-  std::vector<uint8_t> m_faceSkip;     // per collider: no face contact with it this step
+  std::vector<uint8_t> m_faceSkip;  // per collider: no face contact with it this step
+  // Per face, FaceSweepStage's entries, and the step's list of them (FaceEntryNodeStage).
+  std::vector<int32_t> m_faceSweptCollider;
+  std::vector<Vec3> m_faceSweptPoint, m_faceSweptNormal;
+  std::vector<double> m_faceSweptRadius, m_faceSweptCrossed;
+  std::vector<FaceEntry> m_faceEntries;
   std::vector<double> m_faceNodeGrad;  // per node: the face gradient, then the face impulse
   std::vector<double> m_x, m_dx, m_rhs, m_tmp, m_diff, m_kdiff, m_xStart, m_vStart;
   double m_theta = 1;  // of the last step; below 1, m_x keeps the solved point the forces act at
