@@ -552,6 +552,23 @@ Blade planeBlade(glm::vec3 c, glm::vec3 n) {
   return b;
 }
 
+// Three blades through one point inside the 10 cm cube cut it into eight pieces that meet there.
+struct OctantCase {
+  int n;  // render mesh: n x n squares a face
+  glm::vec3 c, normal[3];
+};
+
+// The brittle cube with its render mesh, cut by k's blades and shattered, put back at rest.
+BodyId cutIntoOctants(World& world, BodyDef& def, const OctantCase& k) {
+  def = brittleCube();
+  def.renderMesh = boxSurface(glm::dvec3(0), glm::dvec3(0.1), k.n, k.n, k.n);
+  const BodyId id = world.createBody(def).value();
+  for (const glm::vec3& normal : k.normal) EXPECT_TRUE(world.cut(id, planeBlade(k.c, normal)).ok());
+  shatter(world, id, 2);
+  EXPECT_TRUE(world.setPositions(id, def.mesh.positions).ok());
+  return id;
+}
+
 // Three blades through one point inside the 10 cm cube cut it into eight pieces that all meet
 // there, so no piece's cut on the render surface tells where the others meet inside: the caps
 // follow the triple lines through the tets (design note: junctions). At rest the pieces fill the
@@ -562,10 +579,7 @@ Blade planeBlade(glm::vec3 c, glm::vec3 n) {
 // blades. A family: render meshes of 12, 48 and 2700 triangles; blades nearly along the axes and
 // oblique ones through a point off the centre (which leave 31 chips).
 TEST(RenderMesh, PiecesMeetingAtOnePointInsideFillTheBody) {
-  struct Case {
-    int n;
-    glm::vec3 c, normal[3];
-  };
+  using Case = OctantCase;
   const glm::vec3 axes[3] = {{1, 0.03f, 0.02f}, {-0.02f, 1, 0.03f}, {0.03f, -0.02f, 1}};
   const glm::vec3 oblique[3] = {{1, 0.35f, 0.15f}, {0.2f, 1, -0.4f}, {-0.3f, 0.25f, 1}};
   const glm::vec3 centre(0.053f, 0.052f, 0.054f), off(0.046f, 0.057f, 0.051f);
@@ -574,15 +588,10 @@ TEST(RenderMesh, PiecesMeetingAtOnePointInsideFillTheBody) {
         Case{15, centre, {axes[0], axes[1], axes[2]}},
         Case{1, off, {oblique[0], oblique[1], oblique[2]}},
         Case{15, off, {oblique[0], oblique[1], oblique[2]}}}) {
-    BodyDef def = brittleCube();
-    def.renderMesh = boxSurface(glm::dvec3(0), glm::dvec3(0.1), k.n, k.n, k.n);
     World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
-    const BodyId id = world.createBody(def).value();
-    for (const glm::vec3& normal : k.normal)
-      ASSERT_TRUE(world.cut(id, planeBlade(k.c, normal)).ok());
-    shatter(world, id, 2);
+    BodyDef def;
+    const BodyId id = cutIntoOctants(world, def, k);
     const FractureStats fs = world.fractureStats(id);
-    ASSERT_TRUE(world.setPositions(id, def.mesh.positions).ok());
     const SurfaceView sv = world.surface(id);
     int open = 0;
     for (const auto& [f, c] : closure(sv)) open += c.openEdges;
@@ -612,10 +621,7 @@ TEST(RenderMesh, PiecesMeetingAtOnePointInsideFillTheBody) {
 // draw their cells do not follow them (each drawn vertex of a piece stays where it was), and
 // every fragment stays closed.
 TEST(RenderMesh, ChipsAreDrawnByOneNeighbourAndLeftBehindWhenTheyFlyOff) {
-  struct Case {
-    int n;
-    glm::vec3 c, normal[3];
-  };
+  using Case = OctantCase;
   const glm::vec3 first[3] = {{1, 0.35f, 0.15f}, {0.2f, 1, -0.4f}, {-0.3f, 0.25f, 1}};
   const glm::vec3 second[3] = {{1, -0.4f, 0.25f}, {0.3f, 1, 0.2f}, {0.15f, -0.35f, 1}};
   const glm::vec3 a(0.046f, 0.057f, 0.051f), b(0.055f, 0.048f, 0.052f);
@@ -623,15 +629,10 @@ TEST(RenderMesh, ChipsAreDrawnByOneNeighbourAndLeftBehindWhenTheyFlyOff) {
        {Case{1, a, {first[0], first[1], first[2]}}, Case{15, a, {first[0], first[1], first[2]}},
         Case{1, b, {second[0], second[1], second[2]}},
         Case{15, b, {second[0], second[1], second[2]}}}) {
-    BodyDef def = brittleCube();
-    def.renderMesh = boxSurface(glm::dvec3(0), glm::dvec3(0.1), k.n, k.n, k.n);
     World world(WorldDef{glm::vec3(0), Backend::Cpu, nullptr, 1, {}});
-    const BodyId id = world.createBody(def).value();
-    for (const glm::vec3& normal : k.normal)
-      ASSERT_TRUE(world.cut(id, planeBlade(k.c, normal)).ok());
-    shatter(world, id, 2);
+    BodyDef def;
+    const BodyId id = cutIntoOctants(world, def, k);
     const FractureStats fs = world.fractureStats(id);
-    ASSERT_TRUE(world.setPositions(id, def.mesh.positions).ok());
     const SurfaceView rest = world.surface(id);
     int open = 0;
     for (const auto& [f, c] : closure(rest)) open += c.openEdges;
