@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "graphfrac/jobs.h"
 #include "mesh/edge_graph.h"
 #include "surface/crack_surface.h"
 #include "surface/fragments.h"
@@ -531,6 +532,123 @@ TEST(CrackSurface, WritesObjAndPlyWithCrackMarks) {
   std::filesystem::remove(ply);
 }
 
+// Everything a rebuild() gives, bit for bit.
+struct SurfaceCopy {
+  std::vector<uint32_t> indices;
+  std::vector<uint8_t> crack;
+  std::vector<int32_t> triNode, vertexNode, vertexFragment, nodeFrame;
+  std::vector<double> positions, normals, frames;
+  explicit SurfaceCopy(const CrackSurface& s)
+      : indices(s.indices().begin(), s.indices().end()),
+        crack(s.crackFlags().begin(), s.crackFlags().end()),
+        triNode(s.triangleNode().begin(), s.triangleNode().end()),
+        vertexNode(s.vertexNode().begin(), s.vertexNode().end()),
+        vertexFragment(s.vertexFragment().begin(), s.vertexFragment().end()),
+        nodeFrame(s.nodeFrame().begin(), s.nodeFrame().end()),
+        positions(s.positionsDouble().begin(), s.positionsDouble().end()),
+        normals(s.normalsDouble().begin(), s.normalsDouble().end()),
+        frames(s.frameMaps().begin(), s.frameMaps().end()) {}
+  bool operator==(const SurfaceCopy&) const = default;
+};
+
+// The serial tet walk's order, which rebuild() keeps on any thread count: vertices are
+// numbered by first use in the triangle list, and each vertex's normal sums its triangles by
+// increasing index.
+void expectSerialOrder(const CrackSurface& s) {
+  const auto idx = s.indices();
+  uint32_t next = 0;
+  for (size_t k = 0; k < idx.size(); ++k) {
+    ASSERT_LE(idx[k], next) << "vertex " << idx[k] << " used before vertex " << next;
+    if (idx[k] == next) ++next;
+  }
+  EXPECT_EQ(next, s.vertexCount());
+  const auto pos = s.positionsDouble();
+  // Normals: the area-weighted sum over each vertex's triangles in increasing order.
+  std::vector<std::vector<uint32_t>> tris(s.vertexCount());
+  for (uint32_t t = 0; t < s.triangleCount(); ++t)
+    for (int k = 0; k < 3; ++k) tris[idx[3 * t + size_t(k)]].push_back(t);
+  auto areaNormal = [&](uint32_t t, double* n) {
+    const double* p0 = &pos[3 * idx[3 * t]];
+    const double* p1 = &pos[3 * idx[3 * t + 1]];
+    const double* p2 = &pos[3 * idx[3 * t + 2]];
+    double e1[3], e2[3];
+    for (int k = 0; k < 3; ++k) {
+      e1[k] = p1[k] - p0[k];
+      e2[k] = p2[k] - p0[k];
+    }
+    cross3(e1, e2, n);
+  };
+  int wrong = 0;
+  for (uint32_t v = 0; v < s.vertexCount(); ++v) {
+    double sum[3] = {0, 0, 0}, weight = 0, n[3];
+    for (uint32_t t : tris[v]) {
+      areaNormal(t, n);
+      for (int k = 0; k < 3; ++k) sum[k] += n[k];
+      weight += std::sqrt(dot3(n, n));
+    }
+    const double len = std::sqrt(dot3(sum, sum));
+    if (!(len > 1e-6 * weight && len > 0)) continue;  // crack fronts: the first triangle's
+    for (int k = 0; k < 3; ++k) wrong += s.normalsDouble()[3 * v + size_t(k)] != sum[k] / len;
+  }
+  EXPECT_EQ(wrong, 0) << "normals not summed over the triangles in increasing order";
+}
+
+TEST(CrackSurface, RebuildIsTheSameOnAnyThreadCountAndAfterEveryCrack) {
+  // A bar of 16 x 6 x 6 cells (3456 tets, 7 chunks of the parallel rebuild) bent and cracked in
+  // steps: a crack grows from one face through the section and splits the bar, random edges
+  // break, then the cut heals. After each step the surfaces kept and rebuilt on 1 and 2
+  // threads equal a surface made fresh for that step, bit for bit.
+  Body b(gen::box(2, 0.75, 0.75, 16, 6, 6));
+  ThreadPoolJobSystem two(2);
+  CrackSurface kept1, kept2;
+  kept1.init(b.mesh, b.graph);
+  kept2.init(b.mesh, b.graph);
+  std::mt19937 rng(7);
+  std::vector<double> x(b.mesh.positions);
+  int steps = 0, maxFragments = 0;
+  for (int step = 0; step < 8; ++step) {
+    if (step < 5) {
+      // The crack front at z < depth on the plane x = 1.03 (a slit until step 4 splits the bar).
+      const double depth = 0.2 * (step + 1);
+      for (int32_t e = 0; e < b.graph.edgeCount; ++e) {
+        const double* p = &b.mesh.positions[3 * size_t(b.graph.edgeNodes[2 * size_t(e)])];
+        const double* q = &b.mesh.positions[3 * size_t(b.graph.edgeNodes[2 * size_t(e) + 1])];
+        if ((p[0] < 1.03) != (q[0] < 1.03) && p[2] < depth && q[2] < depth) b.broken[size_t(e)] = 1;
+      }
+    } else if (step < 7) {
+      for (int k = 0; k < 150; ++k) b.broken[rng() % b.broken.size()] = 1;
+    } else {
+      std::fill(b.broken.begin(), b.broken.end(), 0);  // healed
+      for (int k = 0; k < 40; ++k) b.broken[rng() % b.broken.size()] = 1;
+    }
+    // Bent about y, so vertices of partial groups turn through their local maps.
+    for (size_t i = 0; i < b.mesh.nodeCount(); ++i) {
+      const double* X = &b.mesh.positions[3 * i];
+      const double a = 0.1 * step * (X[0] - 1), c = std::cos(a), sn = std::sin(a);
+      x[3 * i] = 1 + c * (X[0] - 1) + sn * X[2];
+      x[3 * i + 1] = X[1];
+      x[3 * i + 2] = -sn * (X[0] - 1) + c * X[2];
+    }
+    Fragments fr;
+    fr.build(b.graph, b.broken.data());
+    maxFragments = std::max(maxFragments, fr.count());
+    kept1.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), &serialJobs());
+    kept2.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), &two);
+    CrackSurface fresh;
+    fresh.init(b.mesh, b.graph);
+    fresh.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), &two);
+    const SurfaceCopy a(kept1), c(kept2), f(fresh);
+    EXPECT_TRUE(a == c) << "1 and 2 threads differ at step " << step;
+    EXPECT_TRUE(a == f) << "kept and fresh surfaces differ at step " << step;
+    EXPECT_GT(a.frames.size(), step == 0 ? 0u : 9u);
+    expectSerialOrder(kept2);
+    for (const auto& g : inspect(kept2, fr.count())) EXPECT_EQ(g.badEdges, 0);
+    ++steps;
+  }
+  EXPECT_EQ(steps, 8);
+  EXPECT_GE(maxFragments, 2);
+}
+
 TEST(CrackSurface, CostOfRebuildAndUpdate) {
   // About 30k tets: a 17^3 box (29,478 tets), a plane cut plus 2,000 random broken edges.
   Body b(gen::box(1, 1, 1, 17, 17, 17));
@@ -551,6 +669,12 @@ TEST(CrackSurface, CostOfRebuildAndUpdate) {
   t0 = Clock::now();
   for (int r = 0; r < reps; ++r) s.rebuild(b.broken.data(), fr.nodeFragment().data(), nullptr);
   const double rebuildMs = ms(Clock::now() - t0) / reps;
+  ThreadPoolJobSystem two(2);
+  s.rebuild(b.broken.data(), fr.nodeFragment().data(), nullptr, &two);
+  t0 = Clock::now();
+  for (int r = 0; r < reps; ++r)
+    s.rebuild(b.broken.data(), fr.nodeFragment().data(), nullptr, &two);
+  const double rebuild2Ms = ms(Clock::now() - t0) / reps;
   std::vector<double> x(b.mesh.positions);
   for (double& c : x) c *= 1.01;
   t0 = Clock::now();
@@ -569,9 +693,10 @@ TEST(CrackSurface, CostOfRebuildAndUpdate) {
   EXPECT_EQ(bad, 0);
   std::printf(
       "[ figures  ] %zu tets, %d fragments, %u vertices, %u triangles: fragments build "
-      "%.2f ms, update %.3f ms; surface rebuild %.2f ms, updatePositions %.2f ms\n",
+      "%.2f ms, update %.3f ms; surface rebuild %.2f ms (2 threads %.2f ms), updatePositions "
+      "%.2f ms\n",
       b.mesh.tetCount(), fr.count(), s.vertexCount(), s.triangleCount(), buildMs, updateFragMs,
-      rebuildMs, updateMs);
+      rebuildMs, rebuild2Ms, updateMs);
 }
 
 }  // namespace

@@ -1233,6 +1233,53 @@ TEST(Multigrid, IdenticalBitsForOneAndTwoThreads) {
 // JobSystem. A steel beam cut step by step through its section at x = 0.52 (the last step
 // splits it), then partly healed: after every step each level's binding equals a full
 // nearestSources, and the whole hierarchy equals a fresh one re-bound once, serially.
+// The graph's components on two threads (a union-find whose links run in any order) equal a
+// search from node 0 upwards: the same pieces, numbered by their lowest node.
+TEST(Multigrid, ComponentsMatchASearchOnAnyThreadCount) {
+  gf::ThreadPoolJobSystem two(2);
+  const ElasticSystem s = beam(kSteel, 24, 4, 0.2, two);
+  const gf::detail::EdgeGraph eg =
+      gf::detail::EdgeGraph::build(s.mesh.tets.data(), s.mesh.tetCount(), s.mesh.nodeCount());
+  std::mt19937 rng(11);
+  int most = 0;
+  for (double p : {0.0, 0.2, 0.45, 0.6, 0.8, 0.95}) {
+    std::vector<uint8_t> broken(eg.edgeCount, 0);
+    for (auto& b : broken) b = std::uniform_real_distribution<double>(0, 1)(rng) < p;
+    NodeGraph serial = NodeGraph::fromPattern(s.A, s.mesh.positions.data());
+    NodeGraph parallel = serial;
+    serial.setBroken(eg.edgeNodes.data(), broken.data(), eg.edgeCount);
+    parallel.setBroken(eg.edgeNodes.data(), broken.data(), eg.edgeCount, two);
+    ASSERT_EQ(serial.alive, parallel.alive);
+    // Reference: depth-first search from each unlabelled node in increasing order.
+    std::vector<int32_t> want(size_t(serial.n), -1), stack;
+    int32_t count = 0;
+    for (int32_t r = 0; r < serial.n; ++r) {
+      if (want[r] >= 0) continue;
+      want[r] = count;
+      stack.assign(1, r);
+      while (!stack.empty()) {
+        const int32_t u = stack.back();
+        stack.pop_back();
+        for (int32_t k = serial.start[u]; k < serial.start[u + 1]; ++k)
+          if (serial.alive[k] && want[serial.adj[k]] < 0) {
+            want[serial.adj[k]] = count;
+            stack.push_back(serial.adj[k]);
+          }
+      }
+      ++count;
+    }
+    most = std::max(most, count);
+    std::vector<int32_t> got;
+    ASSERT_EQ(serial.components(got), count);
+    EXPECT_EQ(got, want) << "one thread, " << p << " broken";
+    for (int rep = 0; rep < 5; ++rep) {
+      ASSERT_EQ(parallel.components(got, two), count);
+      EXPECT_EQ(got, want) << "two threads, " << p << " broken";
+    }
+  }
+  EXPECT_GT(most, 100);
+}
+
 TEST(Multigrid, IncrementalRebindingEqualsAFreshOneOnAnyThreadCount) {
   gf::ThreadPoolJobSystem two(2);
   const ElasticSystem s = beam(kSteel, 24, 4, 0.2, two);

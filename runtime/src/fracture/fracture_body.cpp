@@ -1,6 +1,7 @@
 #include "fracture/fracture_body.h"
 
 #include <algorithm>
+#include <atomic>
 
 #include "fracture/brittle.h"
 #include "graphfrac/events.h"
@@ -234,16 +235,22 @@ void FractureBody::applyBreaks(size_t first, const FemModel& fem, const FemState
                              m_fragmentScratch);
   }
   // Here, not in World::fractureStats: a game asks for the stats every frame, edges break rarely.
-  findChips();
+  findChips(jobs);
 }
 
-void FractureBody::findChips() {
+void FractureBody::findChips(JobSystem& jobs) {
   const std::span<const int32_t> nodeFragment = m_data.fragments.nodeFragment();
   m_data.chip.assign(size_t(m_data.fragments.count()), 1);
-  for (int32_t t = 0; t < int32_t(m_data.tetMask.size()); ++t)
-    if (m_data.tetMask[size_t(t)] == 0 || !tetSplit(m_graph, m_data.broken.data(), t))
-      m_data.chip[size_t(
-          nodeFragment[size_t(m_graph.edgeNodes[2 * m_graph.tetEdges[6 * size_t(t)]])])] = 0;
+  // A tet that holds clears its fragment's flag; every write is a zero, so the tets' ranges may
+  // run in any order.
+  jobs.parallelFor(uint32_t(m_data.tetMask.size()), kTetGrain, [&](uint32_t b, uint32_t e) {
+    for (int32_t t = int32_t(b); t < int32_t(e); ++t)
+      if (m_data.tetMask[size_t(t)] == 0 || !tetSplit(m_graph, m_data.broken.data(), t))
+        std::atomic_ref<uint8_t>(
+            m_data.chip[size_t(
+                nodeFragment[size_t(m_graph.edgeNodes[2 * m_graph.tetEdges[6 * size_t(t)]])])])
+            .store(0, std::memory_order_relaxed);
+  });
   m_data.chips = int32_t(std::count(m_data.chip.begin(), m_data.chip.end(), uint8_t(1)));
 }
 

@@ -160,7 +160,7 @@ class FractureBody {
   void finishBatch(size_t first, const FemModel& fem, const FemState& data, const double* x,
                    JobSystem& jobs);
   // Marks the fragments that hold no whole tet, from the broken flags and fragments as they are.
-  void findChips();
+  void findChips(JobSystem& jobs);
   // Masks, chi and fragments after edges in m_data.breaks[first..] broke.
   void applyBreaks(size_t first, const FemModel& fem, const FemState& data, const double* x,
                    JobSystem& jobs);

@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -119,8 +120,12 @@ NodeGraph NodeGraph::fromPattern(const BlockSparseMatrix& A, const double* rest)
   return g;
 }
 
-void NodeGraph::setBroken(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount) {
-  std::fill(alive.begin(), alive.end(), uint8_t{1});
+void NodeGraph::setBroken(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount,
+                          JobSystem& jobs) {
+  constexpr uint32_t kGrain = 4096;
+  forRanges(jobs, static_cast<uint32_t>(alive.size()), kGrain, [&](uint32_t b, uint32_t e) {
+    std::fill(alive.begin() + b, alive.begin() + e, uint8_t{1});
+  });
   auto kill = [&](int32_t a, int32_t b) {
     if (a < 0 || a >= n) return;
     const int32_t* first = adj.data() + start[a];
@@ -128,32 +133,61 @@ void NodeGraph::setBroken(const int32_t* edgeNodes, const uint8_t* broken, int32
     const int32_t* it = std::lower_bound(first, last, b);
     if (it != last && *it == b) alive[static_cast<size_t>(it - adj.data())] = 0;
   };
-  for (int32_t e = 0; e < edgeCount; ++e) {
-    if (!broken[e]) continue;
-    kill(edgeNodes[2 * e], edgeNodes[2 * e + 1]);
-    kill(edgeNodes[2 * e + 1], edgeNodes[2 * e]);
-  }
+  // Each edge clears its own two entries, so the ranges write apart.
+  forRanges(jobs, static_cast<uint32_t>(edgeCount), kGrain, [&](uint32_t b, uint32_t e) {
+    for (uint32_t k = b; k < e; ++k) {
+      if (!broken[k]) continue;
+      kill(edgeNodes[2 * k], edgeNodes[2 * k + 1]);
+      kill(edgeNodes[2 * k + 1], edgeNodes[2 * k]);
+    }
+  });
 }
 
-int32_t NodeGraph::components(std::vector<int32_t>& component) const {
-  component.assign(static_cast<size_t>(n), -1);
-  std::vector<int32_t> stack;
-  int32_t count = 0;
-  for (int32_t s = 0; s < n; ++s) {
-    if (component[s] >= 0) continue;
-    component[s] = count;
-    stack.push_back(s);
-    while (!stack.empty()) {
-      const int32_t u = stack.back();
-      stack.pop_back();
-      for (int32_t k = start[u]; k < start[u + 1]; ++k) {
-        if (!alive[k] || component[adj[k]] >= 0) continue;
-        component[adj[k]] = count;
-        stack.push_back(adj[k]);
-      }
+int32_t NodeGraph::components(std::vector<int32_t>& component, JobSystem& jobs) const {
+  // Union-find over the unbroken edges, side by side: a root is only ever linked below a lower
+  // one, so every component's root ends as its lowest node whatever order the links ran in.
+  // Components are numbered by their lowest node, as a search from node 0 upwards numbers them.
+  component.resize(static_cast<size_t>(n));
+  constexpr uint32_t kGrain = 1024;
+  forRanges(jobs, static_cast<uint32_t>(n), kGrain, [&](uint32_t b, uint32_t e) {
+    for (uint32_t i = b; i < e; ++i) component[i] = static_cast<int32_t>(i);
+  });
+  auto root = [&](int32_t i) {
+    for (;;) {
+      const int32_t p = std::atomic_ref<int32_t>(component[i]).load(std::memory_order_acquire);
+      if (p == i) return i;
+      i = p;
     }
-    ++count;
-  }
+  };
+  forRanges(jobs, static_cast<uint32_t>(n), kGrain, [&](uint32_t b, uint32_t e) {
+    for (int32_t u = static_cast<int32_t>(b); u < static_cast<int32_t>(e); ++u)
+      for (int32_t k = start[u]; k < start[u + 1]; ++k) {
+        if (!alive[k] || adj[k] < u) continue;
+        int32_t a = u, c = adj[k];
+        for (;;) {
+          a = root(a);
+          c = root(c);
+          if (a == c) break;
+          if (a > c) std::swap(a, c);
+          int32_t expected = c;
+          if (std::atomic_ref<int32_t>(component[c])
+                  .compare_exchange_strong(expected, a, std::memory_order_acq_rel))
+            break;
+        }
+      }
+  });
+  // Roots in ascending order get the numbers; every node then takes its root's.
+  forRanges(jobs, static_cast<uint32_t>(n), kGrain, [&](uint32_t b, uint32_t e) {
+    for (int32_t i = static_cast<int32_t>(b); i < static_cast<int32_t>(e); ++i)
+      std::atomic_ref<int32_t>(component[i]).store(root(i), std::memory_order_release);
+  });
+  int32_t count = 0;
+  std::vector<int32_t> number(static_cast<size_t>(n));
+  for (int32_t i = 0; i < n; ++i)
+    if (component[i] == i) number[i] = count++;
+  forRanges(jobs, static_cast<uint32_t>(n), kGrain, [&](uint32_t b, uint32_t e) {
+    for (uint32_t i = b; i < e; ++i) component[i] = number[component[i]];
+  });
   return count;
 }
 
@@ -378,7 +412,7 @@ Result<void> MultigridHierarchy::build(const std::vector<int32_t>& counts,
 
 void MultigridHierarchy::rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount,
                                 JobSystem& jobs) {
-  m_graph.setBroken(edgeNodes, broken, edgeCount);
+  m_graph.setBroken(edgeNodes, broken, edgeCount, jobs);
   bindAll(jobs);
   buildPatterns(jobs);
 }
@@ -388,9 +422,10 @@ void MultigridHierarchy::invalidateProlongation() {
 }
 
 void MultigridHierarchy::bindAll(JobSystem& jobs) {
+  constexpr uint32_t kNodeGrain = 1024;
   const int32_t n = m_graph.n;
   std::vector<int32_t> component;
-  const int32_t componentCount = m_graph.components(component);
+  const int32_t componentCount = m_graph.components(component, jobs);
   std::vector<int32_t> freeCount(static_cast<size_t>(componentCount), 0);
   std::vector<int32_t> firstFree(static_cast<size_t>(componentCount), -1);
   for (int32_t i = 0; i < n; ++i) {
@@ -429,16 +464,19 @@ void MultigridHierarchy::bindAll(JobSystem& jobs) {
 
     // Composed binding: a fine node follows its finer handle, which follows the handle its own
     // node is nearest to (the tentative prolongators nest, eq 6.8).
-    lv.nodeHandle.assign(static_cast<size_t>(n), -1);
+    lv.nodeHandle.resize(static_cast<size_t>(n));
     if (l == 0) {
-      for (int32_t i = 0; i < n; ++i)
-        if (!m_fixed[i]) lv.nodeHandle[i] = owner[i];
+      forRanges(jobs, static_cast<uint32_t>(n), kNodeGrain, [&](uint32_t b, uint32_t e) {
+        for (uint32_t i = b; i < e; ++i) lv.nodeHandle[i] = m_fixed[i] ? -1 : owner[i];
+      });
     } else {
       const CoarseLevel& finer = m_levels[l - 1];
       std::vector<int32_t> parent(finer.handleNode.size());
       for (size_t h = 0; h < finer.handleNode.size(); ++h) parent[h] = owner[finer.handleNode[h]];
-      for (int32_t i = 0; i < n; ++i)
-        if (finer.nodeHandle[i] >= 0) lv.nodeHandle[i] = parent[finer.nodeHandle[i]];
+      forRanges(jobs, static_cast<uint32_t>(n), kNodeGrain, [&](uint32_t b, uint32_t e) {
+        for (uint32_t i = b; i < e; ++i)
+          lv.nodeHandle[i] = finer.nodeHandle[i] >= 0 ? parent[finer.nodeHandle[i]] : -1;
+      });
       lv.finerParent = parent;
     }
 
@@ -456,13 +494,15 @@ void MultigridHierarchy::bindAll(JobSystem& jobs) {
       ++bound;
     }
     lv.scale = bound > 0 && sum > 0 ? std::sqrt(sum / double(bound)) : 1.0;
-    lv.coord.assign(3 * static_cast<size_t>(n), 0.0);
-    for (int32_t i = 0; i < n; ++i) {
-      const int32_t h = lv.nodeHandle[i];
-      if (h < 0) continue;
-      for (int a = 0; a < 3; ++a)
-        lv.coord[3 * i + a] = (m_rest[3 * i + a] - m_rest[3 * lv.handleNode[h] + a]) / lv.scale;
-    }
+    lv.coord.resize(3 * static_cast<size_t>(n));
+    forRanges(jobs, static_cast<uint32_t>(n), kNodeGrain, [&](uint32_t b, uint32_t e) {
+      for (uint32_t i = b; i < e; ++i) {
+        const int32_t h = lv.nodeHandle[i];
+        for (uint32_t a = 0; a < 3; ++a)
+          lv.coord[3 * i + a] =
+              h < 0 ? 0.0 : (m_rest[3 * i + a] - m_rest[3 * lv.handleNode[h] + a]) / lv.scale;
+      }
+    });
     if (l > 0) {
       const CoarseLevel& finer = m_levels[l - 1];
       lv.childRatio = finer.scale / lv.scale;
@@ -543,12 +583,16 @@ void MultigridHierarchy::buildPatterns(JobSystem& jobs) {
   const int32_t n = m_graph.n;
   size_t scratch = 0;
   // Fine blocks of the filtered matrix A_F: the diagonal and the unbroken edges.
+  // A row's graph edges are blocks of the same row, so rows fill apart.
   std::vector<uint8_t> fineAlive(m_fineCol.size(), 0);
-  for (int32_t r = 0; r < n; ++r)
-    for (int32_t b = m_fineRowStart[r]; b < m_fineRowStart[r + 1]; ++b)
-      fineAlive[b] = m_fineCol[b] == r ? 1 : 0;
-  for (size_t e = 0; e < m_graph.adj.size(); ++e)
-    if (m_graph.alive[e]) fineAlive[m_graphBlock[e]] = 1;
+  forRanges(jobs, static_cast<uint32_t>(n), kRowsPerChunk, [&](uint32_t begin, uint32_t end) {
+    for (int32_t r = static_cast<int32_t>(begin); r < static_cast<int32_t>(end); ++r) {
+      for (int32_t b = m_fineRowStart[r]; b < m_fineRowStart[r + 1]; ++b)
+        fineAlive[b] = m_fineCol[b] == r ? 1 : 0;
+      for (int32_t e = m_graph.start[r]; e < m_graph.start[r + 1]; ++e)
+        if (m_graph.alive[e]) fineAlive[m_graphBlock[e]] = 1;
+    }
+  });
   for (size_t li = 0; li < m_levels.size(); ++li) {
     CoarseLevel& lv = m_levels[li];
     const int l = static_cast<int>(li) + 1;
@@ -569,78 +613,92 @@ void MultigridHierarchy::buildPatterns(JobSystem& jobs) {
     std::vector<int32_t>& fStart = lv.fStart;
     std::vector<int32_t>& fBlock = lv.fBlock;
     std::vector<int32_t>& fCol = lv.fCol;
-    fStart.assign(static_cast<size_t>(rows) + 1, 0);
-    fBlock.clear();
-    fCol.clear();
+    std::vector<PatternChunk> rowChunks(chunkCount(rows, kRowsPerChunk));
+    auto eachRowChunk = [&](const auto& f) {
+      forRanges(jobs, static_cast<uint32_t>(rowChunks.size()), 1,
+                [&](uint32_t begin, uint32_t end) {
+                  for (uint32_t ci = begin; ci < end; ++ci) {
+                    const int32_t r0 = static_cast<int32_t>(ci) * kRowsPerChunk;
+                    f(rowChunks[ci], r0, std::min(rows, r0 + kRowsPerChunk));
+                  }
+                });
+    };
+    std::vector<int32_t> unusedStart, unusedTerms;
     if (smoothHere) {
-      if (l == 1) {
-        for (int32_t r = 0; r < rows; ++r) {
-          fCol.push_back(r);
-          fBlock.push_back(
-              m_fineRowStart[r] +
-              static_cast<int32_t>(std::lower_bound(m_fineCol.data() + m_fineRowStart[r],
-                                                    m_fineCol.data() + m_fineRowStart[r + 1], r) -
-                                   (m_fineCol.data() + m_fineRowStart[r])));
-          for (int32_t e = m_graph.start[r]; e < m_graph.start[r + 1]; ++e) {
-            if (!m_graph.alive[e]) continue;
-            fCol.push_back(m_graph.adj[e]);
-            fBlock.push_back(m_graphBlock[e]);
+      eachRowChunk([&](PatternChunk& ch, int32_t r0, int32_t r1) {
+        for (int32_t r = r0; r < r1; ++r) {
+          const size_t before = ch.col.size();
+          ch.col.push_back(r);
+          if (l == 1) {
+            ch.first.push_back(
+                m_fineRowStart[r] +
+                static_cast<int32_t>(std::lower_bound(m_fineCol.data() + m_fineRowStart[r],
+                                                      m_fineCol.data() + m_fineRowStart[r + 1], r) -
+                                     (m_fineCol.data() + m_fineRowStart[r])));
+            for (int32_t e = m_graph.start[r]; e < m_graph.start[r + 1]; ++e) {
+              if (!m_graph.alive[e]) continue;
+              ch.col.push_back(m_graph.adj[e]);
+              ch.first.push_back(m_graphBlock[e]);
+            }
+          } else {
+            // Deeper: the blocks of A_{l-1} that P^T A_F P fills (alive, see
+            // CoarseLevel::alive), the diagonal first (the smoothing reads D there).
+            const CoarseLevel& finer = m_levels[li - 1];
+            ch.first.push_back(finer.A.find(r, r));
+            for (int32_t b = finer.A.rowStart[r]; b < finer.A.rowStart[r + 1]; ++b) {
+              if (finer.A.col[b] == r || !finer.alive[b]) continue;
+              ch.col.push_back(finer.A.col[b]);
+              ch.first.push_back(b);
+            }
           }
-          fStart[r + 1] = static_cast<int32_t>(fCol.size());
+          ch.perRow.push_back(static_cast<int32_t>(ch.col.size() - before));
         }
-      } else {
-        // Deeper: the blocks of A_{l-1} that P^T A_F P fills (alive, see CoarseLevel::alive),
-        // the diagonal first (the smoothing reads D there).
-        const CoarseLevel& finer = m_levels[li - 1];
-        for (int32_t r = 0; r < rows; ++r) {
-          fCol.push_back(r);
-          fBlock.push_back(finer.A.find(r, r));
-          for (int32_t b = finer.A.rowStart[r]; b < finer.A.rowStart[r + 1]; ++b) {
-            if (finer.A.col[b] == r || !finer.alive[b]) continue;
-            fCol.push_back(finer.A.col[b]);
-            fBlock.push_back(b);
-          }
-          fStart[r + 1] = static_cast<int32_t>(fCol.size());
-        }
-      }
+      });
+      stitch(rowChunks, fStart, fCol, unusedStart, fBlock, unusedTerms);
+    } else {
+      fStart.assign(static_cast<size_t>(rows) + 1, 0);
+      fBlock.clear();
+      fCol.clear();
     }
 
     // P's pattern: per finer row, the parents of its filtered neighbours (just its own parent
     // without smoothing); per block, the smoothing terms (A_rj, j) in increasing j.
-    lv.pStart.assign(static_cast<size_t>(rows) + 1, 0);
-    lv.pCol.clear();
-    lv.pRow.clear();
-    lv.sStart.assign(1, 0);
-    lv.sBlock.clear();
-    lv.sRow.clear();
-    std::vector<std::array<int32_t, 3>> cand;  // (handle, j, block)
-    for (int32_t r = 0; r < rows; ++r) {
-      const bool skip = l == 1 && m_fixed[r];
-      if (!skip) {
+    for (PatternChunk& ch : rowChunks) ch = PatternChunk{};
+    eachRowChunk([&](PatternChunk& ch, int32_t r0, int32_t r1) {
+      std::vector<std::array<int32_t, 3>> cand;  // (handle, j, block)
+      for (int32_t r = r0; r < r1; ++r) {
+        const size_t before = ch.col.size();
+        const bool skip = l == 1 && m_fixed[r];
         cand.clear();
-        if (smoothHere && parent[r] >= 0) {
+        if (!skip && smoothHere && parent[r] >= 0) {
           for (int32_t f = fStart[r]; f < fStart[r + 1]; ++f)
             if (parent[fCol[f]] >= 0) cand.push_back({parent[fCol[f]], fCol[f], fBlock[f]});
           if (m_filter > 0) lumpWeakHandles(cand, parent[r], m_filter);
-        } else if (parent[r] >= 0) {
+        } else if (!skip && parent[r] >= 0) {
           cand.push_back({parent[r], r, -1});
         }
         std::sort(cand.begin(), cand.end());
         for (size_t c = 0; c < cand.size(); ++c) {
           if (c == 0 || cand[c][0] != cand[c - 1][0]) {
-            if (c > 0) lv.sStart.push_back(static_cast<int32_t>(lv.sBlock.size()));
-            lv.pCol.push_back(cand[c][0]);
-            lv.pRow.push_back(r);
+            ch.col.push_back(cand[c][0]);
+            ch.terms.push_back(0);
           }
           if (cand[c][2] >= 0) {
-            lv.sBlock.push_back(cand[c][2]);
-            lv.sRow.push_back(cand[c][1]);
+            ++ch.terms.back();
+            ch.first.push_back(cand[c][2]);
+            ch.second.push_back(cand[c][1]);
           }
         }
-        if (!cand.empty()) lv.sStart.push_back(static_cast<int32_t>(lv.sBlock.size()));
+        ch.perRow.push_back(static_cast<int32_t>(ch.col.size() - before));
       }
-      lv.pStart[r + 1] = static_cast<int32_t>(lv.pCol.size());
-    }
+    });
+    stitch(rowChunks, lv.pStart, lv.pCol, lv.sStart, lv.sBlock, lv.sRow);
+    lv.pRow.resize(lv.pCol.size());
+    forRanges(jobs, static_cast<uint32_t>(rows), kRowsPerChunk, [&](uint32_t begin, uint32_t end) {
+      for (uint32_t r = begin; r < end; ++r)
+        std::fill(lv.pRow.begin() + lv.pStart[r], lv.pRow.begin() + lv.pStart[r + 1],
+                  static_cast<int32_t>(r));
+    });
     const size_t pBlocks = lv.pCol.size();
     lv.pValues.assign(pBlocks * static_cast<size_t>(B) * 12, 0.0);
     lv.prolongationFresh = false;
@@ -693,9 +751,12 @@ void MultigridHierarchy::buildPatterns(JobSystem& jobs) {
     lv.qValues.resize(lv.qCol.size() * static_cast<size_t>(B) * 12);  // rewritten per product
     // Which Q blocks the filtered product A_F P fills: a term through an alive finer block.
     std::vector<uint8_t> qAlive(lv.qCol.size(), 0);
-    for (size_t q = 0; q < lv.qCol.size(); ++q)
-      for (int32_t c = lv.qcStart[q]; c < lv.qcStart[q + 1] && !qAlive[q]; ++c)
-        qAlive[q] = l == 1 ? fineAlive[lv.qcA[c]] : m_levels[li - 1].alive[lv.qcA[c]];
+    forRanges(jobs, static_cast<uint32_t>(lv.qCol.size()), kRowsPerChunk,
+              [&](uint32_t begin, uint32_t end) {
+                for (uint32_t q = begin; q < end; ++q)
+                  for (int32_t c = lv.qcStart[q]; c < lv.qcStart[q + 1] && !qAlive[q]; ++c)
+                    qAlive[q] = l == 1 ? fineAlive[lv.qcA[c]] : m_levels[li - 1].alive[lv.qcA[c]];
+              });
 
     // A_l = P^T Q: per coarse row H, the pairs (P_rH, Q_rK) by increasing r; plus the diagonal.
     CoarseMatrix& C = lv.A;

@@ -50,9 +50,11 @@ struct NodeGraph {
 
   static NodeGraph fromPattern(const BlockSparseMatrix& A, const double* restPositions);
   /// Sets the broken state of every listed edge (2 nodes per edge) and revives all others.
-  void setBroken(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount);
-  /// Connected components over unbroken edges; returns the count, component per node.
-  int32_t components(std::vector<int32_t>& component) const;
+  void setBroken(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount,
+                 JobSystem& jobs = serialJobs());
+  /// Connected components over unbroken edges, numbered by their lowest node; returns the
+  /// count, component per node. The same on any thread count.
+  int32_t components(std::vector<int32_t>& component, JobSystem& jobs = serialJobs()) const;
 };
 
 /// Furthest-point sampling with geodesic (Dijkstra) distances over unbroken edges: starts at

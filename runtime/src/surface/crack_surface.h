@@ -52,9 +52,10 @@
 //   V/4; cellRestVolumes() gives their exact volumes.
 // - Normals are area-weighted vertex normals. At the front of a partial crack the two sides
 //   cancel; such a vertex takes the normal of its first triangle.
-// - Cost: nothing unless called. rebuild() is O(tets) (one pass; tets with no boundary face and
-//   no unjoined edge are skipped at once) and allocates only when the surface outgrows its
-//   previous capacity; updatePositions() is O(vertices + triangles).
+// - Cost: nothing unless called. rebuild() is O(tets) (tets with no boundary face and no
+//   unjoined edge are skipped at once), runs on the JobSystem over fixed chunks of tets with the
+//   serial walk's numbering (docs/design.md, the render surface), and allocates only when the
+//   surface outgrows its previous capacity; updatePositions() is O(vertices + triangles).
 #pragma once
 
 #include <cstdint>
@@ -165,6 +166,9 @@ class CrackSurface {
 
  private:
   double splitRatio(int32_t edge) const;
+  // rebuild()'s last parts: the frames' neighbourhoods, and each vertex's triangles.
+  void buildFrames(const uint8_t* broken, JobSystem& jobs);
+  void buildVertexTriangles(JobSystem& jobs);
 
   // Rest data from init().
   const TetMesh* m_rest = nullptr;
@@ -178,9 +182,33 @@ class CrackSurface {
   std::vector<uint8_t> m_tetHasBoundary;
   std::vector<double> m_ratio;  // per edge; empty: midpoints
 
-  // Vertex slots: one per (split point, parent), filled for the lowest parent of each group.
+  // Vertex slots: one per (split point, parent), filled for the lowest parent of each group,
+  // and the first chunk of tets that uses the slot.
   std::vector<int32_t> m_slotVertex;
-  std::vector<int32_t> m_usedSlots;
+  std::vector<int32_t> m_slotChunk;
+
+  // rebuild() runs over fixed chunks of tets (their number does not depend on the threads): a
+  // chunk lists its quads as vertex slots, and creates the vertices of the slots no earlier
+  // chunk uses, in the order of first use, so the numbering is the serial tet walk's.
+  struct TetChunk {
+    std::vector<int32_t> slot;     // 4 per quad: the slot of each corner, in creation order
+    std::vector<uint8_t> group;    // per corner: its vertex's group mask
+    std::vector<uint8_t> crack;    // per quad
+    std::vector<int32_t> corner;   // per quad: its corner node
+    std::vector<int32_t> owned;    // the corners that create a vertex, in creation order
+    std::vector<int64_t> framing;  // (node, key) pairs of the partial vertices' group nodes
+    int32_t vertexBase = 0, quadBase = 0;
+  };
+  std::vector<TetChunk> m_chunks;
+  std::vector<int64_t> m_nodeKey;  // per node: 4 v + k of the first partial vertex v it frames
+
+  // Scratch of each chunk of frames: its neighbourhoods and a visited set.
+  struct FrameChunk {
+    std::vector<int32_t> ring, bfs, seen;
+    std::vector<uint32_t> seenStamp;
+    uint32_t stamp = 0;
+  };
+  std::vector<FrameChunk> m_frameChunks;
 
   // Vertex recipes: up to 4 parents (unused: -1) with rest weights, the group mask over them
   // and the rest position.
@@ -197,18 +225,17 @@ class CrackSurface {
   std::vector<int32_t> m_frameRingStart, m_frameRing;
   std::vector<uint8_t> m_frameAffine;
   std::vector<double> m_frameCinv;  // 9 per frame
-  std::vector<uint32_t> m_visit;    // scratch for growing neighbourhoods
-  uint32_t m_visitStamp = 0;
-  std::vector<int32_t> m_bfs;
-  std::vector<double> m_frameR;  // 9 per frame, row-major: the current map M
+  std::vector<double> m_frameR;     // 9 per frame, row-major: the current map M
 
   // Output.
   std::vector<double> m_positions, m_normals;
   std::vector<int32_t> m_vertexTriStart, m_vertexTri;  // each vertex's triangles, ascending
+  std::vector<int32_t> m_vertexTriFill, m_blockAt, m_blockStart, m_pairs;  // their scratch
   std::vector<float> m_positionsF, m_normalsF;
   std::vector<uint32_t> m_indices;
   std::vector<uint8_t> m_triCrack;
   std::vector<int32_t> m_triNode, m_vertexNode, m_vertexFragment;
+  std::vector<double> m_partials;  // the dirty range's reductions, chunk by chunk
   uint64_t m_topologyVersion = 0, m_positionVersion = 0;
   DirtyRange m_dirty;
 };
