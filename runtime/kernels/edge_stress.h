@@ -36,7 +36,8 @@ GF_HD int tetEdgeCorner(int k, int end) {
 constexpr double kEdgeMatrixPivotMin = 1e-12;
 
 /// Symmetric 3x3 tensor to tensor Voigt [xx yy zz xy xz yz] (off-diagonals averaged).
-GF_HD void toVoigt(const Mat3& s, double v[6]) {
+template <class T>
+GF_HD void toVoigt(const Mat3T<T>& s, T v[6]) {
   v[0] = s(0, 0);
   v[1] = s(1, 1);
   v[2] = s(2, 2);

@@ -28,7 +28,8 @@ GF_HD Mat3 restShapeInverse(const Vec3 X[4], double& volume) {
 }
 
 /// F = Ds Dm^-1.
-GF_HD Mat3 deformationGradient(const Vec3 x[4], const Mat3& DmInv) {
+template <class T>
+GF_HD Mat3T<T> deformationGradient(const Vec3T<T> x[4], const Mat3T<T>& DmInv) {
   return fromColumns(x[1] - x[0], x[2] - x[0], x[3] - x[0]) * DmInv;
 }
 
@@ -46,8 +47,9 @@ GF_HD double maxPrincipalStrain(const Mat3& F) {
 }
 
 /// Rest-space gradients of the four linear shape functions, B(a, j) = dN_a/dX_j.
-GF_HD Mat<4, 3> shapeGradients(const Mat3& DmInv) {
-  Mat<4, 3> b;
+template <class T>
+GF_HD Mat<4, 3, T> shapeGradients(const Mat3T<T>& DmInv) {
+  Mat<4, 3, T> b;
   for (int j = 0; j < 3; ++j) {
     b(1, j) = DmInv(0, j);
     b(2, j) = DmInv(1, j);
@@ -60,7 +62,8 @@ GF_HD Mat<4, 3> shapeGradients(const Mat3& DmInv) {
 namespace detail {
 
 /// grad = V D^T vec(P): grad(3a + i) = V sum_j P(i,j) B(a,j).
-GF_HD void elementGradient(const Mat<4, 3>& B, double volume, const Mat3& P, double grad[12]) {
+template <class T>
+GF_HD void elementGradient(const Mat<4, 3, T>& B, T volume, const Mat3T<T>& P, T grad[12]) {
   for (int a = 0; a < 4; ++a)
     for (int i = 0; i < 3; ++i)
       grad[3 * a + i] = volume * (P(i, 0) * B(a, 0) + P(i, 1) * B(a, 1) + P(i, 2) * B(a, 2));
@@ -98,17 +101,19 @@ GF_HD void scatterElementDerivatives(const Mat<4, 3>& B, double volume, const Ma
 /// K's upper triangle only (15 2x2 tiles of a 10x10 padding, 60 entries a mode against 84
 /// for the 12x12 upper triangle) and node 0's rows follow by sums. Every entry below the
 /// diagonal is a copy of its mirror, so the Hessian is exactly symmetric.
-GF_HD void hessianFromModes(const Mat3& DmInv, double volume, const HessianModes& modes, Mat12& h) {
+template <class T>
+GF_HD void hessianFromModes(const Mat3T<T>& DmInv, T volume, const HessianModesT<T>& modes,
+                            Mat<12, 12, T>& h) {
   constexpr int kPad = 10;  // 9 rows of K padded to whole 2x2 tiles
-  double g[kMaxHessianModes][kPad];
-  double wg[kMaxHessianModes][kPad];
+  T g[kMaxHessianModes][kPad];
+  T wg[kMaxHessianModes][kPad];
   for (int m = 0; m < modes.count; ++m) {
-    const double* q = modes.q[m];
-    const double vw = volume * modes.w[m];
+    const T* q = modes.q[m];
+    const T vw = volume * modes.w[m];
     // Row a of Dm^-1 is the shape gradient of node a + 1.
     for (int a = 0; a < 3; ++a)
       for (int i = 0; i < 3; ++i) {
-        const double v =
+        const T v =
             q[3 * i] * DmInv(a, 0) + q[3 * i + 1] * DmInv(a, 1) + q[3 * i + 2] * DmInv(a, 2);
         g[m][3 * a + i] = v;
         wg[m][3 * a + i] = vw * v;
@@ -116,12 +121,12 @@ GF_HD void hessianFromModes(const Mat3& DmInv, double volume, const HessianModes
     g[m][9] = 0;
     wg[m][9] = 0;
   }
-  double k[kPad][kPad];  // K, upper triangle (and the diagonal tiles' lower entry)
+  T k[kPad][kPad];  // K, upper triangle (and the diagonal tiles' lower entry)
   for (int i = 0; i < kPad; i += 2)
     for (int j = i; j < kPad; j += 2) {
-      double a00 = 0, a01 = 0, a10 = 0, a11 = 0;
+      T a00 = 0, a01 = 0, a10 = 0, a11 = 0;
       for (int m = 0; m < modes.count; ++m) {
-        const double w0 = wg[m][i], w1 = wg[m][i + 1], g0 = g[m][j], g1 = g[m][j + 1];
+        const T w0 = wg[m][i], w1 = wg[m][i + 1], g0 = g[m][j], g1 = g[m][j + 1];
         a00 += w0 * g0;
         a01 += w0 * g1;
         a10 += w1 * g0;
@@ -141,7 +146,7 @@ GF_HD void hessianFromModes(const Mat3& DmInv, double volume, const HessianModes
   // The node-0 block: minus the sums of the three blocks of row i just formed, upper triangle.
   for (int i = 0; i < 3; ++i)
     for (int j = i; j < 3; ++j) {
-      const double v = -(h(i, 3 + j) + h(i, 6 + j) + h(i, 9 + j));
+      const T v = -(h(i, 3 + j) + h(i, 6 + j) + h(i, 9 + j));
       h(i, j) = v;
       h(j, i) = v;
     }
@@ -153,6 +158,27 @@ GF_HD void hessianFromModes(const Mat3& DmInv, double volume, const HessianModes
 
 }  // namespace detail
 
+/// elementForces from F and svd = svd3(F) (one tet, or a batch of tets without a fibre term
+/// a lane each: fem/element_lanes.cpp).
+template <class T>
+GF_HD T elementForcesSvd(const MaterialCoeffsT<T>& c, const Mat3T<T>& F, const Svd3T<T>& svd,
+                         const Mat3T<T>& DmInv, T volume, T grad[12],
+                         Mat<12, 12, NoDeduce<T>>* hessian, bool projectPsd,
+                         Mat<3, 3, NoDeduce<T>>* materialStress) {
+  Mat3T<T> P;
+  HessianModesT<T> modes;
+  const T psi =
+      evaluateMaterialModes(c, F, svd, P, hessian != nullptr ? &modes : nullptr, projectPsd);
+  if (materialStress != nullptr) {
+    const Mat3T<T> rp = transpose(svd.U * transpose(svd.V)) * P;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) (*materialStress)(i, j) = 0.5 * (rp(i, j) + rp(j, i));
+  }
+  if (hessian != nullptr) detail::hessianFromModes(DmInv, volume, modes, *hessian);
+  detail::elementGradient(shapeGradients(DmInv), volume, P, grad);
+  return volume * psi;
+}
+
 /// Element elastic energy V psi(F). Fills grad = dE/dx (12, node-major; the internal force is
 /// -grad) and, when hessian is non-null, d2E/dx2 = V D^T dPdF D with D = dvec(F)/dx,
 /// projected to PSD when projectPsd.
@@ -163,19 +189,8 @@ GF_HD double elementForces(const MaterialCoeffs& c, const Vec3 x[4], const Mat3&
                            double volume, double grad[12], Mat12* hessian, bool projectPsd,
                            Mat3* materialStress = nullptr, double* svdCache = nullptr) {
   const Mat3 F = deformationGradient(x, DmInv);
-  Mat3 P;
-  HessianModes modes;
-  const Svd3 svd = cachedSvd3(F, svdCache);
-  const double psi =
-      evaluateMaterialModes(c, F, svd, P, hessian != nullptr ? &modes : nullptr, projectPsd);
-  if (materialStress != nullptr) {
-    const Mat3 rp = transpose(svd.U * transpose(svd.V)) * P;
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) (*materialStress)(i, j) = 0.5 * (rp(i, j) + rp(j, i));
-  }
-  if (hessian != nullptr) detail::hessianFromModes(DmInv, volume, modes, *hessian);
-  detail::elementGradient(shapeGradients(DmInv), volume, P, grad);
-  return volume * psi;
+  return elementForcesSvd(c, F, cachedSvd3(F, svdCache), DmInv, volume, grad, hessian, projectPsd,
+                          materialStress);
 }
 
 /// Element elastic energy V psi(F) alone, for passes that need no forces (line-search trials,

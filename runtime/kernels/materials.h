@@ -55,13 +55,16 @@ constexpr double kFibreStretchMin = 1e-8;
 
 /// Per-element material coefficients as the kernels use them. mu and lambda are the model's
 /// own parameters: for stable Neo-Hookean they are already reparametrised (eq 4.30).
-struct MaterialCoeffs {
+/// T as in math.h: a batch carries one tet's (mu, lambda) a lane and no fibre term.
+template <class T>
+struct MaterialCoeffsT {
   int model = kStableNeoHookean;  ///< An EnergyModel.
-  double mu = 0;                  ///< Shear parameter [Pa].
-  double lambda = 0;              ///< Bulk parameter [Pa].
+  T mu = 0;                       ///< Shear parameter [Pa].
+  T lambda = 0;                   ///< Bulk parameter [Pa].
   double fibreMu = 0;             ///< Fibre stiffness mu_f [Pa]; 0 = no fibre term.
   Vec3 fibreDir{1, 0, 0};         ///< Unit rest-space fibre direction a.
 };
+using MaterialCoeffs = MaterialCoeffsT<double>;
 
 /// Coefficients from Young's modulus E and Poisson ratio nu. Lamé parameters by eq 4.29;
 /// stable Neo-Hookean takes Smith et al. 2018's mu' = 4/3 mu, lambda' = lambda + 5/6 mu
@@ -95,63 +98,72 @@ constexpr int kMaxHessianModes = 13;
 /// dP/dF as a sum of rank-1 terms sum_m w_m vec(Q_m) vec(Q_m)^T: the analytic eigen-systems
 /// give it in this form, and the element kernel maps each Q_m to nodes (element.h) instead of
 /// forming the 9x9 matrix. Terms of weight zero (clamped by the PSD projection) are not kept.
-struct HessianModes {
+/// In a batch a term is kept unless its weight is zero in every lane.
+template <class T>
+struct HessianModesT {
   int count = 0;
-  double w[kMaxHessianModes];
-  double q[kMaxHessianModes][9];  ///< vec(Q_m), row-major
+  T w[kMaxHessianModes];
+  T q[kMaxHessianModes][9];  ///< vec(Q_m), row-major
 
-  GF_HD void add(double weight, const Mat3& Q) {
-    if (weight == 0) return;
+  GF_HD void add(T weight, const Mat3T<T>& Q) {
+    if (Lanes<T>::all(weight == 0)) return;
     w[count] = weight;
     for (int k = 0; k < 9; ++k) q[count][k] = Q.m[k];
     ++count;
   }
 
   /// The 9x9 matrix sum_m w_m vec(Q_m) vec(Q_m)^T.
-  GF_HD Mat9 matrix() const {
-    Mat9 h;
+  GF_HD Mat<9, 9, T> matrix() const {
+    Mat<9, 9, T> h;
     for (int m = 0; m < count; ++m)
       for (int a = 0; a < 9; ++a) {
-        const double la = w[m] * q[m][a];
+        const T la = w[m] * q[m][a];
         for (int b = 0; b < 9; ++b) h.m[a * 9 + b] += la * q[m][b];
       }
     return h;
   }
 };
+using HessianModes = HessianModesT<double>;
 
 namespace detail {
 
 /// psi and its first and second derivatives in the invariants (I1, I2, I3, I4) = (tr S,
 /// I_C, J, II_C).
+template <class T>
 struct InvariantDerivs {
-  double psi = 0;
-  double d[4] = {};
-  double dd[4][4] = {};
+  T psi = 0;
+  T d[4] = {};
+  T dd[4][4] = {};
 };
 
 /// Neo-Hookean log J, continued below kNeoHookeanJMin by its Taylor polynomial; returns the
 /// value and its first two derivatives in J.
-GF_HD double neoHookeanLog(double J, double& d1, double& d2) {
+template <class T>
+GF_HD T neoHookeanLog(T J, T& d1, T& d2) {
+  using L = Lanes<T>;
   const double j0 = kNeoHookeanJMin;
-  if (J >= j0) {
-    d1 = 1.0 / J;
-    d2 = -1.0 / (J * J);
-    return log(J);
-  }
-  const double x = J - j0;
+  const T x = J - j0;
   d1 = 1.0 / j0 - x / (j0 * j0);
-  d2 = -1.0 / (j0 * j0);
-  return log(j0) + x / j0 - 0.5 * x * x / (j0 * j0);
+  d2 = T(-1.0 / (j0 * j0));
+  T l = log(j0) + x / j0 - 0.5 * x * x / (j0 * j0);
+  const MaskOf<T> above = J >= j0;
+  if (L::any(above)) {
+    d1 = L::select(above, 1.0 / J, d1);
+    d2 = L::select(above, -1.0 / (J * J), d2);
+    l = L::select(above, T(log(J)), l);
+  }
+  return l;
 }
 
 /// The isotropic model written in invariants of the signed singular values s.
-GF_HD InvariantDerivs isotropicInvariants(const MaterialCoeffs& c, Vec3 s) {
-  const double mu = c.mu, lambda = c.lambda;
-  const double i1 = s.x + s.y + s.z;
-  const double i2 = s.x * s.x + s.y * s.y + s.z * s.z;
-  const double i3 = s.x * s.y * s.z;
-  const double i4 = s.x * s.x * s.x * s.x + s.y * s.y * s.y * s.y + s.z * s.z * s.z * s.z;
-  InvariantDerivs r;
+template <class T>
+GF_HD InvariantDerivs<T> isotropicInvariants(const MaterialCoeffsT<T>& c, Vec3T<T> s) {
+  const T mu = c.mu, lambda = c.lambda;
+  const T i1 = s.x + s.y + s.z;
+  const T i2 = s.x * s.x + s.y * s.y + s.z * s.z;
+  const T i3 = s.x * s.y * s.z;
+  const T i4 = s.x * s.x * s.x * s.x + s.y * s.y * s.y * s.y + s.z * s.z * s.z * s.z;
+  InvariantDerivs<T> r;
   switch (c.model) {
     case kCorotated: {
       // mu sum (s_i - 1)^2 + lambda/2 (tr S - 3)^2 = mu |F - R|^2 + lambda/2 tr(S - I)^2
@@ -173,8 +185,8 @@ GF_HD InvariantDerivs isotropicInvariants(const MaterialCoeffs& c, Vec3 s) {
     }
     case kNeoHookean: {
       // mu/2 (I_C - 3) - mu log J + lambda/2 (log J)^2 (eq 2.1), log J continued below J_min.
-      double l1, l2;
-      const double l = neoHookeanLog(i3, l1, l2);
+      T l1, l2;
+      const T l = neoHookeanLog(i3, l1, l2);
       r.psi = 0.5 * mu * (i2 - 3.0) - mu * l + 0.5 * lambda * l * l;
       r.d[1] = 0.5 * mu;
       r.d[2] = (lambda * l - mu) * l1;
@@ -186,8 +198,8 @@ GF_HD InvariantDerivs isotropicInvariants(const MaterialCoeffs& c, Vec3 s) {
       // value at F = I so that the rest energy is zero (forces are unchanged).
       // alpha = 1 + 3 mu / (4 lambda) makes F = I stress-free; lambda > 0 always holds for
       // the reparametrised coefficients with nu in (-1, 0.5).
-      const double alpha = lambda > 0 ? 1.0 + 0.75 * mu / lambda : 1.0;
-      const double rest = 0.5 * lambda * (1.0 - alpha) * (1.0 - alpha) - 0.5 * mu * log(4.0);
+      const T alpha = Lanes<T>::select(lambda > 0, 1.0 + 0.75 * mu / lambda, T(1.0));
+      const T rest = 0.5 * lambda * (1.0 - alpha) * (1.0 - alpha) - 0.5 * mu * log(4.0);
       r.psi = 0.5 * mu * (i2 - 3.0) + 0.5 * lambda * (i3 - alpha) * (i3 - alpha) -
               0.5 * mu * log(i2 + 1.0) - rest;
       r.d[1] = 0.5 * mu - 0.5 * mu / (i2 + 1.0);
@@ -201,31 +213,34 @@ GF_HD InvariantDerivs isotropicInvariants(const MaterialCoeffs& c, Vec3 s) {
 }
 
 /// dI/ds_a for the four invariants.
-GF_HD void invariantGradient(Vec3 s, int a, double g[4]) {
-  const double sa = s[a], sb = s[(a + 1) % 3], sc = s[(a + 2) % 3];
+template <class T>
+GF_HD void invariantGradient(Vec3T<T> s, int a, T g[4]) {
+  const T sa = s[a], sb = s[(a + 1) % 3], sc = s[(a + 2) % 3];
   g[0] = 1.0;
   g[1] = 2.0 * sa;
   g[2] = sb * sc;
   g[3] = 4.0 * sa * sa * sa;
 }
 
-GF_HD Vec3 gradientFromInvariants(const InvariantDerivs& r, Vec3 s) {
-  Vec3 g;
+template <class T>
+GF_HD Vec3T<T> gradientFromInvariants(const InvariantDerivs<T>& r, Vec3T<T> s) {
+  Vec3T<T> g;
   for (int a = 0; a < 3; ++a) {
-    double dI[4];
+    T dI[4];
     invariantGradient(s, a, dI);
     g[a] = r.d[0] * dI[0] + r.d[1] * dI[1] + r.d[2] * dI[2] + r.d[3] * dI[3];
   }
   return g;
 }
 
-GF_HD Mat3 hessianFromInvariants(const InvariantDerivs& r, Vec3 s) {
-  double dI[3][4];
+template <class T>
+GF_HD Mat3T<T> hessianFromInvariants(const InvariantDerivs<T>& r, Vec3T<T> s) {
+  T dI[3][4];
   for (int a = 0; a < 3; ++a) invariantGradient(s, a, dI[a]);
-  Mat3 h;
+  Mat3T<T> h;
   for (int a = 0; a < 3; ++a)
     for (int b = 0; b < 3; ++b) {
-      double v = 0;
+      T v = 0;
       for (int p = 0; p < 4; ++p)
         for (int q = 0; q < 4; ++q) v += r.dd[p][q] * dI[a][p] * dI[b][q];
       // Second derivatives of the invariants themselves.
@@ -240,8 +255,9 @@ GF_HD Mat3 hessianFromInvariants(const InvariantDerivs& r, Vec3 s) {
 }
 
 /// u_a v_b^T for columns of U and V.
-GF_HD Mat3 outerUV(const Svd3& svd, int a, int b) {
-  Mat3 q;
+template <class T>
+GF_HD Mat3T<T> outerUV(const Svd3T<T>& svd, int a, int b) {
+  Mat3T<T> q;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) q(i, j) = svd.U(i, a) * svd.V(j, b);
   return q;
@@ -252,52 +268,66 @@ GF_HD Mat3 outerUV(const Svd3& svd, int a, int b) {
 /// definite A (the common case) is split by its Cholesky factor, which is cheaper than an
 /// eigen-solve and exact to round-off; an indefinite A takes the eigen-decomposition, with
 /// negative eigenvalues dropped when projecting (then the sum is the nearest PSD matrix).
-GF_HD void addScalingModes(const Mat3& A, const Svd3& svd, HessianModes& modes, bool projectPsd) {
-  Mat3 k;  // columns k_m
-  double w[3] = {1, 1, 1};
-  const double d0 = A(0, 0);
-  bool pd = d0 > 0;
-  if (pd) {
-    const double l00 = sqrt(d0);
-    const double l10 = A(1, 0) / l00, l20 = A(2, 0) / l00;
-    const double d1 = A(1, 1) - l10 * l10;
-    pd = d1 > 0;
-    if (pd) {
-      const double l11 = sqrt(d1);
-      const double l21 = (A(2, 1) - l20 * l10) / l11;
-      const double d2 = A(2, 2) - l20 * l20 - l21 * l21;
-      pd = d2 > 0;
-      if (pd) {
-        k(0, 0) = l00;
-        k(1, 0) = l10;
-        k(2, 0) = l20;
-        k(1, 1) = l11;
-        k(2, 1) = l21;
-        k(2, 2) = sqrt(d2);
+template <class T>
+GF_HD void addScalingModes(const Mat3T<T>& A, const Svd3T<T>& svd, HessianModesT<T>& modes,
+                           bool projectPsd) {
+  using L = Lanes<T>;
+  Mat3T<T> k;  // columns k_m
+  T w[3] = {1, 1, 1};
+  // Cholesky; a pivot that is not positive (or a NaN from the one before) marks A indefinite.
+  const T d0 = A(0, 0);
+  const T l00 = sqrt(d0);
+  const T l10 = A(1, 0) / l00, l20 = A(2, 0) / l00;
+  const T d1 = A(1, 1) - l10 * l10;
+  const T l11 = sqrt(d1);
+  const T l21 = (A(2, 1) - l20 * l10) / l11;
+  const T d2 = A(2, 2) - l20 * l20 - l21 * l21;
+  const MaskOf<T> pd = d0 > 0 && d1 > 0 && d2 > 0;
+  k(0, 0) = l00;
+  k(1, 0) = l10;
+  k(2, 0) = l20;
+  k(1, 1) = l11;
+  k(2, 1) = l21;
+  k(2, 2) = sqrt(d2);
+  if (!L::all(pd)) {
+    // Indefinite blocks are rare (strongly compressed tets): each such lane on its own.
+    for (int l = 0; l < L::kWidth; ++l) {
+      if (L::lane(pd, l)) continue;
+      Mat3 a, kl;
+      double wl[3];
+      for (int e = 0; e < 9; ++e) a.m[e] = L::lane(A.m[e], l);
+      if constexpr (L::kWidth == 1) {
+        symmetricEigen<3>(a, wl, kl);
+      } else {
+        L::eigen3(a, wl, kl);  // out of line: see fem/element_lanes_batch.h
       }
+      for (int e = 0; e < 9; ++e) L::setLane(k.m[e], l, kl.m[e]);
+      for (int m = 0; m < 3; ++m) L::setLane(w[m], l, wl[m]);
     }
   }
-  if (!pd) symmetricEigen<3>(A, w, k);
   for (int m = 0; m < 3; ++m) {
-    if (projectPsd && w[m] <= 0) continue;
-    Mat3 q;
+    const T wm = projectPsd ? L::select(w[m] <= 0, T(0), w[m]) : w[m];
+    if (L::all(wm == 0)) continue;
+    Mat3T<T> q;
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j)
         q(i, j) = svd.U(i, 0) * k(0, m) * svd.V(j, 0) + svd.U(i, 1) * k(1, m) * svd.V(j, 1) +
                   svd.U(i, 2) * k(2, m) * svd.V(j, 2);
-    modes.add(w[m], q);
+    modes.add(wm, q);
   }
 }
 
 /// Isotropic psi (returned), P = U diag(dpsi/ds) V^T (overwritten) and, when modes is
 /// non-null, the analytic eigen-system of dP/dF added to it.
-GF_HD double isotropicEvaluate(const MaterialCoeffs& c, const Svd3& svd, Mat3& P,
-                               HessianModes* modes, bool projectPsd) {
-  const Vec3 s = svd.s;
-  const InvariantDerivs r = isotropicInvariants(c, s);
-  const Vec3 g = gradientFromInvariants(r, s);
+template <class T>
+GF_HD T isotropicEvaluate(const MaterialCoeffsT<T>& c, const Svd3T<T>& svd, Mat3T<T>& P,
+                          HessianModesT<NoDeduce<T>>* modes, bool projectPsd) {
+  using L = Lanes<T>;
+  const Vec3T<T> s = svd.s;
+  const InvariantDerivs<T> r = isotropicInvariants(c, s);
+  const Vec3T<T> g = gradientFromInvariants(r, s);
 
-  P = Mat3{};
+  P = Mat3T<T>{};
   for (int a = 0; a < 3; ++a) P = P + g[a] * outerUV(svd, a, a);
   if (modes == nullptr) return r.psi;
 
@@ -308,21 +338,22 @@ GF_HD double isotropicEvaluate(const MaterialCoeffs& c, const Svd3& svd, Mat3& P
   for (int k = 2; k >= 0; --k) {
     const int i = k == 0 ? 1 : 0;
     const int j = k == 2 ? 1 : 2;
-    const double si = s[i], sj = s[j], sk = s[k];
-    const double flip = 2.0 * r.d[1] - r.d[2] * sk + 4.0 * r.d[3] * (si * si + si * sj + sj * sj);
-    double twist = 2.0 * r.d[1] + r.d[2] * sk + 4.0 * r.d[3] * (si * si - si * sj + sj * sj);
-    if (r.d[0] != 0) {
+    const T si = s[i], sj = s[j], sk = s[k];
+    const T flip = 2.0 * r.d[1] - r.d[2] * sk + 4.0 * r.d[3] * (si * si + si * sj + sj * sj);
+    T twist = 2.0 * r.d[1] + r.d[2] * sk + 4.0 * r.d[3] * (si * si - si * sj + sj * sj);
+    const MaskOf<T> kink = r.d[0] != 0;
+    if (L::any(kink)) {
       // svd3 puts the sign of det F on the singular value of smallest magnitude, so
       // s_i + s_j >= 0 even for inverted elements; a negative sum is round-off at the kink
       // s_j = -s_i, whose side is the positive one.
-      double den = si + sj;
-      if (den < kTwistDenominatorMin) den = kTwistDenominatorMin;
-      twist += 2.0 * r.d[0] / den;
+      const T den = L::select(si + sj < kTwistDenominatorMin, T(kTwistDenominatorMin), si + sj);
+      twist = L::select(kink, twist + 2.0 * r.d[0] / den, twist);
     }
-    const Mat3 uij = outerUV(svd, i, j);
-    const Mat3 uji = outerUV(svd, j, i);
-    if (!(projectPsd && twist < 0)) modes->add(0.5 * twist, uij - uji);
-    if (!(projectPsd && flip < 0)) modes->add(0.5 * flip, uij + uji);
+    const Mat3T<T> uij = outerUV(svd, i, j);
+    const Mat3T<T> uji = outerUV(svd, j, i);
+    // A weight of zero drops the term (HessianModesT::add).
+    modes->add(projectPsd ? L::select(twist < 0, T(0), 0.5 * twist) : 0.5 * twist, uij - uji);
+    modes->add(projectPsd ? L::select(flip < 0, T(0), 0.5 * flip) : 0.5 * flip, uij + uji);
   }
   return r.psi;
 }
@@ -388,7 +419,8 @@ GF_HD void addFibre(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd, Mat
 }  // namespace detail
 
 /// Isotropic energy density psi(s) at signed singular values s.
-GF_HD double isotropicEnergy(const MaterialCoeffs& c, Vec3 s) {
+template <class T>
+GF_HD T isotropicEnergy(const MaterialCoeffsT<T>& c, Vec3T<T> s) {
   return detail::isotropicInvariants(c, s).psi;
 }
 
@@ -405,12 +437,16 @@ GF_HD Mat3 isotropicHessian(const MaterialCoeffs& c, Vec3 s) {
 /// Energy density psi(F) [J/m^3], P = dpsi/dF and, when modes is non-null, dP/dF as rank-1
 /// terms added to it, all from svd = svd3(F) (e.g. from an SVD cache, svd3.h); the isotropic
 /// model plus the fibre term when fibreMu > 0. See firstPiolaAndHessian for projectPsd.
-GF_HD double evaluateMaterialModes(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd, Mat3& P,
-                                   HessianModes* modes, bool projectPsd) {
-  double psi = detail::isotropicEvaluate(c, svd, P, modes, projectPsd);
-  if (c.fibreMu > 0) {
-    psi += detail::fibreEnergy(c, F, svd);
-    detail::addFibre(c, F, svd, P, modes, projectPsd);
+/// A batch (T not double) evaluates the isotropic model alone: its lanes carry no fibre term.
+template <class T>
+GF_HD T evaluateMaterialModes(const MaterialCoeffsT<T>& c, const Mat3T<T>& F, const Svd3T<T>& svd,
+                              Mat3T<T>& P, HessianModesT<NoDeduce<T>>* modes, bool projectPsd) {
+  T psi = detail::isotropicEvaluate(c, svd, P, modes, projectPsd);
+  if constexpr (Lanes<T>::kWidth == 1) {
+    if (c.fibreMu > 0) {
+      psi += detail::fibreEnergy(c, F, svd);
+      detail::addFibre(c, F, svd, P, modes, projectPsd);
+    }
   }
   return psi;
 }
@@ -434,9 +470,12 @@ GF_HD double evaluateMaterial(const MaterialCoeffs& c, const Mat3& F, Mat3& P, M
 
 /// energyDensity with svd = svd3(F) already known: psi alone, no stress. The same operations
 /// as evaluateMaterial's psi, so the same bits.
-GF_HD double energyDensitySvd(const MaterialCoeffs& c, const Mat3& F, const Svd3& svd) {
-  double psi = isotropicEnergy(c, svd.s);
-  if (c.fibreMu > 0) psi += detail::fibreEnergy(c, F, svd);
+template <class T>
+GF_HD T energyDensitySvd(const MaterialCoeffsT<T>& c, const Mat3T<T>& F, const Svd3T<T>& svd) {
+  T psi = isotropicEnergy(c, svd.s);
+  if constexpr (Lanes<T>::kWidth == 1) {
+    if (c.fibreMu > 0) psi += detail::fibreEnergy(c, F, svd);
+  }
   return psi;
 }
 

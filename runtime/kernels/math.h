@@ -2,46 +2,82 @@
 // at game time steps need it, see docs/design.md). Matrices are row-major.
 #pragma once
 
-#include "gf_hd.h"
+#include "lanes.h"
 
 namespace gf {
 
-struct Vec3 {
-  double x = 0, y = 0, z = 0;
-  GF_HD double& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
-  GF_HD double operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
+/// T is double, or on the CPU's element pass a SIMD batch of one value per tet (lanes.h).
+template <class T>
+struct Vec3T {
+  T x = 0, y = 0, z = 0;
+  GF_HD T& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
+  GF_HD T operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
 };
+using Vec3 = Vec3T<double>;
 
-GF_HD Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-GF_HD Vec3 operator-(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-GF_HD Vec3 operator-(Vec3 a) { return {-a.x, -a.y, -a.z}; }
-GF_HD Vec3 operator*(double s, Vec3 a) { return {s * a.x, s * a.y, s * a.z}; }
-GF_HD Vec3 operator*(Vec3 a, double s) { return {s * a.x, s * a.y, s * a.z}; }
-GF_HD Vec3& operator+=(Vec3& a, Vec3 b) {
+/// The scalar type of a kernel argument without deducing from it, so a double literal or a
+/// double factor combines with a batch.
+template <class T>
+struct ScalarOf {
+  using type = T;
+};
+template <class T>
+using NoDeduce = typename ScalarOf<T>::type;
+
+template <class T>
+GF_HD Vec3T<T> operator+(Vec3T<T> a, Vec3T<T> b) {
+  return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+template <class T>
+GF_HD Vec3T<T> operator-(Vec3T<T> a, Vec3T<T> b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+template <class T>
+GF_HD Vec3T<T> operator-(Vec3T<T> a) {
+  return {-a.x, -a.y, -a.z};
+}
+template <class T>
+GF_HD Vec3T<T> operator*(NoDeduce<T> s, Vec3T<T> a) {
+  return {s * a.x, s * a.y, s * a.z};
+}
+template <class T>
+GF_HD Vec3T<T> operator*(Vec3T<T> a, NoDeduce<T> s) {
+  return {s * a.x, s * a.y, s * a.z};
+}
+template <class T>
+GF_HD Vec3T<T>& operator+=(Vec3T<T>& a, Vec3T<T> b) {
   a.x += b.x;
   a.y += b.y;
   a.z += b.z;
   return a;
 }
-GF_HD Vec3& operator-=(Vec3& a, Vec3 b) {
+template <class T>
+GF_HD Vec3T<T>& operator-=(Vec3T<T>& a, Vec3T<T> b) {
   a.x -= b.x;
   a.y -= b.y;
   a.z -= b.z;
   return a;
 }
-GF_HD double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-GF_HD Vec3 cross(Vec3 a, Vec3 b) {
+template <class T>
+GF_HD T dot(Vec3T<T> a, Vec3T<T> b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+template <class T>
+GF_HD Vec3T<T> cross(Vec3T<T> a, Vec3T<T> b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-GF_HD double norm(Vec3 a) { return sqrt(dot(a, a)); }
+template <class T>
+GF_HD T norm(Vec3T<T> a) {
+  return sqrt(dot(a, a));
+}
 
 /// Fixed-size row-major matrix; Mat<3,3> is the deformation gradient, Mat<9,9> dP/dF,
 /// Mat<12,12> an element Hessian.
-template <int R, int C>
+template <int R, int C, class T = double>
 struct Mat {
-  double m[R * C] = {};
-  GF_HD double& operator()(int i, int j) { return m[i * C + j]; }
-  GF_HD double operator()(int i, int j) const { return m[i * C + j]; }
+  T m[R * C] = {};
+  GF_HD T& operator()(int i, int j) { return m[i * C + j]; }
+  GF_HD T operator()(int i, int j) const { return m[i * C + j]; }
   GF_HD static Mat identity() {
     Mat a;
     for (int i = 0; i < (R < C ? R : C); ++i) a(i, i) = 1.0;
@@ -49,51 +85,55 @@ struct Mat {
   }
 };
 using Mat3 = Mat<3, 3>;
+template <class T>
+using Mat3T = Mat<3, 3, T>;
 using Mat9 = Mat<9, 9>;
 using Mat12 = Mat<12, 12>;
 
-template <int R, int C>
-GF_HD Mat<R, C> operator+(const Mat<R, C>& a, const Mat<R, C>& b) {
-  Mat<R, C> c;
+template <int R, int C, class T>
+GF_HD Mat<R, C, T> operator+(const Mat<R, C, T>& a, const Mat<R, C, T>& b) {
+  Mat<R, C, T> c;
   for (int i = 0; i < R * C; ++i) c.m[i] = a.m[i] + b.m[i];
   return c;
 }
-template <int R, int C>
-GF_HD Mat<R, C> operator-(const Mat<R, C>& a, const Mat<R, C>& b) {
-  Mat<R, C> c;
+template <int R, int C, class T>
+GF_HD Mat<R, C, T> operator-(const Mat<R, C, T>& a, const Mat<R, C, T>& b) {
+  Mat<R, C, T> c;
   for (int i = 0; i < R * C; ++i) c.m[i] = a.m[i] - b.m[i];
   return c;
 }
-template <int R, int C>
-GF_HD Mat<R, C> operator*(double s, const Mat<R, C>& a) {
-  Mat<R, C> c;
+template <int R, int C, class T>
+GF_HD Mat<R, C, T> operator*(NoDeduce<T> s, const Mat<R, C, T>& a) {
+  Mat<R, C, T> c;
   for (int i = 0; i < R * C; ++i) c.m[i] = s * a.m[i];
   return c;
 }
-template <int R, int K, int C>
-GF_HD Mat<R, C> operator*(const Mat<R, K>& a, const Mat<K, C>& b) {
-  Mat<R, C> c;
+template <int R, int K, int C, class T>
+GF_HD Mat<R, C, T> operator*(const Mat<R, K, T>& a, const Mat<K, C, T>& b) {
+  Mat<R, C, T> c;
   for (int i = 0; i < R; ++i)
     for (int k = 0; k < K; ++k) {
-      const double aik = a(i, k);
+      const T aik = a(i, k);
       for (int j = 0; j < C; ++j) c(i, j) += aik * b(k, j);
     }
   return c;
 }
-template <int R, int C>
-GF_HD Mat<C, R> transpose(const Mat<R, C>& a) {
-  Mat<C, R> t;
+template <int R, int C, class T>
+GF_HD Mat<C, R, T> transpose(const Mat<R, C, T>& a) {
+  Mat<C, R, T> t;
   for (int i = 0; i < R; ++i)
     for (int j = 0; j < C; ++j) t(j, i) = a(i, j);
   return t;
 }
-GF_HD Vec3 operator*(const Mat3& a, Vec3 v) {
+template <class T>
+GF_HD Vec3T<T> operator*(const Mat3T<T>& a, Vec3T<T> v) {
   return {a(0, 0) * v.x + a(0, 1) * v.y + a(0, 2) * v.z,
           a(1, 0) * v.x + a(1, 1) * v.y + a(1, 2) * v.z,
           a(2, 0) * v.x + a(2, 1) * v.y + a(2, 2) * v.z};
 }
-GF_HD Mat3 fromColumns(Vec3 a, Vec3 b, Vec3 c) {
-  Mat3 m;
+template <class T>
+GF_HD Mat3T<T> fromColumns(Vec3T<T> a, Vec3T<T> b, Vec3T<T> c) {
+  Mat3T<T> m;
   m(0, 0) = a.x;
   m(0, 1) = b.x;
   m(0, 2) = c.x;
@@ -105,17 +145,25 @@ GF_HD Mat3 fromColumns(Vec3 a, Vec3 b, Vec3 c) {
   m(2, 2) = c.z;
   return m;
 }
-GF_HD Vec3 column(const Mat3& m, int j) { return {m(0, j), m(1, j), m(2, j)}; }
-GF_HD double trace(const Mat3& a) { return a(0, 0) + a(1, 1) + a(2, 2); }
-GF_HD double det(const Mat3& a) {
+template <class T>
+GF_HD Vec3T<T> column(const Mat3T<T>& m, int j) {
+  return {m(0, j), m(1, j), m(2, j)};
+}
+template <class T>
+GF_HD T trace(const Mat3T<T>& a) {
+  return a(0, 0) + a(1, 1) + a(2, 2);
+}
+template <class T>
+GF_HD T det(const Mat3T<T>& a) {
   return a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) -
          a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0)) +
          a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
 }
 /// Inverse; the caller guarantees det != 0 (rest shapes are validated on load).
-GF_HD Mat3 inverse(const Mat3& a) {
-  Mat3 r;
-  const double id = 1.0 / det(a);
+template <class T>
+GF_HD Mat3T<T> inverse(const Mat3T<T>& a) {
+  Mat3T<T> r;
+  const T id = 1.0 / det(a);
   r(0, 0) = (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) * id;
   r(0, 1) = (a(0, 2) * a(2, 1) - a(0, 1) * a(2, 2)) * id;
   r(0, 2) = (a(0, 1) * a(1, 2) - a(0, 2) * a(1, 1)) * id;
@@ -127,9 +175,9 @@ GF_HD Mat3 inverse(const Mat3& a) {
   r(2, 2) = (a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0)) * id;
   return r;
 }
-template <int R, int C>
-GF_HD double frobeniusDot(const Mat<R, C>& a, const Mat<R, C>& b) {
-  double s = 0;
+template <int R, int C, class T>
+GF_HD T frobeniusDot(const Mat<R, C, T>& a, const Mat<R, C, T>& b) {
+  T s = 0;
   for (int i = 0; i < R * C; ++i) s += a.m[i] * b.m[i];
   return s;
 }

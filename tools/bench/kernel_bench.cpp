@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "common/elastic_system.h"
+#include "fem/element_lanes.h"
 #include "fem/element_stage.h"
 #include "graphfrac/jobs.h"
 #include "graphfrac/mesh.h"
@@ -94,7 +95,8 @@ void BM_Triad(benchmark::State& state) {
 }
 BENCHMARK(BM_Triad)->Unit(benchmark::kMillisecond);
 
-// The step's element pass (fem/element_stage.h) as one core runs it: energy, gradient and PSD
+// The step's element pass (fem/element_stage.h, several tets at a time in SIMD lanes where the
+// build has them: fem/element_lanes.h) as one core runs it: energy, gradient and PSD
 // Hessian of every tet written to the per-tet buffers the assembly reads. Its least traffic a
 // tet: the 4 corner indices, Dm^-1 and the rest volume read, energy, gradient and the 144-double
 // Hessian written, and the node positions once over the mesh.
@@ -133,7 +135,7 @@ void BM_ElementStage(benchmark::State& state) {
                              24.0 * double(m.nodeCount()) / double(tets);
   const std::clock_t c0 = std::clock();
   for (auto _ : state) {
-    for (size_t t = 0; t < tets; ++t) stage(int32_t(t));
+    gf::detail::evaluateElementRange(stage, 0, int32_t(tets));
     benchmark::DoNotOptimize(hess.data());
     benchmark::ClobberMemory();
   }
@@ -142,6 +144,7 @@ void BM_ElementStage(benchmark::State& state) {
   state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(tets));
   state.SetBytesProcessed(int64_t(bytes));
   state.counters["bytes_per_tet"] = bytesPerTet;
+  state.counters["lanes"] = gf::detail::elementLaneWidth();
   if (g_triadBytesPerSecond > 0 && s > 0)
     state.counters["triad_share"] = bytes / s / g_triadBytesPerSecond;
 }

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "contact/body_contact.h"
+#include "fem/element_lanes.h"
 #include "fem/piece_merge.h"
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
@@ -183,7 +184,8 @@ double Integrator::elementPass(const FemModel& model, const FemState& state, con
   stage.svdCache = m_svdCache.data();
   stage.closedCrackHessian = m_closedCrackHessian;
   const CpuExecutor exec(jobs);
-  exec.run(model.tetCount, kElementGrain, stage);
+  exec.runRanges(model.tetCount, kElementGrain,
+                 [&stage](int32_t b, int32_t e) { evaluateElementRange(stage, b, e); });
   return exec.sum(m_elemEnergy.data(), model.tetCount);
 }
 
@@ -693,8 +695,10 @@ EnergyBreakdown Integrator::energies(const FemModel& model, const FemState& stat
   // Its own buffers, so that a diagnostic between steps never races or clobbers the step's.
   std::vector<double> energy(size_t(model.tetCount)), grad(12 * size_t(model.tetCount));
   const CpuExecutor exec(jobs);
-  exec.run(model.tetCount, kElementGrain,
-           elementStage(model, state, x, energy.data(), grad.data(), nullptr, nullptr));
+  const ElementStage stage =
+      elementStage(model, state, x, energy.data(), grad.data(), nullptr, nullptr);
+  exec.runRanges(model.tetCount, kElementGrain,
+                 [&stage](int32_t b, int32_t e) { evaluateElementRange(stage, b, e); });
   EnergyBreakdown out;
   out.elastic = exec.sum(energy.data(), model.tetCount);
   out.contact = exec.reduce<SumOp>(

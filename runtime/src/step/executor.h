@@ -29,6 +29,14 @@ class CpuExecutor {
     });
   }
 
+  /// ranges(b, e) over [0, count) split into ranges of at least `grain` items.
+  template <class Ranges>
+  void runRanges(int32_t count, uint32_t grain, const Ranges& ranges) const {
+    if (count <= 0) return;
+    m_jobs->parallelFor(uint32_t(count), grain,
+                        [&ranges](uint32_t b, uint32_t e) { ranges(int32_t(b), int32_t(e)); });
+  }
+
   /// Op over term(0..count) in the order of chunkedReduce (Op's identity for count 0).
   template <class Op, class Term>
   double reduce(int32_t count, const Term& term) const {

@@ -30,7 +30,7 @@ GF_HD Mat3 minimalRotation(Vec3 u, Vec3 w) {
     return r;
   }
   // Rodrigues with the half-angle factor 1 / (1 + c): R = I + [v]x + [v]x^2 / (1 + c).
-  const Mat3 vx = fromColumns({0, v.z, -v.y}, {-v.z, 0, v.x}, {v.y, -v.x, 0});
+  const Mat3 vx = fromColumns(Vec3{0, v.z, -v.y}, Vec3{-v.z, 0, v.x}, Vec3{v.y, -v.x, 0});
   const Mat3 vx2 = vx * vx;
   for (int a = 0; a < 9; ++a) r.m[a] += vx.m[a] + vx2.m[a] / (1 + c);
   return r;
