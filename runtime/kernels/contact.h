@@ -485,7 +485,8 @@ GF_HD double faceContact(const ColliderData& c, Vec3 a, Vec3 b, Vec3 cc, Vec3 nI
 /// Body-body and self contacts of one body for one step (contact/body_contact.h): per node a
 /// run of half-spaces, each a point and an outward unit normal that the node must stay in
 /// front of, with the one-sided penalty of a collider (energy k d^2 / 2, gradient, PSD Hessian
-/// k n n^T; k per half-space, contact/body_contact.h), so the sparse pattern needs nothing new.
+/// k n n^T; k per half-space, contact/body_contact.h). A self pair's plane moves with its face's
+/// nodes (faceNode below), whose cross blocks the sparse pattern lacks.
 struct HalfSpaceContacts {
   const int32_t* start = nullptr;  ///< nodeCount + 1 offsets; null: no half-space this step
   const Vec3* point = nullptr;
@@ -504,15 +505,95 @@ struct HalfSpaceContacts {
   GF_HD bool self(int32_t k) const {
     return partner && partner[k] >= ownFirst && partner[k] < ownEnd;
   }
+  /// Self pairs solved with their face inside the body's step (contact/body_contact.h): per
+  /// half-space the face's three nodes (-1: a fixed plane; an edge-edge pair: the other edge's
+  /// two, the second repeated) and, for an edge-edge pair, its point's weights w (the plane then
+  /// passes through point + sum_i w_i X_i), the face nodes read at X. reaction lists, per node
+  /// (reactionStart, nodeCount + 1; null: no such pair), the entries 3 k + i of the half-spaces k
+  /// whose face has it as node i, in half-space order; owner is each half-space's vertex node.
+  const int32_t* faceNode = nullptr;
+  const Vec3* weight = nullptr;
+  const int32_t* owner = nullptr;
+  const int32_t* reactionStart = nullptr;
+  const int32_t* reaction = nullptr;
+  const double* X = nullptr;
+  double selfSkin = 0;  ///< [m] a self vertex-face pair's plane lies this far in front of its face
+  /// A copy whose moving faces are read at positions x.
+  GF_HD HalfSpaceContacts at(const double* x) const {
+    HalfSpaceContacts h = *this;
+    h.X = x;
+    return h;
+  }
+  GF_HD bool moving(int32_t k) const { return faceNode && faceNode[3 * int64_t(k)] >= 0; }
+  GF_HD Vec3 nodeAt(int32_t i) const {
+    return {X[3 * int64_t(i)], X[3 * int64_t(i) + 1], X[3 * int64_t(i) + 2]};
+  }
+  /// Half-space k for a node at x, its faces read at X: the depth d (> 0 behind the plane), its
+  /// normal n and the weights w with which the face nodes carry it: d's gradient is g = (-n,
+  /// w_1 n, w_2 n, w_3 n) over (node, face nodes). A self vertex-face pair is re-linearised at X:
+  /// the plane of its face as the face now is (its unit normal, the nodes' winding's), d =
+  /// n . (x_1 - x) + selfSkin, and w the barycentric weights of x's projection onto that plane, not
+  /// clamped to the triangle: the plane's tilt and shift under the face nodes' motion, exactly
+  /// (a clamped nearest point lies in the same plane, so it gives the same d, but its weights
+  /// are not d's gradient outside the face). A pair that kept the normal and the point of the
+  /// face's prediction let a vertex sliding over a turning face in (docs/validation.md).
+  GF_HD double pair(int32_t k, Vec3 x, Vec3& n, Vec3& w) const {
+    n = normal[k];
+    w = Vec3{0, 0, 0};
+    if (!moving(k)) return dot(point[k] - x, n);
+    const int32_t* f = faceNode + 3 * int64_t(k);
+    if (f[1] != f[2]) {
+      const Vec3 x1 = nodeAt(f[0]), e1 = nodeAt(f[1]) - x1, e2 = nodeAt(f[2]) - x1;
+      const Vec3 a = cross(e1, e2);
+      const double a2 = dot(a, a);
+      if (a2 > 0) {
+        const Vec3 r = x - x1;
+        const double b1 = dot(cross(r, e2), a) / a2, b2 = dot(cross(e1, r), a) / a2;
+        n = (1.0 / sqrt(a2)) * a;
+        w = Vec3{1 - b1 - b2, b1, b2};
+        return dot(x1 - x, n) + selfSkin;
+      }
+    }
+    w = weight[k];
+    Vec3 p = point[k];
+    for (int i = 0; i < 3; ++i) p += w[i] * nodeAt(f[i]);
+    return dot(p - x, n);
+  }
 
   /// Half-space k of a node at x: its depth (> 0 behind the plane).
-  GF_HD double depth(int32_t k, Vec3 x) const { return dot(point[k] - x, normal[k]); }
+  GF_HD double depth(int32_t k, Vec3 x) const {
+    Vec3 n, w;
+    return pair(k, x, n, w);
+  }
+  /// The reaction on node n of the moving-face half-spaces it is a face node of: gradient
+  /// k d w_i n and the diagonal block k w_i^2 n n^T of the pair's Gauss-Newton Hessian k g g^T
+  /// (PSD; the cross blocks are applied matrix-free, fem/node_stage.h SelfPairCouplingStage).
+  /// No energy: the vertex counts it. Returns whether any acts.
+  GF_HD bool reactionTerms(int32_t n, Vec3& grad, Mat3& hess) const {
+    if (!reactionStart) return false;
+    bool any = false;
+    for (int32_t e = reactionStart[n]; e < reactionStart[n + 1]; ++e) {
+      const int32_t k = reaction[e] / 3, i = reaction[e] % 3;
+      Vec3 nk, wk;
+      const double d = pair(k, nodeAt(owner[k]), nk, wk);
+      if (!(d > 0)) continue;
+      const double w = wk[i];
+      grad += (stiffness[k] * d * w) * nk;
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) hess(a, b) += stiffness[k] * w * w * nk[a] * nk[b];
+      any = true;
+    }
+    return any;
+  }
   /// The penalty of node n at x over its half-spaces, added to grad and hess.
   GF_HD double contact(int32_t n, Vec3 x, Vec3& grad, Mat3& hess) const {
     if (!start) return 0;
     double e = 0;
-    for (int32_t k = start[n]; k < start[n + 1]; ++k)
-      e += penaltyContact(stiffness[k], depth(k, x), normal[k], grad, hess);
+    for (int32_t k = start[n]; k < start[n + 1]; ++k) {
+      Vec3 nk, wk;
+      const double d = pair(k, x, nk, wk);
+      e += penaltyContact(stiffness[k], d, nk, grad, hess);
+    }
     return e;
   }
   /// The friction of node n sliding from xn to x over its half-spaces' faces (nodeFriction,

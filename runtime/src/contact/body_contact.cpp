@@ -322,8 +322,36 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     nl.muLambda = out.muLambda.data();
     nl.stiffness = out.stiffness.data();
     nl.impulse = out.impulse.data();
+    out.faceNode.resize(3 * size_t(total));
+    out.weight.resize(size_t(total));
+    nl.faceNode = out.faceNode.data();
+    nl.weight = out.weight.data();
     exec.run(N, 1024, nl);
     out.active = true;
+    // Per node, the self pairs whose face (or other edge) it carries, in half-space order (a
+    // serial count, scan and fill: the lists are short, and their order is the sums').
+    out.owner.resize(size_t(total));
+    out.reactionStart.assign(size_t(N) + 1, 0);
+    out.moving = false;
+    for (int32_t n = 0; n < N; ++n)
+      for (int32_t k = out.start[size_t(n)]; k < out.start[size_t(n) + 1]; ++k) {
+        out.owner[size_t(k)] = n;
+        if (out.faceNode[3 * size_t(k)] < 0) continue;
+        out.moving = true;
+        for (int c = 0; c < 3; ++c)
+          ++out.reactionStart[size_t(out.faceNode[3 * size_t(k) + c]) + 1];
+      }
+    if (out.moving) {
+      for (int32_t n = 0; n < N; ++n)
+        out.reactionStart[size_t(n) + 1] += out.reactionStart[size_t(n)];
+      out.reaction.resize(size_t(out.reactionStart[size_t(N)]));
+      out.reactionFill.assign(out.reactionStart.begin(), out.reactionStart.end() - 1);
+      for (int32_t k = 0; k < total; ++k)
+        if (out.faceNode[3 * size_t(k)] >= 0)
+          for (int c = 0; c < 3; ++c)
+            out.reaction[size_t(out.reactionFill[size_t(out.faceNode[3 * size_t(k) + c])]++)] =
+                3 * k + c;
+    }
     m_pairCount += total;
   }
   return m_pairCount;
@@ -343,6 +371,14 @@ HalfSpaceContacts BodyContact::halfSpaces(size_t si) const {
   h.partner = s.partner.data();
   h.ownFirst = m_table[si].groupBase;
   h.ownEnd = s.groupEnd;
+  if (s.moving) {
+    h.selfSkin = kContactSelfSkin * m_table[si].thickness();
+    h.faceNode = s.faceNode.data();
+    h.weight = s.weight.data();
+    h.owner = s.owner.data();
+    h.reactionStart = s.reactionStart.data();
+    h.reaction = s.reaction.data();
+  }
   return h;
 }
 

@@ -66,6 +66,28 @@
 //   TwoBlocksComeToRestStacked's steps then reported not ok. k is a collider's 100 / dt^2 per unit
 //   mass times the vertex's surface area times the denser material and the coarser cell: per unit
 //   area and equal on both sides of a pair, so that at rest both sides carry the same load.
+// - Self pairs (both sides in one body) are solved with their face inside the body's Newton
+//   step, re-linearised at every iterate (HalfSpaceContacts::pair): a vertex-face pair's plane is
+//   its face's as the face now is, d = n . (x_1 - x_v) + s with n the face's current unit normal
+//   and s half a contact thickness (kContactSelfSkin: the penalty's give under a landing piece
+//   is about a thickness), energy k d^2 / 2, gradient k d g with g = (-n, w_1 n, w_2 n, w_3 n),
+//   w the barycentric weights of the vertex's projection onto the plane (exactly d's gradient;
+//   a pair that kept the predicted face's normal and nearest point for the step let a vertex
+//   sliding over a turning face in by 4 mm). An edge-edge pair keeps its predicted normal and
+//   moves with the other edge's point. The pair acts on the vertex and, through a per-node index
+//   of the pairs whose face it carries, on the face nodes (k d w_i n): an exact action and
+//   reaction inside the body, so the receding rule and the give-way above are not needed and
+//   the pair is left out of the momentum exchange; and such a pair acts only where the two
+//   sides really meet, so it is kept from a cell in front (kContactSelfReach): the pieces of a
+//   cut block approach each other only within the landing step, whose pairs chosen at the
+//   thickness were none. The Newton matrix is the Gauss-Newton k g g^T per acting pair (PSD):
+//   its diagonal blocks go into the sparse pattern, the cross blocks are applied matrix-free in
+//   a flexible CG preconditioned by the body's own solver on the pattern
+//   (Integrator::coupledSolve; with the diagonal blocks alone Newton took 12-41 iterations a
+//   step). A body with no acting self pair takes the plain solve; a step in which one acts goes
+//   on to convergence, up to kMaxSelfIterations. Friction's lagged normal force is the pair's
+//   depth at x_n: the lagged plane's (the face's prediction against the vertex's start) made
+//   pairs kept early rub the pieces of a falling cut bunny apart.
 // - Momentum. A lagged plane is not an exact action-reaction pair, so after the bodies have
 //   stepped, the impulse each half-space gave (as the last Newton step linearised it, what
 //   entered the momentum balance) is summed over each cluster of groups that touch (directly
@@ -207,6 +229,11 @@ class BodyContact {
     std::vector<int32_t> fragment;  // per node: the body's fragments when the pairs were found
     int32_t groupEnd = 0;           // one past the body's last group
     std::vector<double> impulse;    // 3 per half-space
+    // Self pairs solved with their face (HalfSpaceContacts::faceNode): per half-space its face
+    // nodes, weights and vertex node, and per node the entries it carries.
+    std::vector<int32_t> faceNode, owner, reactionStart, reaction, reactionFill;
+    std::vector<Vec3> weight;
+    bool moving = false;  // any self pair
     bool active = false;
     BodyContactBalance balance;
     // Scratch of the stages.

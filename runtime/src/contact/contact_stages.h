@@ -47,6 +47,15 @@ constexpr double kContactEdgeEnd = 0.05;
 // thickness: one point may have to stop a whole body, so its plane is set up a step before it
 // is met (a plane not reached costs nothing: the penalty is one-sided).
 constexpr double kContactEdgeReach = 0.25;
+// A self vertex-face pair is kept while the vertex's prediction comes within this many cells
+// of the face: its plane moves with the face's nodes inside the body's Newton step (design
+// note), so a pair found early acts only where the two sides really meet, and the landing step,
+// in which pieces that fell together first approach, already holds it.
+constexpr double kContactSelfReach = 1.0;
+// A self vertex-face pair's plane lies this many contact thicknesses in front of its face: the
+// penalty gives under a landing piece (1.42 mm of a thrown piece's nodes in the other, bound
+// 1 mm, with the plane at the face; 0.75 mm with it here).
+constexpr double kContactSelfSkin = 0.5;
 
 GF_HD Vec3 contactLoad3(const double* p, int32_t i) {
   return {p[3 * int64_t(i)], p[3 * int64_t(i) + 1], p[3 * int64_t(i) + 2]};
@@ -153,6 +162,13 @@ struct ContactHalfSpace {
   int32_t node = 0, face = 0, partner = 0;  ///< partner: the group on the other side
   Vec3 point, normal, faceMotion;
   double muLambda = 0, stiffness = 0;
+  /// A self pair solved with its face (HalfSpaceContacts::faceNode): the face's nodes (an
+  /// edge-edge pair: the other edge's two, the second repeated with weight 0), -1 none, and the
+  /// nearest point's weights; point is then the offset from sum w_i x_i. A vertex-face pair is
+  /// re-linearised at each iterate (HalfSpaceContacts::pair), its weights only for a face that
+  /// degenerates there.
+  int32_t faceNode[3] = {-1, -1, -1};
+  Vec3 weight;
 };
 
 /// A run of half-spaces into face order, stably (equal faces keep their order): the few pairs
@@ -433,7 +449,10 @@ struct ContactVertexPairStage {
       boxEmpty(vbox);
       boxGrow(vbox, xv);
       boxGrow(vbox, pv);
-      boxPad(vbox, th);
+      // A body of several fragments also looks for self pairs, from further away.
+      const double selfReach = kContactSelfReach * b.cellSize;
+      const double reach = b.fragment && selfReach > th ? selfReach : th;
+      boxPad(vbox, reach);
       auto visit = [&](int32_t cf) {
         if (!boxOverlap(vbox, scene.grid.faceBox + 6 * int64_t(cf))) return;
         const ContactBody* o = nullptr;
@@ -465,7 +484,8 @@ struct ContactVertexPairStage {
         const double s = dot(r, nq);
         const Vec3 cp = w.x * p[0] + w.y * p[1] + w.z * p[2];
         const double s0 = dot(xv - cp, np);
-        if (s > th || norm(r - s * nq) > kContactLateral * L) return;
+        const double keep = o == &b ? reach : th;
+        if (s > keep || norm(r - s * nq) > kContactLateral * L) return;
         if (s0 < -kContactBehind * th) return;
         // Surfaces in contact face each other: a vertex on the rim of a face's side (a corner
         // resting on the other's top face) is not pushed out through the side.
@@ -555,6 +575,18 @@ struct ContactVertexPairStage {
           h.faceMotion = cqi - cpi;
           h.muLambda = startDepth > 0 ? mu * k * startDepth : 0.0;
           h.stiffness = k;
+          if (o == &b) {
+            // Solved with its face: the plane of the face as it moves, a skin in front.
+            for (int c = 0; c < 3; ++c) h.faceNode[c] = face[c];
+            h.weight = wi;
+            h.point = Vec3{0, 0, 0};
+            // Friction's normal force from the pair as it is at x_n: the lagged plane's depth
+            // (the face's prediction against the vertex's start) let pairs kept from a cell
+            // away rub the pieces of a falling cut body apart.
+            h.muLambda = s0 < 0 ? mu * k * -s0 : 0.0;
+          } else {
+            for (int c = 0; c < 3; ++c) h.faceNode[c] = -1;
+          }
         }
         ++count;
       };
@@ -715,6 +747,15 @@ struct ContactEdgePairStage {
                 h.faceMotion = iB - xB;
                 h.muLambda = 0;
                 h.stiffness = k * (i == 0 ? 1 - sA : sA);
+                for (int c = 0; c < 3; ++c) h.faceNode[c] = -1;
+                if (o == &b) {
+                  // Solved with the other edge: its point (1 - t) x_b0 + t x_b1 carries the
+                  // plane.
+                  h.faceNode[0] = b0;
+                  h.faceNode[1] = h.faceNode[2] = b1;
+                  h.weight = Vec3{1 - tB, tB, 0};
+                  h.point = (i == 0 ? ia0 : ia1) - iA;
+                }
               }
               ++count;
             }
@@ -751,9 +792,13 @@ struct ContactNodeListStage {
   int32_t* partner = nullptr;
   double* muLambda = nullptr;
   double* stiffness = nullptr;
-  double* impulse = nullptr;  ///< 3 per half-space, zeroed
+  double* impulse = nullptr;    ///< 3 per half-space, zeroed
+  int32_t* faceNode = nullptr;  ///< 3 per half-space
+  Vec3* weight = nullptr;
 
   GF_HD void put(int32_t at, const ContactHalfSpace& h) const {
+    for (int k = 0; k < 3; ++k) faceNode[3 * int64_t(at) + k] = h.faceNode[k];
+    weight[at] = h.weight;
     point[at] = h.point;
     normal[at] = h.normal;
     faceMotion[at] = h.faceMotion;

@@ -45,6 +45,10 @@ constexpr int kMaxContactIterations = 2;
 // the node met the face with the whole step's motion still to absorb, and the penalty takes
 // a fraction of its depth per iteration.
 constexpr int kMaxSweptIterations = 12;
+// The same for a body whose self pairs are solved with their faces (contact/body_contact.h): a
+// thrown cut piece's landing step took 17 iterations, the next one 22 (the pairs' lagged friction,
+// whose Hessian stand-in makes Newton contract by a fixed ratio while a vertex slides).
+constexpr int kMaxSelfIterations = 30;
 constexpr double kSweptTolerance = 1e-3;
 // A face's entry into a collider (FaceEntryNodeStage) clamps the nodes that cross its plane
 // within this many times the face's size of the entry point: the face's own nodes and the ring
@@ -237,7 +241,7 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
   nodes.colliders = ctx.colliders;
   nodes.colliderCount = ctx.colliderCount;
   nodes.swept = m_swept;
-  nodes.bodies = ctx.bodyContacts;
+  nodes.bodies = ctx.bodyContacts.at(x);
   nodes.friction = m_friction;
   nodes.dt = dt;
   nodes.massDamping = r1;
@@ -291,9 +295,13 @@ double Integrator::dampingTerm(const FemState& state, const double* xn, const do
 
 bool Integrator::enteredUnseenContact(const FemModel& model, const FemState& state,
                                       const StepContext& ctx, JobSystem& jobs) const {
-  const UnseenContactTerm unseen{m_x.data(),      m_contactSeen.data(), state.fixedNode.data(),
-                                 ctx.colliders,   ctx.colliderCount,    m_swept,
-                                 ctx.bodyContacts};
+  const UnseenContactTerm unseen{m_x.data(),
+                                 m_contactSeen.data(),
+                                 state.fixedNode.data(),
+                                 ctx.colliders,
+                                 ctx.colliderCount,
+                                 m_swept,
+                                 ctx.bodyContacts.at(m_x.data())};
   const CpuExecutor exec(jobs);
   if (m_faceOn && m_faceAny &&
       exec.reduce<MaxOp>(m_faceCount, FaceUnseenTerm{m_x.data(), faceContacts()}) > 0)
@@ -796,6 +804,116 @@ void Integrator::prescribedNodeForces(const FemModel& model, const FemState& sta
       PrescribedGradientStage{m_grad.data(), state.fixedNode.data(), 1.0 / dt2, out.data()});
 }
 
+SolveReport Integrator::patternSolve(const FemModel& model, const double* b, double* x,
+                                     double tolerance, double toleranceScale, JobSystem& jobs) {
+  SolveReport sr;
+  if (m_inert) {
+    // Block diagonal: block-Jacobi PCG is exact in one iteration, where a factorisation or a
+    // V-cycle of the whole pattern would cost as much as for the intact body.
+    sr = m_pcg.solve(m_A, b, x, model.solver.maxLinearIterations, tolerance, jobs);
+  } else if (m_cholesky) {
+    sr = m_cholesky->solve(m_A, b, x);
+  } else if (m_multigrid) {
+    sr = m_multigrid->solve(m_A, b, x, model.solver.maxLinearIterations, tolerance, jobs);
+    // A fixed number of V-cycles is a chosen cost, not a convergence target: only a
+    // non-finite result is a failure there.
+    if (!model.solver.multigrid.preconditionCG && std::isfinite(sr.relativeResidual))
+      sr.converged = true;
+  } else {
+    sr = m_pcg.solve(m_A, b, x, model.solver.maxLinearIterations, tolerance, jobs);
+  }
+  sr.relativeResidual /= toleranceScale;  // against the scale the tolerance was set on
+  return sr;
+}
+
+bool Integrator::selfPairsAct(const FemModel& model, const StepContext& ctx, double dt2,
+                              JobSystem& jobs) {
+  const HalfSpaceContacts& h = ctx.bodyContacts;
+  if (!h.start || !h.reactionStart) return false;
+  const int32_t pairs = h.start[model.nodeCount];
+  m_pairActive.resize(size_t(pairs));
+  m_pairProjection.resize(size_t(pairs));
+  m_pairNormal.resize(size_t(pairs));
+  m_pairWeight.resize(size_t(pairs));
+  const CpuExecutor exec(jobs);
+  exec.run(pairs, kNodeGrain,
+           SelfPairActiveStage{h.at(m_x.data()), dt2, m_pairActive.data(), m_pairNormal.data(),
+                               m_pairWeight.data()});
+  return exec.max(m_pairActive.data(), pairs) > 0;
+}
+
+SolveReport Integrator::coupledSolve(const FemModel& model, const FemState& state,
+                                     const StepContext& ctx, double tolerance,
+                                     double toleranceScale, JobSystem& jobs) {
+  // Flexible preconditioned CG on the whole Newton matrix, m_A plus the moving self pairs' cross
+  // terms (SelfPairCouplingStage), preconditioned by the body's own solver on m_A, which holds
+  // the pairs' diagonal blocks: the direct factor once, or a multigrid or block-Jacobi solve
+  // per iteration (flexible: an inexact inner solve is not a fixed linear operator).
+  const CpuExecutor exec(jobs);
+  const HalfSpaceContacts h = ctx.bodyContacts;
+  const int32_t n3 = int32_t(m_x.size()), pairs = h.start[model.nodeCount];
+  const uint8_t* fixed = state.fixedNode.data();
+  for (std::vector<double>* v : {&m_cgR, &m_cgZ, &m_cgP, &m_cgQ}) v->resize(size_t(n3));
+  auto apply = [&](const double* p, double* y) {
+    m_A.multiply(p, y, jobs);
+    exec.run(pairs, kNodeGrain,
+             SelfPairProjectStage{h, fixed, m_pairActive.data(), m_pairNormal.data(),
+                                  m_pairWeight.data(), p, m_pairProjection.data()});
+    exec.run(model.nodeCount, kNodeGrain,
+             SelfPairCouplingStage{h, fixed, m_pairActive.data(), m_pairNormal.data(),
+                                   m_pairWeight.data(), m_pairProjection.data(), p, y});
+  };
+  const bool factored = m_cholesky && !m_inert && m_cholesky->factorize(m_A);
+  SolveReport sr;
+  auto precondition = [&](const double* r, double* z) {
+    exec.run(n3, kNodeGrain, FillStage{0.0, z});
+    if (factored) {
+      m_cholesky->solveFactored(r, z);
+    } else if (m_cholesky && !m_inert) {
+      sr.iterations +=
+          m_pcg.solve(m_A, r, z, model.solver.maxLinearIterations, tolerance, jobs).iterations;
+    } else {
+      sr.iterations += patternSolve(model, r, z, tolerance, 1.0, jobs).iterations;
+    }
+  };
+  double* x = m_dx.data();
+  double *r = m_cgR.data(), *z = m_cgZ.data(), *p = m_cgP.data(), *q = m_cgQ.data();
+  const double bNorm = std::sqrt(exec.dot(m_rhs.data(), m_rhs.data(), n3));
+  if (!(bNorm > 0)) {
+    exec.run(n3, kNodeGrain, FillStage{0.0, x});
+    sr.converged = true;
+    return sr;
+  }
+  apply(x, q);
+  exec.run(n3, kNodeGrain, AxpyStage{m_rhs.data(), q, -1.0, r});
+  double rz = 0, alpha = 0;
+  for (int it = 0;; ++it) {
+    sr.relativeResidual = std::sqrt(exec.dot(r, r, n3)) / bNorm;
+    if (sr.relativeResidual <= tolerance) {
+      sr.converged = true;
+      break;
+    }
+    if (it >= model.solver.maxLinearIterations || !std::isfinite(sr.relativeResidual)) break;
+    precondition(r, z);
+    const double rzNext = exec.dot(r, z, n3);
+    // Polak-Ribiere: beta = z.(r - r_old) / rz_old, with r - r_old = -alpha q_old.
+    if (it == 0)
+      exec.run(n3, kNodeGrain, CopyStage{z, p});
+    else
+      exec.run(n3, kNodeGrain, AxpyStage{z, p, -alpha * exec.dot(z, q, n3) / rz, p});
+    rz = rzNext;
+    apply(p, q);
+    const double pq = exec.dot(p, q, n3);
+    if (!(pq > 0) || !(rz > 0)) break;
+    alpha = rz / pq;
+    exec.run(n3, kNodeGrain, AxpyStage{x, p, alpha, x});
+    exec.run(n3, kNodeGrain, AxpyStage{r, q, -alpha, r});
+    ++sr.iterations;
+  }
+  sr.relativeResidual /= toleranceScale;
+  return sr;
+}
+
 double Integrator::solve(const FemModel& model, FemState& state, const StepContext& ctx,
                          double fullDt, bool judgeFracture, JobSystem& jobs, BodyStepReport& rep) {
   const double dt = ctx.dt, dt2 = dt * dt;
@@ -922,33 +1040,18 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       if (spin2 > rhs2 && rhs2 > 0) toleranceScale = std::sqrt(spin2 / rhs2);
     }
     const double tolerance = model.solver.linearTolerance * toleranceScale;
-    SolveReport sr;
-    if (m_inert) {
-      // Block diagonal: block-Jacobi PCG is exact in one iteration, where a factorisation or a
-      // V-cycle of the whole pattern would cost as much as for the intact body.
-      sr = m_pcg.solve(m_A, m_rhs.data(), m_dx.data(), model.solver.maxLinearIterations, tolerance,
-                       jobs);
-    } else if (m_cholesky) {
-      sr = m_cholesky->solve(m_A, m_rhs.data(), m_dx.data());
-    } else if (m_multigrid) {
-      // Cracks change the binding only when edges broke since the last solve (SPEC §5).
-      if (m_fracture && m_fracture->brokenCount() != m_boundBrokenCount) {
-        const EdgeGraph& g = m_fracture->graph();
-        m_multigrid->rebind(g.edgeNodes.data(), m_fracture->broken().data(), g.edgeCount, jobs);
-        m_boundBrokenCount = m_fracture->brokenCount();
-        m_rebindHistory.push_back(m_boundBrokenCount);
-      }
-      sr = m_multigrid->solve(m_A, m_rhs.data(), m_dx.data(), model.solver.maxLinearIterations,
-                              tolerance, jobs);
-      // A fixed number of V-cycles is a chosen cost, not a convergence target: only a
-      // non-finite result is a failure there.
-      if (!model.solver.multigrid.preconditionCG && std::isfinite(sr.relativeResidual))
-        sr.converged = true;
-    } else {
-      sr = m_pcg.solve(m_A, m_rhs.data(), m_dx.data(), model.solver.maxLinearIterations, tolerance,
-                       jobs);
+    // Cracks change the binding only when edges broke since the last solve (SPEC §5).
+    if (m_multigrid && !m_inert && !m_cholesky && m_fracture &&
+        m_fracture->brokenCount() != m_boundBrokenCount) {
+      const EdgeGraph& g = m_fracture->graph();
+      m_multigrid->rebind(g.edgeNodes.data(), m_fracture->broken().data(), g.edgeCount, jobs);
+      m_boundBrokenCount = m_fracture->brokenCount();
+      m_rebindHistory.push_back(m_boundBrokenCount);
     }
-    sr.relativeResidual /= toleranceScale;  // against the scale the tolerance was set on
+    const SolveReport sr =
+        selfPairsAct(model, ctx, dt2, jobs)
+            ? coupledSolve(model, state, ctx, tolerance, toleranceScale, jobs)
+            : patternSolve(model, m_rhs.data(), m_dx.data(), tolerance, toleranceScale, jobs);
     rep.solveMs += msSince(t0);
     rep.linearIterations += sr.iterations;
     rep.residual = std::max(rep.residual, sr.relativeResidual);
@@ -1042,7 +1145,8 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     } else if (releasedBodyContact(model, state, ctx, jobs)) {
       // From here on to convergence: where the released half-spaces no longer act.
       swept = true;
-      iterationCap = it + 1 + kMaxSweptIterations;
+      iterationCap =
+          it + 1 + (ctx.bodyContacts.reactionStart ? kMaxSelfIterations : kMaxSweptIterations);
       newReference = true;
       converged = false;
     } else if (!modelOvershot && !enteredUnseenContact(model, state, ctx, jobs)) {

@@ -183,6 +183,15 @@ class Integrator {
   // m_x; fracture is judged in its first pass when asked. Returns the elastic energy at m_x.
   double solve(const FemModel& model, FemState& state, const StepContext& ctx, double fullDt,
                bool judgeFracture, JobSystem& jobs, BodyStepReport& rep);
+  // The Newton system with the pattern matrix m_A alone (b into x, x the start), by the body's
+  // solver; the residual is reported against toleranceScale.
+  SolveReport patternSolve(const FemModel& model, const double* b, double* x, double tolerance,
+                           double toleranceScale, JobSystem& jobs);
+  // Whether a moving self pair acts at m_x (SelfPairActiveStage, into m_pairActive).
+  bool selfPairsAct(const FemModel& model, const StepContext& ctx, double dt2, JobSystem& jobs);
+  // The Newton system with the moving self pairs' cross terms (m_rhs into m_dx).
+  SolveReport coupledSolve(const FemModel& model, const FemState& state, const StepContext& ctx,
+                           double tolerance, double toleranceScale, JobSystem& jobs);
   // The swept contacts of the step (SweepStage) into m_swept, from x_n over the full step;
   // flags kStepContactSwept when a node's path would have passed through a collider.
   void sweepColliders(const FemModel& model, const FemState& state, const StepContext& ctx,
@@ -266,6 +275,9 @@ class Integrator {
   std::vector<double> m_impulses;          // ColliderImpulseStage's, 6 per collider and node
   std::vector<double> m_balanceTerms;      // BodyContactBalanceStage's
   std::vector<double> m_adx;               // A dx, the Newton model's curvature along dx
+  std::vector<double> m_pairActive, m_pairProjection;  // per half-space, SelfPair*Stage's
+  std::vector<Vec3> m_pairNormal, m_pairWeight;
+  std::vector<double> m_cgR, m_cgZ, m_cgP, m_cgQ;  // coupledSolve's vectors
   // Boundary faces as 4-node elements (FaceContacts::faces), their gather plans and per-face
   // contacts (fem/face_stage.h); built when the first box, sphere or capsule collider appears,
   // and again when the fragments change (their version, m_facesKey): each fragment's boundary,

@@ -75,6 +75,7 @@ struct NodePotentialStage {
     for (int c = 0; c < colliderCount; ++c)
       contact += swept.contact(colliders[c], c, n, xi, m, cg, ch);
     contact += bodies.contact(n, xi, cg, ch) + bodies.friction(n, xi, xni, cg, ch);
+    bodies.reactionTerms(n, cg, ch);
     const Vec3 dy = xi - yi, dn = xi - xni;
     const double w = drag ? drag[n] : 0.0;
     const Vec3 dp = tether.offset(n, xi);
@@ -199,9 +200,93 @@ struct ReleasedContactTerm {
     if (fixedNode[n] || bodies.start[n] == bodies.start[n + 1]) return 0.0;
     const Vec3 xi{x[3 * int64_t(n)], x[3 * int64_t(n) + 1], x[3 * int64_t(n) + 2]};
     const Vec3 xl{xLin[3 * int64_t(n)], xLin[3 * int64_t(n) + 1], xLin[3 * int64_t(n) + 2]};
-    for (int32_t k = bodies.start[n]; k < bodies.start[n + 1]; ++k)
-      if (bodies.self(k) && bodies.depth(k, xl) > 0 && bodies.depth(k, xi) < 0) return 1.0;
+    const HalfSpaceContacts atLin = bodies.at(xLin), atX = bodies.at(x);
+    for (int32_t k = bodies.start[n]; k < bodies.start[n + 1]; ++k) {
+      const double dl = atLin.depth(k, xl), dx = atX.depth(k, xi);
+      if (bodies.self(k) && dl > 0 && dx < 0) return 1.0;
+      // A pair solved with its face is piecewise quadratic in the body's unknowns: where it acts
+      // (or did), the step goes on to convergence.
+      if (atX.moving(k) && (dl > 0 || dx > 0)) return 1.0;
+    }
     return 0.0;
+  }
+};
+
+/// The cross terms of the moving self pairs (contact/body_contact.h) that the block pattern
+/// lacks. Pair k's Gauss-Newton Hessian is k g g^T, g = (-n, w_1 n, w_2 n, w_3 n) over (vertex,
+/// face nodes) the gradient of its depth at the linearisation (HalfSpaceContacts::pair); its
+/// diagonal blocks are in the matrix (contact and reactionTerms), the rest is applied here,
+/// matrix-free. First per half-space (SelfPairActiveStage) a_k = dt^2 k when the pair acts at
+/// the linearisation else 0, with its n and w there; then (SelfPairProjectStage) s_k = a_k g_k . p;
+/// then per node (SelfPairCouplingStage) its rows of sum_k a_k g_k g_k^T p less the diagonal
+/// blocks, summed in half-space order. Prescribed nodes take no part (their rows and columns are
+/// the identity's).
+struct SelfPairActiveStage {
+  HalfSpaceContacts bodies;  ///< at the linearisation point
+  double dt2 = 0;
+  double* active = nullptr;  ///< per half-space
+  Vec3* normal = nullptr;    ///< per half-space, n and w at the linearisation point
+  Vec3* weight = nullptr;
+
+  GF_HD void operator()(int32_t k) const {
+    Vec3 n{0, 0, 0}, w{0, 0, 0};
+    const double d = bodies.moving(k) ? bodies.pair(k, bodies.nodeAt(bodies.owner[k]), n, w) : 0.0;
+    active[k] = d > 0 ? dt2 * bodies.stiffness[k] : 0.0;
+    normal[k] = n;
+    weight[k] = w;
+  }
+};
+
+struct SelfPairProjectStage {
+  HalfSpaceContacts bodies;
+  const uint8_t* fixedNode = nullptr;
+  const double* active = nullptr;
+  const Vec3* normal = nullptr;  ///< SelfPairActiveStage's
+  const Vec3* weight = nullptr;
+  const double* p = nullptr;
+  double* s = nullptr;  ///< per half-space
+
+  GF_HD Vec3 at(int32_t n) const {
+    if (fixedNode[n]) return {0, 0, 0};
+    return {p[3 * int64_t(n)], p[3 * int64_t(n) + 1], p[3 * int64_t(n) + 2]};
+  }
+  GF_HD void operator()(int32_t k) const {
+    if (active[k] == 0) {
+      s[k] = 0;
+      return;
+    }
+    Vec3 q = -1.0 * at(bodies.owner[k]);
+    for (int i = 0; i < 3; ++i) q += weight[k][i] * at(bodies.faceNode[3 * int64_t(k) + i]);
+    s[k] = active[k] * dot(normal[k], q);
+  }
+};
+
+struct SelfPairCouplingStage {
+  HalfSpaceContacts bodies;
+  const uint8_t* fixedNode = nullptr;
+  const double* active = nullptr;
+  const Vec3* normal = nullptr;  ///< SelfPairActiveStage's
+  const Vec3* weight = nullptr;
+  const double* s = nullptr;
+  const double* p = nullptr;
+  double* y = nullptr;  ///< added to
+
+  GF_HD void operator()(int32_t n) const {
+    if (fixedNode[n]) return;
+    const int64_t i3 = 3 * int64_t(n);
+    const Vec3 pn{p[i3], p[i3 + 1], p[i3 + 2]};
+    Vec3 acc{0, 0, 0};
+    for (int32_t k = bodies.start[n]; k < bodies.start[n + 1]; ++k)
+      if (active[k] != 0) acc += -(s[k] + active[k] * dot(normal[k], pn)) * normal[k];
+    for (int32_t e = bodies.reactionStart[n]; e < bodies.reactionStart[n + 1]; ++e) {
+      const int32_t k = bodies.reaction[e] / 3;
+      if (active[k] == 0) continue;
+      const double w = weight[k][bodies.reaction[e] % 3];
+      acc += (w * (s[k] - active[k] * w * dot(normal[k], pn))) * normal[k];
+    }
+    y[i3] += acc.x;
+    y[i3 + 1] += acc.y;
+    y[i3 + 2] += acc.z;
   }
 };
 
@@ -314,10 +399,14 @@ struct BodyContactBalanceStage {
     Vec3 linearised{0, 0, 0};
     if (!fixedNode[n]) {
       const Vec3 xl{xLin[i3], xLin[i3 + 1], xLin[i3 + 2]};
+      const HalfSpaceContacts atLin = hs.at(xLin);
       for (int32_t c = hs.start[n]; c < hs.start[n + 1]; ++c) {
         Vec3 g;
         Mat3 h;
-        double e = penaltyContact(hs.stiffness[c], hs.depth(c, xl), hs.normal[c], g, h);
+        // A moving-face pair's penalty is an exact action-reaction inside the body.
+        double e = hs.moving(c)
+                       ? 0.0
+                       : penaltyContact(hs.stiffness[c], atLin.depth(c, xl), hs.normal[c], g, h);
         if (hs.muLambda && hs.muLambda[c] > 0) {
           Vec3 u = xl - x0 - hs.faceMotion[c];
           u = u - dot(u, hs.normal[c]) * hs.normal[c];

@@ -129,7 +129,9 @@ struct ExternalImpulse {
       Vec3 g;
       Mat3 h;
       const Vec3 xl = nodeVec3(xLin, n);
-      if (bodies.contact(n, xl, g, h) + bodies.friction(n, xl, xs, g, h) != 0)
+      const HalfSpaceContacts b = bodies.at(xLin);
+      const bool reacts = b.reactionTerms(n, g, h);
+      if (b.contact(n, xl, g, h) + b.friction(n, xl, xs, g, h) != 0 || reacts)
         impulse -= dt * (g + h * (x - xl));
     }
     if (faceImpulse) impulse += nodeVec3(faceImpulse, n);
