@@ -126,17 +126,21 @@ struct ViewerRun {
   std::string output;
 };
 
-/// Runs `xvfb-run -a graphfrac-viewer SCENE --size 320x180 --script SCRIPT args...`, its
-/// stdout and stderr to a file.
+/// Runs `xvfb-run -a -f AUTH graphfrac-viewer SCENE --size 320x180 --script SCRIPT args...`, its
+/// stdout and stderr to a file. The X authority file lives in the test's directory: without
+/// -f, xvfb-run makes a temporary directory of its own and exits 5 instead of the viewer's
+/// status when removing it fails, which it sometimes does when several run at once.
 ViewerRun runViewer(const test::TempDir& dir, const std::string& name, const std::string& script,
                     const std::vector<std::string>& extra = {}, const std::string& scene = kScene) {
   const std::string scriptPath = (dir.path / (name + ".txt")).string();
   std::ofstream(scriptPath) << script;
   const std::string log = (dir.path / (name + ".log")).string();
+  const std::string auth = (dir.path / (name + ".xauth")).string();
+  std::ofstream{auth};
   std::vector<std::string> args = {
-      "xvfb-run", "-a",      GF_VIEWER_EXE,
-      scene,      "--size",  std::to_string(kWidth) + "x" + std::to_string(kHeight),
-      "--script", scriptPath};
+      "xvfb-run",    "-a",      "-f",     auth,
+      GF_VIEWER_EXE, scene,     "--size", std::to_string(kWidth) + "x" + std::to_string(kHeight),
+      "--script",    scriptPath};
   args.insert(args.end(), extra.begin(), extra.end());
   std::vector<char*> argv;
   for (std::string& a : args) argv.push_back(a.data());
