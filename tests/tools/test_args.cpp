@@ -1,5 +1,6 @@
 // The command-line walker shared by `graphfrac run` and graphfrac-demo: both spellings of an
-// option's value, missing and malformed values, and positionals that look like "a=b".
+// option's value, missing and malformed values (integer lists too), and positionals that look
+// like "a=b".
 #include <gtest/gtest.h>
 
 #include <string>
@@ -64,6 +65,17 @@ TEST(Args, NumbersAreCheckedWhole) {
   EXPECT_TRUE(p.intValue(1, 100, frames));
   EXPECT_EQ(frames, 7);
   EXPECT_FALSE(p.next());
+}
+
+TEST(Args, IntListsAreCheckedItemByItem) {
+  std::vector<int> v = {9};
+  EXPECT_TRUE(parseIntList("1,2,16", 0, 64, v));
+  EXPECT_EQ(v, (std::vector<int>{1, 2, 16}));
+  EXPECT_TRUE(parseIntList("3", 0, 64, v));
+  EXPECT_EQ(v, (std::vector<int>{3}));
+  for (const char* bad : {"", "1,x", "1,,2", "1,", ",1", "1,65", "-1", "1;2", "1.5"})
+    EXPECT_FALSE(parseIntList(bad, 0, 64, v)) << bad;
+  EXPECT_EQ(v, (std::vector<int>{3}));  // untouched by the failures
 }
 
 }  // namespace

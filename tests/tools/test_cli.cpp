@@ -638,4 +638,103 @@ TEST(Cli, BenchOnlyNamingNoCaseIsAUsageError) {
       << error;
 }
 
+// Every bench mode checks its command line before it builds a world: an unknown option, a
+// missing value, a value that is not a number or is out of range is a usage error naming the
+// option, and nothing runs (stdout holds at most the backend line). Each case starts with the
+// mode's cheapest valid options, so a parser that ignores the bad one runs a short benchmark
+// and fails here on the exit code rather than running for minutes.
+TEST(Cli, BenchOptionsAreChecked) {
+  const std::string scene = std::string(GF_SOURCE_DIR) + "/tests/data/scenes/good/minimal.json";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"fracture", "--cells", "4", "--steps", "1", "--cell", "8"},
+       "bench fracture: unknown option '--cell'"},
+      {{"fracture", "--cells", "4", "--steps", "abc"}, "bench fracture: --steps needs"},
+      {{"fracture", "--steps", "1", "--cells", "3"}, "bench fracture: --cells needs"},
+      {{"multigrid", "--only", "hinged beam", "--frames", "1", "--threads", "1", "--pcg", "0",
+        "--frame", "2"},
+       "bench multigrid: unknown option '--frame'"},
+      {{"multigrid", "--only", "hinged beam", "--frames", "1", "--pcg", "0", "--threads", "1,x"},
+       "bench multigrid: --threads needs"},
+      {{"multigrid", "--only", "hinged beam", "--frames", "1", "--threads", "1", "--pcg", "yes"},
+       "bench multigrid: --pcg needs"},
+      {{"overhead", "--cells", "4", "--steps", "1", "--rounds", "1", "--round", "2"},
+       "bench overhead: unknown option '--round'"},
+      {{"overhead", "--cells", "4", "--steps", "1", "--rounds", "0"},
+       "bench overhead: --rounds needs"},
+      {{"options", "--cells", "2", "--rounds", "1", "--steps"}, "bench options: --steps needs"},
+      {{"options", "--steps", "1", "--rounds", "1", "--cells", "2x"},
+       "bench options: --cells needs"},
+      {{"stages", "--scene", scene, "--frames", "1", "--scenes", "x"},
+       "bench stages: unknown option '--scenes'"},
+      {{"stages", "--scene", scene, "--frames", "1", "--threads", "1,x"},
+       "bench stages: --threads needs"},
+      {{"stages", "--scene", scene, "--frames", "1", "--threads", "-1"},
+       "bench stages: --threads needs"},
+      {{"stages", "--scene", scene, "--frames", "0"}, "bench stages: --frames needs"},
+      {{"debris", "--frames", "1", "--rounds", "1", "--frams", "2"},
+       "bench debris: unknown option '--frams'"},
+      {{"debris", "--rounds", "1", "--frames", "1.5"}, "bench debris: --frames needs"},
+      {{"contact", "--cells", "1", "--frames", "1", "--rounds", "1", "--cell", "2"},
+       "bench contact: unknown option '--cell'"},
+      {{"contact", "--cells", "1", "--frames", "1", "--rounds", "1", "--threads", "0"},
+       "bench contact: --threads needs"},
+      {{"xfem", "--cells", "4", "--steps", "1", "--step", "2"},
+       "bench xfem: unknown option '--step'"},
+      {{"xfem", "--steps", "1", "--cells", "abc"}, "bench xfem: --cells needs"},
+      {{"haptic", "--cells", "2", "--steps", "1", "--frames", "2"},
+       "bench haptic: unknown option '--frames'"},
+      {{"haptic", "--steps", "1", "--cells", "1"}, "bench haptic: --cells needs"},
+      {{"peer", "--cells", "1", "--seconds", "0.01", "--no-sweep", "--sweep"},
+       "bench peer: unknown option '--sweep'"},
+      {{"peer", "--seconds", "0.01", "--no-sweep", "--cells", "17"}, "bench peer: --cells needs"},
+      {{"fragments", "--cells", "2", "--rounds", "1", "--cell", "4"},
+       "bench fragments: unknown option '--cell'"},
+      {{"fragments", "--cells", "2", "--rounds", "1", "--threads", "0"},
+       "bench fragments: --threads needs"},
+      {{"scenes", "--only", "hinged beam", "--frames", "1", "--reference", "0", "--frame", "2"},
+       "bench scenes: unknown option '--frame'"},
+      {{"scenes", "--only", "hinged beam", "--frames", "1", "--reference", "2"},
+       "bench scenes: --reference needs"},
+  };
+  for (const auto& [args, message] : cases) {
+    std::vector<std::string> argv = {"bench"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    testing::internal::CaptureStdout();
+    testing::internal::CaptureStderr();
+    const int code = run(argv);
+    const std::string out = testing::internal::GetCapturedStdout();
+    const std::string error = testing::internal::GetCapturedStderr();
+    EXPECT_EQ(code, gf::cli::kExitUsage) << message;
+    EXPECT_NE(error.find(message), std::string::npos) << error;
+    EXPECT_LE(std::count(out.begin(), out.end(), '\n'), 1) << message << ":\n" << out;
+  }
+}
+
+// `bench stages --threads 1,2` runs every scene at each thread count in one process: one row per
+// scene and count. --backend=cpu: the joined spelling, which `bench` takes out before the mode.
+TEST(Cli, BenchStagesTakesAThreadList) {
+  const std::string scene = std::string(GF_SOURCE_DIR) + "/tests/data/scenes/good/minimal.json";
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  const int code = run(
+      {"bench", "stages", "--scene", scene, "--frames", "2", "--threads", "1,2", "--backend=cpu"});
+  const std::string out = testing::internal::GetCapturedStdout();
+  const std::string error = testing::internal::GetCapturedStderr();
+  if (code == gf::cli::kExitScene && error.find("without Bullet") != std::string::npos)
+    GTEST_SKIP() << "built without Bullet";
+  ASSERT_EQ(code, gf::cli::kExitOk) << error;
+  std::vector<std::string> threads;
+  std::istringstream lines(out);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.empty() || line[0] == '#' || line.rfind("scene,", 0) == 0) continue;
+    std::vector<std::string> fields;
+    std::stringstream fs(line);
+    for (std::string f; std::getline(fs, f, ',');) fields.push_back(f);
+    ASSERT_GE(fields.size(), 4u) << line;
+    EXPECT_EQ(fields[3], "2") << line;  // frames
+    threads.push_back(fields[2]);
+  }
+  EXPECT_EQ(threads, (std::vector<std::string>{"1", "2"})) << out;
+}
+
 }  // namespace

@@ -4,11 +4,13 @@
 // the CLI share one copy without another library.
 #pragma once
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "graphfrac/defs.h"
 
@@ -37,9 +39,22 @@ inline bool parseDouble(std::string_view s, double& out) {
   return true;
 }
 
-/// Walks argv from `first` on. For each argument next() yields its name: an option's name with
-/// any "=value" split off, or the positional argument itself; value() then takes the option's
-/// value from after the '=' or from the following argument.
+/// Parses all of `s` as comma-separated base-10 integers in [lo, hi] ("1,2,4"); false (out
+/// untouched) when it is empty or any item is not one.
+inline bool parseIntList(std::string_view s, long long lo, long long hi, std::vector<int>& out) {
+  std::vector<int> list;
+  for (size_t begin = 0;;) {
+    const size_t comma = std::min(s.find(',', begin), s.size());
+    int v = 0;
+    if (!parseInt(s.substr(begin, comma - begin), lo, hi, v)) return false;
+    list.push_back(v);
+    if (comma == s.size()) break;
+    begin = comma + 1;
+  }
+  out = std::move(list);
+  return true;
+}
+
 /// A --backend value: auto, cpu or cuda.
 inline bool parseBackend(std::string_view s, Backend& out) {
   if (s == "auto")
@@ -53,6 +68,9 @@ inline bool parseBackend(std::string_view s, Backend& out) {
   return true;
 }
 
+/// Walks argv from `first` on. For each argument next() yields its name: an option's name with
+/// any "=value" split off, or the positional argument itself; value() then takes the option's
+/// value from after the '=' or from the following argument.
 class ArgParser {
  public:
   /// argv[first] is the first argument looked at (argv[0] is the program or subcommand).
@@ -97,6 +115,12 @@ class ArgParser {
   bool intValue(long long lo, long long hi, int& out) {
     std::string v;
     return value(v) && parseInt(v, lo, hi, out);
+  }
+
+  /// The value as comma-separated integers in [lo, hi]; false when missing or any is not one.
+  bool intListValue(long long lo, long long hi, std::vector<int>& out) {
+    std::string v;
+    return value(v) && parseIntList(v, lo, hi, out);
   }
 
   /// The value as a finite number > 0; false when missing or not one.

@@ -42,6 +42,7 @@
 #include <vector>
 
 #include "cli/args.h"
+#include "cli/bench_args.h"
 #include "cli/bench_cases.h"
 #include "cli/commands.h"
 #include "cli/progress.h"
@@ -159,10 +160,11 @@ ConfigResult runConfig(const Config& cfg, int nx, int steps) {
 
 int benchFracture(int argc, char** argv) {
   int nx = 40, steps = 20;
-  for (int i = 2; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--cells")) nx = std::max(4, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--steps")) steps = std::max(1, std::atoi(argv[i + 1]));
-  }
+  if (const int e = parseBenchArgs(
+          "fracture", argc, argv,
+          {{"--cells", &nx, 4, kBenchMaxCells}, {"--steps", &steps, 1, kBenchMaxCount}});
+      e != kExitOk)
+    return e;
   const Config configs[] = {{"plain FEM", false, 0},
                             {"fracture, 0 broken", true, 0},
                             {"fracture, ~1k broken", true, 1},
@@ -224,22 +226,16 @@ int benchMultigrid(int argc, char** argv) {
   // Extra multigrid settings (--mg JSON, repeatable: a solver.multigrid object) run beside the
   // defaults, so a candidate and the default are timed in one run; --pcg 0 skips PCG.
   std::vector<std::string> extra;
-  bool withPcg = true;
-  for (int i = 2; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--mg")) extra.push_back(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--pcg")) withPcg = std::atoi(argv[i + 1]) != 0;
-    if (!std::strcmp(argv[i], "--frames")) frames = std::max(1, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--threads")) {
-      threadCounts.clear();
-      for (const char* p = argv[i + 1]; *p;) {
-        threadCounts.push_back(std::max(0, std::atoi(p)));
-        while (*p && *p != ',') ++p;
-        if (*p == ',') ++p;
-      }
-      if (threadCounts.empty()) threadCounts = {1};
-    }
-    if (!std::strcmp(argv[i], "--only")) only = argv[i + 1];
-  }
+  int pcg = 1;
+  if (const int e = parseBenchArgs("multigrid", argc, argv,
+                                   {{"--frames", &frames, 1, kBenchMaxCount},
+                                    {"--threads", &threadCounts, 0, kBenchMaxThreads},
+                                    {"--only", &only},
+                                    {"--mg", &extra},
+                                    {"--pcg", &pcg, 0, 1}});
+      e != kExitOk)
+    return e;
+  const bool withPcg = pcg != 0;
   if (const std::string e = only.empty() ? "" : unknownBenchCase(only, false); !e.empty()) {
     std::fprintf(stderr, "bench multigrid: %s\n", e.c_str());
     return kExitUsage;
@@ -342,11 +338,12 @@ BodyDef overheadBody(int nx) {
 
 int benchOverhead(int argc, char** argv) {
   int nx = 24, steps = 10, rounds = 7;
-  for (int i = 2; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--cells")) nx = std::max(4, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--steps")) steps = std::max(1, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--rounds")) rounds = std::max(1, std::atoi(argv[i + 1]));
-  }
+  if (const int e = parseBenchArgs("overhead", argc, argv,
+                                   {{"--cells", &nx, 4, kBenchMaxCells},
+                                    {"--steps", &steps, 1, kBenchMaxCount},
+                                    {"--rounds", &rounds, 1, kBenchMaxCount}});
+      e != kExitOk)
+    return e;
   const double dt = 1.0 / 60;
   const BodyDef def = overheadBody(nx);
   const detail::FemModel model = detail::buildFemModel(def);
@@ -428,11 +425,12 @@ double largestEdgeStress(const BodyDef& def, const std::vector<double>& v) {
 
 int benchOptions(int argc, char** argv) {
   int n = 16, steps = 5, rounds = 5;
-  for (int i = 2; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--cells")) n = std::max(2, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--steps")) steps = std::max(1, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--rounds")) rounds = std::max(1, std::atoi(argv[i + 1]));
-  }
+  if (const int e = parseBenchArgs("options", argc, argv,
+                                   {{"--cells", &n, 2, kBenchMaxCells},
+                                    {"--steps", &steps, 1, kBenchMaxCount},
+                                    {"--rounds", &rounds, 1, kBenchMaxCount}});
+      e != kExitOk)
+    return e;
   const BodyDef base = spinningCube(n);
   const std::vector<double> v = spinVelocities(base);
   const double h = 0.2 / n;
@@ -510,17 +508,17 @@ int benchOptions(int argc, char** argv) {
 }
 
 int benchStages(int argc, char** argv) {
-  int frames = 0, threads = 1;
+  int frames = 0;  // 0: all of each scene's frames
+  std::vector<int> threadCounts = {1};
   std::vector<std::string> scenes;
-  for (int i = 2; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--frames")) frames = std::max(1, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--threads")) threads = std::max(0, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--scene")) scenes.push_back(argv[i + 1]);
-  }
+  if (const int e = parseBenchArgs("stages", argc, argv,
+                                   {{"--frames", &frames, 1, kBenchMaxCount},
+                                    {"--threads", &threadCounts, 0, kBenchMaxThreads},
+                                    {"--scene", &scenes}});
+      e != kExitOk)
+    return e;
   if (scenes.empty()) scenes = {"scenes/bunny_bullet.json", "scenes/charpy.json"};
 #ifndef GF_CLI_HAS_BULLET
-  (void)frames;
-  (void)threads;
   std::fprintf(stderr,
                "graphfrac bench stages: this graphfrac was built without Bullet "
                "(GF_WITH_BULLET); the stages include the Bullet step\n");
@@ -544,52 +542,56 @@ int benchStages(int argc, char** argv) {
     sc.value().world.backend = g_backend;
     size_t tets = 0;
     for (const scene::SceneBody& b : sc.value().bodies) tets += b.def.mesh.tetCount();
-    gf::Result<std::unique_ptr<scene::BulletScene>> run =
-        scene::BulletScene::create(sc.value(), threads);
-    if (!run.ok()) {
-      std::fprintf(stderr, "%s\n", run.error().message.c_str());
-      return kExitScene;
-    }
-    scene::BulletScene& bs = *run.value();
-    const int n = frames > 0 ? frames : std::max(1, sc.value().frames - 1);
-    for (size_t b = 0; b < bs.bodyCount(); ++b) (void)bs.world().surface(bs.body(b));
-    (void)bs.step();  // warm-up: first-use allocations, the surfaces' first build
-    StepTimings sum;
-    double bullet = 0, total = 0;
-    for (int f = 0; f < n; ++f) {
-      const StepStatus st = bs.step();
-      if (st.has(kStepInvalidInput) || st.has(kStepNanContained)) {
-        std::fprintf(stderr, "%s: frame %d: %s\n", path.c_str(), bs.frame(), st.message.c_str());
-        return kExitFlagged;
+    // Each thread count runs in this process, one after the other, so their ratios are measured
+    // in one run.
+    for (const int threads : threadCounts) {
+      gf::Result<std::unique_ptr<scene::BulletScene>> run =
+          scene::BulletScene::create(sc.value(), threads);
+      if (!run.ok()) {
+        std::fprintf(stderr, "%s\n", run.error().message.c_str());
+        return kExitScene;
       }
-      // A renderer asks for each surface once per frame; World::surface() updates it then.
-      const auto ts = std::chrono::steady_clock::now();
+      scene::BulletScene& bs = *run.value();
+      const int n = frames > 0 ? frames : std::max(1, sc.value().frames - 1);
       for (size_t b = 0; b < bs.bodyCount(); ++b) (void)bs.world().surface(bs.body(b));
-      const double surfaceMs = msSince(ts);
-      const scene::FrameTimings& t = bs.timings();
-      sum.fractureMs += t.world.fractureMs;
-      sum.elementsMs += t.world.elementsMs;
-      sum.assemblyMs += t.world.assemblyMs;
-      sum.solveMs += t.world.solveMs;
-      sum.contactMs += t.world.contactMs;
-      sum.contactPairs += t.world.contactPairs;
-      sum.surfaceMs += surfaceMs;
-      bullet += t.bulletMs;
-      total += t.totalMs + surfaceMs;
+      (void)bs.step();  // warm-up: first-use allocations, the surfaces' first build
+      StepTimings sum;
+      double bullet = 0, total = 0;
+      for (int f = 0; f < n; ++f) {
+        const StepStatus st = bs.step();
+        if (st.has(kStepInvalidInput) || st.has(kStepNanContained)) {
+          std::fprintf(stderr, "%s: frame %d: %s\n", path.c_str(), bs.frame(), st.message.c_str());
+          return kExitFlagged;
+        }
+        // A renderer asks for each surface once per frame; World::surface() updates it then.
+        const auto ts = std::chrono::steady_clock::now();
+        for (size_t b = 0; b < bs.bodyCount(); ++b) (void)bs.world().surface(bs.body(b));
+        const double surfaceMs = msSince(ts);
+        const scene::FrameTimings& t = bs.timings();
+        sum.fractureMs += t.world.fractureMs;
+        sum.elementsMs += t.world.elementsMs;
+        sum.assemblyMs += t.world.assemblyMs;
+        sum.solveMs += t.world.solveMs;
+        sum.contactMs += t.world.contactMs;
+        sum.contactPairs += t.world.contactPairs;
+        sum.surfaceMs += surfaceMs;
+        bullet += t.bulletMs;
+        total += t.totalMs + surfaceMs;
+      }
+      int32_t broken = 0, fragments = 0;
+      for (size_t b = 0; b < bs.bodyCount(); ++b) {
+        broken += bs.world().fractureStats(bs.body(b)).brokenEdges;
+        fragments += bs.world().fractureStats(bs.body(b)).fragments;
+      }
+      const double other = total - sum.fractureMs - sum.elementsMs - sum.assemblyMs - sum.solveMs -
+                           sum.contactMs - sum.surfaceMs - bullet;
+      std::printf("%s,%zu,%d,%d,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.3f,%.2f,%.2f,%.2f,%d,%d,%zu,%lld\n",
+                  sc.value().name.c_str(), tets, threads, n, sc.value().world.substeps, total / n,
+                  sum.fractureMs / n, sum.elementsMs / n, sum.assemblyMs / n, sum.solveMs / n,
+                  sum.contactMs / n, sum.surfaceMs / n, bullet / n, other / n, broken, fragments,
+                  bs.handedOff(), (long long)sum.contactPairs);
+      std::fflush(stdout);
     }
-    int32_t broken = 0, fragments = 0;
-    for (size_t b = 0; b < bs.bodyCount(); ++b) {
-      broken += bs.world().fractureStats(bs.body(b)).brokenEdges;
-      fragments += bs.world().fractureStats(bs.body(b)).fragments;
-    }
-    const double other = total - sum.fractureMs - sum.elementsMs - sum.assemblyMs - sum.solveMs -
-                         sum.contactMs - sum.surfaceMs - bullet;
-    std::printf("%s,%zu,%d,%d,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.3f,%.2f,%.2f,%.2f,%d,%d,%zu,%lld\n",
-                sc.value().name.c_str(), tets, threads, n, sc.value().world.substeps, total / n,
-                sum.fractureMs / n, sum.elementsMs / n, sum.assemblyMs / n, sum.solveMs / n,
-                sum.contactMs / n, sum.surfaceMs / n, bullet / n, other / n, broken, fragments,
-                bs.handedOff(), (long long)sum.contactPairs);
-    std::fflush(stdout);
   }
   return kExitOk;
 #endif
@@ -645,11 +647,12 @@ std::unique_ptr<World> debrisWorld(int cells, int count, JobSystem* jobs,
 int benchDebris(int argc, char** argv) {
   int frames = 10, rounds = 3;
   std::string solver = "default";
-  for (int i = 2; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--frames")) frames = std::max(1, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--rounds")) rounds = std::max(1, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--solver")) solver = argv[i + 1];
-  }
+  if (const int e = parseBenchArgs("debris", argc, argv,
+                                   {{"--frames", &frames, 1, kBenchMaxCount},
+                                    {"--rounds", &rounds, 1, kBenchMaxCount},
+                                    {"--solver", &solver}});
+      e != kExitOk)
+    return e;
   if (solver != "default" && solver != "pcg" && solver != "direct" && solver != "multigrid") {
     std::fprintf(stderr, "bench debris: --solver is default, pcg, direct or multigrid\n");
     return kExitUsage;
@@ -749,12 +752,13 @@ std::unique_ptr<World> contactWorld(int cells, bool stacked, bool contact, JobSy
 
 int benchContact(int argc, char** argv) {
   int frames = 60, rounds = 5, cells = 4, threads = 1;
-  for (int i = 2; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--frames")) frames = std::max(1, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--rounds")) rounds = std::max(1, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--cells")) cells = std::max(1, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--threads")) threads = std::max(1, std::atoi(argv[i + 1]));
-  }
+  if (const int e = parseBenchArgs("contact", argc, argv,
+                                   {{"--frames", &frames, 1, kBenchMaxCount},
+                                    {"--rounds", &rounds, 1, kBenchMaxCount},
+                                    {"--cells", &cells, 1, kBenchMaxCells},
+                                    {"--threads", &threads, 1, kBenchMaxThreads}});
+      e != kExitOk)
+    return e;
   // One thread: the World's own serial jobs, as a game without a pool runs it.
   std::unique_ptr<JobSystem> pool =
       threads > 1 ? std::make_unique<ThreadPoolJobSystem>(threads) : nullptr;
@@ -815,7 +819,10 @@ int benchContact(int argc, char** argv) {
 }  // namespace
 
 int runBenchCommand(int argc, char** argv) {
-  if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
+  const auto isHelp = [](const char* a) {
+    return !std::strcmp(a, "--help") || !std::strcmp(a, "-h");
+  };
+  if (argc < 2 || std::any_of(argv + 1, argv + argc, isHelp)) {
     std::puts(
         "usage: graphfrac bench fracture [--cells NX] [--steps S]\n"
         "  NX cells along a 1 m x 0.25 m x 0.25 m beam (NX/4 across; default 40: 24k tets)\n"
@@ -831,10 +838,11 @@ int runBenchCommand(int argc, char** argv) {
         "  per-step cost of the step's options (turning frame, numerical damping, fracture\n"
         "  averaging) against the default, on a spinning cube of N^3 cells (default 16: 24k\n"
         "  tets)\n"
-        "       graphfrac bench stages [--scene FILE]... [--frames N] [--threads T]\n"
+        "       graphfrac bench stages [--scene FILE]... [--frames N] [--threads T1,T2,...]\n"
         "  per-stage ms per frame (fracture, elements, assembly, solve, surface, Bullet) of\n"
         "  scenes run through the Bullet bridge; default scenes/bunny_bullet.json and\n"
-        "  scenes/charpy.json, all their frames\n"
+        "  scenes/charpy.json, all their frames, 1 thread; a row per scene and thread count (0:\n"
+        "  every core)\n"
         "       graphfrac bench debris [--frames N] [--rounds R] [--solver S]\n"
         "  200 boxes of 48 and of 162 tets falling onto the ground against one box of the same\n"
         "  tets, ms per frame at 1 and 2 threads, and the OS threads of the process; S is\n"
@@ -866,19 +874,20 @@ int runBenchCommand(int argc, char** argv) {
         "  the fixed scene list, 4k to 680k tets, fracture off and on: ms per stage, fps, peak\n"
         "  resident MB (VmHWM, reset per case) and the solver's error against the same frames\n"
         "  solved by MG-CG to 1e-12; N frames (default 5), M for the 680k box (default 1)\n"
-        "Every mode takes --backend auto|cpu|cuda (default cpu) for its worlds.");
+        "Every mode takes --backend auto|cpu|cuda (default cpu) for its worlds. Options are\n"
+        "written --name value or --name=value; an unknown option or a bad value is an error.");
     return argc < 2 ? kExitUsage : kExitOk;
   }
   // --backend applies to every mode: taken out here, checked once, and said once.
   std::vector<char*> args;
   for (int i = 0; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--backend") != 0) {
+    const bool joined = !std::strncmp(argv[i], "--backend=", 10);
+    if (!joined && std::strcmp(argv[i], "--backend") != 0) {
       args.push_back(argv[i]);
-    } else if (i + 1 >= argc || !parseBackend(argv[i + 1], g_backend)) {
+    } else if (!(joined ? parseBackend(argv[i] + 10, g_backend)
+                        : i + 1 < argc && parseBackend(argv[++i], g_backend))) {
       std::fprintf(stderr, "graphfrac bench: --backend needs auto, cpu or cuda\n");
       return kExitUsage;
-    } else {
-      ++i;
     }
   }
   const detail::BackendChoice backend = detail::chooseBackend(g_backend);

@@ -8,11 +8,11 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <numeric>
 #include <random>
 #include <vector>
 
+#include "cli/bench_args.h"
 #include "cli/commands.h"
 #include "graphfrac/jobs.h"
 #include "graphfrac/mesh.h"
@@ -74,20 +74,15 @@ Timing replay(const EdgeGraph& g, const Sequence& seq, const std::vector<double>
 }  // namespace
 
 int benchFragments(int argc, char** argv) {
-  int rounds = 5, threads = 1;
-  std::vector<int> cellCounts = {16, 32};
-  for (int i = 2; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--cells")) {
-      cellCounts = {std::max(2, std::atoi(argv[i + 1]))};
-    } else if (!std::strcmp(argv[i], "--rounds")) {
-      rounds = std::max(1, std::atoi(argv[i + 1]));
-    } else if (!std::strcmp(argv[i], "--threads")) {
-      threads = std::max(1, std::atoi(argv[i + 1]));
-    } else {
-      std::fprintf(stderr, "graphfrac bench fragments: unknown option '%s'\n", argv[i]);
-      return kExitUsage;
-    }
-  }
+  int rounds = 5, threads = 1, cells = 0;  // cells 0: 16 and 32
+  if (const int e = parseBenchArgs("fragments", argc, argv,
+                                   {{"--cells", &cells, 2, kBenchMaxCells},
+                                    {"--rounds", &rounds, 1, kBenchMaxCount},
+                                    {"--threads", &threads, 1, kBenchMaxThreads}});
+      e != kExitOk)
+    return e;
+  const std::vector<int> cellCounts =
+      cells > 0 ? std::vector<int>{cells} : std::vector<int>{16, 32};
   ThreadPoolJobSystem pool(threads);
   JobSystem& jobs = threads > 1 ? static_cast<JobSystem&>(pool) : serialJobs();
   std::printf(

@@ -7,9 +7,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <cstring>
 #include <vector>
 
+#include "cli/bench_args.h"
 #include "cli/commands.h"
 #include "graphfrac/sculpt.h"
 #include "graphfrac/world.h"
@@ -30,12 +30,13 @@ double quantile(std::vector<double> v, double q) {
 }  // namespace
 
 int benchHaptic(int argc, char** argv) {
-  std::vector<int> sizes = {6, 12, 24};
-  int steps = 40;
-  for (int i = 2; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--cells")) sizes = {std::max(2, std::atoi(argv[i + 1]))};
-    if (!std::strcmp(argv[i], "--steps")) steps = std::max(1, std::atoi(argv[i + 1]));
-  }
+  int cells = 0, steps = 40;  // cells 0: 6, 12 and 24
+  if (const int e = parseBenchArgs(
+          "haptic", argc, argv,
+          {{"--cells", &cells, 2, kBenchMaxCells}, {"--steps", &steps, 1, kBenchMaxCount}});
+      e != kExitOk)
+    return e;
+  const std::vector<int> sizes = cells > 0 ? std::vector<int>{cells} : std::vector<int>{6, 12, 24};
   std::printf("# %d world steps of 16 ms, 16 haptic samples of 1 ms each\n", steps);
   std::printf(
       "cells,surface_triangles,mode,sample_us_median,sample_us_p99,sample_us_max,contacts_end,"

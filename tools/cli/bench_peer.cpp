@@ -61,13 +61,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "cli/args.h"
+#include "cli/bench_args.h"
 #include "cli/commands.h"
 #include "graphfrac/mesh.h"
 #include "graphfrac/world.h"
@@ -545,24 +544,17 @@ void printRow(const char* kase, const char* method, double E, double dt, int tet
 int benchPeer(int argc, char** argv) {
   int cells = 2;
   double seconds = 2;
-  bool sweep = true;
+  bool noSweep = false;
   Limits limits;
-  ArgParser args(argc, argv, 2);
-  while (args.next()) {
-    if (args.name() == "--cells" && args.intValue(1, 16, cells)) continue;
-    if (args.name() == "--seconds" && args.positiveValue(seconds)) continue;
-    if (args.name() == "--bullet-step-limit" && args.positiveValue(limits.stepSeconds)) continue;
-    if (args.name() == "--bullet-run-limit" && args.positiveValue(limits.runSeconds)) continue;
-    if (args.name() == "--no-sweep") {
-      sweep = false;
-      continue;
-    }
-    std::fprintf(stderr,
-                 "graphfrac bench peer: bad argument '%s' (options: --cells 1..16, --seconds S, "
-                 "--bullet-step-limit S, --bullet-run-limit S, --no-sweep)\n",
-                 args.name().c_str());
-    return kExitUsage;
-  }
+  if (const int e = parseBenchArgs("peer", argc, argv,
+                                   {{"--cells", &cells, 1, 16},
+                                    {"--seconds", &seconds},
+                                    {"--bullet-step-limit", &limits.stepSeconds},
+                                    {"--bullet-run-limit", &limits.runSeconds},
+                                    {"--no-sweep", &noSweep}});
+      e != kExitOk)
+    return e;
+  const bool sweep = !noSweep;
   std::vector<Method> methods = {
       {"graphfrac-multigrid", ours}, {"graphfrac-direct", oursDirect}, {"graphfrac-pcg", oursPcg}};
 #ifdef GF_CLI_HAS_BULLET_SOFTBODY

@@ -19,12 +19,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
+#include "cli/bench_args.h"
 #include "cli/bench_cases.h"
 #include "cli/commands.h"
 #include "cli/progress.h"
@@ -120,28 +120,18 @@ nlohmann::json jsonRow(const Row& r) {
 }  // namespace
 
 int benchScenes(int argc, char** argv) {
-  int frames = 5, bigFrames = 1;
-  bool reference = true;
+  int frames = 5, bigFrames = 1, referenceOn = 1;
   std::string only, csvPath, jsonPath;
-  for (int i = 2; i < argc; ++i) {
-    const bool hasValue = i + 1 < argc;
-    if (!std::strcmp(argv[i], "--frames") && hasValue) {
-      frames = std::max(1, std::atoi(argv[++i]));
-    } else if (!std::strcmp(argv[i], "--big-frames") && hasValue) {
-      bigFrames = std::max(1, std::atoi(argv[++i]));
-    } else if (!std::strcmp(argv[i], "--reference") && hasValue) {
-      reference = std::atoi(argv[++i]) != 0;
-    } else if (!std::strcmp(argv[i], "--only") && hasValue) {
-      only = argv[++i];
-    } else if (!std::strcmp(argv[i], "--csv") && hasValue) {
-      csvPath = argv[++i];
-    } else if (!std::strcmp(argv[i], "--json") && hasValue) {
-      jsonPath = argv[++i];
-    } else {
-      std::fprintf(stderr, "bench scenes: unknown or incomplete option '%s'\n", argv[i]);
-      return kExitUsage;
-    }
-  }
+  if (const int e = parseBenchArgs("scenes", argc, argv,
+                                   {{"--frames", &frames, 1, kBenchMaxCount},
+                                    {"--big-frames", &bigFrames, 1, kBenchMaxCount},
+                                    {"--reference", &referenceOn, 0, 1},
+                                    {"--only", &only},
+                                    {"--csv", &csvPath},
+                                    {"--json", &jsonPath}});
+      e != kExitOk)
+    return e;
+  const bool reference = referenceOn != 0;
   if (const std::string e = only.empty() ? "" : unknownBenchCase(only, true); !e.empty()) {
     std::fprintf(stderr, "bench scenes: %s\n", e.c_str());
     return kExitUsage;

@@ -15,9 +15,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <vector>
 
+#include "cli/bench_args.h"
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "graphfrac/world.h"
@@ -228,10 +228,11 @@ ModeResult runGraph(const TetMesh& mesh, int count, int steps, double dt) {
 
 int benchXfem(int argc, char** argv) {
   int cells = 40, steps = 20;
-  for (int i = 2; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--cells")) cells = std::max(4, std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--steps")) steps = std::max(1, std::atoi(argv[i + 1]));
-  }
+  if (const int e = parseBenchArgs(
+          "xfem", argc, argv,
+          {{"--cells", &cells, 4, kBenchMaxCells}, {"--steps", &steps, 1, kBenchMaxCount}});
+      e != kExitOk)
+    return e;
   const TetMesh mesh = gen::box(2, 1, 1, cells, cells / 2, cells / 2);
   const double dt = 1.0 / 60;
   std::printf("# box 2 x 1 x 1 m, %d x %d x %d cells, %zu tets, %zu nodes; %d steps of %.4f s\n",
