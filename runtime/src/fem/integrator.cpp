@@ -15,6 +15,7 @@
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
 #include "kernels/tet_inertia.h"
+#include "solver/pcg_stages.h"
 #include "solver/vector_stages.h"
 #include "step/executor.h"
 #include "step/timing.h"
@@ -853,8 +854,7 @@ SolveReport Integrator::coupledSolve(const FemModel& model, const FemState& stat
   const HalfSpaceContacts h = ctx.bodyContacts;
   const int32_t n3 = int32_t(m_x.size()), pairs = h.start[model.nodeCount];
   const uint8_t* fixed = state.fixedNode.data();
-  for (std::vector<double>* v : {&m_cgR, &m_cgZ, &m_cgP, &m_cgQ}) v->resize(size_t(n3));
-  auto apply = [&](const double* p, double* y) {
+  auto product = [&](const double* p, double* y) {
     m_A.multiply(p, y, jobs);
     exec.run(pairs, kNodeGrain,
              SelfPairProjectStage{h, fixed, m_pairActive.data(), m_pairNormal.data(),
@@ -864,52 +864,35 @@ SolveReport Integrator::coupledSolve(const FemModel& model, const FemState& stat
                                    m_pairWeight.data(), m_pairProjection.data(), p, y});
   };
   const bool factored = m_cholesky && !m_inert && m_cholesky->factorize(m_A);
-  SolveReport sr;
+  int innerIterations = 0;
   auto precondition = [&](const double* r, double* z) {
     exec.run(n3, kNodeGrain, FillStage{0.0, z});
     if (factored) {
       m_cholesky->solveFactored(r, z);
     } else if (m_cholesky && !m_inert) {
-      sr.iterations +=
+      innerIterations +=
           m_pcg.solve(m_A, r, z, model.solver.maxLinearIterations, tolerance, jobs).iterations;
     } else {
-      sr.iterations += patternSolve(model, r, z, tolerance, 1.0, jobs).iterations;
+      innerIterations += patternSolve(model, r, z, tolerance, 1.0, jobs).iterations;
     }
+    return exec.dot(r, z, n3);
   };
-  double* x = m_dx.data();
-  double *r = m_cgR.data(), *z = m_cgZ.data(), *p = m_cgP.data(), *q = m_cgQ.data();
-  const double bNorm = std::sqrt(exec.dot(m_rhs.data(), m_rhs.data(), n3));
-  if (!(bNorm > 0)) {
-    exec.run(n3, kNodeGrain, FillStage{0.0, x});
-    sr.converged = true;
-    return sr;
-  }
-  apply(x, q);
-  exec.run(n3, kNodeGrain, AxpyStage{m_rhs.data(), q, -1.0, r});
-  double rz = 0, alpha = 0;
-  for (int it = 0;; ++it) {
-    sr.relativeResidual = std::sqrt(exec.dot(r, r, n3)) / bNorm;
-    if (sr.relativeResidual <= tolerance) {
-      sr.converged = true;
-      break;
-    }
-    if (it >= model.solver.maxLinearIterations || !std::isfinite(sr.relativeResidual)) break;
-    precondition(r, z);
-    const double rzNext = exec.dot(r, z, n3);
-    // Polak-Ribiere: beta = z.(r - r_old) / rz_old, with r - r_old = -alpha q_old.
-    if (it == 0)
-      exec.run(n3, kNodeGrain, CopyStage{z, p});
-    else
-      exec.run(n3, kNodeGrain, AxpyStage{z, p, -alpha * exec.dot(z, q, n3) / rz, p});
-    rz = rzNext;
-    apply(p, q);
-    const double pq = exec.dot(p, q, n3);
-    if (!(pq > 0) || !(rz > 0)) break;
-    alpha = rz / pq;
-    exec.run(n3, kNodeGrain, AxpyStage{x, p, alpha, x});
-    exec.run(n3, kNodeGrain, AxpyStage{r, q, -alpha, r});
-    ++sr.iterations;
-  }
+  struct Operator {
+    int32_t n;
+    decltype(product)& apply;
+  };
+  struct Preconditioner {
+    bool flexible;
+    void (*prepare)();
+    decltype(precondition)& apply;
+  };
+  m_cgWork.resize(5 * size_t(n3));
+  double* w = m_cgWork.data();
+  SolveReport sr = conjugateGradients(
+      exec, Operator{model.nodeCount, product}, m_rhs.data(), m_dx.data(),
+      CgBuffers{w, w + n3, w + 2 * n3, w + 3 * n3, w + 4 * n3},
+      Preconditioner{true, [] {}, precondition}, model.solver.maxLinearIterations, tolerance);
+  sr.iterations += innerIterations;
   sr.relativeResidual /= toleranceScale;
   return sr;
 }

@@ -1,6 +1,8 @@
 // Preconditioned conjugate gradients (Hestenes-Stiefel form), written once over an executor
-// (step/executor.h's CpuExecutor, gpu/executor.h's device one) and a preconditioner: the
-// block-Jacobi one below (PcgSolver) or a multigrid V-cycle (MultigridSolver, as flexible CG).
+// (step/executor.h's CpuExecutor, gpu/executor.h's device one), an operator (a block-sparse
+// matrix, or Integrator::coupledSolve's with the self pairs' matrix-free cross terms) and a
+// preconditioner: the block-Jacobi one below (PcgSolver), a multigrid V-cycle (MultigridSolver,
+// as flexible CG) or the body's own solve (coupledSolve, flexible).
 // Every vector pass is a stage or a fused reduction term; only the scalars of the recurrence
 // live on the host. An iteration reads the vectors as few times as possible: one product, one
 // dot (p.Ap), one pass "x += a p, r -= a Ap, r.r", one "z = M r, r.z" and one "p = z + b p".
@@ -11,6 +13,7 @@
 
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 #include "solver/block_sparse.h"
 #include "solver/sparse_stages.h"
@@ -91,7 +94,8 @@ struct BlockJacobi {
   }
 };
 
-/// Solves A x = b for SPD A with preconditioner M: M.prepare() once before the first
+/// Solves A x = b for SPD A (a BlockMatrixView, or an operator on A.n nodes with
+/// A.apply(x, y) setting y = A x) with preconditioner M: M.prepare() once before the first
 /// iteration, M.apply(r, z) sets z = M^-1 r and returns r.z; with M.flexible, beta is
 /// z_new.(r_new - r_old) / (z_old.r_old) (flexible CG, for a preconditioner that is not a fixed
 /// linear map, such as a V-cycle). x holds the initial guess on entry and the solution on
@@ -99,9 +103,9 @@ struct BlockJacobi {
 /// maxIterations. Breakdown (p^T A p <= 0, a non-finite value) stops early with converged =
 /// false and the last finite iterate in x. If |b| == 0, x = 0 and the solve has converged.
 /// The same bits on every executor and thread count.
-template <class Exec, class Precond>
-SolveReport conjugateGradients(const Exec& exec, const BlockMatrixView& A, const double* b,
-                               double* x, const CgBuffers& w, const Precond& M, int maxIterations,
+template <class Exec, class Op, class Precond>
+SolveReport conjugateGradients(const Exec& exec, const Op& A, const double* b, double* x,
+                               const CgBuffers& w, const Precond& M, int maxIterations,
                                double relativeTolerance) {
   constexpr uint32_t kRows = 128, kEntries = 2048;
   SolveReport report;
@@ -121,8 +125,14 @@ SolveReport conjugateGradients(const Exec& exec, const BlockMatrixView& A, const
   const double bnorm = std::sqrt(bb);
   const double tol2 = relativeTolerance * relativeTolerance * bb;
 
+  auto product = [&](const double* v, double* y) {
+    if constexpr (std::is_same_v<Op, BlockMatrixView>)
+      exec.run(A.n, kRows, SpmvStage{A, v, y});
+    else
+      A.apply(v, y);
+  };
   auto trueResidual = [&]() {
-    exec.run(A.n, kRows, SpmvStage{A, x, w.ap});
+    product(x, w.ap);
     return exec.template reduce<SumOp>(n3, ResidualTerm{b, w.ap, w.r});
   };
 
@@ -139,7 +149,7 @@ SolveReport conjugateGradients(const Exec& exec, const BlockMatrixView& A, const
         breakdown = true;
         break;
       }
-      exec.run(A.n, kRows, SpmvStage{A, w.p, w.ap});
+      product(w.p, w.ap);
       const double pap = exec.template reduce<SumOp>(n3, DotTerm{w.p, w.ap});
       const double alpha = rz / pap;
       if (!(pap > 0) || !std::isfinite(pap) || !std::isfinite(alpha)) {
@@ -165,6 +175,7 @@ SolveReport conjugateGradients(const Exec& exec, const BlockMatrixView& A, const
         exec.run(n3, kEntries, CopyStage{w.z, w.p});
         continue;
       }
+      if (it == maxIterations) break;  // no preconditioner solve for a direction never taken
       const double rzNew = M.apply(w.r, w.z);
       const double beta =
           (M.flexible ? rzNew - exec.template reduce<SumOp>(n3, DotTerm{w.z, w.rOld}) : rzNew) / rz;
