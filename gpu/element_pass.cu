@@ -39,7 +39,8 @@ bool DeviceElementPass::uploadPositions(const double* x) {
 
 bool DeviceElementPass::run(bool withHessian, bool withStress) {
   const size_t nt = size_t(m_tetCount);
-  if ((withHessian && !m_hess.resize(144 * nt)) || (withStress && !m_stress.resize(6 * nt)))
+  if ((withHessian && !m_hess.resize(kElementMatrixSize * nt)) ||
+      (withStress && !m_stress.resize(6 * nt)))
     return fail("allocating the element outputs");
   detail::ElementStage s = m_host;
   s.tets = m_tets.data();
@@ -75,7 +76,7 @@ bool DeviceElementPass::download(double* energy, double* grad, double* hess, dou
                                  double* nodeGrad) const {
   const size_t nt = size_t(m_tetCount);
   return (!energy || m_energy.download(energy, nt)) && (!grad || m_grad.download(grad, 12 * nt)) &&
-         (!hess || m_hess.download(hess, 144 * nt)) &&
+         (!hess || m_hess.download(hess, kElementMatrixSize * nt)) &&
          (!stress || m_stress.download(stress, 6 * nt)) &&
          (!nodeGrad || m_nodeGrad.download(nodeGrad, 3 * size_t(m_nodeCount)));
 }

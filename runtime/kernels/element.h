@@ -71,7 +71,9 @@ GF_HD void elementGradient(const Mat<4, 3, T>& B, T volume, const Mat3T<T>& P, T
 
 /// grad = V D^T vec(P) and, when hessian is non-null, V D^T dPdF D for an element with shape
 /// gradients B (see the file comment). Shared by elementForces and the damaged-element kernels
-/// so all of them map P and dP/dF to nodes the same way.
+/// so all of them map P and dP/dF to nodes the same way. The upper triangle is summed and
+/// mirrored: the element buffers keep the upper node blocks only, and the diagonal blocks whole
+/// (kElementMatrixSize), so the Hessian must be exactly symmetric, not to round-off.
 GF_HD void scatterElementDerivatives(const Mat<4, 3>& B, double volume, const Mat3& P,
                                      const Mat9& dPdF, double grad[12], Mat12* hessian) {
   if (hessian != nullptr) {
@@ -86,9 +88,12 @@ GF_HD void scatterElementDerivatives(const Mat<4, 3>& B, double volume, const Ma
                       B(a, 2) * dPdF(3 * i + 2, 3 * l + m);
         for (int a = 0; a < 4; ++a)
           for (int b = 0; b < 4; ++b)
-            h(3 * a + i, 3 * b + l) =
-                volume * (t(a, 0) * B(b, 0) + t(a, 1) * B(b, 1) + t(a, 2) * B(b, 2));
+            if (3 * a + i <= 3 * b + l)
+              h(3 * a + i, 3 * b + l) =
+                  volume * (t(a, 0) * B(b, 0) + t(a, 1) * B(b, 1) + t(a, 2) * B(b, 2));
       }
+    for (int r = 1; r < 12; ++r)
+      for (int c = 0; c < r; ++c) h(r, c) = h(c, r);
   }
   elementGradient(B, volume, P, grad);
 }

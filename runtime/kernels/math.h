@@ -90,6 +90,23 @@ using Mat3T = Mat<3, 3, T>;
 using Mat9 = Mat<9, 9>;
 using Mat12 = Mat<12, 12>;
 
+/// A tet's 12x12 element matrix (node-major, symmetric) as the element buffers store it for
+/// assembly: its 10 upper node blocks (a <= b) in the order (0,0) (0,1) (0,2) (0,3) (1,1) ...
+/// (3,3), each 3x3 row-major; block (b, a) is the transpose of block (a, b). 90 doubles
+/// against 144 (issue 14): the diagonal blocks are kept whole so assembly copies them as is.
+constexpr int kElementMatrixSize = 90;
+
+/// Offset in that storage of node block (a, b), a <= b.
+GF_HD int upperBlockOffset(int a, int b) { return 9 * (a * (7 - a) / 2 + b); }
+
+/// Writes the upper node blocks of the row-major 12x12 `full` into `out` (kElementMatrixSize).
+GF_HD void storeUpperBlocks(const double* full, double* out) {
+  for (int a = 0; a < 4; ++a)
+    for (int b = a; b < 4; ++b)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) *out++ = full[12 * (3 * a + i) + 3 * b + j];
+}
+
 template <int R, int C, class T>
 GF_HD Mat<R, C, T> operator+(const Mat<R, C, T>& a, const Mat<R, C, T>& b) {
   Mat<R, C, T> c;

@@ -134,7 +134,7 @@ TEST_P(ElementBackend, MatchesTheCpuExecutor) {
     Out o;
     o.energy.assign(nt, 0);
     o.grad.assign(12 * nt, 0);
-    o.hess.assign(144 * nt, 0);
+    o.hess.assign(kElementMatrixSize * nt, 0);
     o.stress.assign(6 * nt, 0);
     o.nodeGrad.assign(3 * nn, 0);
     return o;

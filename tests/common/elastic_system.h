@@ -35,7 +35,7 @@ inline ElasticSystem assembleElasticSystem(
   s.A = detail::BlockSparseMatrix::fromTets(s.mesh.tets.data(), tets, n);
   const detail::ElementGather gather = detail::ElementGather::build(s.mesh.tets.data(), tets, s.A);
   const MaterialCoeffs c = makeMaterialCoeffs(kStableNeoHookean, E, nu, 0, Vec3{1, 0, 0});
-  std::vector<double> ke(144 * tets, 0.0);
+  std::vector<double> ke(kElementMatrixSize * tets, 0.0);
   s.nodeMass.assign(n, 0.0);
   for (size_t e = 0; e < tets; ++e) {
     Vec3 X[4];
@@ -50,7 +50,7 @@ inline ElasticSystem assembleElasticSystem(
     double grad[12];
     Mat12 H;
     elementForces(c, X, dmInv, vol, grad, &H, true);
-    for (int i = 0; i < 144; ++i) ke[144 * e + i] = H.m[i];
+    storeUpperBlocks(H.m, &ke[kElementMatrixSize * e]);
   }
   detail::gatherElementBlocks(gather, ke.data(), dt * dt, s.A, jobs);
   s.fixed.assign(n, 0);

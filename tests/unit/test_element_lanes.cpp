@@ -111,7 +111,8 @@ TetSet generalTets() {
 
 struct Out {
   std::vector<double> energy, grad, hess, stress;
-  explicit Out(size_t T) : energy(T), grad(12 * T), hess(144 * T), stress(6 * T) {}
+  explicit Out(size_t T)
+      : energy(T), grad(12 * T), hess(gf::kElementMatrixSize * T), stress(6 * T) {}
 };
 
 gf::detail::ElementStage stageFor(const TetSet& set, const MaterialCoeffs& c, Out& o) {
@@ -169,10 +170,12 @@ TEST(ElementLanes, MatchTheScalarKernelsToRoundOff) {
       gf::detail::evaluateElementRange(v, 0, set.count);
       double worst[4] = {0, 0, 0, 0};
       for (size_t t = 0; t < T; ++t) {
-        const double d[4] = {relDiff(&scalar.energy[t], &lanes.energy[t], 1),
-                             relDiff(&scalar.grad[12 * t], &lanes.grad[12 * t], 12),
-                             relDiff(&scalar.hess[144 * t], &lanes.hess[144 * t], 144),
-                             relDiff(&scalar.stress[6 * t], &lanes.stress[6 * t], 6)};
+        const double d[4] = {
+            relDiff(&scalar.energy[t], &lanes.energy[t], 1),
+            relDiff(&scalar.grad[12 * t], &lanes.grad[12 * t], 12),
+            relDiff(&scalar.hess[gf::kElementMatrixSize * t],
+                    &lanes.hess[gf::kElementMatrixSize * t], gf::kElementMatrixSize),
+            relDiff(&scalar.stress[6 * t], &lanes.stress[6 * t], 6)};
         for (int q = 0; q < 4; ++q) {
           worst[q] = std::max(worst[q], d[q]);
           EXPECT_LE(d[q], 1e-12) << "model " << c.model << (wet ? " wet" : "") << " tet " << t
@@ -237,8 +240,9 @@ TEST(ElementLanes, BitsDoNotDependOnTheRangeNorTheCache) {
     for (int32_t t : {4, 9}) {
       s(t);
       EXPECT_EQ(scalar.energy[size_t(t)], whole.energy[size_t(t)]);
-      EXPECT_EQ(0, std::memcmp(&scalar.hess[144 * size_t(t)], &whole.hess[144 * size_t(t)],
-                               144 * sizeof(double)));
+      const size_t h = gf::kElementMatrixSize * size_t(t);
+      EXPECT_EQ(
+          0, std::memcmp(&scalar.hess[h], &whole.hess[h], gf::kElementMatrixSize * sizeof(double)));
     }
   }
 }

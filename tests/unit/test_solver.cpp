@@ -79,6 +79,14 @@ std::vector<double> randomElementMatrices(size_t tetCount, uint64_t seed, double
   return out;
 }
 
+// Full row-major element matrices (144 per tet) as the gather reads them: upper node blocks.
+std::vector<double> upperBlocks(const std::vector<double>& full) {
+  std::vector<double> out(full.size() / 144 * gf::kElementMatrixSize);
+  for (size_t e = 0; e < full.size() / 144; ++e)
+    gf::storeUpperBlocks(&full[144 * e], &out[gf::kElementMatrixSize * e]);
+  return out;
+}
+
 // Linear elastic tet stiffness: K_ab,ij = V (lambda g_a,i g_b,j + mu g_a,j g_b,i + mu d_ij g_a.g_b)
 // with g_a the gradients of the barycentric shape functions.
 std::vector<double> elasticElementMatrices(const Grid& g, double lambda, double mu) {
@@ -146,7 +154,7 @@ System randomSystem(int nx, int ny, int nz, uint64_t seed, double spread, double
   s.A = BlockSparseMatrix::fromTets(s.grid.tets.data(), s.grid.tetCount(), s.grid.nodes);
   s.gather = ElementGather::build(s.grid.tets.data(), s.grid.tetCount(), s.A);
   s.ke = randomElementMatrices(s.grid.tetCount(), seed, spread);
-  gf::detail::gatherElementBlocks(s.gather, s.ke.data(), 1.0, s.A, jobs);
+  gf::detail::gatherElementBlocks(s.gather, upperBlocks(s.ke).data(), 1.0, s.A, jobs);
   shiftDiagonal(s.A, shift);
   return s;
 }
@@ -221,7 +229,7 @@ TEST(BlockSparse, GatherMatchesNaiveScatterAndSpmvMatchesDense) {
                 s.A.find(s.grid.tets[4 * e + ab / 4], s.grid.tets[4 * e + ab % 4]));
 
   // Gather adds with a scale: A += 2 K gives 3 K.
-  gf::detail::gatherElementBlocks(s.gather, s.ke.data(), 2.0, s.A, jobs);
+  gf::detail::gatherElementBlocks(s.gather, upperBlocks(s.ke).data(), 2.0, s.A, jobs);
   EXPECT_LE((toDense(s.A) - 3 * ref).cwiseAbs().maxCoeff(), 1e-12 * ref.cwiseAbs().maxCoeff());
 
   const std::vector<double> x = randomVector(3 * s.grid.nodes, 11);
@@ -338,7 +346,7 @@ TEST(Solvers, IllConditionedIterationsAreCappedAndReported) {
     const double scale = std::pow(10.0, u(rng));
     for (int i = 0; i < 144; ++i) s.ke[144 * e + i] *= scale;
   }
-  gf::detail::gatherElementBlocks(s.gather, s.ke.data(), 1.0, s.A, jobs);
+  gf::detail::gatherElementBlocks(s.gather, upperBlocks(s.ke).data(), 1.0, s.A, jobs);
   std::vector<uint8_t> fixed(s.grid.nodes);
   for (size_t n = 0; n < s.grid.nodes; ++n) fixed[n] = s.grid.positions[3 * n] == 0.0;
   gf::detail::applyDirichlet(s.A, fixed.data());
@@ -381,7 +389,7 @@ TEST(Solvers, DirichletMatchesReducedDenseSolve) {
   BlockSparseMatrix A = BlockSparseMatrix::fromTets(g.tets.data(), g.tetCount(), g.nodes);
   ElementGather gather = ElementGather::build(g.tets.data(), g.tetCount(), A);
   const std::vector<double> ke = elasticElementMatrices(g, 2.0, 1.0);
-  gf::detail::gatherElementBlocks(gather, ke.data(), 1.0, A, jobs);
+  gf::detail::gatherElementBlocks(gather, upperBlocks(ke).data(), 1.0, A, jobs);
   const Eigen::MatrixXd full = toDense(A);
 
   std::vector<uint8_t> fixed(g.nodes, 0);
@@ -641,7 +649,7 @@ TEST(Solvers, DISABLED_SolverTiming) {
   const double h = 0.01, e = 2e11, nu = 0.3, rho = 7800, dt = 1.0 / 60;
   for (double& p : g.positions) p *= h;
   const double lambda = e * nu / ((1 + nu) * (1 - 2 * nu)), mu = e / (2 * (1 + nu));
-  const std::vector<double> ke = elasticElementMatrices(g, lambda, mu);
+  const std::vector<double> ke = upperBlocks(elasticElementMatrices(g, lambda, mu));
   for (int threads : {1, 2}) {
     gf::ThreadPoolJobSystem jobs(threads);
     A.setZero(jobs);

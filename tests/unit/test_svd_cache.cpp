@@ -199,8 +199,8 @@ TEST(SvdCache, ElementPassWithTheCacheHasTheBitsOfOneWithout) {
       std::vector<double> energy, grad, hess, stress;
     };
     auto run = [&](double* cache, bool full) {
-      Out o{std::vector<double>(T), std::vector<double>(12 * T), std::vector<double>(144 * T),
-            std::vector<double>(6 * T)};
+      Out o{std::vector<double>(T), std::vector<double>(12 * T),
+            std::vector<double>(gf::kElementMatrixSize * T), std::vector<double>(6 * T)};
       gf::detail::ElementStage p = s;
       p.energy = o.energy.data();
       p.grad = full ? o.grad.data() : nullptr;
@@ -220,7 +220,8 @@ TEST(SvdCache, ElementPassWithTheCacheHasTheBitsOfOneWithout) {
     for (const Out* o : {&miss, &hit}) {
       EXPECT_TRUE(sameBits(o->energy.data(), plain.energy.data(), T)) << "model " << c.model;
       EXPECT_TRUE(sameBits(o->grad.data(), plain.grad.data(), 12 * T)) << "model " << c.model;
-      EXPECT_TRUE(sameBits(o->hess.data(), plain.hess.data(), 144 * T)) << "model " << c.model;
+      EXPECT_TRUE(sameBits(o->hess.data(), plain.hess.data(), gf::kElementMatrixSize * T))
+          << "model " << c.model;
       EXPECT_TRUE(sameBits(o->stress.data(), plain.stress.data(), 6 * T)) << "model " << c.model;
     }
     EXPECT_TRUE(sameBits(energyOnlyHit.energy.data(), plain.energy.data(), T))

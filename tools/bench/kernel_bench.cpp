@@ -98,9 +98,9 @@ BENCHMARK(BM_Triad)->Unit(benchmark::kMillisecond);
 // The step's element pass (fem/element_stage.h, several tets at a time in SIMD lanes where the
 // build has them: fem/element_lanes.h) as one core runs it: energy, gradient and PSD
 // Hessian of every tet written to the per-tet buffers the assembly reads. Its least traffic a
-// tet: the 4 corner indices, Dm^-1 and the rest volume read, energy, gradient and the 144-double
-// Hessian written, and the node positions once over the mesh.
-// state.range(0) = 1: a general state, sheared in every plane and turned by a rigid rotation
+// tet: the 4 corner indices, Dm^-1 and the rest volume read, energy, gradient and the Hessian's
+// upper node blocks (gf::kElementMatrixSize doubles) written, and the node positions once over the
+// mesh. state.range(0) = 1: a general state, sheared in every plane and turned by a rigid rotation
 // as a moving body is. The stretch and bend of range 0 change only F's (0, 1) columns pair, so
 // svd3 there is a 2x2 problem; here it does the Jacobi sweeps of a general F.
 void BM_ElementStage(benchmark::State& state) {
@@ -120,7 +120,7 @@ void BM_ElementStage(benchmark::State& state) {
     for (int k = 0; k < 3; ++k) x[3 * n + size_t(k)] = p[k];
   }
   std::vector<gf::Mat3> dmInv(tets);
-  std::vector<double> vol(tets), energy(tets), grad(12 * tets), hess(144 * tets);
+  std::vector<double> vol(tets), energy(tets), grad(12 * tets), hess(gf::kElementMatrixSize * tets);
   for (size_t e = 0; e < tets; ++e) dmInv[e] = gf::restShapeInverse(&d.rest[4 * e], vol[e]);
   gf::detail::ElementStage stage;
   stage.tets = m.tets.data();
@@ -131,7 +131,8 @@ void BM_ElementStage(benchmark::State& state) {
   stage.energy = energy.data();
   stage.grad = grad.data();
   stage.hess = hess.data();
-  const double bytesPerTet = 4 * sizeof(int32_t) + sizeof(gf::Mat3) + 8 + 8 + 12 * 8 + 144 * 8 +
+  const double bytesPerTet = 4 * sizeof(int32_t) + sizeof(gf::Mat3) + 8 + 8 + 12 * 8 +
+                             gf::kElementMatrixSize * 8 +
                              24.0 * double(m.nodeCount()) / double(tets);
   const std::clock_t c0 = std::clock();
   for (auto _ : state) {

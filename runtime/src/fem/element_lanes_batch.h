@@ -141,11 +141,16 @@ struct LanePass {
         for (int k = 0; k < 12; ++k) st.grad[12 * int64_t(tets[l]) + k] = g[k][l];
     }
     if (st.hess) {
-      alignas(64) double h[144][kW];
-      for (int k = 0; k < 144; ++k) hess.m[k].store_aligned(h[k]);
+      // The upper node blocks only (kElementMatrixSize, kernels/math.h).
+      alignas(64) double h[kElementMatrixSize][kW];
+      int k = 0;
+      for (int a = 0; a < 4; ++a)
+        for (int b = a; b < 4; ++b)
+          for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) hess(3 * a + i, 3 * b + j).store_aligned(h[k++]);
       for (int l = 0; l < lanes; ++l) {
-        double* dst = st.hess + 144 * int64_t(tets[l]);
-        for (int k = 0; k < 144; ++k) dst[k] = h[k][l];
+        double* dst = st.hess + kElementMatrixSize * int64_t(tets[l]);
+        for (k = 0; k < kElementMatrixSize; ++k) dst[k] = h[k][l];
       }
     }
     if (st.stress) {

@@ -58,7 +58,7 @@ struct ElementStage {
   const double* tetLame = nullptr;  ///< 2 per tet: (mu, lambda) of a wet body
   double* energy = nullptr;         ///< per tet
   double* grad = nullptr;           ///< 12 per tet
-  double* hess = nullptr;           ///< 144 per tet
+  double* hess = nullptr;           ///< kElementMatrixSize per tet: upper node blocks
   double* stress = nullptr;  ///< 6 per tet (Voigt), undamaged tets only: FractureBody does the rest
   double* svdCache = nullptr;  ///< kSvdCacheStride per tet (svd3.h), read and written
   /// Projection damage: Hessians with every crack closed, a majorant (damagedElementForces).
@@ -71,8 +71,9 @@ struct ElementStage {
     }
     double local[12];
     double* g = grad ? grad + 12 * int64_t(t) : local;
-    Mat12* h = hess ? reinterpret_cast<Mat12*>(hess + 144 * int64_t(t)) : nullptr;
-    energy[t] = evaluate(t, g, h);
+    Mat12 h;
+    energy[t] = evaluate(t, g, hess ? &h : nullptr);
+    if (hess) storeUpperBlocks(h.m, hess + kElementMatrixSize * int64_t(t));
   }
 
   /// Tet t's energy alone: the same bits as evaluate's return value.

@@ -365,11 +365,13 @@ struct FaceEnergyStage {
     for (int a = 0; a < 4; ++a)
       for (int i = 0; i < 3; ++i) ge[3 * a + i] = wa[a] * g[i];
     if (!hess) return;
-    double* he = hess + 144 * int64_t(f);
+    // The upper node blocks (kElementMatrixSize, kernels/math.h) of w w^T (x) h, from h's
+    // upper triangle: k n_i n_j is symmetric only to round-off, the stored blocks exactly.
+    double* he = hess + kElementMatrixSize * int64_t(f);
     for (int a = 0; a < 4; ++a)
-      for (int i = 0; i < 3; ++i)
-        for (int b = 0; b < 4; ++b)
-          for (int j = 0; j < 3; ++j) he[12 * (3 * a + i) + 3 * b + j] = wa[a] * wa[b] * h(i, j);
+      for (int b = a; b < 4; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) *he++ = wa[a] * wa[b] * (i <= j ? h(i, j) : h(j, i));
   }
 };
 

@@ -114,9 +114,10 @@ double estimateBodyBytes(const BodyDef& def) {
   const double edges = nodes + tets;
   const double blocks = nodes + 2 * edges;
   const double d = sizeof(double);
-  // Per tet: element Hessian (144), gradient (12), energy, rest inverse (9), volume, the SVD
-  // cache, corners, node references and the gather plan's 16 block slots.
-  double bytes = tets * (d * (144 + 12 + 1 + 9 + 1 + kSvdCacheStride) + 4 * (4 + 4 + 16));
+  // Per tet: element Hessian (its upper node blocks), gradient (12), energy, rest inverse (9),
+  // volume, the SVD cache, corners, node references and the gather plan's 16 block slots.
+  double bytes =
+      tets * (d * (kElementMatrixSize + 12 + 1 + 9 + 1 + kSvdCacheStride) + 4 * (4 + 4 + 16));
   // Per block: 9 values and a column index; the damping matrix doubles it.
   const double matrices = def.material.stiffnessDamping > 0 ? 2 : 1;
   bytes += matrices * blocks * (9 * d + 4);

@@ -91,7 +91,7 @@ Integrator::Integrator(const FemModel& model) {
 
   m_elemEnergy.resize(nt);
   m_elemGrad.resize(12 * nt);
-  m_elemHess.resize(144 * nt);
+  m_elemHess.resize(kElementMatrixSize * nt);
   m_svdCache.resize(kSvdCacheStride * nt);
   for (size_t t = 0; t < nt; ++t) initSvdCacheEntry(m_svdCache.data() + kSvdCacheStride * t);
   for (auto* v :
@@ -361,7 +361,7 @@ void Integrator::prepareFaces(const FemModel& model, const StepContext& ctx, boo
     m_faceSeen.assign(size_t(nf), 0);
     m_faceEnergy.assign(size_t(nf), 0.0);
     m_faceGrad.assign(12 * size_t(nf), 0.0);
-    m_faceHess.assign(144 * size_t(nf), 0.0);
+    m_faceHess.assign(kElementMatrixSize * size_t(nf), 0.0);
     m_faceTotal.assign(6 * size_t(nf), 0.0);
     m_faceNodeGrad.assign(3 * nn, 0.0);
   }

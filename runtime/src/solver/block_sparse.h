@@ -56,7 +56,7 @@ struct BlockSparseMatrix {
 /// Gather lists: for every block of the pattern, the element blocks that add into it.
 struct ElementGather {
   std::vector<int32_t> start;  ///< blockCount + 1 offsets into entry.
-  /// elem * 16 + a * 4 + b: element-local block (a, b) of a 12x12 element matrix, in increasing
+  /// elem * 16 + a * 4 + b: element-local node block (a, b) of an element matrix, in increasing
   /// order within a block so the summation order is fixed.
   std::vector<int32_t> entry;
   /// tetCount * 16: the block index of element pair (a, b), or -1 for a skipped node.
@@ -67,7 +67,8 @@ struct ElementGather {
 };
 
 /// Adds scale * (sum of element contributions) into every block of A. elementMatrices holds a
-/// row-major 12x12 matrix (144 doubles) per tet, rows/columns ordered node-major (3a + i).
+/// symmetric 12x12 matrix per tet (rows/columns node-major, 3a + i) as its upper node blocks,
+/// kElementMatrixSize doubles (kernels/math.h); the blocks below are their transposes.
 /// Parallel over blocks with a fixed order inside each block: same bits for any thread count.
 void gatherElementBlocks(const ElementGather& gather, const double* elementMatrices, double scale,
                          BlockSparseMatrix& A, JobSystem& jobs);

@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "kernels/gf_hd.h"
+#include "kernels/math.h"
 #include "kernels/spd_block.h"
 
 namespace gf::detail {
@@ -55,8 +56,9 @@ struct SpmvStage {
 };
 
 /// values[k] += scale * (the element blocks that land in block k), one block per item, summed
-/// in the gather list's fixed order (ElementGather). Element matrices are row-major 12x12
-/// (144 doubles per tet), rows and columns node-major (3a + i).
+/// in the gather list's fixed order (ElementGather). Element matrices are stored as their upper
+/// node blocks (kElementMatrixSize per tet, kernels/math.h): block (a, b) with a > b is read as
+/// the transpose of block (b, a), which for a symmetric element matrix is the same numbers.
 struct AssembleStage {
   const int32_t* start = nullptr;  ///< blockCount + 1 offsets into entry
   const int32_t* entry = nullptr;  ///< elem * 16 + a * 4 + b
@@ -69,9 +71,15 @@ struct AssembleStage {
     for (int32_t q = start[k]; q < start[k + 1]; ++q) {
       const int32_t c = entry[q];
       const int32_t a = (c >> 2) & 3, b = c & 3;
-      const double* m = elementMatrices + 144 * int64_t(c >> 4) + 36 * a + 3 * b;
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) sum[3 * i + j] += m[12 * i + j];
+      const double* m = elementMatrices + kElementMatrixSize * int64_t(c >> 4);
+      if (a <= b) {
+        m += upperBlockOffset(a, b);
+        for (int i = 0; i < 9; ++i) sum[i] += m[i];
+      } else {
+        m += upperBlockOffset(b, a);
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) sum[3 * i + j] += m[3 * j + i];
+      }
     }
     double* out = values + 9 * int64_t(k);
     for (int i = 0; i < 9; ++i) out[i] += scale * sum[i];
