@@ -12,6 +12,7 @@
 #include <random>
 #include <vector>
 
+#include "common/tet_set.h"
 #include "fem/element_lanes.h"
 #include "fem/element_stage.h"
 #include "kernels/element.h"
@@ -21,15 +22,7 @@ namespace {
 using gf::Mat3;
 using gf::MaterialCoeffs;
 using gf::Vec3;
-
-/// Separate tets (4 own nodes each) of a random rest shape, deformed by F = case * R.
-struct TetSet {
-  std::vector<int32_t> tets;
-  std::vector<double> x;
-  std::vector<Mat3> restInverse;
-  std::vector<double> restVolume;
-  int32_t count = 0;
-};
+using gf::test::TetSet;
 
 Mat3 rotation(Vec3 axis, double angle) {
   const Vec3 a = (1.0 / gf::norm(axis)) * axis;
@@ -46,6 +39,7 @@ Mat3 rotation(Vec3 axis, double angle) {
   return r;
 }
 
+/// Tets of a random rest shape, deformed by F = R * (one of the cases below).
 TetSet generalTets() {
   std::mt19937 rng(5);
   std::normal_distribution<double> n(0, 1);
@@ -96,15 +90,9 @@ TetSet generalTets() {
         break;
     }
     F = rotation(Vec3{n(rng), n(rng), n(rng)}, 3.0 * n(rng)) * F;
-    double vol = 0;
-    set.restInverse.push_back(gf::restShapeInverse(X, vol));
-    set.restVolume.push_back(vol);
-    for (int a = 0; a < 4; ++a) {
-      const Vec3 p = F * X[a] + Vec3{0.3, -0.2, 0.5};
-      set.tets.push_back(int32_t(set.x.size() / 3));
-      set.x.insert(set.x.end(), {p.x, p.y, p.z});
-    }
-    ++set.count;
+    Vec3 xd[4];
+    for (int a = 0; a < 4; ++a) xd[a] = F * X[a] + Vec3{0.3, -0.2, 0.5};
+    set.add(X, xd);
   }
   return set;
 }

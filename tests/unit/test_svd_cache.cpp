@@ -10,6 +10,7 @@
 #include <random>
 #include <vector>
 
+#include "common/tet_set.h"
 #include "fem/element_stage.h"
 #include "fracture/fracture_stages.h"
 #include "kernels/edge_stress.h"
@@ -20,33 +21,15 @@ namespace {
 using gf::Mat3;
 using gf::MaterialCoeffs;
 using gf::Vec3;
+using gf::test::TetSet;
 
 bool sameBits(const double* a, const double* b, size_t n) {
   return std::memcmp(a, b, n * sizeof(double)) == 0;
 }
 
-/// Separate tets (4 own nodes each) with rest inverses, deformed in every way the cache has to
-/// survive: moderate random deformations, inversions, flattened, collapsed to a line or a
-/// point, and a pure rotation (F with exact zeros).
-struct TetSet {
-  std::vector<int32_t> tets;
-  std::vector<double> x;
-  std::vector<Mat3> restInverse;
-  std::vector<double> restVolume;
-  int32_t count = 0;
-
-  void add(const Vec3 X[4], const Vec3 xd[4]) {
-    double vol = 0;
-    restInverse.push_back(gf::restShapeInverse(X, vol));
-    restVolume.push_back(vol);
-    for (int a = 0; a < 4; ++a) {
-      tets.push_back(int32_t(x.size() / 3));
-      x.insert(x.end(), {xd[a].x, xd[a].y, xd[a].z});
-    }
-    ++count;
-  }
-};
-
+// randomTets: separate tets deformed in every way the cache has to survive: moderate random
+// deformations, inversions, flattened, collapsed to a line or a point, and a pure rotation (F
+// with exact zeros).
 TetSet randomTets(uint32_t seed) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> n(0, 1);
