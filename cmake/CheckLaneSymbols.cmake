@@ -1,11 +1,15 @@
-# ctest script: the AVX2 build of the element lanes (runtime/src/fem/element_lanes_avx2.cpp)
-# must define no symbol but its own entry point and the AVX2 batch's instantiations. A scalar
-# inline kernel emitted there (a weak symbol) could be the copy the linker keeps for the whole
-# library, which would then need AVX2. OBJECTS: the runtime's objects joined by '|'; NM: nm.
+# ctest script: a translation unit built for AVX2 (UNIT: runtime/src/fem/element_lanes_avx2.cpp,
+# the default, or runtime/src/solver/block_row_avx2.cpp) must define no symbol but its own entry
+# point and the AVX2 batch's instantiations. A scalar inline kernel emitted there (a weak symbol)
+# could be the copy the linker keeps for the whole library, which would then need AVX2.
+# OBJECTS: the runtime's objects joined by '|'; NM: nm.
+if(NOT UNIT)
+  set(UNIT element_lanes_avx2)
+endif()
 string(REPLACE "|" ";" objects "${OBJECTS}")
 set(found OFF)
 foreach(obj IN LISTS objects)
-  if(NOT obj MATCHES "element_lanes_avx2")
+  if(NOT obj MATCHES "${UNIT}")
     continue()
   endif()
   set(found ON)
@@ -20,12 +24,12 @@ foreach(obj IN LISTS objects)
       set(name "${CMAKE_MATCH_1}")
       string(TOLOWER "${name}" lower)
       if(NOT lower MATCHES "avx2" AND NOT name MATCHES "^DW\\.ref\\.")
-        message(FATAL_ERROR "element_lanes_avx2 defines a symbol without AVX2 in it: ${name}")
+        message(FATAL_ERROR "${UNIT} defines a symbol without AVX2 in it: ${name}")
       endif()
     endif()
   endforeach()
 endforeach()
 if(NOT found)
-  message(FATAL_ERROR "no element_lanes_avx2 object among the runtime's objects")
+  message(FATAL_ERROR "no ${UNIT} object among the runtime's objects")
 endif()
-message(STATUS "element_lanes_avx2: only AVX2 symbols")
+message(STATUS "${UNIT}: only AVX2 symbols")

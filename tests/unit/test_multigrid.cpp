@@ -1391,7 +1391,10 @@ TEST(Multigrid, GaussSeidelCycleIsColouredGaussSeidelAndReachesTheDirectSolution
     const std::vector<CycleLevel> fine = {mg.cycleLevels(s.A)[0]};
     const size_t n3 = s.b.size();
 
-    // One cycle against the reference sweeps (same operations in the same order: same bits).
+    // One cycle against the reference sweeps: the same operations in the same order, but the
+    // library's 3x3 row products may round differently (FMA and sums per column with AVX2:
+    // solver/block_row.h, within a dot product's round-off of the exact value, test_block_row).
+    // A sweep out of order or a Jacobi step differs by far more than that.
     std::vector<double> ref(n3, 0.0);
     for (int sweep = 0; sweep < 2; ++sweep)
       referenceSweep(s.A, fine[0], s.b.data(), ref.data(), true);
@@ -1414,7 +1417,9 @@ TEST(Multigrid, GaussSeidelCycleIsColouredGaussSeidelAndReachesTheDirectSolution
           exec, fine, mg.cycleSettings(), noCoarse, times);
       std::vector<double> x(n3, 1.0);  // overwritten: the cycle starts from zero
       cycle.cycle<3>(0, s.b.data(), x.data());
-      EXPECT_EQ(std::memcmp(x.data(), ref.data(), 8 * n3), 0) << nx << " " << threads;
+      std::printf("[ gauss-seidel ] nx %d, %d threads: one cycle %.3g from the reference\n", nx,
+                  threads, relDiff(x, ref));
+      EXPECT_LT(relDiff(x, ref), 1e-13) << nx << " " << threads;
       // Stationary iteration x += V (b - A x) to its fixed point, the solution of A x = b.
       std::vector<double> ax(n3), r(n3), e(n3);
       for (int it = 0; it < 3000; ++it) {

@@ -1,12 +1,12 @@
 // Google Benchmark of single kernels on one fixed mesh (a 1 x 0.25 x 0.25 m box of 40 x 10 x 10
 // cells, 24,000 tets, 4,961 nodes): the per-tet element kernel (energy, gradient and projected
-// Hessian), the block-sparse SpMV of the step matrix, one multigrid V-cycle, and the edge
-// stresses with the fracture criterion. items_per_second counts tets (element, edge stresses),
-// nodes (SpMV) or unknowns (V-cycle), so 1e9 / items_per_second is ns per item. BM_Triad
-// measures one core's memory bandwidth (STREAM's triad) and BM_ElementStage, the step's element
-// pass, reports the share of that bound it reaches (its counter triad_share: the bytes it must
-// move at least, over the triad's rate, against its time). Not a test: ctest only runs it once
-// with a tiny minimum time to see that it works.
+// Hessian), the block-sparse SpMV of the step matrix and its 3x3 block-row product, one
+// multigrid V-cycle, and the edge stresses with the fracture criterion. items_per_second counts
+// tets (element, edge stresses), nodes (SpMV) or unknowns (V-cycle), so 1e9 / items_per_second
+// is ns per item. BM_Triad measures one core's memory bandwidth (STREAM's triad) and
+// BM_ElementStage, the step's element pass, reports the share of that bound it reaches (its
+// counter triad_share: the bytes it must move at least, over the triad's rate, against its
+// time). Not a test: ctest only runs it once with a tiny minimum time to see that it works.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -21,6 +21,7 @@
 #include "graphfrac/mesh.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
+#include "solver/block_row.h"
 #include "solver/multigrid.h"
 
 namespace {
@@ -193,6 +194,33 @@ void BM_BlockSpMV(benchmark::State& state) {
   state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(s.mesh.nodeCount()));
 }
 BENCHMARK(BM_BlockSpMV)->Unit(benchmark::kMicrosecond);
+
+// The 3x3 block-row product under the SpMV, the level-0 residual and the Gauss-Seidel sweep
+// (solver/block_row.h) over every row of the step matrix: state.range(0) = 0 the scalar formula
+// (the device's, and the CPU's without AVX2), 1 the host's choice (AVX2 + FMA where the CPU has
+// both). ns_per_block: time over the matrix's blocks.
+void BM_BlockRowProduct(benchmark::State& state) {
+  gf::SerialJobSystem jobs;
+  const gf::test::ElasticSystem s = stepSystem(jobs);
+  const gf::detail::BlockMatrixView A = s.A.view();
+  std::vector<double> x(s.b.size(), 1.0), y(s.b.size());
+  for (auto _ : state) {
+    for (int32_t r = 0; r < A.n; ++r) {
+      if (state.range(0) == 0)
+        gf::detail::blockRowProduct3Scalar(A.col, A.values, A.rowStart[r], A.rowStart[r + 1],
+                                           x.data(), y.data() + 3 * r);
+      else
+        gf::detail::blockRowProduct3(A.col, A.values, A.rowStart[r], A.rowStart[r + 1], x.data(),
+                                     y.data() + 3 * r);
+    }
+    benchmark::DoNotOptimize(y.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["ns_per_block"] =
+      benchmark::Counter(double(state.iterations()) * double(A.rowStart[A.n]),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_BlockRowProduct)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 // One V-cycle alone (no CG) on the step matrix, from x = 0. The hierarchy is built by a first
 // solve outside the timed loop; with the default coarse refresh interval (1) every timed solve

@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "kernels/gf_hd.h"
+#include "solver/block_row.h"
 
 namespace gf::detail {
 
@@ -22,14 +23,18 @@ struct LevelMatrix {
 /// out = (A x)_r for block row r.
 template <int B>
 GF_HD void rowProduct(const LevelMatrix<B>& A, int32_t r, const double* x, double* out) {
-  for (int i = 0; i < B; ++i) out[i] = 0;
-  for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k) {
-    const double* m = A.values + int64_t(B * B) * k;
-    const double* xc = x + int64_t(B) * A.col[k];
-    for (int i = 0; i < B; ++i) {
-      double s = 0;
-      for (int j = 0; j < B; ++j) s += m[B * i + j] * xc[j];
-      out[i] += s;
+  if constexpr (B == 3) {
+    blockRowProduct3(A.col, A.values, A.rowStart[r], A.rowStart[r + 1], x, out);
+  } else {
+    for (int i = 0; i < B; ++i) out[i] = 0;
+    for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k) {
+      const double* m = A.values + int64_t(B * B) * k;
+      const double* xc = x + int64_t(B) * A.col[k];
+      for (int i = 0; i < B; ++i) {
+        double s = 0;
+        for (int j = 0; j < B; ++j) s += m[B * i + j] * xc[j];
+        out[i] += s;
+      }
     }
   }
 }
@@ -112,16 +117,7 @@ struct GaussSeidelColourStage {
   GF_HD void operator()(int32_t q) const {
     const int32_t pos = first + q, row = colourRows[pos];
     double res[B], dx[B];
-    for (int i = 0; i < B; ++i) res[i] = 0;
-    for (int32_t k = gsRowStart[pos]; k < gsRowStart[pos + 1]; ++k) {
-      const double* mk = gsValues + int64_t(B * B) * k;
-      const double* xc = x + int64_t(B) * gsCol[k];
-      for (int i = 0; i < B; ++i) {
-        double acc = 0;
-        for (int j = 0; j < B; ++j) acc += mk[B * i + j] * xc[j];
-        res[i] += acc;
-      }
-    }
+    rowProduct<B>(LevelMatrix<B>{0, gsRowStart, gsCol, gsValues}, pos, x, res);
     for (int i = 0; i < B; ++i) res[i] = b[B * row + i] - res[i];
     blockApply<B>(invDiag + int64_t(B * B) * row, res, dx);
     for (int i = 0; i < B; ++i) x[B * row + i] += dx[i];

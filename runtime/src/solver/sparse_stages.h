@@ -9,6 +9,7 @@
 #include "kernels/gf_hd.h"
 #include "kernels/math.h"
 #include "kernels/spd_block.h"
+#include "solver/block_row.h"
 
 namespace gf::detail {
 
@@ -41,17 +42,7 @@ struct SpmvStage {
   double* y = nullptr;
 
   GF_HD void operator()(int32_t r) const {
-    double s0 = 0, s1 = 0, s2 = 0;
-    for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k) {
-      const double* m = A.values + 9 * int64_t(k);
-      const double* xc = x + 3 * int64_t(A.col[k]);
-      s0 += m[0] * xc[0] + m[1] * xc[1] + m[2] * xc[2];
-      s1 += m[3] * xc[0] + m[4] * xc[1] + m[5] * xc[2];
-      s2 += m[6] * xc[0] + m[7] * xc[1] + m[8] * xc[2];
-    }
-    y[3 * r + 0] = s0;
-    y[3 * r + 1] = s1;
-    y[3 * r + 2] = s2;
+    blockRowProduct3(A.col, A.values, A.rowStart[r], A.rowStart[r + 1], x, y + 3 * int64_t(r));
   }
 };
 
