@@ -1,12 +1,13 @@
 // Google Benchmark of single kernels on one fixed mesh (a 1 x 0.25 x 0.25 m box of 40 x 10 x 10
 // cells, 24,000 tets, 4,961 nodes): the per-tet element kernel (energy, gradient and projected
-// Hessian), the block-sparse SpMV of the step matrix and its 3x3 block-row product, one
-// multigrid V-cycle, and the edge stresses with the fracture criterion. items_per_second counts
-// tets (element, edge stresses), nodes (SpMV) or unknowns (V-cycle), so 1e9 / items_per_second
-// is ns per item. BM_Triad measures one core's memory bandwidth (STREAM's triad) and
-// BM_ElementStage, the step's element pass, reports the share of that bound it reaches (its
-// counter triad_share: the bytes it must move at least, over the triad's rate, against its
-// time). Not a test: ctest only runs it once with a tiny minimum time to see that it works.
+// Hessian), the step matrix's assembly from the element matrices, the block-sparse SpMV of the
+// step matrix and its 3x3 block-row product, one multigrid V-cycle, and the edge stresses with
+// the fracture criterion. items_per_second counts tets (element, edge stresses), blocks
+// (assembly), nodes (SpMV) or unknowns (V-cycle), so 1e9 / items_per_second is ns per item.
+// BM_Triad measures one core's memory bandwidth (STREAM's triad) and BM_ElementStage, the step's
+// element pass, reports the share of that bound it reaches (its counter triad_share: the bytes it
+// must move at least, over the triad's rate, against its time). Not a test: ctest only runs it
+// once with a tiny minimum time to see that it works.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -221,6 +222,30 @@ void BM_BlockRowProduct(benchmark::State& state) {
                          benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_BlockRowProduct)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+
+// The step matrix's assembly from the element matrices (gatherElementBlocks: every block sums
+// the element blocks of the tets that share its node pair, a lower block read transposed) as
+// one core runs it, replacing the old values as a step's first assembly does, on element
+// matrices of arbitrary values: items are blocks, so 1e9 / items_per_second is ns per block;
+// entries_per_block counts the element blocks read.
+void BM_ElementAssembly(benchmark::State& state) {
+  gf::SerialJobSystem jobs;
+  const gf::TetMesh m = fixedMesh();
+  gf::detail::BlockSparseMatrix A =
+      gf::detail::BlockSparseMatrix::fromTets(m.tets.data(), m.tetCount(), m.nodeCount());
+  const gf::detail::ElementGather gather =
+      gf::detail::ElementGather::build(m.tets.data(), m.tetCount(), A);
+  std::vector<double> hess(gf::kElementMatrixSize * m.tetCount());
+  for (size_t i = 0; i < hess.size(); ++i) hess[i] = 1.0 + double(i % 97) / 97;
+  for (auto _ : state) {
+    gf::detail::gatherElementBlocks(gather, hess.data(), 1e-4, A, jobs, {.accumulate = false});
+    benchmark::DoNotOptimize(A.values.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(A.blockCount()));
+  state.counters["entries_per_block"] = double(gather.start.back()) / double(A.blockCount());
+}
+BENCHMARK(BM_ElementAssembly)->Unit(benchmark::kMicrosecond);
 
 // One V-cycle alone (no CG) on the step matrix, from x = 0. The hierarchy is built by a first
 // solve outside the timed loop; with the default coarse refresh interval (1) every timed solve

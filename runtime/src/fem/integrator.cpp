@@ -977,19 +977,28 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
 
     // A = M (1 + dt r1) + dt r2 K(x_n) + dt^2 (K + K_contact)
     t0 = Clock::now();
+    // One pass over the element matrices writes A and, where this step's damping needs it,
+    // K(x_n); the damping term's axpy joins the last gather into A. Each would stream the
+    // matrix again; the bits are those of the separate passes.
+    const bool faces = m_faceOn && m_faceAny;
+    GatherFusion elements, faceContacts;
+    elements.accumulate = false;
     if (it == 0 && r2 > 0 && !m_inert) {
       if (m_dampK.n == 0) m_dampK = m_A;
-      m_dampK.setZero(jobs);
-      gatherElementBlocks(m_gather, m_elemHess.data(), 1.0, m_dampK, jobs);
+      elements.sum = &m_dampK;
       m_dampKValid = true;
-      E += dampingTerm(state, m_dampRef.data(), m_x.data(), dt, true, jobs);
     }
-    m_A.setZero(jobs);
-    if (!m_inert) gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs);
-    if (m_faceOn && m_faceAny) gatherElementBlocks(m_faceGather, m_faceHess.data(), dt2, m_A, jobs);
-    if (m_dampKValid)
-      exec.run(int32_t(m_A.values.size()), 4096,
-               AxpyStage{m_A.values.data(), m_dampK.values.data(), dt * r2, m_A.values.data()});
+    if (m_dampKValid) {
+      GatherFusion& last = faces ? faceContacts : elements;
+      last.addAfter = &m_dampK;
+      last.addScale = dt * r2;
+    }
+    if (m_inert)
+      m_A.setZero(jobs);
+    else
+      gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs, elements);
+    if (faces) gatherElementBlocks(m_faceGather, m_faceHess.data(), dt2, m_A, jobs, faceContacts);
+    if (elements.sum) E += dampingTerm(state, m_dampRef.data(), m_x.data(), dt, true, jobs);
     exec.run(model.nodeCount, kNodeGrain,
              NodeBlockStage{m_A.values.data(), m_diagonalBlock.data(), state.nodeMass.data(),
                             m_contactHess.data(), 1 + dt * r1, dt2,

@@ -2,6 +2,8 @@
 #include "solver/block_sparse.h"
 
 #include <algorithm>
+#include <cstdint>
+#include <stdexcept>
 
 #include "solver/vector_stages.h"
 #include "step/executor.h"
@@ -74,6 +76,9 @@ void BlockSparseMatrix::multiply(const double* x, double* y, JobSystem& jobs) co
 
 ElementGather ElementGather::build(const int32_t* tets, size_t tetCount,
                                    const BlockSparseMatrix& A) {
+  // An entry holds 2 * (10 elem + upper block) + 1 in an int32_t.
+  if (tetCount > size_t(INT32_MAX) / (2 * kElementMatrixSize / 9))
+    throw std::length_error("ElementGather: more than 107 million tets");
   ElementGather g;
   g.elementBlockIndex.resize(16 * tetCount);
   g.start.assign(static_cast<size_t>(A.blockCount()) + 1, 0);
@@ -87,21 +92,32 @@ ElementGather ElementGather::build(const int32_t* tets, size_t tetCount,
     }
   }
   for (size_t k = 0; k < static_cast<size_t>(A.blockCount()); ++k) g.start[k + 1] += g.start[k];
-  g.entry.resize(static_cast<size_t>(g.start.back()));
+  // The lookahead's padding names block 0 of element 0: only ever prefetched.
+  g.entry.assign(static_cast<size_t>(g.start.back()) + kGatherLookahead, 0);
   std::vector<int32_t> fill(g.start.begin(), g.start.end() - 1);
   // Element-major traversal makes each block's list increasing: a fixed summation order.
   for (size_t e = 0; e < 16 * tetCount; ++e) {
     int32_t k = g.elementBlockIndex[e];
-    if (k >= 0) g.entry[fill[k]++] = static_cast<int32_t>(e);
+    if (k < 0) continue;
+    const int a = int(e / 4 % 4), b = int(e % 4);
+    const int upper = upperBlockOffset(std::min(a, b), std::max(a, b)) / 9;
+    g.entry[fill[k]++] =
+        2 * (kElementMatrixSize / 9 * static_cast<int32_t>(e / 16) + upper) + (a > b);
   }
   return g;
 }
 
 void gatherElementBlocks(const ElementGather& gather, const double* elementMatrices, double scale,
-                         BlockSparseMatrix& A, JobSystem& jobs) {
-  CpuExecutor(jobs).run(A.blockCount(), 4 * kRowGrain,
-                        AssembleStage{gather.start.data(), gather.entry.data(), elementMatrices,
-                                      scale, A.values.data()});
+                         BlockSparseMatrix& A, JobSystem& jobs, const GatherFusion& fusion) {
+  AssembleStage stage{gather.start.data(), gather.entry.data(), elementMatrices, scale,
+                      A.values.data()};
+  stage.accumulate = fusion.accumulate;
+  if (fusion.sum) stage.sum = fusion.sum->values.data();
+  if (fusion.addAfter) {
+    stage.addAfter = fusion.addAfter->values.data();
+    stage.addScale = fusion.addScale;
+  }
+  CpuExecutor(jobs).run(A.blockCount(), 4 * kRowGrain, stage);
 }
 
 void applyDirichlet(BlockSparseMatrix& A, const uint8_t* fixedNode) {

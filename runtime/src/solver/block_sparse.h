@@ -56,8 +56,10 @@ struct BlockSparseMatrix {
 /// Gather lists: for every block of the pattern, the element blocks that add into it.
 struct ElementGather {
   std::vector<int32_t> start;  ///< blockCount + 1 offsets into entry.
-  /// elem * 16 + a * 4 + b: element-local node block (a, b) of an element matrix, in increasing
-  /// order within a block so the summation order is fixed.
+  /// Element-local node block (a, b) of an element matrix as AssembleStage reads it: 2 * (its
+  /// upper block's index in the element matrices, 10 elem + upper block (min, max)) + (a > b,
+  /// read transposed); in increasing element order within a block, so the summation order is
+  /// fixed. kGatherLookahead entries of padding follow start.back(). Elements below 2^31 / 20.
   std::vector<int32_t> entry;
   /// tetCount * 16: the block index of element pair (a, b), or -1 for a skipped node.
   std::vector<int32_t> elementBlockIndex;
@@ -66,12 +68,22 @@ struct ElementGather {
   static ElementGather build(const int32_t* tets, size_t tetCount, const BlockSparseMatrix& A);
 };
 
+/// Passes over the whole matrix that gatherElementBlocks takes over, block by block, with their
+/// bits (AssembleStage): the step's first assembly writes A, K(x_n) for Rayleigh damping and
+/// their axpy in one pass over the element matrices.
+struct GatherFusion {
+  bool accumulate = true;            ///< add into A (false: replace, as setZero and then add)
+  BlockSparseMatrix* sum = nullptr;  ///< also receives the sum alone (A's pattern), or null
+  const BlockSparseMatrix* addAfter = nullptr;  ///< A += addScale * addAfter last (A's pattern)
+  double addScale = 0;
+};
+
 /// Adds scale * (sum of element contributions) into every block of A. elementMatrices holds a
 /// symmetric 12x12 matrix per tet (rows/columns node-major, 3a + i) as its upper node blocks,
 /// kElementMatrixSize doubles (kernels/math.h); the blocks below are their transposes.
 /// Parallel over blocks with a fixed order inside each block: same bits for any thread count.
 void gatherElementBlocks(const ElementGather& gather, const double* elementMatrices, double scale,
-                         BlockSparseMatrix& A, JobSystem& jobs);
+                         BlockSparseMatrix& A, JobSystem& jobs, const GatherFusion& fusion = {});
 
 /// Dirichlet nodes: zeroes the block rows and columns of every node with fixedNode[i] != 0 and
 /// puts the identity on its diagonal block, which keeps A symmetric positive definite. The

@@ -46,34 +46,71 @@ struct SpmvStage {
   }
 };
 
-/// values[k] += scale * (the element blocks that land in block k), one block per item, summed
-/// in the gather list's fixed order (ElementGather). Element matrices are stored as their upper
-/// node blocks (kElementMatrixSize per tet, kernels/math.h): block (a, b) with a > b is read as
-/// the transpose of block (b, a), which for a symmetric element matrix is the same numbers.
+/// Element blocks the assembly asks the cache for ahead of the one it adds (AssembleStage): its
+/// time is the latency of the element matrices' lines (21 MB on a 29k-tet body, read in the
+/// blocks' order), which the out-of-order core alone hides only a few entries deep. 32 halved
+/// the stage's time on one core (docs/validation.md); ElementGather::entry carries that many
+/// entries of padding past its end.
+constexpr int32_t kGatherLookahead = 32;
+
+/// A hint that the line at p will be read soon: a no-op in device code, whose warps hide the
+/// latency among themselves.
+GF_HD void prefetchLine(const void* p) {
+#if defined(__CUDA_ARCH__)
+  (void)p;
+#else
+  __builtin_prefetch(p);
+#endif
+}
+
+/// values[k] = (accumulate ? values[k] : 0) + scale * (the element blocks that land in block k),
+/// one block per item, summed in the gather list's fixed order (ElementGather). Element matrices
+/// are stored as their upper node blocks (kElementMatrixSize per tet, kernels/math.h): a block
+/// (a, b) with a > b is read as the transpose of block (b, a), which for a symmetric element
+/// matrix is the same numbers. Each entry names the upper block and whether it is read
+/// transposed. The stage also takes over passes that would each stream the whole matrix again,
+/// with their bits: without accumulate it replaces a zeroing pass (0 + x, not x: a -0 sum stays
+/// +0); `sum`, when set, receives the plain sum (0 + sum, what a gather with scale 1 into a
+/// zeroed matrix writes); `addAfter`, when set, is added last as addScale * addAfter[k] (an axpy
+/// over the values; it may be `sum` itself).
 struct AssembleStage {
   const int32_t* start = nullptr;  ///< blockCount + 1 offsets into entry
-  const int32_t* entry = nullptr;  ///< elem * 16 + a * 4 + b
+  const int32_t* entry = nullptr;  ///< 2 * upper block + transposed (ElementGather)
   const double* elementMatrices = nullptr;
   double scale = 1;
   double* values = nullptr;
+  bool accumulate = true;
+  double* sum = nullptr;             ///< 9 per block, or null
+  const double* addAfter = nullptr;  ///< 9 per block, or null
+  double addScale = 0;
 
   GF_HD void operator()(int32_t k) const {
-    double sum[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+    double total[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
     for (int32_t q = start[k]; q < start[k + 1]; ++q) {
+      // A 9-double block spans at most two lines.
+      const double* ahead = elementMatrices + 9 * int64_t(entry[q + kGatherLookahead] >> 1);
+      prefetchLine(ahead);
+      prefetchLine(ahead + 8);
       const int32_t c = entry[q];
-      const int32_t a = (c >> 2) & 3, b = c & 3;
-      const double* m = elementMatrices + kElementMatrixSize * int64_t(c >> 4);
-      if (a <= b) {
-        m += upperBlockOffset(a, b);
-        for (int i = 0; i < 9; ++i) sum[i] += m[i];
-      } else {
-        m += upperBlockOffset(b, a);
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j) sum[3 * i + j] += m[3 * j + i];
-      }
+      const double* m = elementMatrices + 9 * int64_t(c >> 1);
+      const bool t = c & 1;
+      total[0] += m[0];
+      total[1] += t ? m[3] : m[1];
+      total[2] += t ? m[6] : m[2];
+      total[3] += t ? m[1] : m[3];
+      total[4] += m[4];
+      total[5] += t ? m[7] : m[5];
+      total[6] += t ? m[2] : m[6];
+      total[7] += t ? m[5] : m[7];
+      total[8] += m[8];
     }
-    double* out = values + 9 * int64_t(k);
-    for (int i = 0; i < 9; ++i) out[i] += scale * sum[i];
+    const int64_t b = 9 * int64_t(k);
+    for (int i = 0; i < 9; ++i) {
+      if (sum) sum[b + i] = 0.0 + total[i];
+      double v = (accumulate ? values[b + i] : 0.0) + scale * total[i];
+      if (addAfter) v += addScale * addAfter[b + i];
+      values[b + i] = v;
+    }
   }
 };
 
