@@ -1003,7 +1003,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
              NodeBlockStage{m_A.values.data(), m_diagonalBlock.data(), state.nodeMass.data(),
                             m_contactHess.data(), 1 + dt * r1, dt2,
                             state.drag.empty() ? nullptr : state.drag.data(), tetherOf(state)});
-    applyDirichlet(m_A, state.fixedNode.data());
+    applyDirichlet(m_A, state.fixedNode.data(), jobs);
     exec.run(n3i, kNodeGrain,
              FreeDifferenceStage{nullptr, m_grad.data(), state.fixedNode.data(), m_rhs.data()});
     rep.assemblyMs += msSince(t0);

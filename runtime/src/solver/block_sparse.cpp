@@ -120,10 +120,9 @@ void gatherElementBlocks(const ElementGather& gather, const double* elementMatri
   CpuExecutor(jobs).run(A.blockCount(), 4 * kRowGrain, stage);
 }
 
-void applyDirichlet(BlockSparseMatrix& A, const uint8_t* fixedNode) {
-  CpuExecutor(serialJobs())
-      .run(A.n, kRowGrain,
-           DirichletStage{A.rowStart.data(), A.col.data(), fixedNode, A.values.data()});
+void applyDirichlet(BlockSparseMatrix& A, const uint8_t* fixedNode, JobSystem& jobs) {
+  CpuExecutor(jobs).run(
+      A.n, kRowGrain, DirichletStage{A.rowStart.data(), A.col.data(), fixedNode, A.values.data()});
 }
 
 }  // namespace gf::detail

@@ -87,7 +87,8 @@ void gatherElementBlocks(const ElementGather& gather, const double* elementMatri
 
 /// Dirichlet nodes: zeroes the block rows and columns of every node with fixedNode[i] != 0 and
 /// puts the identity on its diagonal block, which keeps A symmetric positive definite. The
-/// caller zeroes the right-hand side at those nodes, so the solution is zero there.
-void applyDirichlet(BlockSparseMatrix& A, const uint8_t* fixedNode);
+/// caller zeroes the right-hand side at those nodes, so the solution is zero there. Rows are
+/// independent: same bits for any thread count.
+void applyDirichlet(BlockSparseMatrix& A, const uint8_t* fixedNode, JobSystem& jobs = serialJobs());
 
 }  // namespace gf::detail

@@ -30,6 +30,7 @@
 #include <Eigen/CholmodSupport>
 #endif
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -142,6 +143,8 @@ struct MultigridSolver::Impl {
   Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int> > coarseLlt;
 #endif
   bool coarseOk = false;
+  // The refresh of a solve left the coarsest factorisation to its first V-cycle (overlapped).
+  bool factorPending = false;
 
   // CG vectors (3 n each).
   std::vector<double> r, z, p, ap, rOld;
@@ -289,7 +292,8 @@ struct MultigridSolver::Impl {
         CpuExecutor(jobs, &partials), cycleLevel(l, A), kPowerIterations, kLambdaMargin);
   }
 
-  void refresh(const BlockSparseMatrix& A, JobSystem& jobs) {
+  // deferFactor: the coarsest factorisation is left to the caller (factorPending).
+  void refresh(const BlockSparseMatrix& A, JobSystem& jobs, bool deferFactor) {
     auto t0 = Clock::now();
     hierarchy.assemble(A, jobs);
     stats.galerkinMs = msSince(t0);
@@ -298,10 +302,19 @@ struct MultigridSolver::Impl {
       estimateLambda<3>(0, A, jobs);
       for (int l = 1; l < coarseCount(); ++l) estimateLambda<12>(l, A, jobs);
     }
-    t0 = Clock::now();
-    if (coarseCount() > 0) factorCoarsest(hierarchy.level(coarseCount()).A.values.data());
+    coarseOk = false;
+    factorPending = coarseCount() > 0;
+    stats.coarseFactorOk = !factorPending;
+    if (!deferFactor) finishFactor();
+  }
+
+  void finishFactor() {
+    if (!factorPending) return;
+    const auto t0 = Clock::now();
+    factorCoarsest(hierarchy.level(coarseCount()).A.values.data());
+    factorPending = false;
     stats.factorMs = msSince(t0);
-    stats.coarseFactorOk = coarseOk || coarseCount() == 0;
+    stats.coarseFactorOk = coarseOk;
   }
 
   // Level l as the cycle and its set-up read it (valid until the next buildLevels).
@@ -370,9 +383,75 @@ struct MultigridSolver::Impl {
     CpuExecutor(jobs).run(len, kEntryGrain, FillStage{0.0, x});
   }
 
+  // The passes of a V-cycle's descent, which descend() issues in a fixed order whatever the
+  // values, split between two executors. Taking (`stop` given): passes run in order until
+  // stop is set, and `taken` counts them. Resuming: the first `skip` passes, which ran
+  // already, are left out. Every pass writes disjoint rows and none reduces, so where the
+  // split falls does not change the bits.
+  struct PassSplit {
+    const CpuExecutor* exec;
+    const std::atomic<bool>* stop = nullptr;
+    int32_t skip = 0;
+    mutable int32_t next = 0;
+    mutable int32_t taken = 0;
+    mutable bool stopped = false;
+
+    template <class Stage>
+    void run(int32_t count, uint32_t grain, const Stage& stage) const {
+      if (next++ < skip || stopped) return;
+      if (stop && stop->load(std::memory_order_acquire)) {
+        stopped = true;
+        return;
+      }
+      exec->run(count, grain, stage);
+      ++taken;
+    }
+  };
+
+  // The V-cycle on level 0 as multigridSolve runs it. The first cycle after a refresh starts
+  // its descent to the coarsest level while the coarsest operator is factorised: two items side
+  // by side on the JobSystem, the descent serial inside and only until the factor is done; the
+  // rest of the descent then runs on all threads. Neither side reads what the other writes,
+  // so the bits are those of factorising first.
+  template <class Coarse>
+  struct OverlappedFactor {
+    const CpuExecutor* exec;
+    const std::vector<CycleLevel>* levels;
+    CycleSettings settings;
+    const Coarse* coarse;
+    CycleTimes* times;
+    Impl* s;
+    JobSystem* jobs;
+
+    template <int B>
+    void cycle(int l, const double* b, double* x) const {
+      const VCycle<CpuExecutor, Coarse> full(*exec, *levels, settings, *coarse, *times);
+      if (!s->factorPending) {
+        full.template cycle<B>(l, b, x);
+        return;
+      }
+      using Split = VCycle<PassSplit, Coarse>;
+      std::atomic<bool> factored{false};
+      const CpuExecutor serial(serialJobs());
+      const PassSplit taking{&serial, &factored};
+      forRanges(*jobs, 2, 1, [&](uint32_t begin, uint32_t end) {
+        for (uint32_t part = begin; part < end; ++part)
+          if (part == 0) {
+            s->finishFactor();
+            factored.store(true, std::memory_order_release);
+          } else {
+            Split(taking, *levels, settings, *coarse, *times).template descend<B>(l, b, x);
+          }
+      });
+      const PassSplit rest{exec, nullptr, taking.taken};
+      Split(rest, *levels, settings, *coarse, *times).template descend<B>(l, b, x);
+      full.template ascend<B>(l, b, x);
+    }
+  };
+
   // What a cycle needs of A's values: coarse operators on refresh, the fine diagonal every
   // solve.
-  void prepare(const BlockSparseMatrix& A, JobSystem& jobs) {
+  void prepare(const BlockSparseMatrix& A, JobSystem& jobs, bool deferFactor) {
     const auto t0 = Clock::now();
     // Iteration counts are the same for any thread count, so this choice is deterministic.
     const bool drifted = settings.preconditionCG && refreshIterations >= 0 &&
@@ -387,7 +466,7 @@ struct MultigridSolver::Impl {
     // consistent with their (stale) operators.
     if (!due && settings.smoother != Smoother::GaussSeidel) estimateLambda<3>(0, A, jobs);
     if (due) {
-      refresh(A, jobs);
+      refresh(A, jobs, deferFactor);
       needRefresh = false;
       solvesSinceRefresh = 0;
       stats.refreshed = true;
@@ -456,7 +535,7 @@ bool MultigridSolver::ready(const BlockSparseMatrix& A) const {
 }
 
 void MultigridSolver::prepare(const BlockSparseMatrix& A, JobSystem& jobs) {
-  m_impl->prepare(A, jobs);
+  m_impl->prepare(A, jobs, false);
 }
 
 std::vector<CycleLevel> MultigridSolver::cycleLevels(const BlockSparseMatrix& A) {
@@ -505,12 +584,13 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
   // them after a crack re-binding), i.e. inside prepare.
   std::vector<CycleLevel> levels;
   auto prepareLevels = [&]() {
-    s.prepare(A, jobs);
+    s.prepare(A, jobs, true);
     levels = s.cycleLevels(A);
   };
   auto coarse = [&](const double* cb, double* cx) { s.solveCoarsest(cb, cx, jobs); };
   CycleTimes times;
-  const VCycle<CpuExecutor, decltype(coarse)> cycle(exec, levels, s.cycleSettings(), coarse, times);
+  const Impl::OverlappedFactor<decltype(coarse)> cycle{
+      &exec, &levels, s.cycleSettings(), &coarse, &times, &s, &jobs};
   MultigridRun run;
   run.preconditionCG = s.settings.preconditionCG;
   run.cycles = s.settings.cycles;
@@ -518,6 +598,7 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
   const SolveReport report = multigridSolve(
       exec, A.view(), b, x, {s.r.data(), s.z.data(), s.p.data(), s.ap.data(), s.rOld.data()}, cycle,
       prepareLevels, maxIterations, relativeTolerance, run);
+  s.finishFactor();  // no V-cycle ran after the refresh
   st.cycles = run.vCycles;
   st.iterations = s.settings.preconditionCG ? report.iterations : 0;
   if (st.refreshed) s.refreshIterations = st.iterations;

@@ -118,37 +118,54 @@ class VCycle {
 
   template <int B>
   void cycle(int l, const double* b, double* x) const {
+    descend<B>(l, b, x);
+    ascend<B>(l, b, x);
+  }
+
+  /// The part of cycle(l, b, x) before the coarsest solve: on level l and every level below
+  /// it but the coarsest, x = 0, pre-smoothing, the residual restricted to the next level's b.
+  /// Of the coarsest level it only writes b, so it may run while that level is factorised;
+  /// ascend(l, b, x) then completes the cycle, the same bits as cycle().
+  template <int B>
+  void descend(int l, const double* b, double* x) const {
     const int L = int(m_levels.size()) - 1;
     const CycleLevel& lv = m_levels[size_t(l)];
-    const int32_t len = B * lv.n;
+    if (l == L && L > 0) return;
+    m_exec.run(B * lv.n, kEntryGrain, FillStage{0.0, x});
+    auto t0 = Clock::now();
+    smooth<B>(lv, b, x, l == 0 ? m_s.preSweeps : m_s.coarsePreSweeps, true);
+    m_times.smoothMs += msSince(t0);
+    if (L == 0) return;
+    const CycleLevel& next = m_levels[size_t(l) + 1];
+    t0 = Clock::now();
+    m_exec.run(lv.n, rowGrain<B>(), LevelResidualStage<B>{lv.matrix<B>(), b, x, lv.r});
+    m_exec.run(next.n, kHandleGrain, RestrictStage{lv.P, lv.r, next.b});  // eq 6.1
+    m_times.transferMs += msSince(t0);
+    descend<12>(l + 1, next.b, next.x);
+  }
+
+  /// The rest of cycle(l, b, x) after descend(l, b, x): the coarsest solve, then on every
+  /// level from the coarsest up to l the prolonged correction and post-smoothing.
+  template <int B>
+  void ascend(int l, const double* b, double* x) const {
+    const int L = int(m_levels.size()) - 1;
+    const CycleLevel& lv = m_levels[size_t(l)];
+    const int post = l == 0 ? m_s.postSweeps : m_s.coarsePostSweeps;
     if (l == L && L > 0) {
       const auto t0 = Clock::now();
       m_coarse(b, x);
       m_times.coarseSolveMs += msSince(t0);
       return;
     }
-    m_exec.run(len, kEntryGrain, FillStage{0.0, x});
-    const int pre = l == 0 ? m_s.preSweeps : m_s.coarsePreSweeps;
-    const int post = l == 0 ? m_s.postSweeps : m_s.coarsePostSweeps;
-    auto t0 = Clock::now();
-    smooth<B>(lv, b, x, pre, true);
-    m_times.smoothMs += msSince(t0);
-    if (L == 0) {
-      t0 = Clock::now();
-      smooth<B>(lv, b, x, post, false);
-      m_times.smoothMs += msSince(t0);
-      return;
+    if (L > 0) {
+      const CycleLevel& next = m_levels[size_t(l) + 1];
+      ascend<12>(l + 1, next.b, next.x);
+      const auto t0 = Clock::now();
+      m_exec.run(lv.n, B == 3 ? 256 : kHandleGrain * 8,
+                 ProlongAddStage{lv.P, next.x, x});  // eq 6.3
+      m_times.transferMs += msSince(t0);
     }
-    const CycleLevel& next = m_levels[size_t(l) + 1];
-    t0 = Clock::now();
-    m_exec.run(lv.n, rowGrain<B>(), LevelResidualStage<B>{lv.matrix<B>(), b, x, lv.r});
-    m_exec.run(next.n, kHandleGrain, RestrictStage{lv.P, lv.r, next.b});  // eq 6.1
-    m_times.transferMs += msSince(t0);
-    cycle<12>(l + 1, next.b, next.x);
-    t0 = Clock::now();
-    m_exec.run(lv.n, B == 3 ? 256 : kHandleGrain * 8, ProlongAddStage{lv.P, next.x, x});  // eq 6.3
-    m_times.transferMs += msSince(t0);
-    t0 = Clock::now();
+    const auto t0 = Clock::now();
     smooth<B>(lv, b, x, post, false);
     m_times.smoothMs += msSince(t0);
   }
