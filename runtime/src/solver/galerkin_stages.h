@@ -217,7 +217,7 @@ struct DiagonalSetupStage {
   double* invDiag = nullptr;
   const int32_t* gsRowStart = nullptr;
   const int32_t* gsBlock = nullptr;  ///< source block of each copied position
-  GsValue<B>* gsValues = nullptr;
+  double* gsValues = nullptr;
 
   GF_HD void operator()(int32_t i) const {
     constexpr int BB = B * B;
@@ -225,8 +225,8 @@ struct DiagonalSetupStage {
     if (!gsRowStart) return;
     for (int32_t k = gsRowStart[i]; k < gsRowStart[i + 1]; ++k) {
       const double* src = values + BB * int64_t(gsBlock[k]);
-      GsValue<B>* dst = gsValues + BB * int64_t(k);
-      for (int j = 0; j < BB; ++j) dst[j] = GsValue<B>(src[j]);
+      double* dst = gsValues + BB * int64_t(k);
+      for (int j = 0; j < BB; ++j) dst[j] = src[j];
     }
   }
 };
