@@ -37,8 +37,15 @@
 //   P = F S,  dP/dF = J^T Hv J + I (x) S,  Hv = M - M B_S G_SS^-1 B_S^T M,
 // J = de/dvec(F), J(ab, kl) = (d_al F_kb + F_ka d_bl)/2, (I (x) S)(3k+l, 3m+n) = d_km S_ln.
 // Hv is PSD (M^1/2 times an orthogonal projector times M^1/2), so only the I (x) S term
-// (compression) can make dP/dF indefinite; projectPsd clamps it with projectPSD<9>. The
-// Hessian is exact away from the region boundaries, where only it (not P) jumps.
+// (compression) can make dP/dF indefinite; projectPsd makes it PSD by the absolute values of
+// its eigenvalues (projectPSD<9>, absolute), not by clamping them to zero. A cracked tet held
+// in compression can release its energy by a small motion along such a concave direction;
+// clamped, the direction has no curvature at all, and the Newton step along it is bounded only
+// by the node's mass: at 60 Hz a torn steel bar's corner nodes were sent metres (and thrown at
+// up to 3.4e4 J) where a few millimetres released the energy. The absolute value keeps the
+// concavity's size as the step's scale (Chen et al. 2024, "Stabler Neo-Hookean Simulation:
+// Absolute Eigenvalue Filtering for Projected Newton"; docs/validation.md). The Hessian is
+// exact away from the region boundaries, where only it (not P) jumps.
 //   Known limit, inherited from StVK: the Green strain of an edge is bounded below by -1/2,
 // so the closed-crack resistance weakens as an element is crushed towards zero volume.
 //
@@ -262,7 +269,8 @@ GF_HD int crackOpening(const Mat<6, 6>& M, const Mat<6, 6>& Tinv, const uint8_t 
 /// closedHessian, dPdF takes every crack as closed (Hv = M): a majorant, not the Hessian. T is not
 /// needed by the minimum (only T^-1, whose columns are the opening strains); it stays in the
 /// signature so every caller passes the same edge frame. dPdF is the exact Hessian within the
-/// current set of open cracks; with projectPsd it is replaced by its nearest PSD matrix.
+/// current set of open cracks; with projectPsd its negative eigenvalues are replaced by their
+/// absolute values (see the file comment).
 GF_HD double projectionEvaluate(const Mat<6, 6>& M, const Mat<6, 6>& Tinv, const Mat<6, 6>& T,
                                 const uint8_t broken[6], const Mat3& F, Mat3& P, Mat9* dPdF,
                                 bool projectPsd, bool closedHessian = false) {
@@ -305,7 +313,7 @@ GF_HD double projectionEvaluate(const Mat<6, 6>& M, const Mat<6, 6>& Tinv, const
   for (int k = 0; k < 3; ++k)
     for (int l = 0; l < 3; ++l)
       for (int n = 0; n < 3; ++n) H(3 * k + l, 3 * k + n) += S(l, n);
-  if (projectPsd) projectPSD<9>(H);
+  if (projectPsd) projectPSD<9>(H, /*absolute=*/true);
   return psi;
 }
 
@@ -326,7 +334,7 @@ GF_HD Mat3 projectionPiola(double mu, double lambda, const Mat<6, 6>& Tinv, cons
 }
 
 /// dP/dF of projectionEnergy (eq 4.27 in F; 9x9, vec index 3*i+j), exact within the current
-/// set of open cracks, PSD-projected when projectPsd.
+/// set of open cracks, made PSD by absolute eigenvalues when projectPsd.
 GF_HD Mat9 projectionHessian(double mu, double lambda, const Mat<6, 6>& Tinv, const Mat<6, 6>& T,
                              const uint8_t broken[6], const Mat3& F, bool projectPsd) {
   Mat3 P;

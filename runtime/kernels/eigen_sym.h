@@ -92,17 +92,18 @@ GF_HD void symmetricEigen(const Mat<N, N>& a, double values[N], Mat<N, N>& vecto
 }
 
 /// Replaces a symmetric matrix by its nearest positive semi-definite matrix in the Frobenius
-/// norm (negative eigenvalues clamped to zero). The general fallback where no analytic
-/// eigen-system is known (SPEC §1); returns true when something was clamped.
+/// norm (negative eigenvalues clamped to zero), or with `absolute` by the matrix with the
+/// absolute values of its eigenvalues (the same eigenvectors). The general fallback where no
+/// analytic eigen-system is known (SPEC §1); returns true when an eigenvalue was negative.
 template <int N>
-GF_HD bool projectPSD(Mat<N, N>& a) {
+GF_HD bool projectPSD(Mat<N, N>& a, bool absolute = false) {
   double values[N];
   Mat<N, N> q;
   symmetricEigen<N>(a, values, q);
   bool clamped = false;
   for (int k = 0; k < N; ++k) {
     if (values[k] < 0) {
-      values[k] = 0;
+      values[k] = absolute ? -values[k] : 0;
       clamped = true;
     }
   }
