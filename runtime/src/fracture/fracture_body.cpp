@@ -133,6 +133,7 @@ CriterionStressStage FractureBody::stressStage(const FemModel& fem, const FemSta
   s.tetLame = data.tetLame.empty() ? nullptr : data.tetLame.data();
   s.tetMask = m_data.tetMask.data();
   s.chi = m_data.chi.data();
+  s.rigidTet = data.rigidTet.empty() ? nullptr : data.rigidTet.data();
   s.degradation = m_damageModel == 1;
   s.undamagedToo = undamagedToo;
   s.stress = m_stress.data();

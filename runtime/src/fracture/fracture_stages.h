@@ -35,7 +35,8 @@ GF_HD double maxPrincipalBound(const double* s) {
 
 /// Material-frame stress of every tet the element pass did not give one (6 per tet, Voigt):
 /// damaged tets at their damage model's level (eq 4.32: chi times the stress; zero across a
-/// tet already split), and undamaged ones too when `undamagedToo`.
+/// tet already split), and undamaged ones too when `undamagedToo`. A rigid tet (a piece in
+/// rigid physics) has zero stress, as the element pass gives it, damaged or not.
 struct CriterionStressStage {
   const int32_t* tets = nullptr;
   const double* x = nullptr;
@@ -45,6 +46,12 @@ struct CriterionStressStage {
   const double* tetLame = nullptr;  ///< 2 per tet, or null (see ElementStage)
   const uint8_t* tetMask = nullptr;
   const double* chi = nullptr;
+  /// Per tet, or null: 1 for a tet of a piece handed to rigid physics. Its nodes are set to
+  /// R X + t by each World::setFragmentTransform and move by the rigid velocity field in
+  /// between (straight lines), so any strain their positions show is round-off or that field's
+  /// linearised turn, not load. Judging it also cost a full SVD per tet and substep once a body
+  /// had shattered into pieces in Bullet (docs/validation.md, issue 14 item 2).
+  const uint8_t* rigidTet = nullptr;
   bool degradation = false;  ///< damage model of eq 4.32-4.33 (else projection)
   bool undamagedToo = false;
   double* stress = nullptr;
@@ -64,6 +71,10 @@ struct CriterionStressStage {
 
   GF_HD void operator()(int32_t t) const {
     double* s = stress + 6 * int64_t(t);
+    if (rigidTet && rigidTet[t]) {
+      for (int k = 0; k < 6; ++k) s[k] = 0;
+      return;
+    }
     const uint8_t mask = tetMask[t];
     if (mask == 0) {
       if (undamagedToo) toVoigt(intactStress(t), s);
