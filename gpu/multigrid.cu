@@ -19,6 +19,8 @@ bool DeviceMultigrid::mirror(const T* host, size_t n, Out*& out) {
   DeviceBuffer<T>* buffer;
   if constexpr (std::is_same_v<T, int32_t>)
     buffer = &m_ints.emplace_back();
+  else if constexpr (std::is_same_v<T, float>)
+    buffer = &m_floats.emplace_back();
   else
     buffer = &m_doubles.emplace_back();
   if (!buffer->upload(host, n)) return false;
@@ -39,6 +41,7 @@ bool DeviceMultigrid::scratch(size_t n, double*& out) {
 bool DeviceMultigrid::upload(const detail::BlockSparseMatrix& A, const HostMultigrid& host) {
   const std::vector<detail::CycleLevel>& levels = host.levels;
   m_ints.clear();
+  m_floats.clear();
   m_doubles.clear();
   m_levels.assign(levels.size(), detail::CycleLevel{});
   m_galerkin.assign(host.galerkin.size(), detail::GalerkinLevelView{});
@@ -66,7 +69,8 @@ bool DeviceMultigrid::upload(const detail::BlockSparseMatrix& A, const HostMulti
               mirror(h.invDiag, n * B * B, d.invDiag) && mirror(h.colourRows, n, d.colourRows) &&
               mirror(gs ? h.gsRowStart : nullptr, n + 1, d.gsRowStart) &&
               mirror(h.gsCol, gsBlocks, d.gsCol) && mirror(h.gsBlock, gsBlocks, d.gsBlock) &&
-              mirror(h.gsValues, gsBlocks * B * B, d.gsValues) && scratch(B * n, d.b) &&
+              mirror(h.gsValues, gsBlocks * B * B, d.gsValues) &&
+              mirror(h.gsValuesSingle, gsBlocks * B * B, d.gsValuesSingle) && scratch(B * n, d.b) &&
               scratch(B * n, d.x) && scratch(B * n, d.r) && scratch(B * n, d.t);
     if (ok && l + 1 < levels.size()) {
       const detail::ProlongationView& hp = h.P;

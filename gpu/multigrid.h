@@ -73,6 +73,7 @@ class DeviceMultigrid {
   std::vector<double> m_coarsestValues;      // host copy for the factorisation
   std::vector<double> m_coarseB, m_coarseX;  // host staging of the coarsest solve
   std::deque<DeviceBuffer<int32_t>> m_ints;
+  std::deque<DeviceBuffer<float>> m_floats;  // level 0's Gauss-Seidel copy
   std::deque<DeviceBuffer<double>> m_doubles;
   DeviceBuffer<double> m_b, m_x, m_r, m_z, m_p, m_ap, m_rOld;
   DeviceBuffer<double> m_coarseDense;  // the coarsest level's dense factor (12 handles)^2

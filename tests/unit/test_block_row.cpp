@@ -1,8 +1,9 @@
-// The 3x3 block-row product (solver/block_row.h) and the stages built on it (SpMV, level
-// residual, a Gauss-Seidel colour) against a plain long-double reference on random block-sparse
-// matrices of several sizes and patterns, to the round-off bound of a dot product. The matrix
-// and the vector end at a page that may not be read, so a 4-wide load past the last block or
-// the last node would crash the test rather than read silently.
+// The 3x3 block-row product (solver/block_row.h), of a double and of a float matrix, and the
+// stages built on it (SpMV, level residual, a Gauss-Seidel colour on its float copy) against a
+// plain long-double reference on random block-sparse matrices of several sizes and patterns, to
+// the round-off bound of a dot product. The matrix and the vector end at a page that may not be
+// read, so a 4-wide load past the last block or the last node would crash the test rather than
+// read silently.
 #include <gtest/gtest.h>
 #include <sys/mman.h>
 #include <unistd.h>
@@ -22,32 +23,34 @@
 
 namespace {
 
-// `count` doubles that end where an unreadable page begins.
-class GuardedDoubles {
+// `count` T that end where an unreadable page begins.
+template <class T>
+class Guarded {
  public:
-  explicit GuardedDoubles(size_t count) {
+  explicit Guarded(size_t count) {
     const size_t page = size_t(sysconf(_SC_PAGESIZE));
-    m_dataPages = (count * sizeof(double) + page - 1) / page;
+    m_dataPages = (count * sizeof(T) + page - 1) / page;
     m_bytes = (m_dataPages + 1) * page;
     void* p = mmap(nullptr, m_bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if (p == MAP_FAILED) return;
     m_base = static_cast<char*>(p);
     mprotect(m_base + m_dataPages * page, page, PROT_NONE);
-    m_data = reinterpret_cast<double*>(m_base + m_dataPages * page) - count;
+    m_data = reinterpret_cast<T*>(m_base + m_dataPages * page) - count;
   }
-  ~GuardedDoubles() {
+  ~Guarded() {
     if (m_base) munmap(m_base, m_bytes);
   }
-  GuardedDoubles(const GuardedDoubles&) = delete;
-  GuardedDoubles& operator=(const GuardedDoubles&) = delete;
-  double* data() { return m_data; }
+  Guarded(const Guarded&) = delete;
+  Guarded& operator=(const Guarded&) = delete;
+  T* data() { return m_data; }
   bool ok() const { return m_data != nullptr; }
 
  private:
   size_t m_dataPages = 0, m_bytes = 0;
   char* m_base = nullptr;
-  double* m_data = nullptr;
+  T* m_data = nullptr;
 };
+using GuardedDoubles = Guarded<double>;
 
 // A block-CSR pattern with sorted columns: each row its diagonal block (but every 5th row) and
 // up to 2 perRowMax random ones, so rows of 0, 1, 2, 3 and many blocks occur; the last row ends
@@ -83,6 +86,16 @@ void fillRandom(double* v, size_t count, std::mt19937& rng) {
   std::uniform_real_distribution<double> u(-1, 1);
   std::uniform_int_distribution<int> e(-6, 6);
   for (size_t i = 0; i < count; ++i) v[i] = std::ldexp(u(rng), e(rng));
+}
+
+// Random values rounded to single precision, and the same numbers in double (exact).
+void fillRandomFloats(float* v, size_t count, std::vector<double>& asDouble, std::mt19937& rng) {
+  asDouble.resize(count);
+  fillRandom(asDouble.data(), count, rng);
+  for (size_t i = 0; i < count; ++i) {
+    v[i] = float(asDouble[i]);
+    asDouble[i] = v[i];
+  }
 }
 
 // Row r of A x in long double, and sum |A||x| (the scale of its round-off).
@@ -160,15 +173,57 @@ TEST(BlockRow, ProductAndStagesMatchTheReferenceToRoundOff) {
   std::printf("[ block row ] %d components, largest error %.3g of its bound\n", checked, worst);
 }
 
+// A float matrix (the level-0 Gauss-Seidel copy, GsValue in multigrid_stages.h): its entries
+// widen to double exactly, so the product is the double product of the rounded matrix, bit for
+// bit, and within the same bound of its long-double value.
+TEST(BlockRow, FloatMatrixProductIsTheProductOfTheRoundedMatrix) {
+  std::mt19937 rng(20261207);
+  int checked = 0;
+  double worst = 0;
+  for (const Case& c : kCases) {
+    const RandomBlockMatrix A = randomPattern(c.n, c.perRow, rng);
+    Guarded<float> values(9 * A.blocks());
+    GuardedDoubles x(3 * size_t(A.n));
+    ASSERT_TRUE(values.ok() && x.ok());
+    std::vector<double> rounded;
+    fillRandomFloats(values.data(), 9 * A.blocks(), rounded, rng);
+    fillRandom(x.data(), 3 * size_t(A.n), rng);
+    for (int32_t r = 0; r < A.n; ++r) {
+      double direct[3], scalar[3], widened[3];
+      const int32_t begin = A.rowStart[size_t(r)], end = A.rowStart[size_t(r) + 1];
+      gf::detail::blockRowProduct3(A.col.data(), values.data(), begin, end, x.data(), direct);
+      gf::detail::blockRowProduct3Scalar(A.col.data(), values.data(), begin, end, x.data(), scalar);
+      gf::detail::blockRowProduct3(A.col.data(), rounded.data(), begin, end, x.data(), widened);
+      long double ref[3];
+      double scale[3];
+      referenceRow(A, rounded.data(), x.data(), r, ref, scale);
+      for (int i = 0; i < 3; ++i) {
+        const double tol = bound(end - begin, scale[i]);
+        const double err = double(std::fabs((long double)direct[i] - ref[i]));
+        ASSERT_LE(err, tol) << "n " << A.n << " row " << r << " component " << i;
+        ASSERT_LE(double(std::fabs((long double)scalar[i] - ref[i])), tol);
+        ASSERT_EQ(direct[i], widened[i]) << "n " << A.n << " row " << r << " component " << i;
+        worst = std::max(worst, err / tol);
+        ++checked;
+      }
+    }
+  }
+  std::printf("[ block row ] float matrix: %d components, largest error %.3g of its bound\n",
+              checked, worst);
+}
+
 // One Gauss-Seidel colour per row, in order, is the plain sequential block Gauss-Seidel sweep
-// x_r += D_r^-1 (b - A x)_r, here with D_r^-1 any block: against the same in long double.
+// x_r += D_r^-1 (b - A x)_r, here with D_r^-1 any block and A read from its float copy: against
+// the same with the rounded A in long double.
 TEST(BlockRow, GaussSeidelColourStageIsTheSequentialBlockUpdate) {
   std::mt19937 rng(7);
   for (const Case& c : kCases) {
     const RandomBlockMatrix A = randomPattern(c.n, c.perRow, rng);
-    GuardedDoubles values(9 * A.blocks()), x(3 * size_t(A.n));
+    Guarded<float> values(9 * A.blocks());
+    GuardedDoubles x(3 * size_t(A.n));
     ASSERT_TRUE(values.ok() && x.ok());
-    fillRandom(values.data(), 9 * A.blocks(), rng);
+    std::vector<double> rounded;
+    fillRandomFloats(values.data(), 9 * A.blocks(), rounded, rng);
     fillRandom(x.data(), 3 * size_t(A.n), rng);
     std::vector<double> b(3 * size_t(A.n)), invDiag(9 * size_t(A.n));
     fillRandom(b.data(), b.size(), rng);
@@ -187,7 +242,7 @@ TEST(BlockRow, GaussSeidelColourStageIsTheSequentialBlockUpdate) {
       for (int32_t k = A.rowStart[size_t(r)]; k < A.rowStart[size_t(r) + 1]; ++k)
         for (int i = 0; i < 3; ++i)
           for (int j = 0; j < 3; ++j) {
-            const double m = values.data()[9 * size_t(k) + 3 * size_t(i) + size_t(j)];
+            const double m = rounded[9 * size_t(k) + 3 * size_t(i) + size_t(j)];
             res[i] -= m * xr[3 * size_t(A.col[size_t(k)]) + size_t(j)];
             scale[i] += std::fabs(m * double(xr[3 * size_t(A.col[size_t(k)]) + size_t(j)]));
           }

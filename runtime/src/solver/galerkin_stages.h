@@ -208,26 +208,53 @@ void galerkinProduct(const Exec& exec, const GalerkinLevelView& g, const double*
   exec.run(g.coarseRows, 8, GalerkinMirrorStage{g.rowStart, g.mirror, coarse});
 }
 
-/// Item i: the inverse of row i's diagonal block (block-Jacobi part of every smoother), and
-/// position i of the Gauss-Seidel copy in colour order (gsRowStart null: no copy).
+/// Item i: the inverse of a row's diagonal block (block-Jacobi part of every smoother). Without
+/// a Gauss-Seidel copy (gsRowStart null) that is row i's; with one, position i of the copy in
+/// colour order is filled and its row's inverse written.
+///   A single-precision copy (level 0) rounds each entry by up to 2^-24 of itself. A node whose
+/// diagonal block holds only its mass in some direction (an open crack, a free chip) has block
+/// entries many orders larger, whose rounding alone then moves that direction's residual by
+/// more than the diagonal can correct: the sweep diverges there, and the V-cycle, no longer
+/// positive definite, broke CG down (r.z <= 0 after 2 iterations on the torn steel bar). So the
+/// row's inverse is that of D + diag(s), s_k the summed rounding of row k of the block row: then
+/// M + M^T - A~ >= D for the sweep M = D + diag(s) + L~ on the rounded A~ (Gershgorin), and the
+/// symmetric V-cycle is positive definite whatever the rounding. A double copy has s = 0.
 template <int B>
 struct DiagonalSetupStage {
   const double* values = nullptr;  ///< the level's matrix, B x B blocks
   const int32_t* diagIndex = nullptr;
   double* invDiag = nullptr;
   const int32_t* gsRowStart = nullptr;
-  const int32_t* gsBlock = nullptr;  ///< source block of each copied position
-  double* gsValues = nullptr;
+  const int32_t* gsBlock = nullptr;     ///< source block of each copied position
+  const int32_t* colourRows = nullptr;  ///< row of each copied position
+  GsValue<B>* gsValues = nullptr;
 
   GF_HD void operator()(int32_t i) const {
     constexpr int BB = B * B;
-    invertSpdBlock<B>(values + BB * int64_t(diagIndex[i]), invDiag + BB * int64_t(i));
-    if (!gsRowStart) return;
+    if (!gsRowStart) {
+      invertSpdBlock<B>(values + BB * int64_t(diagIndex[i]), invDiag + BB * int64_t(i));
+      return;
+    }
+    const int32_t row = colourRows[i];
+    double shift[B] = {};
     for (int32_t k = gsRowStart[i]; k < gsRowStart[i + 1]; ++k) {
       const double* src = values + BB * int64_t(gsBlock[k]);
-      double* dst = gsValues + BB * int64_t(k);
-      for (int j = 0; j < BB; ++j) dst[j] = src[j];
+      GsValue<B>* dst = gsValues + BB * int64_t(k);
+      for (int a = 0; a < B; ++a) {
+        double rounding = 0;
+        for (int l = 0; l < B; ++l) {
+          const GsValue<B> v = GsValue<B>(src[B * a + l]);
+          dst[B * a + l] = v;
+          rounding += fabs(double(v) - src[B * a + l]);
+        }
+        shift[a] += rounding;
+      }
     }
+    double diagonal[BB];
+    const double* d = values + BB * int64_t(diagIndex[row]);
+    for (int j = 0; j < BB; ++j) diagonal[j] = d[j];
+    for (int a = 0; a < B; ++a) diagonal[a * B + a] += shift[a];
+    invertSpdBlock<B>(diagonal, invDiag + BB * int64_t(row));
   }
 };
 

@@ -66,7 +66,8 @@ struct Level {
   // colour's sweep streams its blocks (a sweep over rows scattered through the whole matrix
   // defeats the prefetcher: 4-5x a product's time at 160k tets). gsBlock: the source block.
   std::vector<int32_t> gsRowStart, gsCol, gsBlock;
-  std::vector<double> gsValues;
+  std::vector<double> gsValues;       // B = 12
+  std::vector<float> gsValuesSingle;  // B = 3 (GsValue)
   double lambdaMax = 2;
   std::vector<double> b, x, r, t;  // rhs, iterate, residual, temporary (B n each)
 };
@@ -174,6 +175,7 @@ struct MultigridSolver::Impl {
       lv.gsCol.clear();
       lv.gsBlock.clear();
       lv.gsValues.clear();
+      lv.gsValuesSingle.clear();
       if (settings.smoother == Smoother::GaussSeidel) {
         for (int32_t q = 0; q < n; ++q) {
           const int32_t row = lv.colourRows[q];
@@ -183,7 +185,11 @@ struct MultigridSolver::Impl {
           }
           lv.gsRowStart.push_back(static_cast<int32_t>(lv.gsCol.size()));
         }
-        lv.gsValues.assign(lv.gsBlock.size() * static_cast<size_t>(B * B), 0.0);
+        const size_t entries = lv.gsBlock.size() * static_cast<size_t>(B * B);
+        if (B == 3)
+          lv.gsValuesSingle.assign(entries, 0.0F);
+        else
+          lv.gsValues.assign(entries, 0.0);
       }
       const size_t len = static_cast<size_t>(B) * n;
       lv.b.assign(len, 0.0);
@@ -341,6 +347,7 @@ struct MultigridSolver::Impl {
     c.gsCol = lv.gsCol.data();
     c.gsBlock = lv.gsBlock.data();
     c.gsValues = lv.gsValues.data();
+    c.gsValuesSingle = lv.gsValuesSingle.data();
     c.lambdaMax = lv.lambdaMax;
     c.b = lv.b.data();
     c.x = lv.x.data();

@@ -41,9 +41,10 @@ struct CycleLevel {
   const int32_t* gsRowStart = nullptr;
   const int32_t* gsCol = nullptr;
   const int32_t* gsBlock = nullptr;
-  double* gsValues = nullptr;
-  double lambdaMax = 2;  ///< bound on the spectrum of D^-1 A (Jacobi, Chebyshev)
-  double* b = nullptr;   ///< rhs, iterate, residual, temporary: B n each
+  double* gsValues = nullptr;       ///< the handle levels' copy (B = 12)
+  float* gsValuesSingle = nullptr;  ///< level 0's copy (B = 3), single precision: GsValue
+  double lambdaMax = 2;             ///< bound on the spectrum of D^-1 A (Jacobi, Chebyshev)
+  double* b = nullptr;              ///< rhs, iterate, residual, temporary: B n each
   double* x = nullptr;
   double* r = nullptr;
   double* t = nullptr;
@@ -52,6 +53,15 @@ struct CycleLevel {
   template <int B>
   LevelMatrix<B> matrix() const {
     return {n, rowStart, col, values};
+  }
+
+  /// The Gauss-Seidel copy's entries, of GsValue<B>.
+  template <int B>
+  GsValue<B>* gsCopy() const {
+    if constexpr (B == 3)
+      return gsValuesSingle;
+    else
+      return gsValues;
   }
 };
 
@@ -70,7 +80,8 @@ template <int B, class Exec>
 void setUpDiagonals(const Exec& exec, const CycleLevel& lv, bool gaussSeidel) {
   exec.run(lv.n, B == 3 ? 128 : 8,
            DiagonalSetupStage<B>{lv.values, lv.diagIndex, lv.invDiag,
-                                 gaussSeidel ? lv.gsRowStart : nullptr, lv.gsBlock, lv.gsValues});
+                                 gaussSeidel ? lv.gsRowStart : nullptr, lv.gsBlock, lv.colourRows,
+                                 lv.gsCopy<B>()});
 }
 
 /// The largest eigenvalue of D^-1 A (Jacobi and Chebyshev need a bound) by power iteration
@@ -188,7 +199,7 @@ class VCycle {
     switch (m_s.smoother) {
       case CycleSmoother::kGaussSeidel: {
         GaussSeidelColourStage<B> sweep{
-            lv.colourRows, lv.gsRowStart, lv.gsCol, lv.gsValues, lv.invDiag, b, x, 0};
+            lv.colourRows, lv.gsRowStart, lv.gsCol, lv.gsCopy<B>(), lv.invDiag, b, x, 0};
         for (int s = 0; s < sweeps; ++s)
           for (int32_t cc = 0; cc < lv.colours; ++cc) {
             const int32_t c = forward ? cc : lv.colours - 1 - cc;

@@ -5,27 +5,35 @@
 #pragma once
 
 #include <cstdint>
+#include <type_traits>
 
 #include "kernels/gf_hd.h"
 #include "solver/block_row.h"
 
 namespace gf::detail {
 
-/// A level's matrix: block-CSR of B x B row-major blocks.
-template <int B>
+/// A level's matrix: block-CSR of B x B row-major blocks of T.
+template <int B, class T = double>
 struct LevelMatrix {
   int32_t n = 0;
   const int32_t* rowStart = nullptr;
   const int32_t* col = nullptr;
-  const double* values = nullptr;
+  const T* values = nullptr;
 };
 
-/// out = (A x)_r for block row r.
+/// The entries of a level's Gauss-Seidel copy: single precision on level 0, whose sweep is bound
+/// by reading it from the cache (validation.md, issue 14 item 2); A_ij and A_ji round alike, so
+/// the V-cycle stays symmetric. The handle levels keep double.
 template <int B>
-GF_HD void rowProduct(const LevelMatrix<B>& A, int32_t r, const double* x, double* out) {
+using GsValue = std::conditional_t<B == 3, float, double>;
+
+/// out = (A x)_r for block row r.
+template <int B, class T>
+GF_HD void rowProduct(const LevelMatrix<B, T>& A, int32_t r, const double* x, double* out) {
   if constexpr (B == 3) {
     blockRowProduct3(A.col, A.values, A.rowStart[r], A.rowStart[r + 1], x, out);
   } else {
+    static_assert(std::is_same_v<T, double>, "the handle levels' product reads doubles");
     for (int i = 0; i < B; ++i) out[i] = 0;
     for (int32_t k = A.rowStart[r]; k < A.rowStart[r + 1]; ++k) {
       const double* m = A.values + int64_t(B * B) * k;
@@ -108,7 +116,7 @@ struct GaussSeidelColourStage {
   const int32_t* colourRows = nullptr;  ///< row of each colour-ordered position
   const int32_t* gsRowStart = nullptr;  ///< the colour-ordered copy
   const int32_t* gsCol = nullptr;
-  const double* gsValues = nullptr;
+  const GsValue<B>* gsValues = nullptr;
   const double* invDiag = nullptr;  ///< B x B per row
   const double* b = nullptr;
   double* x = nullptr;
@@ -117,7 +125,7 @@ struct GaussSeidelColourStage {
   GF_HD void operator()(int32_t q) const {
     const int32_t pos = first + q, row = colourRows[pos];
     double res[B], dx[B];
-    rowProduct<B>(LevelMatrix<B>{0, gsRowStart, gsCol, gsValues}, pos, x, res);
+    rowProduct(LevelMatrix<B, GsValue<B>>{0, gsRowStart, gsCol, gsValues}, pos, x, res);
     for (int i = 0; i < B; ++i) res[i] = b[B * row + i] - res[i];
     blockApply<B>(invDiag + int64_t(B * B) * row, res, dx);
     for (int i = 0; i < B; ++i) x[B * row + i] += dx[i];
