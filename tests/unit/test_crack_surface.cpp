@@ -595,58 +595,161 @@ void expectSerialOrder(const CrackSurface& s) {
 
 TEST(CrackSurface, RebuildIsTheSameOnAnyThreadCountAndAfterEveryCrack) {
   // A bar of 16 x 6 x 6 cells (3456 tets, 7 chunks of the parallel rebuild) bent and cracked in
-  // steps: a crack grows from one face through the section and splits the bar, random edges
-  // break, then the cut heals. After each step the surfaces kept and rebuilt on 1 and 2
-  // threads equal a surface made fresh for that step, bit for bit.
-  Body b(gen::box(2, 0.75, 0.75, 16, 6, 6));
-  ThreadPoolJobSystem two(2);
-  CrackSurface kept1, kept2;
-  kept1.init(b.mesh, b.graph);
-  kept2.init(b.mesh, b.graph);
-  std::mt19937 rng(7);
-  std::vector<double> x(b.mesh.positions);
-  int steps = 0, maxFragments = 0;
-  for (int step = 0; step < 8; ++step) {
-    if (step < 5) {
-      // The crack front at z < depth on the plane x = 1.03 (a slit until step 4 splits the bar).
-      const double depth = 0.2 * (step + 1);
-      for (int32_t e = 0; e < b.graph.edgeCount; ++e) {
-        const double* p = &b.mesh.positions[3 * size_t(b.graph.edgeNodes[2 * size_t(e)])];
-        const double* q = &b.mesh.positions[3 * size_t(b.graph.edgeNodes[2 * size_t(e) + 1])];
-        if ((p[0] < 1.03) != (q[0] < 1.03) && p[2] < depth && q[2] < depth) b.broken[size_t(e)] = 1;
+  // steps: a crack grows from one face through the section and splits the bar, a step changes
+  // nothing, random edges break, one edge breaks, then the cut heals. After each step the
+  // surfaces kept and rebuilt on 1 and 2 threads (which list again only the chunks whose edges
+  // changed) equal a surface made fresh for that step, bit for bit, in both crack modes.
+  for (const bool partial : {true, false}) {
+    Body b(gen::box(2, 0.75, 0.75, 16, 6, 6));
+    ThreadPoolJobSystem two(2);
+    const CrackSurfaceOptions options{partial};
+    CrackSurface kept1, kept2;
+    kept1.init(b.mesh, b.graph, options);
+    kept2.init(b.mesh, b.graph, options);
+    std::mt19937 rng(7);
+    std::vector<double> x(b.mesh.positions);
+    int steps = 0, maxFragments = 0;
+    for (int step = 0; step < 10; ++step) {
+      if (step < 5) {
+        // The crack front at z < depth on the plane x = 1.03 (a slit until step 4 splits it).
+        const double depth = 0.2 * (step + 1);
+        for (int32_t e = 0; e < b.graph.edgeCount; ++e) {
+          const double* p = &b.mesh.positions[3 * size_t(b.graph.edgeNodes[2 * size_t(e)])];
+          const double* q = &b.mesh.positions[3 * size_t(b.graph.edgeNodes[2 * size_t(e) + 1])];
+          if ((p[0] < 1.03) != (q[0] < 1.03) && p[2] < depth && q[2] < depth)
+            b.broken[size_t(e)] = 1;
+        }
+      } else if (step == 5) {
+        // Nothing breaks.
+      } else if (step < 8) {
+        for (int k = 0; k < 150; ++k) b.broken[rng() % b.broken.size()] = 1;
+      } else if (step == 8) {
+        size_t e = rng() % b.broken.size();
+        while (b.broken[e]) e = (e + 1) % b.broken.size();
+        b.broken[e] = 1;
+      } else {
+        std::fill(b.broken.begin(), b.broken.end(), 0);  // healed
+        for (int k = 0; k < 40; ++k) b.broken[rng() % b.broken.size()] = 1;
       }
-    } else if (step < 7) {
-      for (int k = 0; k < 150; ++k) b.broken[rng() % b.broken.size()] = 1;
-    } else {
-      std::fill(b.broken.begin(), b.broken.end(), 0);  // healed
-      for (int k = 0; k < 40; ++k) b.broken[rng() % b.broken.size()] = 1;
+      // Bent about y, so vertices of partial groups turn through their local maps.
+      for (size_t i = 0; i < b.mesh.nodeCount(); ++i) {
+        const double* X = &b.mesh.positions[3 * i];
+        const double a = 0.1 * step * (X[0] - 1), c = std::cos(a), sn = std::sin(a);
+        x[3 * i] = 1 + c * (X[0] - 1) + sn * X[2];
+        x[3 * i + 1] = X[1];
+        x[3 * i + 2] = -sn * (X[0] - 1) + c * X[2];
+      }
+      Fragments fr;
+      fr.build(b.graph, b.broken.data());
+      maxFragments = std::max(maxFragments, fr.count());
+      kept1.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), &serialJobs());
+      kept2.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), &two);
+      CrackSurface fresh;
+      fresh.init(b.mesh, b.graph, options);
+      fresh.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), &two);
+      const SurfaceCopy a(kept1), c(kept2), f(fresh);
+      EXPECT_TRUE(a == c) << "1 and 2 threads differ at step " << step << ", partial " << partial;
+      EXPECT_TRUE(a == f) << "kept and fresh surfaces differ at step " << step << ", partial "
+                          << partial;
+      if (partial) {
+        EXPECT_GT(a.frames.size(), step == 0 ? 0u : 9u);
+      }
+      expectSerialOrder(kept1);
+      expectSerialOrder(kept2);
+      for (const auto& g : inspect(kept2, fr.count())) EXPECT_EQ(g.badEdges, 0);
+      // Placed again on the other thread count than the rebuild's: still the same bits.
+      kept1.updatePositions(x.data(), &two);
+      kept2.updatePositions(x.data(), &serialJobs());
+      EXPECT_TRUE(SurfaceCopy(kept1) == f) << "update on 2 threads differs at step " << step;
+      EXPECT_TRUE(SurfaceCopy(kept2) == f) << "update on 1 thread differs at step " << step;
+      ++steps;
     }
-    // Bent about y, so vertices of partial groups turn through their local maps.
-    for (size_t i = 0; i < b.mesh.nodeCount(); ++i) {
-      const double* X = &b.mesh.positions[3 * i];
-      const double a = 0.1 * step * (X[0] - 1), c = std::cos(a), sn = std::sin(a);
-      x[3 * i] = 1 + c * (X[0] - 1) + sn * X[2];
-      x[3 * i + 1] = X[1];
-      x[3 * i + 2] = -sn * (X[0] - 1) + c * X[2];
-    }
-    Fragments fr;
-    fr.build(b.graph, b.broken.data());
-    maxFragments = std::max(maxFragments, fr.count());
-    kept1.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), &serialJobs());
-    kept2.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), &two);
-    CrackSurface fresh;
-    fresh.init(b.mesh, b.graph);
-    fresh.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), &two);
-    const SurfaceCopy a(kept1), c(kept2), f(fresh);
-    EXPECT_TRUE(a == c) << "1 and 2 threads differ at step " << step;
-    EXPECT_TRUE(a == f) << "kept and fresh surfaces differ at step " << step;
-    EXPECT_GT(a.frames.size(), step == 0 ? 0u : 9u);
-    expectSerialOrder(kept2);
-    for (const auto& g : inspect(kept2, fr.count())) EXPECT_EQ(g.badEdges, 0);
-    ++steps;
+    EXPECT_EQ(steps, 10);
+    EXPECT_GE(maxFragments, 2);
   }
-  EXPECT_EQ(steps, 8);
-  EXPECT_GE(maxFragments, 2);
+}
+
+TEST(CrackSurface, DrawnFragmentsAreTheSameBitsAsTheWholeSurface) {
+  // A sphere broken at random into many fragments, deformed: a surface that places only the
+  // vertices of some fragments (the ones an embedded render mesh borrows) gives them the same
+  // positions and normals, bit for bit, as the surface that places every vertex, with the same
+  // topology and local maps, through rebuilds and position updates, on 1 and 2 threads. With
+  // no fragment drawn (steps 2 and 4) it has no vertex, and the extra nodes' local maps are
+  // still the same bits; a full rebuild after such a step (step 3) is the same again.
+  Body b(gen::sphere(1, 5));
+  std::mt19937 rng(3);
+  ThreadPoolJobSystem two(2);
+  for (int k = 0; k < int(b.broken.size()) / 3; ++k) b.broken[rng() % b.broken.size()] = 1;
+  std::vector<int32_t> extra;
+  for (int32_t n = 0; n < int32_t(b.mesh.nodeCount()); n += 7) extra.push_back(n);
+  std::vector<double> x(b.mesh.positions);
+  int checked = 0, skipped = 0, maps = 0;
+  for (JobSystem* jobs : {&serialJobs(), static_cast<JobSystem*>(&two)}) {
+    CrackSurface whole, drawn;
+    whole.init(b.mesh, b.graph);
+    drawn.init(b.mesh, b.graph);
+    whole.setExtraFrameNodes(extra);
+    drawn.setExtraFrameNodes(extra);
+    for (int step = 0; step < 5; ++step) {
+      // Step 3 breaks nothing: its rebuild lists again what step 2 left stale.
+      for (int k = 0; k < 200 && step != 3; ++k) b.broken[rng() % b.broken.size()] = 1;
+      Fragments fr;
+      fr.build(b.graph, b.broken.data());
+      // Every third fragment drawn but the first (the body's bulk), or none.
+      const bool none = step == 2 || step == 4;
+      std::vector<uint8_t> chosen(size_t(fr.count()), 0);
+      for (size_t f = 1; f < chosen.size() && !none; f += 3) chosen[f] = 1;
+      drawn.setDrawnFragments(chosen);
+      for (size_t i = 0; i < b.mesh.nodeCount(); ++i) {
+        const double* X = &b.mesh.positions[3 * i];
+        const double a = 0.2 * step * X[2], c = std::cos(a), sn = std::sin(a);
+        x[3 * i] = c * X[0] - sn * X[1] + 0.01 * fr.nodeFragment()[i];
+        x[3 * i + 1] = sn * X[0] + c * X[1];
+        x[3 * i + 2] = 1.1 * X[2];
+      }
+      for (int pass = 0; pass < 2; ++pass) {
+        if (pass == 0) {
+          whole.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), jobs);
+          drawn.rebuild(b.broken.data(), fr.nodeFragment().data(), x.data(), jobs);
+        } else {
+          for (double& c : x) c *= 1.01;
+          whole.updatePositions(x.data(), jobs);
+          drawn.updatePositions(x.data(), jobs);
+        }
+        for (int32_t n : extra) {
+          const auto w = whole.frameMaps().subspan(9 * size_t(whole.nodeFrame()[size_t(n)]), 9);
+          const auto d = drawn.frameMaps().subspan(9 * size_t(drawn.nodeFrame()[size_t(n)]), 9);
+          EXPECT_TRUE(std::ranges::equal(w, d)) << "node " << n << " at step " << step;
+          ++maps;
+        }
+        if (none) {
+          EXPECT_EQ(drawn.vertexCount(), 0u);
+          EXPECT_EQ(drawn.triangleCount(), 0u);
+          continue;
+        }
+        ASSERT_EQ(whole.vertexCount(), drawn.vertexCount());
+        EXPECT_TRUE(std::ranges::equal(whole.indices(), drawn.indices()));
+        EXPECT_TRUE(std::ranges::equal(whole.frameMaps(), drawn.frameMaps()));
+        EXPECT_TRUE(std::ranges::equal(whole.nodeFrame(), drawn.nodeFrame()));
+        for (uint32_t v = 0; v < whole.vertexCount(); ++v) {
+          if (!chosen[size_t(whole.vertexFragment()[v])]) {
+            ++skipped;
+            continue;
+          }
+          for (size_t k = 3 * size_t(v); k < 3 * size_t(v) + 3; ++k) {
+            EXPECT_EQ(whole.positionsDouble()[k], drawn.positionsDouble()[k]) << "vertex " << v;
+            EXPECT_EQ(whole.normalsDouble()[k], drawn.normalsDouble()[k]) << "vertex " << v;
+          }
+          ++checked;
+        }
+      }
+    }
+  }
+  EXPECT_GT(checked, 100);
+  EXPECT_GT(skipped, 10 * checked);
+  std::printf(
+      "[ figures  ] drawn fragments: %d vertex placements compared, %d skipped, %d local maps\n",
+      checked, skipped, maps);
 }
 
 TEST(CrackSurface, CostOfRebuildAndUpdate) {

@@ -146,6 +146,7 @@ void CrackSurface::init(const TetMesh& rest, const EdgeGraph& graph,
   m_slotVertex.assign(slots, -1);
   m_slotChunk.assign(slots, kNoChunk);
   m_chunks.assign((nt + kTetChunk - 1) / kTetChunk, TetChunk{});
+  m_edgeJoined.clear();
   m_nodeKey.assign(rest.nodeCount(), kNoKey);
   m_nodeFrame.assign(rest.nodeCount(), -1);
   m_frameNode.clear();
@@ -188,11 +189,32 @@ void CrackSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment, c
   }
   m_frameNode.clear();
 
+  // A chunk's quads depend only on which of its tets' edges are joined, so only the chunks with
+  // an edge that changed since the last rebuild list them again.
   const bool partial = m_options.renderPartialCracks;
-  auto joined = [&](int32_t e) {
-    if (partial) return broken[e] == 0;
-    return nodeFragment[g.edgeNodes[2 * static_cast<size_t>(e)]] ==
-           nodeFragment[g.edgeNodes[2 * static_cast<size_t>(e) + 1]];
+  const bool first = m_edgeJoined.empty();
+  if (first) m_edgeJoined.assign(static_cast<size_t>(g.edgeCount), 0);
+  for (int32_t e = 0; e < g.edgeCount; ++e) {
+    const size_t es = static_cast<size_t>(e);
+    const uint8_t j =
+        partial ? broken[e] == 0
+                : nodeFragment[g.edgeNodes[2 * es]] == nodeFragment[g.edgeNodes[2 * es + 1]];
+    if (!first && j == m_edgeJoined[es]) continue;
+    m_edgeJoined[es] = j;
+    for (int32_t k = g.edgeTetStart[es]; k < g.edgeTetStart[es + 1]; ++k)
+      m_chunks[static_cast<size_t>(g.edgeTets[static_cast<size_t>(k)] / 6) / kTetChunk].stale = 1;
+  }
+  auto joined = [&](int32_t e) { return m_edgeJoined[static_cast<size_t>(e)] != 0; };
+  // A surface that lends none of its faces (setDrawnFragments) needs only the other vertices'
+  // local maps (setExtraFrameNodes): a map depends on its node's neighbourhood alone.
+  const bool mapsOnly = m_drawnOnly && std::none_of(m_drawnFragment.begin(), m_drawnFragment.end(),
+                                                    [](uint8_t d) { return d != 0; });
+  auto addExtraFrames = [&] {
+    for (int32_t a : m_extraFrameNodes) {
+      if (m_nodeFrame[static_cast<size_t>(a)] >= 0) continue;
+      m_nodeFrame[static_cast<size_t>(a)] = static_cast<int32_t>(m_frameNode.size());
+      m_frameNode.push_back(a);
+    }
   };
 
   // Each chunk's quads as vertex slots, after freeing the slots its vertices took last time.
@@ -202,6 +224,9 @@ void CrackSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment, c
       m_slotVertex[s] = -1;
       m_slotChunk[s] = kNoChunk;
     }
+    if (mapsOnly) ch.owned.clear();
+    if (!ch.stale || mapsOnly) return;
+    ch.stale = 0;
     ch.slot.clear();
     ch.group.clear();
     ch.crack.clear();
@@ -276,6 +301,21 @@ void CrackSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment, c
       }
     }
   });
+  if (mapsOnly) {
+    m_vertexNode.clear();
+    m_vertexFragment.clear();
+    m_indices.clear();
+    m_triCrack.clear();
+    m_triNode.clear();
+    m_drawnVertices.clear();
+    m_drawnTriangles.clear();
+    addExtraFrames();
+    buildFrames(broken, js);
+    ++m_topologyVersion;
+    m_positionsF.clear();
+    updatePositions(x, jobs);
+    return;
+  }
   // A slot's vertex belongs to the first chunk that uses it (the least chunk whatever the
   // order the chunks ran in)...
   eachChunk([&](int32_t c, TetChunk& ch) {
@@ -404,14 +444,23 @@ void CrackSurface::rebuild(const uint8_t* broken, const int32_t* nodeFragment, c
       m_nodeFrame[a] = static_cast<int32_t>(m_frameNode.size());
       m_frameNode.push_back(static_cast<int32_t>(a));
     }
-  for (int32_t a : m_extraFrameNodes) {
-    if (m_nodeFrame[static_cast<size_t>(a)] >= 0) continue;
-    m_nodeFrame[static_cast<size_t>(a)] = static_cast<int32_t>(m_frameNode.size());
-    m_frameNode.push_back(a);
-  }
+  addExtraFrames();
 
   buildFrames(broken, js);
-  buildVertexTriangles(js);
+  if (m_drawnOnly) {
+    auto drawn = [&](int32_t v) {
+      const size_t f = static_cast<size_t>(m_vertexFragment[static_cast<size_t>(v)]);
+      return f < m_drawnFragment.size() && m_drawnFragment[f] != 0;
+    };
+    m_drawnVertices.clear();
+    m_drawnTriangles.clear();
+    for (int32_t v = 0; v < nv; ++v)
+      if (drawn(v)) m_drawnVertices.push_back(v);
+    for (int32_t t = 0; t < 2 * nq && !m_drawnVertices.empty(); ++t)
+      if (drawn(static_cast<int32_t>(m_indices[3 * static_cast<size_t>(t)])))
+        m_drawnTriangles.push_back(t);
+  }
+  if (!m_drawnOnly || !m_drawnVertices.empty()) buildVertexTriangles(js);
 
   ++m_topologyVersion;
   m_positionsF.clear();  // new vertices: every one of them is dirty
@@ -543,6 +592,17 @@ void CrackSurface::buildVertexTriangles(JobSystem& js) {
   // counting sort by blocks of vertices: each chunk's (vertex, triangle) pairs go to their
   // block's bucket in chunk order, then each block sorts its bucket by vertex, stably.
   const size_t nv = m_vertexNode.size();
+  if (js.threadCount() == 1) {
+    // On one thread a plain counting sort over the triangle list does it in two passes.
+    m_vertexTriStart.assign(nv + 1, 0);
+    for (const uint32_t v : m_indices) ++m_vertexTriStart[size_t(v) + 1];
+    for (size_t v = 0; v < nv; ++v) m_vertexTriStart[v + 1] += m_vertexTriStart[v];
+    m_vertexTriFill.assign(m_vertexTriStart.begin(), m_vertexTriStart.end() - 1);
+    m_vertexTri.resize(m_indices.size());
+    for (size_t k = 0; k < m_indices.size(); ++k)
+      m_vertexTri[size_t(m_vertexTriFill[m_indices[k]]++)] = int32_t(k / 3);
+    return;
+  }
   const size_t chunks = m_chunks.size(), blocks = (nv + kVertexBlock - 1) / kVertexBlock;
   m_blockAt.assign(chunks * blocks + 1, 0);
   auto eachChunk = [&](const auto& f) {
@@ -608,13 +668,37 @@ void CrackSurface::updatePositions(const double* x, JobSystem* jobs) {
   const int32_t nv = int32_t(m_vertexNode.size());
   m_positions.resize(3 * size_t(nv));
   m_normals.resize(3 * size_t(nv));
+  if (m_drawnOnly) {
+    const int32_t nd = int32_t(m_drawnVertices.size());
+    ++m_positionVersion;
+    if (nd == 0) return;
+    exec.run(nd, 512,
+             ListedStage<SurfaceVertexStage>{
+                 m_drawnVertices.data(),
+                 {x, X, m_vParent.data(), m_vWeight.data(), m_vGroup.data(), m_vRest.data(),
+                  m_nodeFrame.data(), m_frameR.data(), m_positions.data()}});
+    m_triAreaNormals.resize(4 * m_triCrack.size());
+    exec.run(int32_t(m_drawnTriangles.size()), 1024,
+             ListedStage<TriangleNormalStage>{
+                 m_drawnTriangles.data(),
+                 {m_positions.data(), m_indices.data(), m_triAreaNormals.data()}});
+    exec.run(nd, 512,
+             ListedStage<SurfaceNormalStage>{m_drawnVertices.data(),
+                                             {m_triAreaNormals.data(), m_vertexTriStart.data(),
+                                              m_vertexTri.data(), m_normals.data()}});
+    return;
+  }
   exec.run(
       nv, 512,
       SurfaceVertexStage{x, X, m_vParent.data(), m_vWeight.data(), m_vGroup.data(), m_vRest.data(),
                          m_nodeFrame.data(), m_frameR.data(), m_positions.data()});
+  const int32_t ntri = int32_t(m_triCrack.size());
+  m_triAreaNormals.resize(4 * size_t(ntri));
+  exec.run(ntri, 1024,
+           TriangleNormalStage{m_positions.data(), m_indices.data(), m_triAreaNormals.data()});
   exec.run(nv, 512,
-           SurfaceNormalStage{m_positions.data(), m_indices.data(), m_vertexTriStart.data(),
-                              m_vertexTri.data(), m_normals.data()});
+           SurfaceNormalStage{m_triAreaNormals.data(), m_vertexTriStart.data(), m_vertexTri.data(),
+                              m_normals.data()});
 
   // The dirty range grows by the vertices whose float position or normal (what a renderer
   // uploads) changed; vertices that kept both stay out of it.

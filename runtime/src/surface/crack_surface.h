@@ -55,7 +55,11 @@
 // - Cost: nothing unless called. rebuild() is O(tets) (tets with no boundary face and no
 //   unjoined edge are skipped at once), runs on the JobSystem over fixed chunks of tets with the
 //   serial walk's numbering (docs/design.md, the render surface), and allocates only when the
-//   surface outgrows its previous capacity; updatePositions() is O(vertices + triangles).
+//   surface outgrows its previous capacity. A chunk lists its quads again only when an edge of
+//   its tets changed from joined to not or back (the quads depend on nothing else); the rest,
+//   numbering included, is redone whole, so a kept surface equals a fresh one bit for bit.
+//   updatePositions() is O(vertices + triangles): each triangle's area vector once, then each
+//   vertex sums its triangles' in increasing order.
 #pragma once
 
 #include <cstdint>
@@ -114,6 +118,18 @@ class CrackSurface {
   /// without extra nodes is the same bit for bit.
   void setExtraFrameNodes(std::span<const int32_t> nodes) {
     m_extraFrameNodes.assign(nodes.begin(), nodes.end());
+  }
+  /// Places only the vertices of the fragments f with drawn[f] != 0 (none past its end), for a
+  /// surface that lends a few of its faces to another (the embedded render mesh): their
+  /// triangles hold no other vertex, so their positions and normals are the same bits as when
+  /// every vertex is placed. The local maps are made for all. positions(), normals() and dirty()
+  /// are then not kept, and positionsDouble() and normalsDouble() hold the drawn vertices only.
+  /// With no fragment drawn the surface has no vertex at all, and only the extra frame nodes
+  /// (setExtraFrameNodes) get local maps, the same bits, numbered in their order.
+  /// Copied; used from the next rebuild().
+  void setDrawnFragments(std::span<const uint8_t> drawn) {
+    m_drawnFragment.assign(drawn.begin(), drawn.end());
+    m_drawnOnly = true;
   }
   /// Per node: the index of its local map in frameMaps(), or -1 when it has none.
   std::span<const int32_t> nodeFrame() const { return m_nodeFrame; }
@@ -198,9 +214,11 @@ class CrackSurface {
     std::vector<int32_t> owned;    // the corners that create a vertex, in creation order
     std::vector<int64_t> framing;  // (node, key) pairs of the partial vertices' group nodes
     int32_t vertexBase = 0, quadBase = 0;
+    uint8_t stale = 1;  // an edge of its tets changed since slot .. corner were listed
   };
   std::vector<TetChunk> m_chunks;
-  std::vector<int64_t> m_nodeKey;  // per node: 4 v + k of the first partial vertex v it frames
+  std::vector<uint8_t> m_edgeJoined;  // per edge, as the chunks' quads were last listed
+  std::vector<int64_t> m_nodeKey;     // per node: 4 v + k of the first partial vertex v it frames
 
   // Scratch of each chunk of frames: its neighbourhoods and a visited set.
   struct FrameChunk {
@@ -229,6 +247,11 @@ class CrackSurface {
 
   // Output.
   std::vector<double> m_positions, m_normals;
+  std::vector<double> m_triAreaNormals;  // 4 per triangle, updatePositions()'s scratch
+  // setDrawnFragments(): the fragments, and the vertices and triangles placed, ascending.
+  bool m_drawnOnly = false;
+  std::vector<uint8_t> m_drawnFragment;
+  std::vector<int32_t> m_drawnVertices, m_drawnTriangles;
   std::vector<int32_t> m_vertexTriStart, m_vertexTri;  // each vertex's triangles, ascending
   std::vector<int32_t> m_vertexTriFill, m_blockAt, m_blockStart, m_pairs;  // their scratch
   std::vector<float> m_positionsF, m_normalsF;

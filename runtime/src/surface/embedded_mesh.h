@@ -254,6 +254,9 @@ class EmbeddedSurface {
   void setChipsDrawnByNeighbours(bool on) { m_chipsByNeighbours = on; }
   /// Nodes whose local maps the last rebuild() needs.
   std::span<const int32_t> frameNodes() const { return m_frameNodes; }
+  /// Per fragment: 1 where the last rebuild() draws it with the crack surface's faces, the only
+  /// ones update() takes (hand them to CrackSurface::setDrawnFragments before its rebuild()).
+  std::span<const uint8_t> crackDrawn() const { return m_crackDrawn; }
   /// Places the vertices for node positions `x` (3 per node), with the local maps of `crack`,
   /// which must be up to date for `x` (its updatePositions or rebuild ran), and takes its
   /// crack faces. Every vertex is dirty afterwards.

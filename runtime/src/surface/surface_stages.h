@@ -132,37 +132,49 @@ struct SurfaceVertexStage {
   }
 };
 
+/// One triangle's area vector (twice its area along its normal) and that vector's length, 4
+/// per triangle: computed once here rather than once per corner by the vertices that share it.
+struct TriangleNormalStage {
+  const double* positions = nullptr;
+  const uint32_t* indices = nullptr;  ///< 3 per triangle
+  double* areaNormals = nullptr;      ///< 4 per triangle: the area vector, then its length
+
+  GF_HD void operator()(int32_t tri) const {
+    const uint32_t* id = indices + 3 * int64_t(tri);
+    const Vec3 p0 = loadVec3(positions, id[0]);
+    const Vec3 n = cross(loadVec3(positions, id[1]) - p0, loadVec3(positions, id[2]) - p0);
+    double* out = areaNormals + 4 * int64_t(tri);
+    out[0] = n.x;
+    out[1] = n.y;
+    out[2] = n.z;
+    out[3] = norm(n);
+  }
+};
+
 /// A vertex's unit normal: the area-weighted sum of its triangles' normals, or, where opposite
 /// sides cancel (crack fronts), the normal of its first triangle.
 struct SurfaceNormalStage {
-  const double* positions = nullptr;
-  const uint32_t* indices = nullptr;        ///< 3 per triangle
+  const double* areaNormals = nullptr;      ///< 4 per triangle (TriangleNormalStage)
   const int32_t* vertexTriStart = nullptr;  ///< per vertex, its triangles by increasing index
   const int32_t* vertexTri = nullptr;
   double* normals = nullptr;
-
-  GF_HD Vec3 areaNormal(int32_t tri) const {
-    const uint32_t* id = indices + 3 * int64_t(tri);
-    const Vec3 p0 = loadVec3(positions, id[0]);
-    return cross(loadVec3(positions, id[1]) - p0, loadVec3(positions, id[2]) - p0);
-  }
 
   GF_HD void operator()(int32_t v) const {
     Vec3 sum{};
     double weight = 0;
     for (int32_t k = vertexTriStart[v]; k < vertexTriStart[v + 1]; ++k) {
-      const Vec3 n = areaNormal(vertexTri[k]);
-      sum += n;
-      weight += norm(n);
+      const double* n = areaNormals + 4 * int64_t(vertexTri[k]);
+      sum += Vec3{n[0], n[1], n[2]};
+      weight += n[3];
     }
     const double len = norm(sum);
     Vec3 out;
     if (len > 1e-6 * weight && len > 0) {
       out = {sum.x / len, sum.y / len, sum.z / len};
     } else if (vertexTriStart[v] < vertexTriStart[v + 1]) {
-      const Vec3 n = areaNormal(vertexTri[vertexTriStart[v]]);
-      const double l = norm(n);
-      out = l > 0 ? (1.0 / l) * n : Vec3{0, 0, 1};
+      const double* n = areaNormals + 4 * int64_t(vertexTri[vertexTriStart[v]]);
+      const double l = n[3];
+      out = l > 0 ? (1.0 / l) * Vec3{n[0], n[1], n[2]} : Vec3{0, 0, 1};
     } else {
       out = sum;  // a vertex no triangle uses keeps the zero the sum gave it
     }
@@ -320,6 +332,15 @@ struct CapCenterStage {
       normals[3 * v + i] = n[i];
     }
   }
+};
+
+/// A stage run over the listed items only: item i is stage item items[i].
+template <class Stage>
+struct ListedStage {
+  const int32_t* items = nullptr;
+  Stage stage;
+
+  GF_HD void operator()(int32_t i) const { stage(items[i]); }
 };
 
 /// out[i] = float(in[i]).

@@ -272,24 +272,7 @@ struct World::Impl {
   int contactSweeps(const detail::CpuExecutor& exec, const detail::StepContext& ctx, double h);
 
   // Keeps a requested render surface in step with the body: topology only after fractures.
-  void updateSurface(BodyRecord& b) {
-    SurfaceRecord& r = *b.surface;
-    // Partial cracks are rendered too, so every newly broken edge changes the topology.
-    if (b.fracture && uint64_t(b.fracture->brokenCount()) != r.brokenCount) {
-      r.brokenCount = uint64_t(b.fracture->brokenCount());
-      if (r.embedded) {
-        r.embedded->rebuild(b.fracture->broken().data(),
-                            b.fracture->fragments().nodeFragment().data());
-        r.surface.setExtraFrameNodes(r.embedded->frameNodes());
-      }
-      r.surface.setSplitRatios(b.fracture->splitRatios());
-      r.surface.rebuild(b.fracture->broken().data(), b.fracture->fragments().nodeFragment().data(),
-                        b.state.x.data(), jobs);
-    } else {
-      r.surface.updatePositions(b.state.x.data(), jobs);
-    }
-    if (r.embedded) r.embedded->update(b.state.x.data(), r.surface, jobs);
-  }
+  void updateSurface(BodyRecord& b);
 
   // The colliders with their stiffness for substep dt filled in.
   void setColliderStiffness(double dt) {

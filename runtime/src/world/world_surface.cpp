@@ -32,6 +32,26 @@ std::span<const double> World::nodeStrain(BodyId id) {
   return b->nodeStrain;
 }
 
+void World::Impl::updateSurface(BodyRecord& b) {
+  SurfaceRecord& r = *b.surface;
+  // Partial cracks are rendered too, so every newly broken edge changes the topology.
+  if (b.fracture && uint64_t(b.fracture->brokenCount()) != r.brokenCount) {
+    r.brokenCount = uint64_t(b.fracture->brokenCount());
+    if (r.embedded) {
+      r.embedded->rebuild(b.fracture->broken().data(),
+                          b.fracture->fragments().nodeFragment().data());
+      r.surface.setExtraFrameNodes(r.embedded->frameNodes());
+      r.surface.setDrawnFragments(r.embedded->crackDrawn());
+    }
+    r.surface.setSplitRatios(b.fracture->splitRatios());
+    r.surface.rebuild(b.fracture->broken().data(), b.fracture->fragments().nodeFragment().data(),
+                      b.state.x.data(), jobs);
+  } else {
+    r.surface.updatePositions(b.state.x.data(), jobs);
+  }
+  if (r.embedded) r.embedded->update(b.state.x.data(), r.surface, jobs);
+}
+
 SurfaceView World::surface(BodyId id) {
   BodyRecord* b = m_impl->get(id);
   if (!b || m_impl->stepping.load()) return {};
@@ -82,6 +102,7 @@ SurfaceView World::surface(BodyId id) {
       r->embedded->setChipsDrawnByNeighbours(b->fracture && b->model.fracture.releaseEveryBatch);
       r->embedded->rebuild(broken, fragments);
       r->surface.setExtraFrameNodes(r->embedded->frameNodes());
+      r->surface.setDrawnFragments(r->embedded->crackDrawn());
     }
     r->surface.rebuild(broken, fragments, b->state.x.data(), m_impl->jobs);
     if (r->embedded) r->embedded->update(b->state.x.data(), r->surface, m_impl->jobs);
