@@ -32,20 +32,30 @@ std::span<const double> World::nodeStrain(BodyId id) {
   return b->nodeStrain;
 }
 
+namespace {
+
+// The topology of a requested surface for these broken edges and fragments: the render mesh
+// first (it says which local maps and crack faces it takes), then the crack surface.
+void rebuildSurface(SurfaceRecord& r, const uint8_t* broken, const int32_t* fragments,
+                    const double* x, JobSystem* jobs) {
+  if (r.embedded) {
+    r.embedded->rebuild(broken, fragments);
+    r.surface.setExtraFrameNodes(r.embedded->frameNodes());
+    r.surface.setDrawnFragments(r.embedded->crackDrawn());
+  }
+  r.surface.rebuild(broken, fragments, x, jobs);
+}
+
+}  // namespace
+
 void World::Impl::updateSurface(BodyRecord& b) {
   SurfaceRecord& r = *b.surface;
   // Partial cracks are rendered too, so every newly broken edge changes the topology.
   if (b.fracture && uint64_t(b.fracture->brokenCount()) != r.brokenCount) {
     r.brokenCount = uint64_t(b.fracture->brokenCount());
-    if (r.embedded) {
-      r.embedded->rebuild(b.fracture->broken().data(),
-                          b.fracture->fragments().nodeFragment().data());
-      r.surface.setExtraFrameNodes(r.embedded->frameNodes());
-      r.surface.setDrawnFragments(r.embedded->crackDrawn());
-    }
     r.surface.setSplitRatios(b.fracture->splitRatios());
-    r.surface.rebuild(b.fracture->broken().data(), b.fracture->fragments().nodeFragment().data(),
-                      b.state.x.data(), jobs);
+    rebuildSurface(r, b.fracture->broken().data(), b.fracture->fragments().nodeFragment().data(),
+                   b.state.x.data(), jobs);
   } else {
     r.surface.updatePositions(b.state.x.data(), jobs);
   }
@@ -100,11 +110,8 @@ SurfaceView World::surface(BodyId id) {
       r->embedded = std::make_unique<detail::EmbeddedSurface>();
       r->embedded->init(*b->renderBinding, r->rest, *graph, b->model.restInverse.data());
       r->embedded->setChipsDrawnByNeighbours(b->fracture && b->model.fracture.releaseEveryBatch);
-      r->embedded->rebuild(broken, fragments);
-      r->surface.setExtraFrameNodes(r->embedded->frameNodes());
-      r->surface.setDrawnFragments(r->embedded->crackDrawn());
     }
-    r->surface.rebuild(broken, fragments, b->state.x.data(), m_impl->jobs);
+    rebuildSurface(*r, broken, fragments, b->state.x.data(), m_impl->jobs);
     if (r->embedded) r->embedded->update(b->state.x.data(), r->surface, m_impl->jobs);
     b->surface = std::move(r);
     updated = true;
