@@ -46,6 +46,18 @@
 // concavity's size as the step's scale (Chen et al. 2024, "Stabler Neo-Hookean Simulation:
 // Absolute Eigenvalue Filtering for Projected Newton"; docs/validation.md). The Hessian is
 // exact away from the region boundaries, where only it (not P) jumps.
+//   A split tet (its broken edges part the corners into two sides, one side S) also has the
+// branch of a crack that slides: S may move against the other side by a jump g across the
+// plane of unit normal n ~ grad sum_{c in S} N_c (the plane parallel to both sides), which is
+// the strain Voigt(sym(g (x) n)) (a relative translation of S, exactly, in the Green strain),
+// with g.n >= 0. Its minimum is open (g.n > 0: no traction on the plane) or closed (g in the
+// plane: only the normal traction n.sigma.n), and psi is the least of this branch over every
+// such partition and the per-edge branch above. Per edge alone, touching faces were locked in
+// shear: sliding shortens half of the edges across the plane, so a torn piece hung in the air
+// (docs/validation.md). The per-edge branch is still needed: it alone frees a side that has
+// turned (a tumbling piece), whose strain is no translation. The crack faces carry no friction.
+// A min of two convex branches is continuous with a concave kink where they cross, which an
+// energy-decreasing step passes.
 //   Known limit, inherited from StVK: the Green strain of an edge is bounded below by -1/2,
 // so the closed-crack resistance weakens as an element is crushed towards zero volume.
 //
@@ -262,6 +274,85 @@ GF_HD int crackOpening(const Mat<6, 6>& M, const Mat<6, 6>& Tinv, const uint8_t 
   return bestN;
 }
 
+/// Projects e onto the complement of the span of the k <= 3 strain columns c in the M metric:
+/// w = G^-1 C^T M e with G = C^T M C, ef = e - C w, and, when hv is non-null, d2psi/de2 =
+/// M - M C G^-1 C^T M. False when G is singular (a degenerate normal).
+GF_HD bool projectOutColumns(const Mat<6, 6>& M, const double c[3][6], int k, const double e[6],
+                             double w[3], double ef[6], Mat<6, 6>* hv) {
+  double me[6], mc[3][6], l[36] = {};
+  apply6(M, e, me);
+  for (int a = 0; a < k; ++a) {
+    apply6(M, c[a], mc[a]);
+    w[a] = 0;
+    for (int i = 0; i < 6; ++i) w[a] += c[a][i] * me[i];
+    for (int b = 0; b < k; ++b) {
+      double s = 0;
+      for (int i = 0; i < 6; ++i) s += c[b][i] * mc[a][i];
+      l[6 * a + b] = s;
+    }
+  }
+  if (!choleskyFactor6(l, k)) return false;
+  choleskySolve6(l, k, w);
+  for (int i = 0; i < 6; ++i) {
+    ef[i] = e[i];
+    for (int a = 0; a < k; ++a) ef[i] -= w[a] * c[a][i];
+  }
+  if (hv == nullptr) return true;
+  *hv = M;
+  for (int j = 0; j < 6; ++j) {
+    double y[3];
+    for (int a = 0; a < k; ++a) y[a] = mc[a][j];
+    choleskySolve6(l, k, y);
+    for (int i = 0; i < 6; ++i)
+      for (int a = 0; a < k; ++a) (*hv)(i, j) -= mc[a][i] * y[a];
+  }
+  for (int i = 0; i < 6; ++i)
+    for (int j = i + 1; j < 6; ++j) {
+      const double s = 0.5 * ((*hv)(i, j) + (*hv)(j, i));
+      (*hv)(i, j) = s;
+      (*hv)(j, i) = s;
+    }
+  return true;
+}
+
+/// Tensor Voigt of sym(g (x) n).
+GF_HD void symOuterVoigt(const Vec3& g, const Vec3& n, double v[6]) {
+  v[0] = g.x * n.x;
+  v[1] = g.y * n.y;
+  v[2] = g.z * n.z;
+  v[3] = 0.5 * (g.x * n.y + g.y * n.x);
+  v[4] = 0.5 * (g.x * n.z + g.z * n.x);
+  v[5] = 0.5 * (g.y * n.z + g.z * n.y);
+}
+
+/// The sliding branch of a split tet (see the file comment): the jump g across the crack plane
+/// of unit normal n that minimises 1/2 e_f^T M e_f, e_f = e - Voigt(sym(g (x) n)), g.n >= 0.
+/// Returns psi; fills ef and, when hv is non-null, d2psi/de2. A negative return: G singular.
+GF_HD double crackSlide(const Mat<6, 6>& M, const Vec3& n, const double e[6], double ef[6],
+                        Mat<6, 6>* hv) {
+  double c[3][6], w[3];
+  const Vec3 axes[3] = {Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+  for (int a = 0; a < 3; ++a) symOuterVoigt(axes[a], n, c[a]);
+  double eScale = 0;
+  for (int i = 0; i < 6; ++i) eScale = fmax(eScale, fabs(e[i]));
+  if (!projectOutColumns(M, c, 3, e, w, ef, hv)) return -1;
+  // Open (the jump points away from the other side): the crack plane carries no traction.
+  // Otherwise closed: the jump stays in the plane and only the normal traction is carried.
+  if (!(w[0] * n.x + w[1] * n.y + w[2] * n.z > kCrackOpeningRoundOff * eScale)) {
+    const Vec3 a = fabs(n.x) < 0.6 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+    Vec3 t1 = cross(n, a);
+    t1 = (1.0 / norm(t1)) * t1;
+    symOuterVoigt(t1, n, c[0]);
+    symOuterVoigt(cross(n, t1), n, c[1]);
+    if (!projectOutColumns(M, c, 2, e, w, ef, hv)) return -1;
+  }
+  double sv[6];
+  apply6(M, ef, sv);
+  double psi = 0;
+  for (int i = 0; i < 6; ++i) psi += 0.5 * ef[i] * sv[i];
+  return psi;
+}
+
 }  // namespace detail
 
 /// Projection-model energy density psi (returned), P = dpsi/dF and, when dPdF is non-null,
@@ -273,13 +364,45 @@ GF_HD int crackOpening(const Mat<6, 6>& M, const Mat<6, 6>& Tinv, const uint8_t 
 /// absolute values (see the file comment).
 GF_HD double projectionEvaluate(const Mat<6, 6>& M, const Mat<6, 6>& Tinv, const Mat<6, 6>& T,
                                 const uint8_t broken[6], const Mat3& F, Mat3& P, Mat9* dPdF,
-                                bool projectPsd, bool closedHessian = false) {
+                                bool projectPsd, bool closedHessian = false,
+                                const Vec3* cornerGradients = nullptr) {
   (void)T;
   double e[6];
   detail::greenStrainVoigt(F, e);
   double ef[6];
   Mat<6, 6> hv;
-  detail::crackOpening(M, Tinv, broken, e, ef, dPdF != nullptr && !closedHessian ? &hv : nullptr);
+  Mat<6, 6>* hvOut = dPdF != nullptr && !closedHessian ? &hv : nullptr;
+  detail::crackOpening(M, Tinv, broken, e, ef, hvOut);
+  if (cornerGradients != nullptr) {
+    // Every way to part the corners along broken edges only: side S (corner 0 on the other)
+    // slides on the plane normal to grad of its barycentric sum. The lowest branch wins.
+    double efe[6];
+    apply6(M, ef, efe);
+    double best = 0;
+    for (int i = 0; i < 6; ++i) best += 0.5 * ef[i] * efe[i];
+    for (int side = 1; side < 16; side += 2) {
+      // side: bit c set when corner c is on corner 0's side; bit 0 always set.
+      bool parted = true;
+      for (int k = 0; k < 6; ++k) {
+        const int a = tetEdgeCorner(k, 0), b = tetEdgeCorner(k, 1);
+        if (((side >> a) & 1) != ((side >> b) & 1) && broken[k] == 0) parted = false;
+      }
+      if (!parted || side == 15) continue;
+      Vec3 n{0, 0, 0};
+      for (int c = 1; c < 4; ++c)
+        if (!((side >> c) & 1)) n = n + cornerGradients[c];
+      n = (1.0 / norm(n)) * n;
+      double efs[6];
+      Mat<6, 6> hvs;
+      const double psi = detail::crackSlide(M, n, e, efs, hvOut != nullptr ? &hvs : nullptr);
+      // A tie goes to the slide: at rest both branches are 0, and only the slide's Hessian lets
+      // the first Newton step move a side along the plane.
+      if (!(psi >= 0) || !(psi <= best)) continue;
+      best = psi;
+      for (int i = 0; i < 6; ++i) ef[i] = efs[i];
+      if (hvOut != nullptr) hv = hvs;
+    }
+  }
   // The closed-crack Hessian M bounds the curvature of psi in e from above (psi(e + d) <=
   // psi(e) + sigma_v . d + 1/2 d^T M d with the openings held), so a step built on it cannot
   // overshoot a crack that closes within it (Integrator::solve's retry).
@@ -406,8 +529,10 @@ GF_HD double damagedElementForces(int damageModel, const MaterialCoeffs& c, cons
   double psi = 0;
   if (damageModel == kDamageProjection) {
     const Mat3 F = deformationGradient(x, DmInv);
+    Vec3 grads[4];
+    for (int a = 0; a < 4; ++a) grads[a] = Vec3{B(a, 0), B(a, 1), B(a, 2)};
     psi = projectionEvaluate(projectionStiffness(c), Tinv, T, broken, F, P, h, projectPsd,
-                             closedHessian);
+                             closedHessian, grads);
   } else if (chi > 0) {
     const Mat3 F = deformationGradient(x, DmInv);
     // eq 4.32 with chi lagged: every derivative scales by the same constant.
