@@ -179,6 +179,16 @@ GF_HD void choleskySolve6(const double l[36], int n, double b[6]) {
   }
 }
 
+/// Makes h exactly symmetric, as the PSD projection and the assembly expect.
+GF_HD void symmetrize6(Mat<6, 6>& h) {
+  for (int i = 0; i < 6; ++i)
+    for (int j = i + 1; j < 6; ++j) {
+      const double s = 0.5 * (h(i, j) + h(j, i));
+      h(i, j) = s;
+      h(j, i) = s;
+    }
+}
+
 /// The crack opening of the broken edges at tensor-Voigt Green strain e (see the file
 /// comment): e_f = e - sum_k w_k T^-1(:,k), the w >= 0 on broken edges that minimises
 /// 1/2 e_f^T M e_f. Returns the number of open edges (0: e_f = e, exactly). When hv is non-null
@@ -263,13 +273,7 @@ GF_HD int crackOpening(const Mat<6, 6>& M, const Mat<6, 6>& Tinv, const uint8_t 
         (*hv)(i, j) -= s;
       }
     }
-    // Exactly symmetric, as the PSD projection and the assembly expect.
-    for (int i = 0; i < 6; ++i)
-      for (int j = i + 1; j < 6; ++j) {
-        const double s = 0.5 * ((*hv)(i, j) + (*hv)(j, i));
-        (*hv)(i, j) = s;
-        (*hv)(j, i) = s;
-      }
+    symmetrize6(*hv);
   }
   return bestN;
 }
@@ -306,12 +310,7 @@ GF_HD bool projectOutColumns(const Mat<6, 6>& M, const double c[3][6], int k, co
     for (int i = 0; i < 6; ++i)
       for (int a = 0; a < k; ++a) (*hv)(i, j) -= mc[a][i] * y[a];
   }
-  for (int i = 0; i < 6; ++i)
-    for (int j = i + 1; j < 6; ++j) {
-      const double s = 0.5 * ((*hv)(i, j) + (*hv)(j, i));
-      (*hv)(i, j) = s;
-      (*hv)(j, i) = s;
-    }
+  symmetrize6(*hv);
   return true;
 }
 
