@@ -671,6 +671,53 @@ double damagedEnergy(int model, const MaterialCoeffs& c, const EdgeFrame& f, dou
                                   false);
 }
 
+/// Relative errors of damagedElementForces' gradient and Hessian at positions xs (12) against
+/// central differences of its energy and gradient.
+struct FdErrors {
+  double grad, hess;
+};
+FdErrors damagedElementFdErrors(int model, const MaterialCoeffs& c, const EdgeFrame& f, double chi,
+                                const uint8_t broken[6], const Mat3& dmInv, double vol,
+                                const double xs[12]) {
+  Vec3 x[4];
+  for (int a = 0; a < 4; ++a) x[a] = Vec3{xs[3 * a], xs[3 * a + 1], xs[3 * a + 2]};
+  double grad[12];
+  Mat12 H;
+  gf::damagedElementForces(model, c, f.T, f.Tinv, chi, broken, x, dmInv, vol, grad, &H, false);
+  const double h = 1e-8;  // positions ~0.1 m
+  double gnorm = 0, gerr = 0;
+  Mat12 Hfd;
+  for (int d = 0; d < 12; ++d) {
+    double xp[12], xm[12];
+    std::copy(xs, xs + 12, xp);
+    std::copy(xs, xs + 12, xm);
+    xp[d] += h;
+    xm[d] -= h;
+    const double fd = (damagedEnergy(model, c, f, chi, broken, dmInv, vol, xp) -
+                       damagedEnergy(model, c, f, chi, broken, dmInv, vol, xm)) /
+                      (2 * h);
+    gerr += (fd - grad[d]) * (fd - grad[d]);
+    gnorm += grad[d] * grad[d];
+    Vec3 yp[4], ym[4];
+    for (int a = 0; a < 4; ++a) {
+      yp[a] = Vec3{xp[3 * a], xp[3 * a + 1], xp[3 * a + 2]};
+      ym[a] = Vec3{xm[3 * a], xm[3 * a + 1], xm[3 * a + 2]};
+    }
+    double gp[12], gm[12];
+    gf::damagedElementForces(model, c, f.T, f.Tinv, chi, broken, yp, dmInv, vol, gp, nullptr,
+                             false);
+    gf::damagedElementForces(model, c, f.T, f.Tinv, chi, broken, ym, dmInv, vol, gm, nullptr,
+                             false);
+    for (int e = 0; e < 12; ++e) Hfd(e, d) = (gp[e] - gm[e]) / (2 * h);
+  }
+  double herr = 0, hnorm = 0;
+  for (int k = 0; k < 144; ++k) {
+    herr += (H.m[k] - Hfd.m[k]) * (H.m[k] - Hfd.m[k]);
+    hnorm += H.m[k] * H.m[k];
+  }
+  return {std::sqrt(gerr / gnorm), std::sqrt(herr / hnorm)};
+}
+
 /// Positions of the rest tet X with the corners of side `moved` (bit c: corner c) translated by
 /// t, then all of it rotated by Q.
 void moveSide(const Vec3 X[4], int moved, const Vec3& t, const Mat3& Q, Vec3 x[4]) {
@@ -758,43 +805,10 @@ TEST(Damage, SplitTetSlidesAlongItsCrackButResistsClosing) {
               Q * (A * (((moved >> a) & 1) ? X[a] + 0.2 * L * tan + normal * L * nrm : X[a]));
           for (int k = 0; k < 3; ++k) xs[3 * a + k] = p[k];
         }
-        for (int a = 0; a < 4; ++a) x[a] = Vec3{xs[3 * a], xs[3 * a + 1], xs[3 * a + 2]};
-        double grad[12];
-        Mat12 H;
-        gf::damagedElementForces(gf::kDamageProjection, c, f.T, f.Tinv, 1, broken, x, dmInv, vol,
-                                 grad, &H, false);
-        const double h = 1e-8;
-        double gerr = 0, gnorm = 0, herr = 0, hnorm = 0;
-        for (int k = 0; k < 12; ++k) {
-          double xp[12], xm[12];
-          std::copy(xs, xs + 12, xp);
-          std::copy(xs, xs + 12, xm);
-          xp[k] += h;
-          xm[k] -= h;
-          const double fd =
-              (damagedEnergy(gf::kDamageProjection, c, f, 1, broken, dmInv, vol, xp) -
-               damagedEnergy(gf::kDamageProjection, c, f, 1, broken, dmInv, vol, xm)) /
-              (2 * h);
-          gerr += (fd - grad[k]) * (fd - grad[k]);
-          gnorm += grad[k] * grad[k];
-          Vec3 yp[4], ym[4];
-          for (int a = 0; a < 4; ++a) {
-            yp[a] = Vec3{xp[3 * a], xp[3 * a + 1], xp[3 * a + 2]};
-            ym[a] = Vec3{xm[3 * a], xm[3 * a + 1], xm[3 * a + 2]};
-          }
-          double gp[12], gm[12];
-          gf::damagedElementForces(gf::kDamageProjection, c, f.T, f.Tinv, 1, broken, yp, dmInv, vol,
-                                   gp, nullptr, false);
-          gf::damagedElementForces(gf::kDamageProjection, c, f.T, f.Tinv, 1, broken, ym, dmInv, vol,
-                                   gm, nullptr, false);
-          for (int r = 0; r < 12; ++r) {
-            const double hf = (gp[r] - gm[r]) / (2 * h);
-            herr += (hf - H(r, k)) * (hf - H(r, k));
-            hnorm += H(r, k) * H(r, k);
-          }
-        }
-        worstG = std::max(worstG, std::sqrt(gerr / gnorm));
-        worstH = std::max(worstH, std::sqrt(herr / hnorm));
+        const FdErrors err =
+            damagedElementFdErrors(gf::kDamageProjection, c, f, 1, broken, dmInv, vol, xs);
+        worstG = std::max(worstG, err.grad);
+        worstH = std::max(worstH, err.hess);
       }
     }
   }
@@ -839,38 +853,10 @@ TEST(Damage, ElementFiniteDifferences) {
     double grad[12];
     Mat12 H;
     gf::damagedElementForces(model, c, f.T, f.Tinv, chi, broken, x, dmInv, vol, grad, &H, false);
-    const double h = 1e-8;  // positions ~0.1 m
-    double gnorm = 0, gerr = 0;
-    Mat12 Hfd;
-    for (int d = 0; d < 12; ++d) {
-      double xp[12], xm[12];
-      std::copy(xs, xs + 12, xp);
-      std::copy(xs, xs + 12, xm);
-      xp[d] += h;
-      xm[d] -= h;
-      const double fd = (damagedEnergy(model, c, f, chi, broken, dmInv, vol, xp) -
-                         damagedEnergy(model, c, f, chi, broken, dmInv, vol, xm)) /
-                        (2 * h);
-      gerr += (fd - grad[d]) * (fd - grad[d]);
-      gnorm += grad[d] * grad[d];
-      Vec3 yp[4], ym[4];
-      for (int a = 0; a < 4; ++a) {
-        yp[a] = Vec3{xp[3 * a], xp[3 * a + 1], xp[3 * a + 2]};
-        ym[a] = Vec3{xm[3 * a], xm[3 * a + 1], xm[3 * a + 2]};
-      }
-      double gp[12], gm[12];
-      gf::damagedElementForces(model, c, f.T, f.Tinv, chi, broken, yp, dmInv, vol, gp, nullptr,
-                               false);
-      gf::damagedElementForces(model, c, f.T, f.Tinv, chi, broken, ym, dmInv, vol, gm, nullptr,
-                               false);
-      for (int e = 0; e < 12; ++e) Hfd(e, d) = (gp[e] - gm[e]) / (2 * h);
-    }
-    double herr = 0, hnorm = 0;
-    for (int k = 0; k < 144; ++k) {
-      herr += (H.m[k] - Hfd.m[k]) * (H.m[k] - Hfd.m[k]);
-      hnorm += H.m[k] * H.m[k];
-    }
-    const double eg = std::sqrt(gerr / gnorm), eh = std::sqrt(herr / hnorm);
+    double gnorm = 0;
+    for (double g : grad) gnorm += g * g;
+    const FdErrors err = damagedElementFdErrors(model, c, f, chi, broken, dmInv, vol, xs);
+    const double eg = err.grad, eh = err.hess;
     worstG[model] = std::max(worstG[model], eg);
     worstH[model] = std::max(worstH[model], eh);
     EXPECT_LT(eg, 1e-5) << "trial " << trial;
