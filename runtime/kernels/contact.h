@@ -517,6 +517,9 @@ struct HalfSpaceContacts {
   const int32_t* reactionStart = nullptr;
   const int32_t* reaction = nullptr;
   const double* X = nullptr;
+  /// The step's start x_n (null: not known): a moving pair's friction then slides against its
+  /// face nodes' motion from there, an action and reaction inside the body (slide()).
+  const double* Xn = nullptr;
   double selfSkin = 0;  ///< [m] a self vertex-face pair's plane lies this far in front of its face
   /// A copy whose moving faces are read at positions x.
   GF_HD HalfSpaceContacts at(const double* x) const {
@@ -528,6 +531,31 @@ struct HalfSpaceContacts {
   GF_HD Vec3 nodeAt(int32_t i) const {
     return {X[3 * int64_t(i)], X[3 * int64_t(i) + 1], X[3 * int64_t(i) + 2]};
   }
+  /// Whether half-space k's friction is the moving kind: a self pair's, with x_n known.
+  GF_HD bool movingFriction(int32_t k) const {
+    return Xn && moving(k) && muLambda && muLambda[k] > 0;
+  }
+  /// The slide over the step of a node that starts at xn and ends at x, against half-space k's
+  /// face, in its plane (the lagged normal). A self pair's face point (the pair's weights w of
+  /// the prediction, held over the step) moves with its nodes' iterate at X, so the friction
+  /// acts on both sides and is a function of the body's unknowns; with the face's predicted
+  /// motion instead, the pieces of one body slid on each other as if on ice (each dragged
+  /// towards the other's last velocity) and a stack of them crept apart.
+  GF_HD Vec3 slide(int32_t k, Vec3 x, Vec3 xn) const {
+    Vec3 u = x - xn;
+    if (movingFriction(k)) {
+      const int32_t* f = faceNode + 3 * int64_t(k);
+      for (int i = 0; i < 3; ++i) u -= weight[k][i] * (nodeAt(f[i]) - startAt(f[i]));
+    } else {
+      u -= faceMotion[k];
+    }
+    return tangential(k, u);
+  }
+  GF_HD Vec3 startAt(int32_t i) const {
+    return {Xn[3 * int64_t(i)], Xn[3 * int64_t(i) + 1], Xn[3 * int64_t(i) + 2]};
+  }
+  /// q in the plane of half-space k (its lagged normal).
+  GF_HD Vec3 tangential(int32_t k, Vec3 q) const { return q - dot(q, normal[k]) * normal[k]; }
   /// Half-space k for a node at x, its faces read at X: the depth d (> 0 behind the plane), its
   /// normal n and the weights w with which the face nodes carry it: d's gradient is g = (-n,
   /// w_1 n, w_2 n, w_3 n) over (node, face nodes). A self vertex-face pair is re-linearised at X:
@@ -567,24 +595,10 @@ struct HalfSpaceContacts {
   }
   /// The reaction on node n of the moving-face half-spaces it is a face node of: gradient
   /// k d w_i n and the diagonal block k w_i^2 n n^T of the pair's Gauss-Newton Hessian k g g^T
-  /// (PSD; the cross blocks are applied matrix-free, fem/node_stage.h SelfPairCouplingStage).
-  /// No energy: the vertex counts it. Returns whether any acts.
-  GF_HD bool reactionTerms(int32_t n, Vec3& grad, Mat3& hess) const {
-    if (!reactionStart) return false;
-    bool any = false;
-    for (int32_t e = reactionStart[n]; e < reactionStart[n + 1]; ++e) {
-      const int32_t k = reaction[e] / 3, i = reaction[e] % 3;
-      Vec3 nk, wk;
-      const double d = pair(k, nodeAt(owner[k]), nk, wk);
-      if (!(d > 0)) continue;
-      const double w = wk[i];
-      grad += (stiffness[k] * d * w) * nk;
-      for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) hess(a, b) += stiffness[k] * w * w * nk[a] * nk[b];
-      any = true;
-    }
-    return any;
-  }
+  /// (PSD; the cross blocks are applied matrix-free, fem/node_stage.h SelfPairCouplingStage),
+  /// and of their moving friction (slide()): -w_i times the vertex's friction gradient and
+  /// w_i^2 times its Hessian block. No energy: the vertex counts it. Returns whether any acts.
+  GF_HD bool reactionTerms(int32_t n, Vec3& grad, Mat3& hess) const;
   /// The penalty of node n at x over its half-spaces, added to grad and hess.
   GF_HD double contact(int32_t n, Vec3 x, Vec3& grad, Mat3& hess) const {
     if (!start) return 0;
@@ -619,17 +633,12 @@ constexpr double kFrictionSlipSpeed = 1e-3;
 /// the slip speed times dt. Adds its gradient and a PSD Hessian (mu lambda f1(y) / y on the
 /// tangent plane; the curvature along u, negative below eps, dropped) and returns the
 /// potential.
+GF_HD double frictionF1OverY(double y, double eps);
 GF_HD double nodeFriction(double muLambda, Vec3 normal, Vec3 u, double eps, Vec3& grad,
                           Mat3& hess) {
   const double y = norm(u);
-  double f0, f1OverY;
-  if (y < eps) {
-    f0 = y * y / eps - y * y * y / (3 * eps * eps) + eps / 3;
-    f1OverY = 2 / eps - y / (eps * eps);
-  } else {
-    f0 = y;
-    f1OverY = 1 / y;
-  }
+  const double f0 = y < eps ? y * y / eps - y * y * y / (3 * eps * eps) + eps / 3 : y;
+  const double f1OverY = frictionF1OverY(y, eps);
   grad += (muLambda * f1OverY) * u;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
@@ -637,17 +646,45 @@ GF_HD double nodeFriction(double muLambda, Vec3 normal, Vec3 u, double eps, Vec3
   return muLambda * f0;
 }
 
+/// f1(y) / y of nodeFriction: its Hessian's scale on the tangent plane per unit mu lambda.
+GF_HD double frictionF1OverY(double y, double eps) {
+  return y < eps ? 2 / eps - y / (eps * eps) : 1 / y;
+}
+
 GF_HD double HalfSpaceContacts::friction(int32_t n, Vec3 x, Vec3 xn, Vec3& grad, Mat3& hess) const {
   if (!start || !muLambda) return 0;
   double e = 0;
-  for (int32_t k = start[n]; k < start[n + 1]; ++k) {
-    if (!(muLambda[k] > 0)) continue;
-    // Sliding relative to the face, in the face's plane.
-    Vec3 u = x - xn - faceMotion[k];
-    u = u - dot(u, normal[k]) * normal[k];
-    e += nodeFriction(muLambda[k], normal[k], u, slipEps, grad, hess);
-  }
+  for (int32_t k = start[n]; k < start[n + 1]; ++k)
+    if (muLambda[k] > 0)
+      e += nodeFriction(muLambda[k], normal[k], slide(k, x, xn), slipEps, grad, hess);
   return e;
+}
+
+GF_HD bool HalfSpaceContacts::reactionTerms(int32_t n, Vec3& grad, Mat3& hess) const {
+  if (!reactionStart) return false;
+  bool any = false;
+  for (int32_t e = reactionStart[n]; e < reactionStart[n + 1]; ++e) {
+    const int32_t k = reaction[e] / 3, i = reaction[e] % 3;
+    const Vec3 xv = nodeAt(owner[k]);
+    if (movingFriction(k)) {
+      const double w = weight[k][i];
+      Vec3 g{0, 0, 0};
+      Mat3 h;
+      (void)nodeFriction(muLambda[k], normal[k], slide(k, xv, startAt(owner[k])), slipEps, g, h);
+      grad += -w * g;
+      hess = hess + (w * w) * h;
+      any = true;
+    }
+    Vec3 nk, wk;
+    const double d = pair(k, xv, nk, wk);
+    if (!(d > 0)) continue;
+    const double w = wk[i];
+    grad += (stiffness[k] * d * w) * nk;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) hess(a, b) += stiffness[k] * w * w * nk[a] * nk[b];
+    any = true;
+  }
+  return any;
 }
 
 }  // namespace gf

@@ -988,7 +988,8 @@ CutBlockLanding cutBlockLanding(double E, int planes, int sweeps, double dt) {
 // (under 2 % of a cell) nor gain mechanical energy. DISABLED, fails with one sweep
 // (docs/validation.md, "Pieces of a cut block landing together"): with the self pairs solved
 // inside the body's Newton step, re-linearised at the iterate, no case gains energy, but a node of
-// one piece still lies up to 12.8 % of a cell in another (6 of the 12 cases above 2 %).
+// one piece still lies up to 10.7 % of a cell in another (4 of the 12 cases above 2 %, all at
+// 60 Hz; "Friction between the pieces of one body").
 TEST(BodyContact, DISABLED_PiecesOfACutBlockLandTogether) {
   for (const double dt : {1.0 / 60, 1.0 / 120})
     for (const double E : {1e6, 1e7})
@@ -1012,6 +1013,184 @@ TEST(BodyContact, DISABLED_PiecesOfACutBlockLandTogetherWithSweeps) {
         EXPECT_LT(r.deepest, 0.02 * 0.2 / 6);
         EXPECT_LE(r.gained, 1e-3 * std::abs(r.e0));
       }
+}
+
+// Pieces of one body resting on each other (issue 15): their contacts are self pairs, solved
+// inside the body's Newton step, with friction between the pieces acting on both sides' nodes
+// (HalfSpaceContacts::slide). A body made of separate boxes, with fracture on and never
+// reached, has them as its pieces from the start. Before, a self pair's friction had no normal
+// force where a piece rested (its depth was measured from the face, not from the plane a skin in
+// front that the pair pushes from) and slid against the face's predicted motion: a stack of such
+// pieces crept apart and fell (docs/validation.md, "Friction between the pieces of one body").
+struct PieceBox {
+  glm::dvec3 size, origin;  // [m], the lowest corner
+  glm::ivec3 cells;
+  bool heldBase = false;  // its bottom nodes gripped at rest
+};
+struct PiecesBody {
+  BodyDef def;
+  std::vector<int32_t> first;  // each box's first node, then the node count
+};
+PiecesBody piecesBody(const std::vector<PieceBox>& boxes, double E, double mu) {
+  PiecesBody out;
+  Grip base;
+  for (const PieceBox& b : boxes) {
+    const TetMesh m =
+        movedBox(b.size.x, b.size.y, b.size.z, b.cells.x, b.cells.y, b.cells.z, b.origin);
+    const int32_t offset = int32_t(out.def.mesh.nodeCount());
+    out.first.push_back(offset);
+    out.def.mesh.positions.insert(out.def.mesh.positions.end(), m.positions.begin(),
+                                  m.positions.end());
+    for (int32_t k : m.tets) out.def.mesh.tets.push_back(k + offset);
+    for (int32_t n = 0; b.heldBase && n < int32_t(m.nodeCount()); ++n)
+      if (m.positions[3 * size_t(n) + 1] == b.origin.y) base.nodes.push_back(n + offset);
+  }
+  out.first.push_back(int32_t(out.def.mesh.nodeCount()));
+  if (!base.nodes.empty()) out.def.grips.push_back(base);
+  out.def.material = Material::stableNeoHookean(E, 0.3, 1000);
+  out.def.material.stiffnessDamping = 0.02;
+  out.def.friction = mu;
+  out.def.contact = true;
+  out.def.fracture.enabled = true;
+  out.def.fracture.strength = 1e12;
+  return out;
+}
+// Mean position and velocity of box i's nodes.
+glm::dvec3 boxMean(std::span<const double> x, const PiecesBody& p, size_t i) {
+  glm::dvec3 sum(0);
+  for (int32_t n = p.first[i]; n < p.first[i + 1]; ++n) sum += at(x, n);
+  return sum / double(p.first[i + 1] - p.first[i]);
+}
+
+// 20 cm boxes of 4 cells, each 2 cm above the one below, dropped onto the ground as one body
+// and left for 6 s at 60 Hz: they come to rest stacked, as the separate bodies of
+// BodyContactStack do. Before, three boxes crept apart (an offset of 0.17 mm, growing at
+// 0.45 mm/s after 6 s) and four slid off each other and fell at 2.5 s.
+TEST(BodyContact, PiecesOfOneBodyRestStacked) {
+  struct Case {
+    int boxes;
+    double E;
+  };
+  for (const Case c : {Case{3, 2e5}, Case{4, 2e5}}) {
+    std::vector<PieceBox> boxes;
+    for (int i = 0; i < c.boxes; ++i)
+      boxes.push_back({glm::dvec3(0.2), glm::dvec3(-0.1, 0.01 + 0.22 * i, -0.1), glm::ivec3(4)});
+    PiecesBody p = piecesBody(boxes, c.E, 0.6);
+    // The direct solver: the multigrid's coupled solve gives the same rest (docs/validation.md)
+    // at four times the test's time.
+    p.def.solver.linearSolver = LinearSolverKind::Direct;
+    World world(groundWorld());
+    const BodyId id = world.createBody(p.def).value();
+    const double dt = 1.0 / 60, cell = 0.05;
+    double deepest = 0, ground = 0;
+    int notOk = 0;
+    const int steps = 360;
+    for (int s = 1; s <= steps; ++s) {
+      notOk += !world.step(dt).ok();
+      if (s > steps - 60) ground += world.colliderImpulses()[0].y;
+      const std::vector<Part> parts = fragmentParts(world, id, p.def.mesh);
+      for (size_t i = 0; i < parts.size(); ++i)
+        for (size_t j = 0; j < parts.size(); ++j)
+          if (i != j)
+            deepest =
+                std::max(deepest, deepestInside(world, p.def.mesh, parts[i], p.def.mesh, parts[j]));
+    }
+    ASSERT_EQ(world.fractureStats(id).fragments, c.boxes);
+    const auto x = world.positions(id), v = world.velocities(id);
+    double offset = 0, speed = 0, seat = 0;
+    for (int i = 0; i < c.boxes; ++i) {
+      speed = std::max(speed, glm::length(boxMean(v, p, size_t(i))));
+      if (i == 0) continue;
+      const glm::dvec3 d = boxMean(x, p, size_t(i)) - boxMean(x, p, size_t(i - 1));
+      offset = std::max(offset, std::hypot(d.x, d.z) / 0.2);
+      double bottom = HUGE_VAL, top = -HUGE_VAL;
+      for (int32_t n = p.first[size_t(i)]; n < p.first[size_t(i) + 1]; ++n)
+        bottom = std::min(bottom, x[3 * size_t(n) + 1]);
+      for (int32_t n = p.first[size_t(i) - 1]; n < p.first[size_t(i)]; ++n)
+        top = std::max(top, x[3 * size_t(n) + 1]);
+      seat = std::max(seat, std::abs(top - bottom));
+    }
+    const double weight = world.stats(id).mass * 9.81;
+    std::printf(
+        "%d boxes, E %.0e: after 6 s offset %.2e of a box, box speed %.2e m/s, seat %.2e m, "
+        "deepest %.2f %% of a cell, ground %.3f N for %.3f N, %d steps not ok\n",
+        c.boxes, c.E, offset, speed, seat, 100 * deepest / cell, ground, weight, notOk);
+    EXPECT_EQ(notOk, 0);
+    EXPECT_LT(offset, 1e-4);
+    EXPECT_LT(speed, 1e-4);
+    EXPECT_LT(seat, 0.05 * cell);  // a self pair's plane lies 2.5 % of a cell in front
+    EXPECT_LT(deepest, 0.01 * cell);
+    EXPECT_NEAR(ground, weight, 0.02 * weight);
+  }
+}
+
+// A 10 cm block (4 x 2 x 4 cells) resting on a 1 m slab of the same body (its base gripped),
+// under gravity tilted by `angle` about z, both with friction mu (the pair has mu): the incline of
+// the collider test (test_friction.cpp) between two pieces. It lands from 1 cm (pieces that touch
+// in the rest shape are not paired), then its velocity down the slope between 0.2 s and 0.6 s
+// gives the acceleration, before it reaches the slab's end.
+struct Slide {
+  double acceleration = 0;  // down the slope [m/s^2]
+  double travel = 0;        // down the slope from 0.2 s to 0.6 s [m]
+  double endSpeed = 0;
+};
+Slide pieceOnInclinedPiece(double angle, double mu) {
+  const PiecesBody p = piecesBody({{{1.0, 0.05, 0.3}, {-0.5, 0, -0.15}, {20, 1, 6}, true},
+                                   {{0.1, 0.04, 0.1}, {-0.45, 0.06, -0.05}, {4, 2, 4}, false}},
+                                  1e7, mu);
+  WorldDef wd{glm::vec3(float(9.81 * std::sin(angle)), float(-9.81 * std::cos(angle)), 0),
+              Backend::Cpu,
+              nullptr,
+              1,
+              {}};
+  World world(wd);
+  const BodyId id = world.createBody(p.def).value();
+  const double dt = 1.0 / 60;
+  double v1 = 0, x1 = 0;
+  Slide out;
+  for (int s = 1; s <= 36; ++s) {
+    const StepStatus st = world.step(dt);
+    EXPECT_TRUE(st.ok()) << st.message;
+    if (s == 12) {
+      v1 = boxMean(world.velocities(id), p, 1).x;
+      x1 = boxMean(world.positions(id), p, 1).x;
+    }
+  }
+  out.endSpeed = boxMean(world.velocities(id), p, 1).x;
+  out.acceleration = (out.endSpeed - v1) / (24 * dt);
+  out.travel = boxMean(world.positions(id), p, 1).x - x1;
+  return out;
+}
+
+// At half the friction angle's tangent the piece stays put, creeping at the smoothing's
+// (1 mm/s) tan / (2 mu), as on a collider. Before, a resting piece had no friction at all.
+TEST(BodyContact, PieceOnAnInclinedPieceRestsBelowTheFrictionAngle) {
+  for (const double mu : {0.2, 0.6}) {
+    const double gentle = std::atan(0.5 * mu);
+    const Slide stays = pieceOnInclinedPiece(gentle, mu);
+    std::printf("mu %.1f, %.1f deg: moved %.3f mm over 0.4 s, end speed %.2e m/s\n", mu,
+                gentle * 180 / M_PI, 1e3 * stays.travel, stays.endSpeed);
+    EXPECT_LT(std::abs(stays.travel), 1e-3);
+    EXPECT_LT(std::abs(stays.endSpeed), 1e-3);
+  }
+}
+
+// 15 degrees past the friction angle the piece should slide at g (sin - mu cos) within 5 %.
+// DISABLED, fails (docs/validation.md, "Friction between the pieces of one body"): it slides
+// 26 % (mu 0.2) and 38 % (mu 0.6) slower. Each pair's lagged normal force is its own depth at
+// the step's start times its stiffness, and a vertex sliding over the other piece's cells
+// changes how many coplanar faces it pairs with from step to step, so the sum over its pairs
+// overstates its load (the block's summed lagged force ran 1.3-13 N for a 3.5 N normal load).
+TEST(BodyContact, DISABLED_PieceOnAnInclinedPieceSlidesAsCoulombSays) {
+  for (const double mu : {0.2, 0.6}) {
+    const double steep = std::atan(mu) + 15 * M_PI / 180;
+    const Slide slides = pieceOnInclinedPiece(steep, mu);
+    const double expected = 9.81 * (std::sin(steep) - mu * std::cos(steep));
+    std::printf("mu %.1f, %.1f deg: acceleration %.4f m/s^2, g (sin - mu cos) %.4f (%+.2f %%)\n",
+                mu, steep * 180 / M_PI, slides.acceleration, expected,
+                100 * (slides.acceleration / expected - 1));
+    EXPECT_NEAR(slides.acceleration, expected, 0.05 * expected);
+  }
 }
 
 // The pair lists are built serially in slot and node order, so the contact step gives the same

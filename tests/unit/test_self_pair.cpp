@@ -41,6 +41,11 @@ struct OnePair {
   std::array<int32_t, 3> reaction{0, 1, 2};
   std::array<uint8_t, 4> fixed{0, 0, 0, 0};
   double skin = 0;
+  // Friction: its lagged normal force times mu, the smoothing length, and the step's start
+  // (null: the face's predicted motion, none here, is what the vertex slides against).
+  double muLambda = 0, slipEps = 0;
+  Vec3 faceMotion{0, 0, 0};
+  const double* xn = nullptr;
 
   HalfSpaceContacts at(const double* x) const {
     HalfSpaceContacts h;
@@ -54,7 +59,30 @@ struct OnePair {
     h.reactionStart = reactionStart.data();
     h.reaction = reaction.data();
     h.selfSkin = skin;
+    if (muLambda > 0) {
+      h.muLambda = &muLambda;
+      h.faceMotion = &faceMotion;
+      h.slipEps = slipEps;
+      h.Xn = xn;
+    }
     return h.at(x);
+  }
+  // The friction at x (the vertex in front of the plane, so no penalty acts), its gradient
+  // (the vertex's friction and the face nodes' reactions) and the diagonal blocks.
+  double frictionEnergy(const std::vector<double>& x, std::vector<double>* grad = nullptr,
+                        std::array<Mat3, 4>* blocks = nullptr) const {
+    const HalfSpaceContacts h = at(x.data());
+    std::array<Vec3, 4> g{};
+    std::array<Mat3, 4> b{};
+    EXPECT_LT(h.depth(0, h.nodeAt(0)), 0.0);
+    const Vec3 xv0{xn[0], xn[1], xn[2]};
+    const double e = h.friction(0, h.nodeAt(0), xv0, g[0], b[0]);
+    for (int32_t n = 1; n < 4; ++n) h.reactionTerms(n, g[size_t(n)], b[size_t(n)]);
+    if (grad)
+      for (int n = 0; n < 4; ++n)
+        for (int c = 0; c < 3; ++c) (*grad)[size_t(3 * n + c)] = g[size_t(n)][c];
+    if (blocks) *blocks = b;
+    return e;
   }
   // The energy at x and its gradient (the vertex's penalty and the face nodes' reactions).
   double energy(const std::vector<double>& x, std::vector<double>* grad = nullptr,
@@ -160,9 +188,9 @@ TEST(SelfPair, NewtonMatrixIsTheGaussNewtonOfTheGradientAndPsd) {
     std::array<Mat3, 4> blocks;
     pair.energy(x, &grad, &blocks);
     const HalfSpaceContacts h = pair.at(x.data());
-    double active = 0, s = 0;
-    Vec3 n, w;
-    const detail::SelfPairActiveStage activeStage{h, 1.0, &active, &n, &w};
+    double active = 0, s = 0, friction = 0;
+    Vec3 n, w, t;
+    const detail::SelfPairActiveStage activeStage{h, 1.0, &active, &n, &w, &friction};
     activeStage(0);
     ASSERT_EQ(active, kStiffness);
     // Column j of the matrix: its diagonal block plus the matrix-free cross terms.
@@ -171,11 +199,11 @@ TEST(SelfPair, NewtonMatrixIsTheGaussNewtonOfTheGradientAndPsd) {
       std::vector<double> p(12, 0.0), y(12, 0.0);
       p[size_t(j)] = 1;
       for (int r = 0; r < 3; ++r) y[size_t(3 * (j / 3) + r)] = blocks[size_t(j / 3)](r, j % 3);
-      const detail::SelfPairProjectStage project{h,  pair.fixed.data(), &active, &n,
-                                                 &w, p.data(),          &s};
+      const detail::SelfPairProjectStage project{h,         pair.fixed.data(), &active, &n, &w,
+                                                 &friction, p.data(),          &s,      &t};
       project(0);
-      const detail::SelfPairCouplingStage coupling{h,  pair.fixed.data(), &active, &n, &w,
-                                                   &s, p.data(),          y.data()};
+      const detail::SelfPairCouplingStage coupling{
+          h, pair.fixed.data(), &active, &n, &w, &friction, &s, &t, p.data(), y.data()};
       for (int32_t node = 0; node < 4; ++node) coupling(node);
       for (int i = 0; i < 12; ++i) H(i, j) = y[size_t(i)];
     }
@@ -189,6 +217,111 @@ TEST(SelfPair, NewtonMatrixIsTheGaussNewtonOfTheGradientAndPsd) {
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> eig(H);
     EXPECT_GT(eig.eigenvalues().minCoeff(), -1e-9 * eig.eigenvalues().maxCoeff());
     EXPECT_LT((H - H.transpose()).norm(), 1e-12 * H.norm());
+  }
+}
+
+// Friction between two pieces of one body (HalfSpaceContacts::slide with x_n known): the vertex
+// slides against the face point with the pair's held weights w, moved with the face nodes'
+// unknowns, in the plane of the held normal. Truth worked out here: u = P (dx_v - sum_i w_i
+// dx_i), P = I - n n^T, energy mu lambda f0(|u|) with IPC's f0 (Li et al. 2020, sec 5), its
+// gradient by central differences, and the Newton matrix c c^T (x) mu lambda f1(y) / y P with
+// c = (1, -w_1, -w_2, -w_3) (IPC's, without the curvature along u). With the face's predicted
+// motion in its place, the friction acted on the vertex alone against a lagged target, and
+// pieces of one body resting on each other crept apart (docs/validation.md, "Friction between
+// the pieces of one body").
+double ipcF0(double y, double eps) {
+  return y < eps ? y * y / eps - y * y * y / (3 * eps * eps) + eps / 3 : y;
+}
+double ipcF1OverY(double y, double eps) { return y < eps ? 2 / eps - y / (eps * eps) : 1 / y; }
+
+struct FrictionCase {
+  double angle;  // the face's turn over the step [rad]
+  Vec3 slide;    // the vertex's motion beyond the face's [m]
+  Vec3 common;   // a motion of all four nodes [m]
+};
+const FrictionCase kFrictionCases[] = {
+    {0.0, {2e-5, -1e-5, 0}, {0, 0, 0}},                // stuck: below the smoothing length
+    {0.05, {3e-3, 1e-3, 2e-4}, {0, 0, 0}},             // sliding, the face turning
+    {0.2, {-1e-3, 4e-3, 1e-3}, {0.01, -0.02, 0.005}},  // sliding, turning, carried along
+    {0.0, {5e-5, 6e-5, 1e-5}, {-0.03, 0.01, 0.02}},    // near the smoothing length, carried
+};
+
+TEST(SelfPair, FrictionSlidesAgainstTheFaceItsOwnBodyMoves) {
+  OnePair pair;
+  pair.muLambda = 0.6 * 4.0;  // mu times a lagged normal force [N]
+  pair.slipEps = 1e-4;
+  const std::vector<double> start = configuration(0.0, 0.3, 0.3, -1e-3);
+  pair.xn = start.data();
+  for (const FrictionCase& c : kFrictionCases) {
+    // The face turned about an axis through its first corner and carried by `common`, the
+    // vertex over the face's point (0.3, 0.3), then moved by `slide`.
+    std::vector<double> x = configuration(c.angle, 0.3, 0.3, -1e-3);
+    for (int i = 0; i < 12; ++i) x[size_t(i)] += c.common[i % 3];
+    for (int k = 0; k < 3; ++k) x[size_t(k)] += c.slide[k];
+    auto truth = [&](const std::vector<double>& y) {
+      Eigen::Vector3d u(0, 0, 0);
+      for (int k = 0; k < 3; ++k) u(k) = y[size_t(k)] - start[size_t(k)];
+      for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k)
+          u(k) -= pair.weight[i] * (y[size_t(3 + 3 * i + k)] - start[size_t(3 + 3 * i + k)]);
+      const Eigen::Vector3d n(pair.normal.x, pair.normal.y, pair.normal.z);
+      u -= u.dot(n) * n;
+      return u;
+    };
+    const Eigen::Vector3d u = truth(x);
+    const double y = u.norm();
+    std::vector<double> grad(12);
+    std::array<Mat3, 4> blocks;
+    const double e = pair.frictionEnergy(x, &grad, &blocks);
+    EXPECT_NEAR(e, pair.muLambda * ipcF0(y, pair.slipEps), 1e-12 * pair.muLambda * pair.slipEps);
+    // Gradient: central differences of the true energy.
+    const double h = 1e-9, scale = pair.muLambda;
+    Eigen::Vector3d sum(0, 0, 0);
+    for (size_t i = 0; i < 12; ++i) {
+      std::vector<double> xp = x, xm = x;
+      xp[i] += h;
+      xm[i] -= h;
+      const double fd =
+          pair.muLambda *
+          (ipcF0(truth(xp).norm(), pair.slipEps) - ipcF0(truth(xm).norm(), pair.slipEps)) / (2 * h);
+      EXPECT_NEAR(grad[i], fd, 1e-5 * scale) << "slide " << y << " m, coordinate " << i;
+      sum(long(i % 3)) += grad[i];
+    }
+    // Action and reaction: the pair gives the body no net force.
+    EXPECT_LT(sum.norm(), 1e-12 * scale);
+    // The Newton matrix: diagonal blocks plus the matrix-free cross terms.
+    const HalfSpaceContacts hs = pair.at(x.data());
+    double active = 0, s = 0, friction = 0;
+    Vec3 n, w, t;
+    const detail::SelfPairActiveStage activeStage{hs, 1.0, &active, &n, &w, &friction};
+    activeStage(0);
+    EXPECT_EQ(active, 0.0);  // the penalty does not act, the friction does
+    EXPECT_NEAR(friction, pair.muLambda * ipcF1OverY(y, pair.slipEps),
+                1e-12 * pair.muLambda / pair.slipEps);
+    Eigen::Matrix<double, 12, 12> H;
+    for (int j = 0; j < 12; ++j) {
+      std::vector<double> p(12, 0.0), yv(12, 0.0);
+      p[size_t(j)] = 1;
+      for (int r = 0; r < 3; ++r) yv[size_t(3 * (j / 3) + r)] = blocks[size_t(j / 3)](r, j % 3);
+      const detail::SelfPairProjectStage project{hs,        pair.fixed.data(), &active, &n, &w,
+                                                 &friction, p.data(),          &s,      &t};
+      project(0);
+      const detail::SelfPairCouplingStage coupling{
+          hs, pair.fixed.data(), &active, &n, &w, &friction, &s, &t, p.data(), yv.data()};
+      for (int32_t node = 0; node < 4; ++node) coupling(node);
+      for (int i = 0; i < 12; ++i) H(i, j) = yv[size_t(i)];
+    }
+    const double cw[4] = {1, -pair.weight[0], -pair.weight[1], -pair.weight[2]};
+    Eigen::Matrix3d P = Eigen::Matrix3d::Identity();
+    P(2, 2) = 0;  // the held normal is +z
+    Eigen::Matrix<double, 12, 12> expected;
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        expected.block<3, 3>(3 * a, 3 * b) =
+            cw[a] * cw[b] * pair.muLambda * ipcF1OverY(y, pair.slipEps) * P;
+    EXPECT_LT((H - expected).norm(), 1e-12 * expected.norm()) << "slide " << y << " m";
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> eig(H);
+    EXPECT_GT(eig.eigenvalues().minCoeff(), -1e-9 * eig.eigenvalues().maxCoeff());
   }
 }
 

@@ -582,8 +582,11 @@ struct ContactVertexPairStage {
             h.point = Vec3{0, 0, 0};
             // Friction's normal force from the pair as it is at x_n: the lagged plane's depth
             // (the face's prediction against the vertex's start) let pairs kept from a cell
-            // away rub the pieces of a falling cut body apart.
-            h.muLambda = s0 < 0 ? mu * k * -s0 : 0.0;
+            // away rub the pieces of a falling cut body apart. Measured from the plane the
+            // pair pushes from, a skin in front of the face, where a resting vertex sits
+            // (from the face itself, pieces resting on each other had no friction).
+            const double d0 = kContactSelfSkin * th - s0;
+            h.muLambda = d0 > 0 ? mu * k * d0 : 0.0;
           } else {
             for (int c = 0; c < 3; ++c) h.faceNode[c] = -1;
           }

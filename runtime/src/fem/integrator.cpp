@@ -243,6 +243,7 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
   nodes.colliderCount = ctx.colliderCount;
   nodes.swept = m_swept;
   nodes.bodies = ctx.bodyContacts.at(x);
+  nodes.bodies.Xn = xn;
   nodes.friction = m_friction;
   nodes.dt = dt;
   nodes.massDamping = r1;
@@ -616,6 +617,7 @@ ExternalImpulse Integrator::externalImpulse(const FemState& state, const StepCon
   e.colliderCount = ctx.colliderCount;
   e.swept = m_swept;
   e.bodies = ctx.bodyContacts;
+  e.bodies.Xn = m_xStart.data();
   e.friction = m_friction;
   if (m_faceOn && m_faceAny) e.faceImpulse = m_faceNodeGrad.data();
   return e;
@@ -829,18 +831,21 @@ SolveReport Integrator::patternSolve(const FemModel& model, const double* b, dou
 
 bool Integrator::selfPairsAct(const FemModel& model, const StepContext& ctx, double dt2,
                               JobSystem& jobs) {
-  const HalfSpaceContacts& h = ctx.bodyContacts;
+  HalfSpaceContacts h = ctx.bodyContacts.at(m_x.data());
   if (!h.start || !h.reactionStart) return false;
+  h.Xn = m_xStart.data();
   const int32_t pairs = h.start[model.nodeCount];
   m_pairActive.resize(size_t(pairs));
   m_pairProjection.resize(size_t(pairs));
   m_pairNormal.resize(size_t(pairs));
   m_pairWeight.resize(size_t(pairs));
+  m_pairFriction.resize(size_t(pairs));
+  m_pairSlide.resize(size_t(pairs));
   const CpuExecutor exec(jobs);
   exec.run(pairs, kNodeGrain,
-           SelfPairActiveStage{h.at(m_x.data()), dt2, m_pairActive.data(), m_pairNormal.data(),
-                               m_pairWeight.data()});
-  return exec.max(m_pairActive.data(), pairs) > 0;
+           SelfPairActiveStage{h, dt2, m_pairActive.data(), m_pairNormal.data(),
+                               m_pairWeight.data(), m_pairFriction.data()});
+  return exec.max(m_pairActive.data(), pairs) > 0 || exec.max(m_pairFriction.data(), pairs) > 0;
 }
 
 SolveReport Integrator::coupledSolve(const FemModel& model, const FemState& state,
@@ -858,10 +863,12 @@ SolveReport Integrator::coupledSolve(const FemModel& model, const FemState& stat
     m_A.multiply(p, y, jobs);
     exec.run(pairs, kNodeGrain,
              SelfPairProjectStage{h, fixed, m_pairActive.data(), m_pairNormal.data(),
-                                  m_pairWeight.data(), p, m_pairProjection.data()});
+                                  m_pairWeight.data(), m_pairFriction.data(), p,
+                                  m_pairProjection.data(), m_pairSlide.data()});
     exec.run(model.nodeCount, kNodeGrain,
              SelfPairCouplingStage{h, fixed, m_pairActive.data(), m_pairNormal.data(),
-                                   m_pairWeight.data(), m_pairProjection.data(), p, y});
+                                   m_pairWeight.data(), m_pairFriction.data(),
+                                   m_pairProjection.data(), m_pairSlide.data(), p, y});
   };
   const bool factored = m_cholesky && !m_inert && m_cholesky->factorize(m_A);
   int innerIterations = 0;

@@ -277,6 +277,8 @@ class Integrator {
   std::vector<double> m_adx;               // A dx, the Newton model's curvature along dx
   std::vector<double> m_pairActive, m_pairProjection;  // per half-space, SelfPair*Stage's
   std::vector<Vec3> m_pairNormal, m_pairWeight;
+  std::vector<double> m_pairFriction;  // per half-space, SelfPair*Stage's f_k and t_k
+  std::vector<Vec3> m_pairSlide;
   std::vector<double> m_cgWork;  // coupledSolve's CG vectors (CgBuffers), 5 n3
   // Boundary faces as 4-node elements (FaceContacts::faces), their gather plans and per-face
   // contacts (fem/face_stage.h); built when the first box, sphere or capsule collider appears,

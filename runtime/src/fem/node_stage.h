@@ -221,12 +221,17 @@ struct ReleasedContactTerm {
 /// then per node (SelfPairCouplingStage) its rows of sum_k a_k g_k g_k^T p less the diagonal
 /// blocks, summed in half-space order. Prescribed nodes take no part (their rows and columns are
 /// the identity's).
+/// A pair's moving friction (HalfSpaceContacts::slide) adds c c^T (x) B, c = (1, -w_1, -w_2,
+/// -w_3) with the pair's held weights, B = f_k (I - n n^T) its node Hessian (nodeFriction) with
+/// f_k = dt^2 mu lambda f1(y) / y at the linearisation; its cross blocks go the same way
+/// (SelfPairProjectStage's t_k = B (p_v - sum_i w_i p_i)).
 struct SelfPairActiveStage {
   HalfSpaceContacts bodies;  ///< at the linearisation point
   double dt2 = 0;
   double* active = nullptr;  ///< per half-space
   Vec3* normal = nullptr;    ///< per half-space, n and w at the linearisation point
   Vec3* weight = nullptr;
+  double* friction = nullptr;  ///< per half-space, f_k (0: no moving friction)
 
   GF_HD void operator()(int32_t k) const {
     Vec3 n{0, 0, 0}, w{0, 0, 0};
@@ -234,6 +239,12 @@ struct SelfPairActiveStage {
     active[k] = d > 0 ? dt2 * bodies.stiffness[k] : 0.0;
     normal[k] = n;
     weight[k] = w;
+    friction[k] = 0;
+    if (bodies.movingFriction(k)) {
+      const int32_t v = bodies.owner[k];
+      const Vec3 u = bodies.slide(k, bodies.nodeAt(v), bodies.startAt(v));
+      friction[k] = dt2 * bodies.muLambda[k] * frictionF1OverY(norm(u), bodies.slipEps);
+    }
   }
 };
 
@@ -243,21 +254,29 @@ struct SelfPairProjectStage {
   const double* active = nullptr;
   const Vec3* normal = nullptr;  ///< SelfPairActiveStage's
   const Vec3* weight = nullptr;
+  const double* friction = nullptr;
   const double* p = nullptr;
   double* s = nullptr;  ///< per half-space
+  Vec3* t = nullptr;    ///< per half-space
 
   GF_HD Vec3 at(int32_t n) const {
     if (fixedNode[n]) return {0, 0, 0};
     return {p[3 * int64_t(n)], p[3 * int64_t(n) + 1], p[3 * int64_t(n) + 2]};
   }
   GF_HD void operator()(int32_t k) const {
-    if (active[k] == 0) {
-      s[k] = 0;
-      return;
+    s[k] = 0;
+    t[k] = Vec3{0, 0, 0};
+    if (active[k] != 0) {
+      Vec3 q = -1.0 * at(bodies.owner[k]);
+      for (int i = 0; i < 3; ++i) q += weight[k][i] * at(bodies.faceNode[3 * int64_t(k) + i]);
+      s[k] = active[k] * dot(normal[k], q);
     }
-    Vec3 q = -1.0 * at(bodies.owner[k]);
-    for (int i = 0; i < 3; ++i) q += weight[k][i] * at(bodies.faceNode[3 * int64_t(k) + i]);
-    s[k] = active[k] * dot(normal[k], q);
+    if (friction[k] != 0) {
+      Vec3 q = at(bodies.owner[k]);
+      for (int i = 0; i < 3; ++i)
+        q -= bodies.weight[k][i] * at(bodies.faceNode[3 * int64_t(k) + i]);
+      t[k] = friction[k] * bodies.tangential(k, q);
+    }
   }
 };
 
@@ -267,7 +286,9 @@ struct SelfPairCouplingStage {
   const double* active = nullptr;
   const Vec3* normal = nullptr;  ///< SelfPairActiveStage's
   const Vec3* weight = nullptr;
-  const double* s = nullptr;
+  const double* friction = nullptr;
+  const double* s = nullptr;  ///< SelfPairProjectStage's
+  const Vec3* t = nullptr;
   const double* p = nullptr;
   double* y = nullptr;  ///< added to
 
@@ -276,10 +297,16 @@ struct SelfPairCouplingStage {
     const int64_t i3 = 3 * int64_t(n);
     const Vec3 pn{p[i3], p[i3 + 1], p[i3 + 2]};
     Vec3 acc{0, 0, 0};
-    for (int32_t k = bodies.start[n]; k < bodies.start[n + 1]; ++k)
+    for (int32_t k = bodies.start[n]; k < bodies.start[n + 1]; ++k) {
       if (active[k] != 0) acc += -(s[k] + active[k] * dot(normal[k], pn)) * normal[k];
+      if (friction[k] != 0) acc += t[k] - friction[k] * bodies.tangential(k, pn);
+    }
     for (int32_t e = bodies.reactionStart[n]; e < bodies.reactionStart[n + 1]; ++e) {
       const int32_t k = bodies.reaction[e] / 3;
+      if (friction[k] != 0) {
+        const double w = bodies.weight[k][bodies.reaction[e] % 3];
+        acc += -w * t[k] - (w * w * friction[k]) * bodies.tangential(k, pn);
+      }
       if (active[k] == 0) continue;
       const double w = weight[k][bodies.reaction[e] % 3];
       acc += (w * (s[k] - active[k] * w * dot(normal[k], pn))) * normal[k];
@@ -403,14 +430,13 @@ struct BodyContactBalanceStage {
       for (int32_t c = hs.start[n]; c < hs.start[n + 1]; ++c) {
         Vec3 g;
         Mat3 h;
-        // A moving-face pair's penalty is an exact action-reaction inside the body.
-        double e = hs.moving(c)
-                       ? 0.0
-                       : penaltyContact(hs.stiffness[c], atLin.depth(c, xl), hs.normal[c], g, h);
-        if (hs.muLambda && hs.muLambda[c] > 0) {
-          Vec3 u = xl - x0 - hs.faceMotion[c];
-          u = u - dot(u, hs.normal[c]) * hs.normal[c];
-          e += nodeFriction(hs.muLambda[c], hs.normal[c], u, hs.slipEps, g, h);
+        // A moving-face pair (penalty and friction) is an exact action-reaction inside the
+        // body.
+        double e = 0;
+        if (!hs.moving(c)) {
+          e = penaltyContact(hs.stiffness[c], atLin.depth(c, xl), hs.normal[c], g, h);
+          if (hs.muLambda && hs.muLambda[c] > 0)
+            e += nodeFriction(hs.muLambda[c], hs.normal[c], hs.slide(c, xl, x0), hs.slipEps, g, h);
         }
         const Vec3 j = e == 0 ? Vec3{0, 0, 0} : -dt * (g + h * (xi - xl));
         linearised += j;
