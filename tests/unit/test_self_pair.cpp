@@ -67,30 +67,31 @@ struct OnePair {
     }
     return h.at(x);
   }
+  // The energy at x and its gradient (the vertex's penalty and the face nodes' reactions).
+  double energy(const std::vector<double>& x, std::vector<double>* grad = nullptr,
+                std::array<Mat3, 4>* blocks = nullptr) const {
+    return withReactions(x, grad, blocks, [](const HalfSpaceContacts& h, Vec3& g, Mat3& b) {
+      return h.contact(0, h.nodeAt(0), g, b);
+    });
+  }
   // The friction at x (the vertex in front of the plane, so no penalty acts), its gradient
   // (the vertex's friction and the face nodes' reactions) and the diagonal blocks.
   double frictionEnergy(const std::vector<double>& x, std::vector<double>* grad = nullptr,
                         std::array<Mat3, 4>* blocks = nullptr) const {
-    const HalfSpaceContacts h = at(x.data());
-    std::array<Vec3, 4> g{};
-    std::array<Mat3, 4> b{};
-    EXPECT_LT(h.depth(0, h.nodeAt(0)), 0.0);
     const Vec3 xv0{xn[0], xn[1], xn[2]};
-    const double e = h.friction(0, h.nodeAt(0), xv0, g[0], b[0]);
-    for (int32_t n = 1; n < 4; ++n) h.reactionTerms(n, g[size_t(n)], b[size_t(n)]);
-    if (grad)
-      for (int n = 0; n < 4; ++n)
-        for (int c = 0; c < 3; ++c) (*grad)[size_t(3 * n + c)] = g[size_t(n)][c];
-    if (blocks) *blocks = b;
-    return e;
+    return withReactions(x, grad, blocks, [&](const HalfSpaceContacts& h, Vec3& g, Mat3& b) {
+      EXPECT_LT(h.depth(0, h.nodeAt(0)), 0.0);
+      return h.friction(0, h.nodeAt(0), xv0, g, b);
+    });
   }
-  // The energy at x and its gradient (the vertex's penalty and the face nodes' reactions).
-  double energy(const std::vector<double>& x, std::vector<double>* grad = nullptr,
-                std::array<Mat3, 4>* blocks = nullptr) const {
+  // The vertex's term at x, the face nodes' reactions, their gradient and diagonal blocks.
+  template <class VertexTerm>
+  double withReactions(const std::vector<double>& x, std::vector<double>* grad,
+                       std::array<Mat3, 4>* blocks, VertexTerm vertex) const {
     const HalfSpaceContacts h = at(x.data());
     std::array<Vec3, 4> g{};
     std::array<Mat3, 4> b{};
-    const double e = h.contact(0, h.nodeAt(0), g[0], b[0]);
+    const double e = vertex(h, g[0], b[0]);
     for (int32_t n = 1; n < 4; ++n) h.reactionTerms(n, g[size_t(n)], b[size_t(n)]);
     if (grad)
       for (int n = 0; n < 4; ++n)
@@ -99,6 +100,33 @@ struct OnePair {
     return e;
   }
 };
+
+// The Newton matrix the body's step solves with for the pair at x: the diagonal blocks (from
+// OnePair::energy or frictionEnergy) plus the stages' matrix-free cross terms, column by column;
+// active and friction are SelfPairActiveStage's.
+Eigen::Matrix<double, 12, 12> newtonMatrix(const OnePair& pair, const std::vector<double>& x,
+                                           const std::array<Mat3, 4>& blocks, double* active,
+                                           double* friction) {
+  const HalfSpaceContacts h = pair.at(x.data());
+  double s = 0;
+  Vec3 n, w, t;
+  const detail::SelfPairActiveStage activeStage{h, 1.0, active, &n, &w, friction};
+  activeStage(0);
+  Eigen::Matrix<double, 12, 12> H;
+  for (int j = 0; j < 12; ++j) {
+    std::vector<double> p(12, 0.0), y(12, 0.0);
+    p[size_t(j)] = 1;
+    for (int r = 0; r < 3; ++r) y[size_t(3 * (j / 3) + r)] = blocks[size_t(j / 3)](r, j % 3);
+    const detail::SelfPairProjectStage project{h,        pair.fixed.data(), active, &n, &w,
+                                               friction, p.data(),          &s,     &t};
+    project(0);
+    const detail::SelfPairCouplingStage coupling{
+        h, pair.fixed.data(), active, &n, &w, friction, &s, &t, p.data(), y.data()};
+    for (int32_t node = 0; node < 4; ++node) coupling(node);
+    for (int i = 0; i < 12; ++i) H(i, j) = y[size_t(i)];
+  }
+  return H;
+}
 
 // The vertex's signed depth behind the plane of face (x1, x2, x3): six times the tetrahedron's
 // signed volume over twice the face's area.
@@ -187,26 +215,9 @@ TEST(SelfPair, NewtonMatrixIsTheGaussNewtonOfTheGradientAndPsd) {
     std::vector<double> grad(12);
     std::array<Mat3, 4> blocks;
     pair.energy(x, &grad, &blocks);
-    const HalfSpaceContacts h = pair.at(x.data());
-    double active = 0, s = 0, friction = 0;
-    Vec3 n, w, t;
-    const detail::SelfPairActiveStage activeStage{h, 1.0, &active, &n, &w, &friction};
-    activeStage(0);
+    double active = 0, friction = 0;
+    const Eigen::Matrix<double, 12, 12> H = newtonMatrix(pair, x, blocks, &active, &friction);
     ASSERT_EQ(active, kStiffness);
-    // Column j of the matrix: its diagonal block plus the matrix-free cross terms.
-    Eigen::Matrix<double, 12, 12> H;
-    for (int j = 0; j < 12; ++j) {
-      std::vector<double> p(12, 0.0), y(12, 0.0);
-      p[size_t(j)] = 1;
-      for (int r = 0; r < 3; ++r) y[size_t(3 * (j / 3) + r)] = blocks[size_t(j / 3)](r, j % 3);
-      const detail::SelfPairProjectStage project{h,         pair.fixed.data(), &active, &n, &w,
-                                                 &friction, p.data(),          &s,      &t};
-      project(0);
-      const detail::SelfPairCouplingStage coupling{
-          h, pair.fixed.data(), &active, &n, &w, &friction, &s, &t, p.data(), y.data()};
-      for (int32_t node = 0; node < 4; ++node) coupling(node);
-      for (int i = 0; i < 12; ++i) H(i, j) = y[size_t(i)];
-    }
     // grad = k d g, so k g g^T = grad grad^T / (k d^2).
     const double d = trueDepth(x);
     Eigen::Matrix<double, 12, 1> g;
@@ -290,27 +301,11 @@ TEST(SelfPair, FrictionSlidesAgainstTheFaceItsOwnBodyMoves) {
     // Action and reaction: the pair gives the body no net force.
     EXPECT_LT(sum.norm(), 1e-12 * scale);
     // The Newton matrix: diagonal blocks plus the matrix-free cross terms.
-    const HalfSpaceContacts hs = pair.at(x.data());
-    double active = 0, s = 0, friction = 0;
-    Vec3 n, w, t;
-    const detail::SelfPairActiveStage activeStage{hs, 1.0, &active, &n, &w, &friction};
-    activeStage(0);
+    double active = 0, friction = 0;
+    const Eigen::Matrix<double, 12, 12> H = newtonMatrix(pair, x, blocks, &active, &friction);
     EXPECT_EQ(active, 0.0);  // the penalty does not act, the friction does
     EXPECT_NEAR(friction, pair.muLambda * ipcF1OverY(y, pair.slipEps),
                 1e-12 * pair.muLambda / pair.slipEps);
-    Eigen::Matrix<double, 12, 12> H;
-    for (int j = 0; j < 12; ++j) {
-      std::vector<double> p(12, 0.0), yv(12, 0.0);
-      p[size_t(j)] = 1;
-      for (int r = 0; r < 3; ++r) yv[size_t(3 * (j / 3) + r)] = blocks[size_t(j / 3)](r, j % 3);
-      const detail::SelfPairProjectStage project{hs,        pair.fixed.data(), &active, &n, &w,
-                                                 &friction, p.data(),          &s,      &t};
-      project(0);
-      const detail::SelfPairCouplingStage coupling{
-          hs, pair.fixed.data(), &active, &n, &w, &friction, &s, &t, p.data(), yv.data()};
-      for (int32_t node = 0; node < 4; ++node) coupling(node);
-      for (int i = 0; i < 12; ++i) H(i, j) = yv[size_t(i)];
-    }
     const double cw[4] = {1, -pair.weight[0], -pair.weight[1], -pair.weight[2]};
     Eigen::Matrix3d P = Eigen::Matrix3d::Identity();
     P(2, 2) = 0;  // the held normal is +z
