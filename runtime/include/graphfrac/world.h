@@ -330,8 +330,9 @@ class World {
   /// is unchanged since the snapshot. A body with fragments handed to rigid physics
   /// (detachFragment) cannot be restored yet: that is an error.
   Result<void> restore(const WorldSnapshot& snapshot);
-  /// FNV-1a over every live body's id, positions, velocities, broken-edge flags and water
-  /// and the time: equal hashes for equal states, for determinism checks across threads and runs.
+  /// FNV-1a over every live body's id, positions, velocities, broken-edge flags, water and
+  /// contact loads (what its friction between its own pieces bears next step) and the time:
+  /// equal hashes for equal states, for determinism checks across threads and runs.
   uint64_t stateHash() const;
 
  private:

@@ -326,6 +326,8 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     out.weight.resize(size_t(total));
     nl.faceNode = out.faceNode.data();
     nl.weight = out.weight.data();
+    const std::vector<double>& load = b.state->contactLoad;
+    nl.selfLoad = load.size() == size_t(N) ? load.data() : nullptr;
     exec.run(N, 1024, nl);
     out.active = true;
     // Per node, the self pairs whose face (or other edge) it carries, in half-space order (a
@@ -380,6 +382,21 @@ HalfSpaceContacts BodyContact::halfSpaces(size_t si) const {
     h.reaction = s.reaction.data();
   }
   return h;
+}
+
+void BodyContact::recordSelfLoads(const CpuExecutor& exec, std::span<FemState* const> states) {
+  for (size_t si = 0; si < states.size(); ++si) {
+    FemState* state = states[si];
+    if (!state) continue;
+    if (si >= m_bodies.size() || !m_bodies[si].active || !m_bodies[si].moving) {
+      state->contactLoad.clear();
+      continue;
+    }
+    const int32_t N = m_table[si].nodeCount;
+    state->contactLoad.resize(size_t(N));
+    exec.run(N, 1024,
+             SelfPairLoadStage{halfSpaces(si).at(state->x.data()), state->contactLoad.data()});
+  }
 }
 
 void BodyContact::exchange(const CpuExecutor& exec, std::span<FemState* const> states) {

@@ -85,9 +85,15 @@
 //   a flexible CG preconditioned by the body's own solver on the pattern
 //   (Integrator::coupledSolve; with the diagonal blocks alone Newton took 12-41 iterations a
 //   step). A body with no acting self pair takes the plain solve; a step in which one acts goes
-//   on to convergence, up to kMaxSelfIterations. Friction's lagged normal force is the pair's
-//   depth at x_n: the lagged plane's (the face's prediction against the vertex's start) made
-//   pairs kept early rub the pieces of a falling cut bunny apart.
+//   on to convergence, up to kMaxSelfIterations. Friction's lagged normal force is the load
+//   the vertex's self pairs pressed it with at the end of the last substep (FemState::
+//   contactLoad), shared over its pairs of this one by their depths at x_n. Each pair's own
+//   depth counted the load once per coplanar face the vertex lay over, which changes as it
+//   slides across their edges, and gave the nodes a piece's leading edge came over a load they
+//   never carried (a sliding piece braked 26-38 % too hard); the lagged plane's depth (the
+//   face's prediction against the vertex's start) made pairs kept early rub the pieces of a
+//   falling cut bunny apart. Between bodies a pair's friction still takes its own force at its
+//   lagged plane (the recorded load changed how two bodies that meet part).
 // - Momentum. A lagged plane is not an exact action-reaction pair, so after the bodies have
 //   stepped, the impulse each half-space gave (as the last Newton step linearised it, what
 //   entered the momentum balance) is summed over each cluster of groups that touch (directly
@@ -217,6 +223,10 @@ class BodyContact {
   /// note) by changing the velocities of their free nodes in `states` (one per slot, as given
   /// to find()).
   void exchange(const CpuExecutor& exec, std::span<FemState* const> states);
+  /// Keeps in each state's contactLoad the normal force its nodes' self vertex-face pairs press
+  /// them with at its positions, the load of their friction in the next substep (cleared for a
+  /// body without such pairs). Called once the substep's positions are final.
+  void recordSelfLoads(const CpuExecutor& exec, std::span<FemState* const> states);
 
  private:
   struct Slot {

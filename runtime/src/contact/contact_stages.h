@@ -162,6 +162,10 @@ struct ContactHalfSpace {
   int32_t node = 0, face = 0, partner = 0;  ///< partner: the group on the other side
   Vec3 point, normal, faceMotion;
   double muLambda = 0, stiffness = 0;
+  /// A vertex-face pair's friction coefficient and its penalty's force at x_n (k times its
+  /// depth there): its friction's lagged normal force, or for a self pair its share of the
+  /// vertex's (ContactNodeListStage).
+  double mu = 0, startForce = 0;
   /// A self pair solved with its face (HalfSpaceContacts::faceNode): the face's nodes (an
   /// edge-edge pair: the other edge's two, the second repeated with weight 0), -1 none, and the
   /// nearest point's weights; point is then the offset from sum w_i x_i. A vertex-face pair is
@@ -573,20 +577,21 @@ struct ContactVertexPairStage {
           h.point = point;
           h.normal = nqi;
           h.faceMotion = cqi - cpi;
-          h.muLambda = startDepth > 0 ? mu * k * startDepth : 0.0;
+          h.mu = mu;
+          h.startForce = startDepth > 0 ? k * startDepth : 0.0;
           h.stiffness = k;
           if (o == &b) {
             // Solved with its face: the plane of the face as it moves, a skin in front.
             for (int c = 0; c < 3; ++c) h.faceNode[c] = face[c];
             h.weight = wi;
             h.point = Vec3{0, 0, 0};
-            // Friction's normal force from the pair as it is at x_n: the lagged plane's depth
-            // (the face's prediction against the vertex's start) let pairs kept from a cell
+            // The pair's force at x_n from its face's plane there, not the lagged plane (the
+            // face's prediction against the vertex's start), which let pairs kept from a cell
             // away rub the pieces of a falling cut body apart. Measured from the plane the
             // pair pushes from, a skin in front of the face, where a resting vertex sits
             // (from the face itself, pieces resting on each other had no friction).
             const double d0 = kContactSelfSkin * th - s0;
-            h.muLambda = d0 > 0 ? mu * k * d0 : 0.0;
+            h.startForce = d0 > 0 ? k * d0 : 0.0;
           } else {
             for (int c = 0; c < 3; ++c) h.faceNode[c] = -1;
           }
@@ -798,6 +803,9 @@ struct ContactNodeListStage {
   double* impulse = nullptr;    ///< 3 per half-space, zeroed
   int32_t* faceNode = nullptr;  ///< 3 per half-space
   Vec3* weight = nullptr;
+  /// Per node the load its self vertex-face pairs pressed it with at the end of the last
+  /// substep (FemState::contactLoad; null: none).
+  const double* selfLoad = nullptr;
 
   GF_HD void put(int32_t at, const ContactHalfSpace& h) const {
     for (int k = 0; k < 3; ++k) faceNode[3 * int64_t(at) + k] = h.faceNode[k];
@@ -815,8 +823,19 @@ struct ContactNodeListStage {
     const int32_t v = nodeVertex[n];
     int32_t c = 0;
     if (v >= 0) {
+      // A self pair's friction bears the vertex's load of the last substep, shared by the
+      // pairs' forces at x_n (design note, contact/body_contact.h); a pair with another body,
+      // its own force.
+      double forces = 0;
+      for (int32_t p = vertexStart[v]; p < vertexStart[v] + vertexWritten[v]; ++p)
+        if (vertexPairs[p].faceNode[0] >= 0) forces += vertexPairs[p].startForce;
+      const double scale = selfLoad && forces > 0 ? selfLoad[n] / forces : 0.0;
       for (int32_t p = vertexStart[v]; p < vertexStart[v] + vertexWritten[v]; ++p, ++c)
-        if (point) put(start[n] + c, vertexPairs[p]);
+        if (point) {
+          const ContactHalfSpace& h = vertexPairs[p];
+          put(start[n] + c, h);
+          muLambda[start[n] + c] = h.mu * h.startForce * (h.faceNode[0] >= 0 ? scale : 1.0);
+        }
       for (int32_t s = vertexEdgeStart[v]; s < vertexEdgeStart[v + 1]; ++s) {
         const int32_t e = vertexEdges[s];
         for (int32_t p = edgeStart[e]; p < edgeStart[e] + edgeWritten[e]; ++p)
@@ -827,6 +846,24 @@ struct ContactNodeListStage {
       }
     }
     if (!point) counts[n] = c;
+  }
+};
+
+/// Per node, the normal force its self vertex-face pairs press it with at positions h.X:
+/// FemState::contactLoad.
+struct SelfPairLoadStage {
+  HalfSpaceContacts h;
+  double* load = nullptr;
+
+  GF_HD void operator()(int32_t n) const {
+    double sum = 0;
+    for (int32_t k = h.start[n]; k < h.start[n + 1]; ++k) {
+      const int32_t* f = h.faceNode + 3 * int64_t(k);
+      if (f[0] < 0 || f[1] == f[2]) continue;  // a pair with another body, or an edge-edge one
+      const double d = h.depth(k, h.nodeAt(n));
+      if (d > 0) sum += h.stiffness[k] * d;
+    }
+    load[n] = sum;
   }
 };
 

@@ -67,6 +67,10 @@ struct FemState {
   // coeffs.mu and coeffs.lambda in every element kernel.
   std::vector<double> water;
   std::vector<double> tetLame;
+  /// Per node, the normal force [N] its self vertex-face pairs (contact between the body's own
+  /// pieces) pressed it with at the end of the last substep (BodyContact::recordSelfLoads): the
+  /// lagged load of their friction in the next. Empty: none.
+  std::vector<double> contactLoad;
 };
 
 /// Builds the model from a validated definition (mesh already checked by the caller). Its

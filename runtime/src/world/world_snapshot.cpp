@@ -145,6 +145,7 @@ uint64_t World::stateHash() const {
     mix(b->state.v.data(), b->state.v.size() * sizeof(double));
     if (b->fracture) mix(b->fracture->broken().data(), b->fracture->broken().size());
     mix(b->state.water.data(), b->state.water.size() * sizeof(double));  // empty: never wetted
+    mix(b->state.contactLoad.data(), b->state.contactLoad.size() * sizeof(double));
   }
   mix(&w.time, sizeof w.time);
   return h;
