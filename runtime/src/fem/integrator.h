@@ -203,6 +203,9 @@ class Integrator {
   // True when a free node now penetrates a collider that the last linearisation missed.
   bool enteredUnseenContact(const FemModel& model, const FemState& state, const StepContext& ctx,
                             JobSystem& jobs) const;
+  // Whether a free node has friction against another body's face (BodyFrictionTerm).
+  bool bodyFriction(const FemModel& model, const FemState& state, const StepContext& ctx,
+                    JobSystem& jobs) const;
   // Whether a body half-space that acted at the last linearisation let go of its node
   // (ReleasedContactTerm).
   bool releasedBodyContact(const FemModel& model, const FemState& state, const StepContext& ctx,

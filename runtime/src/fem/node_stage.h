@@ -212,6 +212,20 @@ struct ReleasedContactTerm {
   }
 };
 
+/// 1 when free node n has friction against another body's face (a half-space with a lagged
+/// normal force whose face is not its own body's).
+struct BodyFrictionTerm {
+  const uint8_t* fixedNode = nullptr;
+  HalfSpaceContacts bodies;
+
+  GF_HD double operator()(int32_t n) const {
+    if (fixedNode[n] || !bodies.muLambda) return 0.0;
+    for (int32_t k = bodies.start[n]; k < bodies.start[n + 1]; ++k)
+      if (bodies.muLambda[k] > 0 && !bodies.moving(k)) return 1.0;
+    return 0.0;
+  }
+};
+
 /// The cross terms of the moving self pairs (contact/body_contact.h) that the block pattern
 /// lacks. Pair k's Gauss-Newton Hessian is k g g^T, g = (-n, w_1 n, w_2 n, w_3 n) over (vertex,
 /// face nodes) the gradient of its depth at the linearisation (HalfSpaceContacts::pair); its
