@@ -558,7 +558,8 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
   sumPerPiece(model, exec, kPieceSpinTerms);
   exec.run(pieces, kPieceGrain,
            PieceSpinStage{m_pieceSums.data(), pieces, dt, fullDt, m_pieces.data()});
-  if (m_friction.muLambda) frictionStart(model, state, ctx, exec);
+  if (m_friction.muLambda || bodyFriction(model, state, ctx, jobs))
+    frictionStart(model, state, ctx, exec);
   exec.run(
       nn, kNodeGrain,
       RigidStartStage{state.x.data(), state.v.data(), m_pieces.data(), m_pieceOfNode.data(), dt,
@@ -636,10 +637,10 @@ void Integrator::frictionStart(const FemModel& model, const FemState& state, con
   // Each free piece's contact normal, friction force, gravity and point forces (the elastic
   // forces are internal) summed per piece; the pieces are fresh from predictRigidMotion.
   const int32_t nn = model.nodeCount, pieces = int32_t(m_pieces.size());
-  exec.run(
-      nn, kNodeGrain,
-      PieceFrictionTerms{state.externalForce.data(), state.nodeMass.data(), ctx.gravity,
-                         ctx.colliders, m_friction, ctx.colliderCount, nn, m_pieceTerms.data()});
+  exec.run(nn, kNodeGrain,
+           PieceFrictionTerms{state.externalForce.data(), state.nodeMass.data(), ctx.gravity,
+                              ctx.colliders, m_friction, ctx.colliderCount, nn, m_pieceTerms.data(),
+                              ctx.bodyContacts});
   sumPerPiece(model, exec, kPieceFrictionTerms);
   exec.run(pieces, kPieceGrain,
            PieceSlideStage{m_pieceSums.data(), pieces, ctx.dt, m_pieces.data()});

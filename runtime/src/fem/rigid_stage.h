@@ -242,17 +242,28 @@ struct PieceFrictionTerms {
   int colliderCount = 0;
   int32_t nodeCount = 0;
   double* out = nullptr;
+  /// Friction against other bodies' faces counts too: without it a block set sliding over a
+  /// slab started at no slide and stopped within one step, as if welded. Their faces are taken
+  /// at rest: with each face's lagged predicted motion as the surface's, a block resting on a
+  /// slab on a frictional floor (mu 1) was thrown while it settled.
+  HalfSpaceContacts bodies;
 
   GF_HD void operator()(int32_t n) const {
     Vec3 normal{0, 0, 0}, surface{0, 0, 0};
     double force = 0;
-    for (int c = 0; c < colliderCount; ++c) {
+    for (int c = 0; friction.muLambda && c < colliderCount; ++c) {
       const int64_t s = friction.slot(c, n);
       if (!(friction.muLambda[s] > 0)) continue;
       normal += friction.muLambda[s] * friction.normal[s];
       force += friction.muLambda[s];
       surface += friction.muLambda[s] * friction.surfaceVelocity(colliders[c], n);
     }
+    if (bodies.start && bodies.muLambda)
+      for (int32_t k = bodies.start[n]; k < bodies.start[n + 1]; ++k)
+        if (bodies.muLambda[k] > 0 && !bodies.moving(k)) {
+          normal += bodies.muLambda[k] * bodies.normal[k];
+          force += bodies.muLambda[k];
+        }
     writeVec3(out, nodeCount, n, normal);
     out[3 * int64_t(nodeCount) + n] = force;
     writeVec3(out + 4 * int64_t(nodeCount), nodeCount, n,
