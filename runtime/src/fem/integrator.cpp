@@ -558,8 +558,7 @@ void Integrator::predictRigidMotion(const FemModel& model, const FemState& state
   sumPerPiece(model, exec, kPieceSpinTerms);
   exec.run(pieces, kPieceGrain,
            PieceSpinStage{m_pieceSums.data(), pieces, dt, fullDt, m_pieces.data()});
-  if (m_friction.muLambda || bodyFriction(model, state, ctx, jobs))
-    frictionStart(model, state, ctx, exec);
+  if (m_friction.muLambda || m_bodyFriction) frictionStart(model, state, ctx, exec);
   exec.run(
       nn, kNodeGrain,
       RigidStartStage{state.x.data(), state.v.data(), m_pieces.data(), m_pieceOfNode.data(), dt,
@@ -928,6 +927,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   // gripVelocity is zero on free nodes, so one pass moves exactly the prescribed ones.
   exec.run(n3i, kNodeGrain, AxpyStage{state.x.data(), state.gripVelocity.data(), dt, m_x.data()});
   buildFriction(model, state, ctx, jobs);
+  m_bodyFriction = bodyFriction(model, state, ctx, jobs);
   predictRigidMotion(model, state, ctx, fullDt, jobs);
   // Nodes that a face's entry clamps (FaceEntryNodeStage) are in front of their planes at x_n,
   // where the penalty has no curvature: Newton's first step is the free flight, the line search
@@ -952,7 +952,7 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   // at 861 m/s with the slab on a frictional floor). Such a step is checked against its
   // quadratic model as a cracked one is, and goes on to convergence where the two disagree
   // (going on whenever such friction acts left a resting stack more restless).
-  const bool bodyFrictionActs = !fullNewton && bodyFriction(model, state, ctx, jobs);
+  const bool bodyFrictionActs = !fullNewton && m_bodyFriction;
   int iterationCap =
       fullNewton ? maxNewton : 1 + (swept ? kMaxSweptIterations : kMaxContactIterations);
   int stiffeningsLeft = kMaxContactStiffenings;

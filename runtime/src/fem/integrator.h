@@ -269,6 +269,7 @@ class Integrator {
   bool m_over = false;                     // a moving collider swept over a node's x_n (SweepStage)
   double m_cellSize = 0;                   // edge of a regular tet of the mean rest volume
   ColliderFriction m_friction;             // this step's; null muLambda when none
+  bool m_bodyFriction = false;             // this step's: friction against another body's face
   std::vector<double> m_frictionMuLambda;  // FrictionContactStage's, per collider and node
   std::vector<Vec3> m_frictionNormal;
   std::vector<double> m_frictionTouching;  // per node
