@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 #include <string>
+#include <utility>
 
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
@@ -114,6 +115,8 @@ void keepNodesInPieces(const EdgeGraph& g, const RestMeshView& rest,
       if (corner(t, c) == v) return true;
     return false;
   };
+  // Each node pulled into a piece, with the node whose tet it came over in.
+  std::vector<std::pair<int32_t, int32_t>> pulledBy;
   for (bool pulled = true; pulled;) {
     pulled = false;
     for (bool changed = true; changed;) {
@@ -210,6 +213,7 @@ void keepNodesInPieces(const EdgeGraph& g, const RestMeshView& rest,
       if (best < 0) continue;
       for (int c = 0; c < 4; ++c) label[size_t(corner(best, c))] = bestPiece;
       if (!free[size_t(bestU)]) more.push_back(bestU);
+      pulledBy.push_back({bestU, v});
       free[size_t(bestU)] = 1;
       pulled = true;
     }
@@ -220,13 +224,16 @@ void keepNodesInPieces(const EdgeGraph& g, const RestMeshView& rest,
   // elsewhere keep theirs, so a crack that an edge arrested inside one piece stays. And the
   // unbroken edges across two pieces in the tets of a node that joined one: severed, but they
   // would join the pieces through that tet once it is whole. The events' plane for an edge no
-  // plane crossed is the first that cut an edge at its ends.
+  // plane crossed is the first that cut an edge at its ends, else at the node whose rule set it.
   std::vector<int32_t> planeAt(static_cast<size_t>(N), -1);
   for (const PlaneCut& c : fresh)
     for (int i = 0; i < 2; ++i) {
       int32_t& p = planeAt[size_t(g.edgeNodes[2 * size_t(c.edge) + size_t(i)])];
       p = p < 0 ? c.plane : std::min(p, c.plane);
     }
+  // A node pulled in, at the end of no plane's edge, takes the plane of the node it came with.
+  for (const auto& [u, v] : pulledBy)
+    if (planeAt[size_t(u)] < 0) planeAt[size_t(u)] = planeAt[size_t(v)];
   // An edge whose tets include one with all corners in one piece and no old break: that tet
   // is whole once its free corners' edges are set by this rule.
   const auto inOnePiece = [&](int32_t e) {
@@ -240,14 +247,15 @@ void keepNodesInPieces(const EdgeGraph& g, const RestMeshView& rest,
     }
     return false;
   };
-  const auto set = [&](int32_t e, bool cut) {
+  const auto set = [&](int32_t e, bool cut, int32_t v) {
     if (old(e)) return;
     const int32_t a = g.edgeNodes[2 * size_t(e)], b = g.edgeNodes[2 * size_t(e) + 1];
     if (freshOf[size_t(e)] >= 0) {
       if (!cut && broken[size_t(e)])
         ++seeds[size_t(fresh[size_t(freshOf[size_t(e)])].plane)].edgesKept;
     } else if (cut && !broken[size_t(e)]) {
-      released.push_back({e, planeAt[size_t(planeAt[size_t(a)] >= 0 ? a : b)], 0.5});
+      const int32_t at = planeAt[size_t(a)] >= 0 ? a : planeAt[size_t(b)] >= 0 ? b : v;
+      released.push_back({e, planeAt[size_t(at)], 0.5});
     }
     broken[size_t(e)] = cut;
   };
@@ -257,7 +265,7 @@ void keepNodesInPieces(const EdgeGraph& g, const RestMeshView& rest,
       const int32_t a = g.edgeNodes[2 * size_t(e)], b = g.edgeNodes[2 * size_t(e) + 1];
       if (a != v && free[size_t(a)] && a < v) continue;  // done from a
       if (b != v && free[size_t(b)] && b < v) continue;
-      set(e, !inOnePiece(e));
+      set(e, !inOnePiece(e), v);
     }
     if (label[size_t(v)] < 0) continue;
     for (int32_t q = g.nodeEdgeStart[v]; q < g.nodeEdgeStart[v + 1]; ++q) {
@@ -267,7 +275,7 @@ void keepNodesInPieces(const EdgeGraph& g, const RestMeshView& rest,
           const int32_t e = g.tetEdges[6 * size_t(g.edgeTets[size_t(r)] / 6) + size_t(k)];
           const int32_t a = g.edgeNodes[2 * size_t(e)], b = g.edgeNodes[2 * size_t(e) + 1];
           if (!free[size_t(a)] && !free[size_t(b)] && label[size_t(a)] != label[size_t(b)])
-            set(e, true);
+            set(e, true, v);
         }
     }
   }
