@@ -526,7 +526,7 @@ WorldDef floorWorld(double floorMu) {
   wd.colliders.push_back(floor);
   return wd;
 }
-BodyId putBlockOnCoarseSlab(World& world, double mu, double blockX) {
+BodyId putBlockOnCoarseSlab(World& world, double mu, double blockX, BodyId* slabId = nullptr) {
   BodyDef slab, block;
   slab.mesh = movedBox(1.2, 0.1, 0.4, 12, 1, 4, {-0.6, 0, -0.2});
   block.mesh = movedBox(0.1, 0.04, 0.1, 4, 2, 4, {blockX, 0.1, -0.05});
@@ -536,7 +536,8 @@ BodyId putBlockOnCoarseSlab(World& world, double mu, double blockX) {
     d->contact = true;
     d->solver.linearSolver = LinearSolverKind::Direct;
   }
-  world.createBody(slab).value();
+  const BodyId s = world.createBody(slab).value();
+  if (slabId) *slabId = s;
   return world.createBody(block).value();
 }
 
@@ -577,38 +578,59 @@ TEST(BodyContact, BlockRestsOnACoarseSlabWithFriction) {
     }
 }
 
-// The block set sliding at 1.5 m/s over the slab (frictionless floor) should stop after
-// v^2 / (2 mu g). Not met yet: it travels 66 % (mu 0.1) and 60 % (mu 0.2) of it, and less at higher
-// mu (docs/validation.md, "Friction between two bodies at rest"). What this holds is that it
-// slides at all: started at no slide, where the smoothed friction is a stiff drag, the block
-// stopped within one step (1.2 cm) as if welded; its Newton start now takes the Coulomb slide
-// (PieceSlideStage) with the friction of the body pairs counted in.
-TEST(BodyContact, BlockSlidingOverASlabIsNotWelded) {
-  for (const double mu : {0.1, 0.2}) {
-    World world(floorWorld(0));
-    const BodyId b = putBlockOnCoarseSlab(world, mu, -0.5);
-    for (int k = 0; k < 30; ++k) ASSERT_TRUE(world.step(1.0 / 60).ok());
-    const double v0 = 1.5;
-    ASSERT_TRUE(world.setVelocity(b, glm::dvec3(v0, 0, 0)).ok());
-    const auto meanX = [&] {
-      const std::span<const double> x = world.positions(b);
-      double sum = 0;
-      for (size_t i = 0; i < x.size(); i += 3) sum += x[i];
-      return 3 * sum / double(x.size());
-    };
-    const double x0 = meanX(), m = world.stats(b).mass;
-    double fastest = 0;
-    for (int k = 0; k < 60; ++k) {
-      EXPECT_TRUE(world.step(1.0 / 60).ok());
-      fastest = std::max(fastest, glm::length(world.stats(b).linearMomentum) / m);
+// The block set sliding at 1.5 m/s over the slab, the slab on a frictionless or a frictional
+// floor: it decelerates at mu g and stops. Measured on the block's mean velocity, over the steps
+// until it is down to a tenth; after the stop it moves with the slab (which the frictionless floor
+// lets the block's friction push along). Its path is v0^2 / (2 mu g) short by backward Euler's
+// lag (about v0 dt / 2), printed. Before, the block stopped after 11-66 % of it (docs/
+// validation.md, "Friction between two bodies"): the lagged load of each pair was its penalty's
+// force against this step's plane, up to ten times the block's weight.
+TEST(BodyContact, BlockSlidingOverASlabDeceleratesAtMuG) {
+  const double dt = 1.0 / 60, v0 = 1.5, g = 9.81;
+  for (const double floorMu : {0.0, 1.0})
+    for (const double mu : {0.1, 0.2, 0.5, 1.0}) {
+      World world(floorWorld(floorMu));
+      BodyId slab;
+      const BodyId b = putBlockOnCoarseSlab(world, mu, -0.58, &slab);
+      for (int k = 0; k < 30; ++k) ASSERT_TRUE(world.step(dt).ok());
+      ASSERT_TRUE(world.setVelocity(b, glm::dvec3(v0, 0, 0)).ok());
+      const auto meanX = [&] {
+        const std::span<const double> x = world.positions(b);
+        double sum = 0;
+        for (size_t i = 0; i < x.size(); i += 3) sum += x[i];
+        return 3 * sum / double(x.size());
+      };
+      const auto velocity = [&](BodyId id) {
+        return world.stats(id).linearMomentum.x / world.stats(id).mass;
+      };
+      const double x0 = meanX();
+      int sliding = 0;  // steps until the block is down to a tenth of v0
+      double slowed = 0, relative = 0;
+      for (int k = 1; k <= 60; ++k) {
+        ASSERT_TRUE(world.step(dt).ok());
+        const double v = velocity(b);
+        if (v >= 0.1 * v0 && sliding == k - 1) {
+          sliding = k;
+          slowed = v0 - v;
+        }
+        relative = v - velocity(slab);
+      }
+      ASSERT_GT(sliding, 0);
+      const double a = slowed / (sliding * dt), stopAfter = v0 / (mu * g);
+      const double slid = meanX() - x0;
+      const double coulomb = stopAfter < 1 ? v0 * v0 / (2 * mu * g) : v0 - mu * g / 2;
+      std::printf(
+          "floor friction %.0f, mu %.1f: decelerates at %.4f m/s^2 over %d steps, mu g %.4f "
+          "(%+.2f %%); at 1 s %.2g m/s on the slab; slid %.4f m, Coulomb %.4f m (%+.4f m, v0 dt / "
+          "2 = %.4f m)\n",
+          floorMu, mu, a, sliding, mu * g, 100 * (a / (mu * g) - 1), relative, slid, coulomb,
+          slid - coulomb, v0 * dt / 2);
+      EXPECT_NEAR(a, mu * g, 0.02 * mu * g);
+      if (stopAfter < 0.9) {
+        EXPECT_LT(std::abs(relative), 1e-3);
+      }
+      EXPECT_NEAR(slid, coulomb, v0 * dt);
     }
-    const double coulomb = v0 * v0 / (2 * mu * 9.81), slid = meanX() - x0;
-    std::printf("mu %.1f: slid %.4f m of v^2 / (2 mu g) = %.4f (%.0f %%), at most %.3f m/s\n", mu,
-                slid, coulomb, 100 * slid / coulomb, fastest);
-    EXPECT_GT(slid, 0.5 * coulomb);
-    EXPECT_LT(slid, 1.05 * coulomb);
-    EXPECT_LE(fastest, v0);
-  }
 }
 
 // Two free bodies without gravity meeting head-on: a 20 cm block (4^3 cells) at `speed` along x
@@ -1228,6 +1250,7 @@ struct Slide {
   double acceleration = 0;  // down the slope [m/s^2]
   double travel = 0;        // down the slope from 0.2 s to 0.6 s [m]
   double endSpeed = 0;
+  double fastest = 0;
 };
 PiecesBody blockOnSlab(double mu) {
   return piecesBody({{{1.0, 0.05, 0.3}, {-0.5, 0, -0.15}, {20, 1, 6}, true},
@@ -1294,6 +1317,82 @@ TEST(BodyContact, PieceOnAnInclinedPieceSlidesAsCoulombSays) {
           100 * (slides.acceleration / expected - 1));
       EXPECT_NEAR(slides.acceleration, expected, (rate == 60 ? 0.05 : 0.02) * expected);
     }
+}
+
+// The same incline between two bodies: the slab a body of its own (its base gripped), the
+// block another, put on it at rest. Before, the exchange spread the lagged planes' mismatch over
+// the gripped cluster's free nodes and threw the block off at up to 10 m/s, resting or sliding
+// (accelerations -98 to +138 % off Coulomb's).
+Slide blockOnInclinedBody(double angle, double mu, int rate) {
+  World world(inclined(angle));
+  BodyDef slab, block;
+  slab.mesh = movedBox(1.0, 0.05, 0.3, 20, 1, 6, {-0.5, 0, -0.15});
+  block.mesh = movedBox(0.1, 0.04, 0.1, 4, 2, 4, {-0.45, 0.05, -0.05});
+  Grip base;
+  for (int32_t n = 0; n < int32_t(slab.mesh.nodeCount()); ++n)
+    if (slab.mesh.positions[3 * size_t(n) + 1] == 0) base.nodes.push_back(n);
+  slab.grips.push_back(base);
+  for (BodyDef* d : {&slab, &block}) {
+    d->material = Material::stableNeoHookean(1e7, 0.3, 1000);
+    d->material.stiffnessDamping = 0.02;
+    d->friction = mu;
+    d->contact = true;
+  }
+  world.createBody(slab).value();
+  const BodyId b = world.createBody(block).value();
+  const auto meanX = [&] {
+    const std::span<const double> x = world.positions(b);
+    double sum = 0;
+    for (size_t i = 0; i < x.size(); i += 3) sum += x[i];
+    return 3 * sum / double(x.size());
+  };
+  const auto velocity = [&] { return world.stats(b).linearMomentum.x / world.stats(b).mass; };
+  const double dt = 1.0 / rate;
+  const int from = rate / 5, to = 3 * rate / 5;
+  double v1 = 0, x1 = 0, fastest = 0;
+  for (int s = 1; s <= to; ++s) {
+    const StepStatus st = world.step(dt);
+    EXPECT_TRUE(st.ok()) << st.message;
+    fastest = std::max(fastest, glm::length(world.stats(b).linearMomentum) / world.stats(b).mass);
+    if (s == from) {
+      v1 = velocity();
+      x1 = meanX();
+    }
+  }
+  Slide out;
+  out.endSpeed = velocity();
+  out.acceleration = (out.endSpeed - v1) / ((to - from) * dt);
+  out.travel = meanX() - x1;
+  out.fastest = fastest;
+  return out;
+}
+
+// Below the friction angle the block stays; 15 degrees past it, it slides at g (sin - mu cos)
+// within 5 % at 60 Hz and 2 % at 120 Hz.
+TEST(BodyContact, BlockOnAnInclinedBodyObeysCoulomb) {
+  for (const double mu : {0.2, 0.6}) {
+    const double gentle = std::atan(0.5 * mu);
+    const Slide stays = blockOnInclinedBody(gentle, mu, 60);
+    std::printf(
+        "mu %.1f, %.1f deg: moved %.3f mm over 0.4 s, end speed %.2e m/s, at most %.2e m/s\n", mu,
+        gentle * 180 / M_PI, 1e3 * stays.travel, stays.endSpeed, stays.fastest);
+    EXPECT_LT(std::abs(stays.travel), 1e-3);
+    EXPECT_LT(std::abs(stays.endSpeed), 1e-3);
+    // Friction's load is a substep late where pairs begin: in its first step on the slab the
+    // block slides freely, g sin dt, and never faster after.
+    EXPECT_LT(stays.fastest, 1.05 * 9.81 * std::sin(gentle) / 60);
+    for (const int rate : {60, 120}) {
+      const double steep = std::atan(mu) + 15 * M_PI / 180;
+      const Slide slides = blockOnInclinedBody(steep, mu, rate);
+      const double expected = 9.81 * (std::sin(steep) - mu * std::cos(steep));
+      std::printf(
+          "%d Hz, mu %.1f, %.1f deg: acceleration %.4f m/s^2, g (sin - mu cos) %.4f "
+          "(%+.2f %%)\n",
+          rate, mu, steep * 180 / M_PI, slides.acceleration, expected,
+          100 * (slides.acceleration / expected - 1));
+      EXPECT_NEAR(slides.acceleration, expected, (rate == 60 ? 0.05 : 0.02) * expected);
+    }
+  }
 }
 
 // Friction's load between the pieces is part of the state: a restore mid-slide repeats the

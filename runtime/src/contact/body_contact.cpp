@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 
 #include "mesh/mesh_internal.h"
 
@@ -256,6 +257,20 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
   scene.grid = grid;
   scene.dt = dt;
   scene.stiffness = stiffness;
+  // Every slot's vertex normals first: a pair's stiffness reads the areas of the other side's
+  // face nodes.
+  for (size_t si = 0; si < slots; ++si) {
+    if (!bodies[si].model) continue;
+    const ContactSurface& surf = *bodies[si].surface;
+    ContactBody& t = m_table[si];
+    Slot& out = m_bodies[si];
+    out.vertexNormal.resize(size_t(t.vertexCount));
+    exec.run(t.vertexCount, 512,
+             ContactVertexNormalStage{t, m_nearStart.data(), surf.vertexFaceStart().data(),
+                                      surf.vertexFaces().data(), out.vertexNormal.data()});
+    t.nodeVertex = surf.nodeVertex().data();
+    t.vertexNormal = out.vertexNormal.data();
+  }
   // Per slot: the vertex-face pairs per surface vertex and the edge-edge ones per surface edge
   // (count, scan, fill), then the half-spaces per node in node order.
   for (size_t si = 0; si < slots; ++si) {
@@ -265,13 +280,8 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     const ContactSurface& surf = *b.surface;
     Slot& out = m_bodies[si];
     const int32_t V = t.vertexCount, E = 3 * t.faceCount, N = t.nodeCount;
-    out.vertexNormal.resize(size_t(V));
-    exec.run(V, 512,
-             ContactVertexNormalStage{t, m_nearStart.data(), surf.vertexFaceStart().data(),
-                                      surf.vertexFaces().data(), out.vertexNormal.data()});
     out.vertexStart.resize(size_t(V) + 1);
-    ContactVertexPairStage vp{scene, int32_t(si), out.vertexNormal.data(), nullptr,
-                              out.vertexStart.data()};
+    ContactVertexPairStage vp{scene, int32_t(si), nullptr, out.vertexStart.data()};
     exec.run(V, 128, vp);
     const int32_t nv =
         exclusiveScan(exec, out.vertexStart.data(), V, out.vertexStart.data(), m_scan);
@@ -327,7 +337,7 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     nl.faceNode = out.faceNode.data();
     nl.weight = out.weight.data();
     const std::vector<double>& load = b.state->contactLoad;
-    nl.selfLoad = load.size() == size_t(N) ? load.data() : nullptr;
+    nl.load = load.size() == size_t(N) ? load.data() : nullptr;
     exec.run(N, 1024, nl);
     out.active = true;
     // Per node, the self pairs whose face (or other edge) it carries, in half-space order (a
@@ -384,18 +394,18 @@ HalfSpaceContacts BodyContact::halfSpaces(size_t si) const {
   return h;
 }
 
-void BodyContact::recordSelfLoads(const CpuExecutor& exec, std::span<FemState* const> states) {
+void BodyContact::recordLoads(const CpuExecutor& exec, std::span<FemState* const> states) {
   for (size_t si = 0; si < states.size(); ++si) {
     FemState* state = states[si];
     if (!state) continue;
-    if (si >= m_bodies.size() || !m_bodies[si].active || !m_bodies[si].moving) {
+    if (si >= m_bodies.size() || !m_bodies[si].active) {
       state->contactLoad.clear();
       continue;
     }
     const int32_t N = m_table[si].nodeCount;
     state->contactLoad.resize(size_t(N));
     exec.run(N, 1024,
-             SelfPairLoadStage{halfSpaces(si).at(state->x.data()), state->contactLoad.data()});
+             ContactLoadStage{halfSpaces(si).at(state->x.data()), state->contactLoad.data()});
   }
 }
 
@@ -487,12 +497,12 @@ void BodyContact::exchange(const CpuExecutor& exec, std::span<FemState* const> s
   radixSort(exec, m_labelKeys, m_labelValues, bitsFor(uint64_t(groups)), m_scan);
   m_clusterVelocity.resize(size_t(groups));
   m_clusterMoves.resize(size_t(groups));
-  exec.run(
-      groups, 64,
-      ContactClusterStage{m_label.data(), m_labelKeys.data(), m_labelValues.data(), groups,
-                          m_groupFree.data(), m_entryKeys.data(), m_entryValues.data(),
-                          m_entrySlot.data(), m_entryNode.data(), entries, m_slotBalance.data(),
-                          int32_t(slots), m_clusterVelocity.data(), m_clusterMoves.data()});
+  exec.run(groups, 64,
+           ContactClusterStage{m_label.data(), m_labelKeys.data(), m_labelValues.data(), groups,
+                               m_groupMass.data(), m_groupFree.data(), m_entryKeys.data(),
+                               m_entryValues.data(), m_entrySlot.data(), m_entryNode.data(),
+                               entries, m_slotBalance.data(), int32_t(slots),
+                               m_clusterVelocity.data(), m_clusterMoves.data()});
   for (size_t si = 0; si < slots; ++si)
     if (m_table[si].groupBase >= 0)
       exec.run(m_table[si].nodeCount, 1024,

@@ -64,8 +64,10 @@
 //   convergence (Integrator::releasedBodyContact); in free fall beside another piece that costs
 //   Newton iterations (up to 13 where 1 did). Between bodies it is not done:
 //   TwoBlocksComeToRestStacked's steps then reported not ok. k is a collider's 100 / dt^2 per unit
-//   mass times the vertex's surface area times the denser material and the coarser cell: per unit
-//   area and equal on both sides of a pair, so that at rest both sides carry the same load.
+//   mass times the contact area times the denser material and the coarser cell: per unit area
+//   and equal on both sides of a pair, so that at rest both sides carry the same load. The
+//   area is the vertex's, or where smaller the other surface's at the point it meets (the face
+//   nodes' areas, weighted): a coarse vertex under a finer surface presses only on that.
 // - Self pairs (both sides in one body) are solved with their face inside the body's Newton
 //   step, re-linearised at every iterate (HalfSpaceContacts::pair): a vertex-face pair's plane is
 //   its face's as the face now is, d = n . (x_1 - x_v) + s with n the face's current unit normal
@@ -85,15 +87,19 @@
 //   a flexible CG preconditioned by the body's own solver on the pattern
 //   (Integrator::coupledSolve; with the diagonal blocks alone Newton took 12-41 iterations a
 //   step). A body with no acting self pair takes the plain solve; a step in which one acts goes
-//   on to convergence, up to kMaxSelfIterations. Friction's lagged normal force is the load
-//   the vertex's self pairs pressed it with at the end of the last substep (FemState::
-//   contactLoad), shared over its pairs of this one by their depths at x_n. Each pair's own
-//   depth counted the load once per coplanar face the vertex lay over, which changes as it
-//   slides across their edges, and gave the nodes a piece's leading edge came over a load they
-//   never carried (a sliding piece braked 26-38 % too hard); the lagged plane's depth (the
-//   face's prediction against the vertex's start) made pairs kept early rub the pieces of a
-//   falling cut bunny apart. Between bodies a pair's friction still takes its own force at its
-//   lagged plane (the recorded load changed how two bodies that meet part).
+//   on to convergence, up to kMaxSelfIterations.
+// - Friction's lagged normal force, for self pairs and pairs between bodies alike, is the load
+//   all the node's pairs pressed it with at the end of the last substep (FemState::
+//   contactLoad, kept in snapshots), shared over its pairs of this one by their forces at x_n,
+//   evenly where none has one (its planes all moved behind it). Each pair's own force at x_n
+//   counted the load once per coplanar face the vertex lay over, which changes as it slides
+//   across their edges, and gave the nodes a piece's leading edge came over a load they never
+//   carried (a sliding piece braked 26-38 % too hard). Between bodies it is worse: the lagged
+//   planes move with the other side's prediction, and a resting block's residual mm/s moves
+//   them by several times its penalty's equilibrium depth, so that force ran from 0 to ten
+//   times the block's weight from step to step (a block sliding over a slab stopped after
+//   11-66 % of v^2 / (2 mu g)). The load at the step's end is what the penalty really carried,
+//   and its mean over the steps is the weight.
 // - Momentum. A lagged plane is not an exact action-reaction pair, so after the bodies have
 //   stepped, the impulse each half-space gave (as the last Newton step linearised it, what
 //   entered the momentum balance) is summed over each cluster of groups that touch (directly
@@ -106,8 +112,13 @@
 //   in a cluster that nothing outside touches (no collider, no grip: the one whose momentum
 //   must be kept) that residual is counted in too, so its momentum is exact to round-off. In a
 //   cluster on a collider it is not (it cannot be told apart from the collider's own residual,
-//   and counting it made a resting stack jitter). A cluster holding a kinematic group (no free
-//   node) is left as it is. The clusters are found by stages too: every group takes the least
+//   and counting it made a resting stack jitter). A cluster holding a prescribed node (a grip,
+//   a kinematic group) is left as it is: the grip holds the cluster and takes the mismatch.
+//   Spread over the free nodes, it went to the slab's free top and to a block resting there
+//   alike, the grip took the slab's share back, and the block was thrown at 1-10 m/s
+//   (BodyContact.BlockOnAnInclinedBodyObeysCoulomb). The exchange is still needed on a
+//   collider, which pushes only: without it, stacks on the ground sank into each other. The
+//   clusters are found by stages too: every group takes the least
 //   label among the groups its half-spaces join it to, in either direction, until none changes
 //   (each group then holds its cluster's least group, the root of a union-find with the smaller
 //   root winning). A cluster's impulses are summed in slot, node and half-space order, and its
@@ -223,10 +234,10 @@ class BodyContact {
   /// note) by changing the velocities of their free nodes in `states` (one per slot, as given
   /// to find()).
   void exchange(const CpuExecutor& exec, std::span<FemState* const> states);
-  /// Keeps in each state's contactLoad the normal force its nodes' self vertex-face pairs press
-  /// them with at its positions, the load of their friction in the next substep (cleared for a
-  /// body without such pairs). Called once the substep's positions are final.
-  void recordSelfLoads(const CpuExecutor& exec, std::span<FemState* const> states);
+  /// Keeps in each state's contactLoad the normal force its nodes' half-spaces press them with at
+  /// its positions, the load of their friction in the next substep (cleared for a body without
+  /// pairs). Called once the substep's positions are final.
+  void recordLoads(const CpuExecutor& exec, std::span<FemState* const> states);
 
  private:
   struct Slot {

@@ -135,6 +135,10 @@ struct ContactBody {
   const int32_t* faces = nullptr;       ///< 3 per contact face
   const int32_t* neighbours = nullptr;  ///< 3 per contact face (ContactSurface::neighbours)
   const int32_t* vertices = nullptr;    ///< the surface vertices, ascending
+  const int32_t* nodeVertex = nullptr;  ///< per node: its surface vertex, -1 none
+  /// Per surface vertex its outward normal at x_n (ContactVertexNormalStage), set for the
+  /// vertices of groups that meet another.
+  const Vec3* vertexNormal = nullptr;
   /// Null, or the latest iterate of the step's end positions (World's contact sweeps): the
   /// pairs are still chosen on x_n + dt v_n, their planes are taken at the iterates.
   const double* iterate = nullptr;
@@ -144,6 +148,8 @@ struct ContactBody {
 
   GF_HD int32_t group(int32_t n) const { return groupBase + (fragment ? fragment[n] : 0); }
   GF_HD double thickness() const { return kContactThickness * cellSize; }
+  /// Surface node n's share of its faces' area (a third of each).
+  GF_HD double area(int32_t n) const { return norm(vertexNormal[nodeVertex[n]]) / 6; }
   /// Node n where the planes are taken: the iterate, else the prediction p.
   GF_HD Vec3 planeAt(int32_t n, Vec3 p) const { return iterate ? contactLoad3(iterate, n) : p; }
 };
@@ -432,7 +438,6 @@ struct ContactVertexNormalStage {
 struct ContactVertexPairStage {
   ContactScene scene;
   int32_t slot = 0;
-  const Vec3* vertexNormal = nullptr;
   const int32_t* start = nullptr;
   int32_t* counts = nullptr;
   ContactHalfSpace* out = nullptr;
@@ -445,9 +450,8 @@ struct ContactVertexPairStage {
     int32_t count = 0;
     if (scene.nearStart[g + 1] > scene.nearStart[g] && !b.fixed[n]) {
       const double dt = scene.dt, th = b.thickness();
-      const Vec3 vn = vertexNormal[i];
-      // The summed cross products are twice the area of the vertex's faces; a third is its.
-      const double vertexArea = norm(vn) / 6;
+      const Vec3 vn = b.vertexNormal[i];
+      const double vertexArea = b.area(n);
       const Vec3 xv = contactLoad3(b.x, n), pv = xv + dt * contactLoad3(b.v, n);
       double vbox[6];
       boxEmpty(vbox);
@@ -566,10 +570,17 @@ struct ContactVertexPairStage {
           // colliders), with Box2D's mixing of the two surfaces' coefficients.
           const double startDepth = dot(point - xv, nqi);
           const double mu = sqrt(b.friction * o->friction);
-          // Stiffness per unit of the vertex's surface area, the same for both sides of a
-          // pair of groups: at rest the two sides' penalties then carry the same load (their
-          // contact areas agree), so the exchange has nothing to even out and adds no velocity.
-          const double k = scene.stiffness * vertexArea * contactPairScale(b, *o);
+          // Stiffness per unit of contact area, the same for both sides of a pair of groups: at
+          // rest the two sides' penalties then carry the same load, so the exchange has nothing
+          // to even out and adds no velocity. The area is the vertex's, or the other surface's
+          // at the point it meets (its face nodes' areas, weighted) where that is smaller: a
+          // coarse vertex under a fine face presses only on what of the fine surface is there
+          // (with its own area, a slab's 10 cm vertex under a sliding block's 2.5 cm faces
+          // was 16 times as stiff as the block's, and the exchange handed its spikes to both).
+          double faceArea = 0;
+          for (int c = 0; c < 3; ++c) faceArea += wi[c] * o->area(face[c]);
+          const double area = faceArea < vertexArea ? faceArea : vertexArea;
+          const double k = scene.stiffness * area * contactPairScale(b, *o);
           ContactHalfSpace& h = out[start[i] + count];
           h.node = n;
           h.face = cf;
@@ -803,9 +814,9 @@ struct ContactNodeListStage {
   double* impulse = nullptr;    ///< 3 per half-space, zeroed
   int32_t* faceNode = nullptr;  ///< 3 per half-space
   Vec3* weight = nullptr;
-  /// Per node the load its self vertex-face pairs pressed it with at the end of the last
-  /// substep (FemState::contactLoad; null: none).
-  const double* selfLoad = nullptr;
+  /// Per node the load its half-spaces pressed it with at the end of the last substep
+  /// (FemState::contactLoad; null: none).
+  const double* load = nullptr;
 
   GF_HD void put(int32_t at, const ContactHalfSpace& h) const {
     for (int k = 0; k < 3; ++k) faceNode[3 * int64_t(at) + k] = h.faceNode[k];
@@ -823,18 +834,19 @@ struct ContactNodeListStage {
     const int32_t v = nodeVertex[n];
     int32_t c = 0;
     if (v >= 0) {
-      // A self pair's friction bears the vertex's load of the last substep, shared by the
-      // pairs' forces at x_n (design note, contact/body_contact.h); a pair with another body,
-      // its own force.
+      // Friction bears the vertex's load of the last substep, shared by the pairs' forces at
+      // x_n, evenly where none has one (design note, contact/body_contact.h).
       double forces = 0;
       for (int32_t p = vertexStart[v]; p < vertexStart[v] + vertexWritten[v]; ++p)
-        if (vertexPairs[p].faceNode[0] >= 0) forces += vertexPairs[p].startForce;
-      const double scale = selfLoad && forces > 0 ? selfLoad[n] / forces : 0.0;
+        forces += vertexPairs[p].startForce;
+      const double pressed = load ? load[n] : 0.0;
+      const double scale = forces > 0 ? pressed / forces : 0.0;
+      const double even = vertexWritten[v] > 0 ? pressed / vertexWritten[v] : 0.0;
       for (int32_t p = vertexStart[v]; p < vertexStart[v] + vertexWritten[v]; ++p, ++c)
         if (point) {
           const ContactHalfSpace& h = vertexPairs[p];
           put(start[n] + c, h);
-          muLambda[start[n] + c] = h.mu * h.startForce * (h.faceNode[0] >= 0 ? scale : 1.0);
+          muLambda[start[n] + c] = h.mu * (forces > 0 ? h.startForce * scale : even);
         }
       for (int32_t s = vertexEdgeStart[v]; s < vertexEdgeStart[v + 1]; ++s) {
         const int32_t e = vertexEdges[s];
@@ -849,17 +861,15 @@ struct ContactNodeListStage {
   }
 };
 
-/// Per node, the normal force its self vertex-face pairs press it with at positions h.X:
+/// Per node, the normal force its half-spaces press it with at positions h.X:
 /// FemState::contactLoad.
-struct SelfPairLoadStage {
+struct ContactLoadStage {
   HalfSpaceContacts h;
   double* load = nullptr;
 
   GF_HD void operator()(int32_t n) const {
     double sum = 0;
     for (int32_t k = h.start[n]; k < h.start[n + 1]; ++k) {
-      const int32_t* f = h.faceNode + 3 * int64_t(k);
-      if (f[0] < 0 || f[1] == f[2]) continue;  // a pair with another body, or an edge-edge one
       const double d = h.depth(k, h.nodeAt(n));
       if (d > 0) sum += h.stiffness[k] * d;
     }
@@ -974,14 +984,16 @@ struct ContactSlotBalance {
 };
 
 /// Cluster r (a group holding its own label, with its groups at sorted[first..] by the sorted
-/// labels): the velocity change that takes its summed impulse off it, if it has one (every
-/// group free, some mass). A body's unexplained momentum belongs to the cluster of its first
-/// contact node, unless a grip or collider acts on that cluster (design note).
+/// labels): the velocity change that takes its summed impulse off it, if no node of it is
+/// prescribed (a grip holds the cluster and takes the mismatch, design note). A body's
+/// unexplained momentum belongs to the cluster of its first contact node, unless a grip or
+/// collider acts on that cluster.
 struct ContactClusterStage {
   const int32_t* label = nullptr;
   const uint64_t* sortedLabel = nullptr;
   const int32_t* sortedGroup = nullptr;
   int32_t groups = 0;
+  const double* mass = nullptr;          ///< per group
   const double* freeMass = nullptr;      ///< per group
   const uint64_t* entryLabel = nullptr;  ///< sorted
   const int32_t* entryIndex = nullptr;   ///< per sorted entry
@@ -996,13 +1008,13 @@ struct ContactClusterStage {
   GF_HD void operator()(int32_t r) const {
     moves[r] = 0;
     if (label[r] != r) return;
-    double mass = 0;
+    double free = 0;
     bool ok = true;
     for (int32_t i = lowerBound(sortedLabel, 0, groups, uint64_t(r));
          i < groups && sortedLabel[i] == uint64_t(r); ++i) {
       const double m = freeMass[sortedGroup[i]];
-      mass += m;
-      if (!(m > 0)) ok = false;
+      free += m;
+      if (m < mass[sortedGroup[i]]) ok = false;
     }
     Vec3 j{0, 0, 0};
     for (int32_t i = lowerBound(entryLabel, 0, entries, uint64_t(r));
@@ -1019,8 +1031,8 @@ struct ContactClusterStage {
     if (!external)
       for (int32_t s = 0; s < slotCount; ++s)
         if (slots[s].group >= 0 && label[slots[s].group] == r) j += slots[s].unexplained;
-    if (!ok || !(mass > 0)) return;
-    velocity[r] = (-1.0 / mass) * j;
+    if (!ok || !(free > 0)) return;
+    velocity[r] = (-1.0 / free) * j;
     moves[r] = 1;
   }
 };

@@ -67,9 +67,9 @@ struct FemState {
   // coeffs.mu and coeffs.lambda in every element kernel.
   std::vector<double> water;
   std::vector<double> tetLame;
-  /// Per node, the normal force [N] its self vertex-face pairs (contact between the body's own
-  /// pieces) pressed it with at the end of the last substep (BodyContact::recordSelfLoads): the
-  /// lagged load of their friction in the next. Empty: none.
+  /// Per node, the normal force [N] its contact pairs (with other bodies and between the
+  /// body's own pieces) pressed it with at the end of the last substep
+  /// (BodyContact::recordLoads): the lagged load of their friction in the next. Empty: none.
   std::vector<double> contactLoad;
 };
 

@@ -481,7 +481,7 @@ StepStatus World::step(double dt) {
     }
     tc = detail::Clock::now();
     w.bodyContact.exchange(exec, w.contactStates);
-    w.bodyContact.recordSelfLoads(exec, w.contactStates);
+    w.bodyContact.recordLoads(exec, w.contactStates);
     w.timings.contactMs += detail::msSince(tc);
     w.sumPullImpulses(h);
     // Events, flags and sums in slot order, whichever thread stepped the body.
