@@ -1447,12 +1447,8 @@ TEST(BodyContact, DISABLED_BlockRestsOnADampedSlabOnTheFloorWithFriction) {
   EXPECT_LT(fastestBlockOnSlab({false, 1, 0.02, 0.5}), 0.02);
 }
 
-// Friction's load between the pieces is part of the state: a restore mid-slide repeats the
-// slide bit for bit.
-TEST(BodyContact, RestoreRepeatsAPieceSlidingOnAnother) {
-  World world(inclined(std::atan(0.6) + 15 * M_PI / 180));
-  const BodyId id = world.createBody(blockOnSlab(0.6).def).value();
-  for (int s = 0; s < 15; ++s) ASSERT_TRUE(world.step(1.0 / 60).ok());
+// Friction's load is part of the state: a restore mid-slide repeats the slide bit for bit.
+void expectRestoreRepeats(World& world, BodyId id) {
   const WorldSnapshot snap = world.snapshot();
   const auto run = [&] {
     for (int s = 0; s < 10; ++s) EXPECT_TRUE(world.step(1.0 / 60).ok());
@@ -1464,6 +1460,21 @@ TEST(BodyContact, RestoreRepeatsAPieceSlidingOnAnother) {
   const auto again = run();
   EXPECT_EQ(again.first, first.first);
   EXPECT_EQ(again.second, first.second);
+}
+TEST(BodyContact, RestoreRepeatsAPieceSlidingOnAnother) {
+  World world(inclined(std::atan(0.6) + 15 * M_PI / 180));
+  const BodyId id = world.createBody(blockOnSlab(0.6).def).value();
+  for (int s = 0; s < 15; ++s) ASSERT_TRUE(world.step(1.0 / 60).ok());
+  expectRestoreRepeats(world, id);
+}
+// The same between two bodies: the block sliding over the coarse slab.
+TEST(BodyContact, RestoreRepeatsABlockSlidingOverAnotherBody) {
+  World world(floorWorld(1.0));
+  const BodyId b = putBlockOnCoarseSlab(world, 0.5, -0.58);
+  for (int s = 0; s < 30; ++s) ASSERT_TRUE(world.step(1.0 / 60).ok());
+  ASSERT_TRUE(world.setVelocity(b, glm::dvec3(1.5, 0, 0)).ok());
+  for (int s = 0; s < 3; ++s) ASSERT_TRUE(world.step(1.0 / 60).ok());
+  expectRestoreRepeats(world, b);
 }
 
 // The pair lists are built serially in slot and node order, so the contact step gives the same

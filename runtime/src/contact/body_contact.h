@@ -118,8 +118,8 @@
 //   alike, the grip took the slab's share back, and the block was thrown at 1-10 m/s
 //   (BodyContact.BlockOnAnInclinedBodyObeysCoulomb). The exchange is still needed on a
 //   collider, which pushes only: without it, stacks on the ground sank into each other. The
-//   clusters are found by stages too: every group takes the least
-//   label among the groups its half-spaces join it to, in either direction, until none changes
+//   clusters are found by stages too: every group takes the least label among the groups its
+//   half-spaces join it to, in either direction, until none changes
 //   (each group then holds its cluster's least group, the root of a union-find with the smaller
 //   root winning). A cluster's impulses are summed in slot, node and half-space order, and its
 //   groups' free masses (each in node order) in group order: the serial order of the loop this
