@@ -1418,25 +1418,17 @@ double fastestBlockOnSlab(const SlabCase& c) {
   return fastest;
 }
 
-// Every case but the one below rests, the block at most 0.013 m/s (the floor's penalty settling
-// under the slab). On a gripped slab it was thrown at 1-10 m/s before the exchange left gripped
-// clusters alone.
+// Every case rests, the block at most 0.015 m/s (the floor's penalty settling under the slab).
+// On a gripped slab it was thrown at 1-10 m/s before the exchange left gripped clusters alone.
+// On the floor, one layer, damping and friction, it was thrown at 18 m/s before a step that the
+// line search shortened kept backward Euler's velocities: the end spin read the moment of the
+// contact impulses as linearised against planes 13 mm deep and turned the block at 16 rad/s.
 TEST(BodyContact, BlockRestsOnASlabBody) {
   for (const bool gripped : {true, false})
     for (const int layers : {1, 2})
       for (const double damping : {0.0, 0.02})
         for (const double mu : {0.0, 0.5})
-          if (gripped || layers != 1 || damping == 0 || mu == 0) {
-            EXPECT_LT(fastestBlockOnSlab({gripped, layers, damping, mu}), 0.02);
-          }
-}
-
-// Fails: on the floor, one layer, damping and friction, a vertical rhythm of three steps grows
-// until the block is thrown at 18 m/s (docs/validation.md, "Friction between two bodies: the
-// load that was carried"). With Newton to convergence it rests (0.013 m/s); so it does with
-// the block's friction taking its pairs' forces at x_n as its load, as before.
-TEST(BodyContact, DISABLED_BlockRestsOnADampedSlabOnTheFloorWithFriction) {
-  EXPECT_LT(fastestBlockOnSlab({false, 1, 0.02, 0.5}), 0.02);
+          EXPECT_LT(fastestBlockOnSlab({gripped, layers, damping, mu}), 0.02);
 }
 
 // Friction's load is part of the state: a restore mid-slide repeats the slide bit for bit.

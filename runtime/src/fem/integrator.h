@@ -275,10 +275,12 @@ class Integrator {
   std::vector<double> m_frictionTouching;  // per node
   BlockSparseMatrix m_dampK;               // K(x_n) for Rayleigh r2, only when r2 > 0
   bool m_dampKValid = false;               // m_dampK belongs to the current step
-  std::vector<double> m_xLin;              // the last linearisation point, for collider impulses
-  std::vector<double> m_impulses;          // ColliderImpulseStage's, 6 per collider and node
-  std::vector<double> m_balanceTerms;      // BodyContactBalanceStage's
-  std::vector<double> m_adx;               // A dx, the Newton model's curvature along dx
+  // The step ended on a Newton step the line search shortened.
+  bool m_shortStep = false;
+  std::vector<double> m_xLin;          // the last linearisation point, for collider impulses
+  std::vector<double> m_impulses;      // ColliderImpulseStage's, 6 per collider and node
+  std::vector<double> m_balanceTerms;  // BodyContactBalanceStage's
+  std::vector<double> m_adx;           // A dx, the Newton model's curvature along dx
   std::vector<double> m_pairActive, m_pairProjection;  // per half-space, SelfPair*Stage's
   std::vector<Vec3> m_pairNormal, m_pairWeight;
   std::vector<double> m_pairFriction;  // per half-space, SelfPair*Stage's f_k and t_k
