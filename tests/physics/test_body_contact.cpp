@@ -1431,6 +1431,88 @@ TEST(BodyContact, BlockRestsOnASlabBody) {
           EXPECT_LT(fastestBlockOnSlab({gripped, layers, damping, mu}), 0.02);
 }
 
+// A block dropped 2 mm onto a slab body on the floor (the slab's cells 10, 5 or 2.5 cm, the
+// block's 2.5 cm; undamped and frictionless, or damped with friction on a frictional floor):
+// how far its centre of mass rose above where it was dropped from, and its fastest after 0.5 s.
+struct Drop {
+  double rise = -HUGE_VAL, speed = 0;
+};
+Drop dropOnSlab(double E, int rate, int cells, bool damped) {
+  WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
+  Collider floor{};
+  floor.friction = damped ? 1 : 0;
+  wd.colliders.push_back(floor);
+  World world(wd);
+  BodyDef slab, block;
+  slab.mesh = movedBox(0.6, 0.05, 0.3, cells, 1, cells / 2, {-0.3, 0, -0.15});
+  block.mesh = movedBox(0.1, 0.04, 0.1, 4, 2, 4, {-0.037, 0.052, -0.05});
+  for (BodyDef* d : {&slab, &block}) {
+    d->material = Material::stableNeoHookean(E, 0.3, 1000);
+    d->material.stiffnessDamping = damped ? 0.02 : 0;
+    d->friction = damped ? 0.5 : 0;
+    d->contact = true;
+  }
+  world.createBody(slab).value();
+  const BodyId b = world.createBody(block).value();
+  // The centre of mass's height, from the potential energy -sum m_i g . x_i.
+  const auto height = [&] {
+    const BodyStats st = world.stats(b);
+    return st.gravityEnergy / (st.mass * double(9.81f));
+  };
+  const double start = height(), step = 1.0 / rate;
+  Drop out;
+  for (int k = 0; k < rate; ++k) {
+    const StepStatus st = world.step(step);
+    EXPECT_TRUE(st.ok()) << st.message;
+    out.rise = std::max(out.rise, height() - start);
+    if (k * step >= 0.5)
+      out.speed =
+          std::max(out.speed, glm::length(world.stats(b).linearMomentum) / world.stats(b).mass);
+  }
+  std::printf(
+      "E %.0e, %d Hz, slab cells %.1f cm%s: rose %.3g mm above its start, then at most "
+      "%.3g m/s\n",
+      E, rate, 60.0 / cells, damped ? ", damped, mu 0.5" : "", 1e3 * out.rise, out.speed);
+  return out;
+}
+
+// Fails (docs/validation.md, "A shortened Newton step between bodies"): it must never rise above
+// where it was dropped from (no energy gained) and must come to rest, over stiffness, time step
+// and the slab's cells. At 120 Hz it does; at 60 Hz 11 of the 18 cases gain energy, all on
+// slabs of 5 or 2.5 cm cells (the block rises up to 15 m and is thrown at up to 27 m/s): the
+// exchange hands a cluster on a collider a mismatch the floor has already answered.
+TEST(BodyContact, DISABLED_BlockDroppedOnASlabBodyGainsNoEnergy) {
+  for (const double E : {1e6, 1e7, 1e8})
+    for (const int rate : {60, 120})
+      for (const int cells : {6, 12, 24})
+        for (const bool damped : {false, true}) {
+          const Drop d = dropOnSlab(E, rate, cells, damped);
+          EXPECT_LT(d.rise, 0.5e-3);
+          EXPECT_LT(d.speed, 0.05);
+        }
+}
+
+// Fails, the same cause: a block set sliding at 1 and 1.5 m/s off the coarse slab's end, mu 0.1,
+// the slab on a floor of friction 1, tumbles back against the slab's lower corner, and the slab
+// (48 kg) is thrown at up to 3 m/s.
+TEST(BodyContact, DISABLED_BlockSlidingOffASlabLeavesItAtRest) {
+  for (const double v0 : {0.5, 1.0, 1.5}) {
+    World world(floorWorld(1.0));
+    BodyId slab;
+    const BodyId b = putBlockOnCoarseSlab(world, 0.1, 0.3, &slab);
+    for (int k = 0; k < 30; ++k) ASSERT_TRUE(world.step(1.0 / 60).ok());
+    ASSERT_TRUE(world.setVelocity(b, glm::dvec3(v0, 0, 0)).ok());
+    double fastest = 0;
+    for (int k = 0; k < 90; ++k) {
+      EXPECT_TRUE(world.step(1.0 / 60).ok());
+      fastest =
+          std::max(fastest, glm::length(world.stats(slab).linearMomentum) / world.stats(slab).mass);
+    }
+    std::printf("sliding off at %.1f m/s: the slab at most %.3g m/s\n", v0, fastest);
+    EXPECT_LT(fastest, 0.02);
+  }
+}
+
 // Friction's load is part of the state: a restore mid-slide repeats the slide bit for bit.
 void expectRestoreRepeats(World& world, BodyId id) {
   const WorldSnapshot snap = world.snapshot();
