@@ -1438,11 +1438,7 @@ struct Drop {
   double rise = -HUGE_VAL, speed = 0;
 };
 Drop dropOnSlab(double E, int rate, int cells, bool damped) {
-  WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}};
-  Collider floor{};
-  floor.friction = damped ? 1 : 0;
-  wd.colliders.push_back(floor);
-  World world(wd);
+  World world(floorWorld(damped ? 1 : 0));
   BodyDef slab, block;
   slab.mesh = movedBox(0.6, 0.05, 0.3, cells, 1, cells / 2, {-0.3, 0, -0.15});
   block.mesh = movedBox(0.1, 0.04, 0.1, 4, 2, 4, {-0.037, 0.052, -0.05});
