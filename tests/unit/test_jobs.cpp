@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <memory>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -134,6 +135,30 @@ TEST(Jobs, ThreadPoolUsesWorkers) {
     });
   }
   EXPECT_TRUE(otherThread.load());
+}
+
+// Consecutive jobs over the same data touch it from the same threads: each thread first runs
+// the ranges of its own contiguous block (the caller the first half, the worker the second)
+// instead of taking whichever range is next, which hands a vector's cache lines from core to
+// core with every pass of a solver. Ranges long enough that the worker joins before the caller
+// finishes its first one; a job the scheduler delayed is retried.
+TEST(Jobs, ThreadPoolThreadsRunTheirOwnBlockOfRanges) {
+  gf::ThreadPoolJobSystem jobs(2);
+  const std::thread::id self = std::this_thread::get_id();
+  bool split = false;
+  std::string seen;
+  for (int rep = 0; rep < 20 && !split; ++rep) {
+    std::vector<int> byCaller(8, -1);
+    jobs.parallelFor(64, 1, [&](uint32_t begin, uint32_t end) {
+      EXPECT_EQ(end - begin, 8u);
+      byCaller[begin / 8] = std::this_thread::get_id() == self;
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    });
+    split = byCaller == std::vector<int>{1, 1, 1, 1, 0, 0, 0, 0};
+    seen.clear();
+    for (int c : byCaller) seen += c ? 'C' : 'W';
+  }
+  EXPECT_TRUE(split) << "ranges by thread in the last job (C caller, W worker): " << seen;
 }
 
 }  // namespace

@@ -2,7 +2,7 @@
 //
 // Design: one job at a time. parallelFor publishes the job (function, range size, range count)
 // under a mutex, bumps a generation counter and wakes the workers; every participant (the
-// caller included) claims ranges from an atomic counter until none are left. A worker may join
+// caller included) claims ranges, from its own block first, until none are left. A worker may join
 // a job only while it is open, and the caller closes it only once every worker that joined has
 // left, so no worker can touch a job whose function has gone out of scope. Results never depend
 // on which thread ran a range because callers write disjoint outputs (see jobs.h).
@@ -75,26 +75,38 @@ struct ThreadPoolJobSystem::Impl {
   const std::function<void(uint32_t, uint32_t)>* fn = nullptr;
   uint32_t count = 0;
   uint32_t rangeSize = 1;
-  uint32_t rangeCount = 0;
-  std::atomic<uint32_t> nextRange{0};
+
+  // Each participant (the caller is 0, worker i is i) owns a contiguous block of the ranges and
+  // claims from it in order before it helps with the others' blocks: when the threads keep up
+  // with each other, every thread works on the same part of the data in consecutive jobs (a
+  // solver's passes over one vector), so its cache lines stay in that core's cache instead of
+  // moving between cores with each pass; a thread that is late or slow still gets helped.
+  struct alignas(64) Block {
+    std::atomic<uint32_t> next{0};
+    uint32_t end = 0;
+  };
+  std::unique_ptr<Block[]> blocks;
+  int participants = 1;
 
   void runRanges(const std::function<void(uint32_t, uint32_t)>& f, uint32_t n, uint32_t size,
-                 uint32_t ranges) {
-    for (;;) {
-      uint32_t r = nextRange.fetch_add(1, std::memory_order_relaxed);
-      if (r >= ranges) return;
-      uint32_t begin = r * size;
-      uint32_t end = std::min(n, begin + size);
-      f(begin, end);
+                 int self) {
+    for (int k = 0; k < participants; ++k) {
+      Block& b = blocks[(self + k) % participants];
+      for (;;) {
+        const uint32_t r = b.next.fetch_add(1, std::memory_order_relaxed);
+        if (r >= b.end) break;
+        const uint32_t begin = r * size;
+        f(begin, std::min(n, begin + size));
+      }
     }
   }
 
-  void workerLoop() {
+  void workerLoop(int self) {
     t_insideJob = true;
     uint64_t seen = 0;
     for (;;) {
       const std::function<void(uint32_t, uint32_t)>* f;
-      uint32_t n, size, ranges;
+      uint32_t n, size;
       spinUntil([&] { return generationHint.load(std::memory_order_acquire) != seen; });
       {
         std::unique_lock<std::mutex> lock(mutex);
@@ -105,9 +117,8 @@ struct ThreadPoolJobSystem::Impl {
         f = fn;
         n = count;
         size = rangeSize;
-        ranges = rangeCount;
       }
-      runRanges(*f, n, size, ranges);
+      runRanges(*f, n, size, self);
       {
         std::lock_guard<std::mutex> lock(mutex);
         activeHint.store(--active, std::memory_order_release);
@@ -120,8 +131,11 @@ struct ThreadPoolJobSystem::Impl {
 ThreadPoolJobSystem::ThreadPoolJobSystem(int threads) : m_impl(std::make_unique<Impl>()) {
   if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   // The calling thread works too, so the pool starts threads - 1 workers.
+  m_impl->participants = threads;
+  m_impl->blocks = std::make_unique<Impl::Block[]>(static_cast<size_t>(threads));
   m_impl->workers.reserve(static_cast<size_t>(threads - 1));
-  for (int i = 1; i < threads; ++i) m_impl->workers.emplace_back([this] { m_impl->workerLoop(); });
+  for (int i = 1; i < threads; ++i)
+    m_impl->workers.emplace_back([this, i] { m_impl->workerLoop(i); });
 }
 
 ThreadPoolJobSystem::~ThreadPoolJobSystem() {
@@ -159,8 +173,12 @@ void ThreadPoolJobSystem::parallelFor(uint32_t count, uint32_t grain,
     p.fn = &fn;
     p.count = count;
     p.rangeSize = size;
-    p.rangeCount = ranges;
-    p.nextRange.store(0, std::memory_order_relaxed);
+    for (int k = 0; k < p.participants; ++k) {
+      const uint64_t begin = ranges * static_cast<uint64_t>(k) / p.participants;
+      p.blocks[k].next.store(static_cast<uint32_t>(begin), std::memory_order_relaxed);
+      p.blocks[k].end =
+          static_cast<uint32_t>(ranges * static_cast<uint64_t>(k + 1) / p.participants);
+    }
     p.open = true;
     ++p.generation;
     p.generationHint.store(p.generation, std::memory_order_release);
@@ -169,7 +187,7 @@ void ThreadPoolJobSystem::parallelFor(uint32_t count, uint32_t grain,
 
   const bool wasInside = t_insideJob;
   t_insideJob = true;
-  p.runRanges(fn, count, size, ranges);
+  p.runRanges(fn, count, size, 0);
   t_insideJob = wasInside;
 
   // Every range has been claimed; wait for the workers still running theirs, then close the
