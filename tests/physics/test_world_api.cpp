@@ -273,6 +273,46 @@ TEST(WorldApi, RestoreReplaysFractureBitForBit) {
   EXPECT_FALSE(world.restore(WorldSnapshot{}).ok());
 }
 
+// The multigrid refreshes its coarse levels every coarseRefreshInterval solves (earlier when
+// CG drifts) and defers crack re-binding to the refresh, so a solve reads coarse operators
+// built from an earlier matrix and a binding of earlier cracks. A snapshot taken anywhere in
+// that schedule (right after a refresh, between refreshes, with a re-binding pending) must
+// replay bit for bit, for both prolongations.
+TEST(WorldApi, RestoreReplaysTheMultigridsRefreshScheduleBitForBit) {
+  for (const int interval : {1, 3, 10})
+    for (const bool smoothed : {false, true}) {
+      BodyDef def = fracturingBar(5e4);
+      def.solver.linearSolver = LinearSolverKind::Multigrid;
+      def.solver.multigrid.coarseRefreshInterval = interval;
+      def.solver.multigrid.smoothedProlongation = smoothed;
+      World world(WorldDef{glm::vec3(0, -9.81f, 0), Backend::Cpu, nullptr, 1, {}});
+      const BodyId id = world.createBody(def).value();
+      const int steps = 60;
+      const std::vector<int> at = {7, 20, 33, 46};
+      std::vector<WorldSnapshot> snaps;
+      std::vector<int> brokenAt;
+      for (int s = 0; s < steps; ++s) {
+        if (std::find(at.begin(), at.end(), s) != at.end()) {
+          snaps.push_back(world.snapshot());
+          brokenAt.push_back(world.fractureStats(id).brokenEdges);
+        }
+        (void)world.step(0.01);
+      }
+      const uint64_t end = world.stateHash();
+      const int broken = world.fractureStats(id).brokenEdges;
+      // Edges break between the snapshots, so the replays re-bind.
+      ASSERT_GT(broken, brokenAt.back()) << "interval " << interval;
+      ASSERT_LT(brokenAt.front(), brokenAt.back()) << "interval " << interval;
+      for (size_t k = 0; k < snaps.size(); ++k) {
+        ASSERT_TRUE(world.restore(snaps[k]).ok());
+        for (int s = at[k]; s < steps; ++s) (void)world.step(0.01);
+        EXPECT_EQ(world.stateHash(), end)
+            << "interval " << interval << (smoothed ? ", smoothed" : "") << ", snapshot at step "
+            << at[k] << " (" << brokenAt[k] << " of " << broken << " edges broken)";
+      }
+    }
+}
+
 // surface() updates lazily: asked for every 5th step only, the surface of a fracturing bar
 // must be the one a renderer asking every step sees (same triangles, same vertex positions),
 // and its dirty range must cover every vertex that moved since the previous call.

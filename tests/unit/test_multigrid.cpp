@@ -40,6 +40,7 @@ using gf::detail::CpuExecutor;
 using gf::detail::CycleLevel;
 using gf::detail::MultigridHierarchy;
 using gf::detail::MultigridSolver;
+using gf::detail::MultigridState;
 using gf::detail::NodeGraph;
 using gf::detail::PcgSolver;
 using gf::detail::SolveReport;
@@ -878,8 +879,10 @@ TEST(Multigrid, InvalidSettingsAreRejectedWithTheField) {
   st.preSweeps = st.postSweeps = 0;
   EXPECT_NE(tryLevels(st).find("preSweeps"), std::string::npos);
   st.preSweeps = 1;
-  st.coarseRefreshInterval = 0;
+  st.coarseRefreshInterval = -1;
   EXPECT_NE(tryLevels(st).find("coarseRefreshInterval"), std::string::npos);
+  st.coarseRefreshInterval = 0;  // chosen
+  EXPECT_EQ(tryLevels(st), "");
   st.coarseRefreshInterval = 1;
   st.coarseRefreshSlack = -1;
   EXPECT_NE(tryLevels(st).find("coarseRefreshSlack"), std::string::npos);
@@ -935,7 +938,8 @@ TEST(Multigrid, RebindingKeepsAggregatesInsideFragments) {
   std::vector<double> xc(s.b.size(), 0.0);
   ASSERT_TRUE(chol.solve(s.A, s.b.data(), xc.data()).converged);
 
-  const MultigridSettings st = settingsFor({1, 24}, Smoother::GaussSeidel, 2, true);
+  MultigridSettings st = settingsFor({1, 24}, Smoother::GaussSeidel, 2, true);
+  st.coarseRefreshInterval = 1;  // re-binds at once (deferred: below)
   MultigridSolver mg;
   ASSERT_TRUE(mg.setup(st, s.mesh.positions.data(), s.fixed.data(), s.A).ok());
   auto straddling2 = [&](const MultigridSolver& m, int l) {
@@ -1029,11 +1033,28 @@ TEST(Multigrid, RebindingKeepsAggregatesInsideFragments) {
     const SolveReport first = mgl.solve(s.A, s.b.data(), x.data(), 200, 1e-8, jobs);
     mgl.rebind(eg.edgeNodes.data(), broken.data(), eg.edgeCount);
     EXPECT_EQ(mgl.hierarchy().handleCount(2), 1);  // not yet re-bound
+    // A solver set up afresh and given this one's state (a World snapshot: the deferred
+    // re-binding, the schedule, the stale coarse levels) solves the same bits from here on.
+    std::vector<int32_t> order;
+    for (int32_t e = 0; e < eg.edgeCount; ++e)
+      if (broken[size_t(e)]) order.push_back(e);
+    const MultigridState state = mgl.state();
+    EXPECT_EQ(state.pendingRebind, int32_t(order.size()));
+    EXPECT_FALSE(state.levels.empty());
+    MultigridSolver copy;
+    ASSERT_TRUE(copy.setup(lag, s.mesh.positions.data(), s.fixed.data(), s.A).ok());
+    ASSERT_TRUE(copy.restore(state, s.A, eg.edgeNodes.data(), eg.edgeCount, order.data(),
+                             int32_t(order.size()))
+                    .ok());
+    std::vector<double> xCopy(x.size());
     std::vector<int> its;
     std::string refreshed;
     for (int k = 0; k < 3; ++k) {
+      std::fill(xCopy.begin(), xCopy.end(), 0.0);
+      (void)copy.solve(s.A, s.b.data(), xCopy.data(), 200, 1e-8, jobs);
       std::fill(x.begin(), x.end(), 0.0);
       const SolveReport r = mgl.solve(s.A, s.b.data(), x.data(), 200, 1e-8, jobs);
+      EXPECT_EQ(0, std::memcmp(x.data(), xCopy.data(), x.size() * sizeof(double))) << "solve " << k;
       EXPECT_TRUE(r.converged);
       EXPECT_LE(relDiff(x, xc), 1e-6);
       its.push_back(r.iterations);

@@ -112,9 +112,11 @@ struct MultigridSettings {
   /// matrix still give an SPD preconditioner, the fine smoother always sees the current
   /// matrix, and CG converges to the current system's solution; a stale coarse level only
   /// costs iterations (see coarseRefreshSlack). In "cycles" mode it changes what the fixed
-  /// cycles reach. Above 1, crack re-binding also waits for the next refresh, and a restored
-  /// snapshot replays only to the solver tolerance (not bit for bit). 1: every solve.
-  int coarseRefreshInterval = 1;
+  /// cycles reach. Above 1, crack re-binding also waits for the next refresh. Snapshots hold
+  /// the schedule and the coarse levels a later solve keeps, so a restored one replays bit for
+  /// bit. 0 (the default): 10 with preconditionCG, every solve in "cycles" mode. On the
+  /// benchmark bodies a frame takes 0.7-0.94x its time with 1 (docs/validation.md, issue 14).
+  int coarseRefreshInterval = 0;
   /// With preconditionCG and coarseRefreshInterval > 1: refresh early, at the next solve, once
   /// a solve took more MG-CG iterations than the first solve after the last refresh plus this
   /// many (the matrix has drifted from the one the coarse operators were built from). >= 0.

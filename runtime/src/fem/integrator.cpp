@@ -131,29 +131,33 @@ void Integrator::refreshFixedNodes(const FemModel& model, const FemState& state)
   if (!m_multigrid) return;
   (void)setupSolver(model, state);  // on failure m_multigrid is null and PCG takes over
   m_boundBrokenCount = 0;
-  m_rebindHistory.clear();
+}
+
+detail::MultigridState Integrator::solverState() const {
+  return m_multigrid ? m_multigrid->state() : detail::MultigridState{};
 }
 
 Result<void> Integrator::restoreSolver(const FemModel& model, const FemState& state,
-                                       const std::vector<int32_t>& history) {
+                                       const detail::MultigridState& solver) {
   // The restored fragments may be another partition under the same version number.
   m_piecesKey = kNoPieces;
   m_facesKey = kNoPieces;
-  if (history == m_rebindHistory) return {};
-  m_rebindHistory = history;
-  m_boundBrokenCount = history.empty() ? 0 : history.back();
   if (!m_multigrid) return {};
-  if (Result<void> r = setupSolver(model, state); !r.ok()) return r;
-  if (history.empty() || !m_fracture) return {};
-  const EdgeGraph& g = m_fracture->graph();
-  const std::vector<int32_t>& order = m_fracture->breakOrder();
-  std::vector<uint8_t> broken(size_t(g.edgeCount), 0);
-  int32_t applied = 0;
-  for (int32_t count : history) {
-    for (; applied < count && applied < int32_t(order.size()); ++applied)
-      broken[order[applied]] = 1;
-    m_multigrid->rebind(g.edgeNodes.data(), broken.data(), g.edgeCount);
-  }
+  const std::vector<int32_t>& applied = m_multigrid->appliedRebinds();
+  if (applied.size() > solver.rebinds.size() ||
+      !std::equal(applied.begin(), applied.end(), solver.rebinds.begin()))
+    if (Result<void> r = setupSolver(model, state); !r.ok()) return r;
+  const EdgeGraph* g = m_fracture ? &m_fracture->graph() : nullptr;
+  const std::vector<int32_t> none;
+  const std::vector<int32_t>& order = m_fracture ? m_fracture->breakOrder() : none;
+  if (Result<void> r =
+          m_multigrid->restore(solver, m_A, g ? g->edgeNodes.data() : nullptr, g ? g->edgeCount : 0,
+                               order.data(), static_cast<int32_t>(order.size()));
+      !r.ok())
+    return r;
+  m_boundBrokenCount = solver.pendingRebind >= 0 ? solver.pendingRebind
+                       : solver.rebinds.empty()  ? 0
+                                                 : solver.rebinds.back();
   return {};
 }
 
@@ -1061,7 +1065,6 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
       const EdgeGraph& g = m_fracture->graph();
       m_multigrid->rebind(g.edgeNodes.data(), m_fracture->broken().data(), g.edgeCount, jobs);
       m_boundBrokenCount = m_fracture->brokenCount();
-      m_rebindHistory.push_back(m_boundBrokenCount);
     }
     const SolveReport sr =
         selfPairsAct(model, ctx, dt2, jobs)

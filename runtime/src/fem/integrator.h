@@ -105,14 +105,15 @@ class Integrator {
   /// On a NaN/Inf the state is restored and flagged.
   BodyStepReport step(const FemModel& model, FemState& state, const StepContext& ctx,
                       JobSystem& jobs);
-  /// Broken-edge counts at which the multigrid re-bound so far. With the fracture's break
-  /// order they fix its binding, which depends on history (handles only accumulate).
-  const std::vector<int32_t>& rebindHistory() const { return m_rebindHistory; }
-  /// Puts the solver into the state `history` describes (World::restore): a fresh set-up, then
-  /// the re-binds replayed on the broken sets of the attached fracture's break-order prefixes
-  /// (its state must already be restored). No-op when the history is the current one.
+  /// The multigrid's state between solves (re-bindings, refresh schedule, the coarse values
+  /// the next solve keeps); empty without a multigrid.
+  detail::MultigridState solverState() const;
+  /// Puts the solver into `solver`, a solverState() of this body (World::restore): a fresh
+  /// set-up unless the current one applied a prefix of its re-bindings, the rest replayed on
+  /// the broken sets of the attached fracture's break-order prefixes (its state must already
+  /// be restored), then the schedule and coarse values.
   Result<void> restoreSolver(const FemModel& model, const FemState& state,
-                             const std::vector<int32_t>& history);
+                             const detail::MultigridState& solver);
   /// The element stage of this body at x writing into the given buffers (hess and stress
   /// nullable), and the gather of its element gradients: what the step runs, for the device
   /// backend's copies and the backend tests.
@@ -320,7 +321,6 @@ class Integrator {
   std::unique_ptr<CholeskySolver> m_cholesky;
   std::unique_ptr<MultigridSolver> m_multigrid;
   int32_t m_boundBrokenCount = 0;  // broken edges the multigrid binding has seen
-  std::vector<int32_t> m_rebindHistory;
   // Free pieces of this step (predictRigidMotion); m_rigidPieces false: none are stepped so.
   bool m_rigidPieces = false;
   std::vector<RigidPiece> m_pieces;

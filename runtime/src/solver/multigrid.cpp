@@ -112,7 +112,7 @@ struct MultigridSolver::Impl {
   // solve: the early-refresh test of coarseRefreshSlack.
   int refreshIterations = -1;
   int lastIterations = 0;
-  // Deferred crack re-binding (coarseRefreshInterval > 1): the broken state of the last
+  // Deferred crack re-binding (a refresh interval above 1): the broken state of the last
   // rebind() call, applied with the next refresh. Until then the hierarchy of the previous
   // binding preconditions CG (still SPD, so CG converges to the current system's solution); a
   // crack that weakens it raises the iteration count, which brings the refresh forward.
@@ -120,8 +120,12 @@ struct MultigridSolver::Impl {
   std::vector<uint8_t> pendingBroken;
   bool rebindPending = false;
 
+  std::vector<int32_t> appliedRebinds;  // broken-edge count of each re-binding applied
+
   void applyRebind(JobSystem& jobs) {
     const auto t0 = Clock::now();
+    appliedRebinds.push_back(
+        static_cast<int32_t>(std::count(pendingBroken.begin(), pendingBroken.end(), uint8_t{1})));
     hierarchy.rebind(pendingEdgeNodes.data(), pendingBroken.data(),
                      static_cast<int32_t>(pendingBroken.size()), jobs);
     rebindPending = false;
@@ -456,14 +460,27 @@ struct MultigridSolver::Impl {
     }
   };
 
+  // Solves between refreshes: MultigridSettings::coarseRefreshInterval, or when 0 (the
+  // default) 10 for MG-CG, where CG converges whatever the coarse levels and a drift that
+  // costs iterations brings the refresh forward, and 1 when cycling alone, where nothing would.
+  int refreshInterval() const {
+    if (settings.coarseRefreshInterval > 0) return settings.coarseRefreshInterval;
+    return settings.preconditionCG ? 10 : 1;
+  }
+
+  // Whether the next solve recomputes the coarse operators. Iteration counts are the same for
+  // any thread count, so this choice is deterministic.
+  bool refreshDue() const {
+    const bool drifted = settings.preconditionCG && refreshIterations >= 0 &&
+                         lastIterations > refreshIterations + settings.coarseRefreshSlack;
+    return needRefresh || drifted || solvesSinceRefresh >= refreshInterval();
+  }
+
   // What a cycle needs of A's values: coarse operators on refresh, the fine diagonal every
   // solve.
   void prepare(const BlockSparseMatrix& A, JobSystem& jobs, bool deferFactor) {
     const auto t0 = Clock::now();
-    // Iteration counts are the same for any thread count, so this choice is deterministic.
-    const bool drifted = settings.preconditionCG && refreshIterations >= 0 &&
-                         lastIterations > refreshIterations + settings.coarseRefreshSlack;
-    const bool due = needRefresh || drifted || solvesSinceRefresh >= settings.coarseRefreshInterval;
+    const bool due = refreshDue();
     if (due && rebindPending) applyRebind(jobs);
     if (patternsChanged) buildLevels(A, true);
     invertDiagonals<3>(0, A, jobs);
@@ -518,6 +535,7 @@ Result<void> MultigridSolver::setup(const MultigridSettings& settings, const dou
   s.buildLevels(A);
   s.needRefresh = true;
   s.rebindPending = false;
+  s.appliedRebinds.clear();
   s.solvesSinceRefresh = 0;
   s.refreshIterations = -1;
   s.lastIterations = 0;
@@ -533,7 +551,73 @@ void MultigridSolver::rebind(const int32_t* edgeNodes, const uint8_t* broken, in
   s.pendingBroken.assign(broken, broken + edgeCount);
   s.rebindPending = true;
   s.stats.rebindMs = 0;
-  if (s.settings.coarseRefreshInterval <= 1) s.applyRebind(jobs);
+  if (s.refreshInterval() <= 1) s.applyRebind(jobs);
+}
+
+MultigridState MultigridSolver::state() const {
+  const Impl& s = *m_impl;
+  MultigridState st;
+  st.rebinds = s.appliedRebinds;
+  if (s.rebindPending)
+    st.pendingRebind = static_cast<int32_t>(
+        std::count(s.pendingBroken.begin(), s.pendingBroken.end(), uint8_t{1}));
+  st.needRefresh = s.needRefresh;
+  st.solvesSinceRefresh = s.solvesSinceRefresh;
+  st.refreshIterations = s.refreshIterations;
+  st.lastIterations = s.lastIterations;
+  if (s.fineBlocks < 0) return st;
+  // A due refresh recomputes the operators, not a smoothed prolongator still fresh.
+  const bool keepOperators = !s.refreshDue();
+  if (keepOperators || s.hierarchy.smoothed()) st.levels = s.hierarchy.values(keepOperators);
+  return st;
+}
+
+const std::vector<int32_t>& MultigridSolver::appliedRebinds() const {
+  return m_impl->appliedRebinds;
+}
+
+Result<void> MultigridSolver::restore(const MultigridState& st, const BlockSparseMatrix& A,
+                                      const int32_t* edgeNodes, int32_t edgeCount,
+                                      const int32_t* breakOrder, int32_t breakCount,
+                                      JobSystem& jobs) {
+  Impl& s = *m_impl;
+  if (!ready(A)) return fail("multigrid state: the solver is not set up for this matrix");
+  const size_t applied = s.appliedRebinds.size();
+  if (applied > st.rebinds.size() ||
+      !std::equal(s.appliedRebinds.begin(), s.appliedRebinds.end(), st.rebinds.begin()))
+    return fail("multigrid state: re-bindings differ from the solver's");
+  for (int32_t k : st.rebinds)
+    if (k < 0 || k > breakCount) return fail("multigrid state: more broken edges than broke");
+  if (st.pendingRebind > breakCount) return fail("multigrid state: more broken edges than broke");
+  auto brokenAfter = [&](int32_t k) {
+    s.pendingEdgeNodes.assign(edgeNodes, edgeNodes + 2 * static_cast<size_t>(edgeCount));
+    s.pendingBroken.assign(static_cast<size_t>(edgeCount), 0);
+    for (int32_t i = 0; i < k; ++i) s.pendingBroken[static_cast<size_t>(breakOrder[i])] = 1;
+  };
+  for (size_t r = applied; r < st.rebinds.size(); ++r) {
+    brokenAfter(st.rebinds[r]);
+    s.applyRebind(jobs);
+  }
+  s.rebindPending = st.pendingRebind >= 0;
+  if (s.rebindPending) brokenAfter(st.pendingRebind);
+  if (s.patternsChanged) s.buildLevels(A, true);
+  if (!st.levels.empty() && !s.hierarchy.setValues(st.levels))
+    return fail("multigrid state: coarse levels differ from the solver's");
+  s.needRefresh = st.needRefresh;
+  s.solvesSinceRefresh = st.solvesSinceRefresh;
+  s.refreshIterations = st.refreshIterations;
+  s.lastIterations = st.lastIterations;
+  // What a refresh derives from the operators it kept: their smoothers and the factorisation.
+  if (!st.levels.empty() && !st.levels[0].A.empty()) {
+    for (int l = 1; l <= s.coarseCount(); ++l) s.invertDiagonals<12>(l, A, jobs);
+    if (s.settings.smoother != Smoother::GaussSeidel)
+      for (int l = 1; l < s.coarseCount(); ++l) s.estimateLambda<12>(l, A, jobs);
+    s.factorPending = s.coarseCount() > 0;
+    s.finishFactor();
+  } else {
+    s.needRefresh = true;
+  }
+  return {};
 }
 
 bool MultigridSolver::ready(const BlockSparseMatrix& A) const {

@@ -34,6 +34,19 @@ struct MultigridStats {
   bool coarseFactorOk = true;    ///< the coarsest factorisation succeeded (else no correction)
 };
 
+/// What a solve reads beyond the matrix, its right-hand side and the settings: the re-bindings
+/// applied and pending, the refresh schedule (coarseRefreshInterval) and what the last refresh
+/// left that the next solve keeps. Given back to a solver set up alike (restore()), the solves
+/// that follow are the same bits as the original solver's (World snapshots).
+struct MultigridState {
+  std::vector<int32_t> rebinds;  ///< broken-edge count at each re-binding applied, in order
+  int32_t pendingRebind = -1;    ///< broken-edge count of a deferred re-binding; -1: none
+  bool needRefresh = true;
+  int solvesSinceRefresh = 0, refreshIterations = -1, lastIterations = 0;
+  /// Empty when the next solve recomputes everything anyway.
+  std::vector<CoarseLevelValues> levels;
+};
+
 /// Galerkin multigrid for the SPD block systems of the implicit step. Deterministic: the same
 /// bits for any thread count. Allocates nothing in solve() after the first one following a
 /// setup or rebind.
@@ -53,6 +66,17 @@ class MultigridSolver {
   /// coarseRefreshInterval > 1 it is applied at the next refresh (the arrays are copied).
   void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount,
               JobSystem& jobs = serialJobs());
+  /// The state between solves (see MultigridState).
+  MultigridState state() const;
+  /// The broken-edge counts of the re-bindings applied since setup.
+  const std::vector<int32_t>& appliedRebinds() const;
+  /// Puts back state() of a solver set up with the same settings and A's pattern. This one must
+  /// have applied a prefix of its re-bindings (setup() leaves none). breakOrder: the edges in
+  /// the order they broke (the first k are the broken ones after k breaks); edgeNodes: 2 per
+  /// edge. Fails when the state does not fit this solver.
+  Result<void> restore(const MultigridState& state, const BlockSparseMatrix& A,
+                       const int32_t* edgeNodes, int32_t edgeCount, const int32_t* breakOrder,
+                       int32_t breakCount, JobSystem& jobs = serialJobs());
   /// Solves A x = b (A with the pattern given to setup). x holds the initial guess. With
   /// preconditionCG, flexible CG with one V-cycle per iteration up to maxIterations; else up to
   /// settings.cycles V-cycles (each x += V(b - A x)). Both stop early at relativeTolerance.

@@ -176,6 +176,47 @@ void MultigridHierarchy::assemble(const BlockSparseMatrix& A, JobSystem& jobs) {
   }
 }
 
+std::vector<CoarseLevelValues> MultigridHierarchy::values(bool operators) const {
+  std::vector<CoarseLevelValues> out(m_levels.size());
+  for (int l = 1; l <= coarseLevelCount(); ++l) {
+    const CoarseLevel& lv = m_levels[static_cast<size_t>(l - 1)];
+    CoarseLevelValues& v = out[static_cast<size_t>(l - 1)];
+    if (operators) v.A = lv.A.values;
+    if (smoothesLevel(l) && lv.prolongationFresh) {
+      v.P = lv.pValues;
+      v.omega = lv.omega;
+      v.lambdaMax = lv.lambdaMax;
+    }
+  }
+  return out;
+}
+
+bool MultigridHierarchy::setValues(const std::vector<CoarseLevelValues>& values) {
+  if (values.size() != m_levels.size()) return false;
+  for (size_t k = 0; k < m_levels.size(); ++k) {
+    const CoarseLevel& lv = m_levels[k];
+    const CoarseLevelValues& v = values[k];
+    if ((!v.A.empty() && v.A.size() != lv.A.values.size()) ||
+        (!v.P.empty() && v.P.size() != lv.pValues.size()))
+      return false;
+  }
+  for (size_t k = 0; k < m_levels.size(); ++k) {
+    CoarseLevel& lv = m_levels[k];
+    const CoarseLevelValues& v = values[k];
+    if (!v.A.empty()) lv.A.values = v.A;
+    if (v.P.empty()) continue;
+    lv.pValues = v.P;
+    lv.omega = v.omega;
+    lv.lambdaMax = v.lambdaMax;
+    const size_t bc = static_cast<size_t>(k == 0 ? 3 : 12) * 12;
+    for (size_t t = 0; t < lv.ptBlock.size(); ++t)
+      std::copy_n(lv.pValues.data() + bc * static_cast<size_t>(lv.ptBlock[t]), bc,
+                  lv.ptValues.data() + bc * t);
+    lv.prolongationFresh = true;
+  }
+  return true;
+}
+
 ProlongationView MultigridHierarchy::prolongation(int level) const {
   const CoarseLevel& lv = m_levels[static_cast<size_t>(level)];
   ProlongationView P;

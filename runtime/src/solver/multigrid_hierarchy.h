@@ -150,6 +150,14 @@ struct CoarseLevel {
   std::vector<double> nullProjector;
 };
 
+/// What a refresh leaves on one coarse level beyond its patterns: the operator and, smoothed,
+/// the prolongator with the damping it was smoothed with.
+struct CoarseLevelValues {
+  std::vector<double> A;  ///< A_l's blocks; empty: not kept
+  std::vector<double> P;  ///< smoothed P_l's blocks; empty: tentative, or to be re-smoothed
+  double omega = 0, lambdaMax = 0;
+};
+
 /// The coarse levels of one body and the operations between them.
 class MultigridHierarchy {
  public:
@@ -178,6 +186,11 @@ class MultigridHierarchy {
   void assemble(const BlockSparseMatrix& A, JobSystem& jobs);
   /// Re-smooth the prolongators with the matrix of the next assemble.
   void invalidateProlongation();
+  /// Every level's values (level 1 first), the operators only when `operators`.
+  std::vector<CoarseLevelValues> values(bool operators) const;
+  /// Puts back values() of a hierarchy with the same binding; false (nothing changed) when
+  /// their sizes do not match the patterns.
+  bool setValues(const std::vector<CoarseLevelValues>& values);
 
   /// The prolongator between MG level `level` and level + 1 as the transfer stages read it
   /// (valid until the next build, rebind or assemble).

@@ -78,8 +78,9 @@ Result<void> MultigridSettings::check() const {
   if (!(prolongationFilter >= 0 && prolongationFilter < 1))
     return fail("prolongationFilter: must be in [0, 1), got ", std::to_string(prolongationFilter));
   if (cycles < 1) return fail("cycles: must be >= 1, got ", std::to_string(cycles));
-  if (coarseRefreshInterval < 1)
-    return fail("coarseRefreshInterval: must be >= 1, got ", std::to_string(coarseRefreshInterval));
+  if (coarseRefreshInterval < 0)
+    return fail("coarseRefreshInterval: must be >= 0 (0: chosen), got ",
+                std::to_string(coarseRefreshInterval));
   if (coarseRefreshSlack < 0)
     return fail("coarseRefreshSlack: must be >= 0, got ", std::to_string(coarseRefreshSlack));
   if (directBelowNodes < 0)

@@ -18,7 +18,7 @@ struct BodySnapshot {
   std::vector<DeformBrush> deformBrushes;    // and deform brushes
   bool hasFracture = false;
   detail::FractureData fracture;
-  std::vector<int32_t> rebindHistory;
+  detail::MultigridState solver;
 };
 
 struct WorldSnapshot::Data {
@@ -60,7 +60,7 @@ WorldSnapshot World::snapshot() const {
     s.deformBrushes = b->deformBrushes;
     s.hasFracture = b->fracture != nullptr;
     if (b->fracture) s.fracture = b->fracture->data();
-    s.rebindHistory = b->integrator->rebindHistory();
+    s.solver = b->integrator->solverState();
     d->bodies.push_back(std::move(s));
   }
   WorldSnapshot out;
@@ -110,7 +110,7 @@ Result<void> World::restore(const WorldSnapshot& snapshot) {
     if (b.fracture) b.fracture->restore(s.fracture);
     b.stepEndValid = false;
     // Cannot fail: the same set-up succeeded when the body was created.
-    if (Result<void> r = b.integrator->restoreSolver(b.model, b.state, s.rebindHistory); !r)
+    if (Result<void> r = b.integrator->restoreSolver(b.model, b.state, s.solver); !r)
       return fail("restore: body ", std::to_string(s.slot + 1), ": ", r.error().message);
     b.contactSurface.reset();  // made again from the restored fragments
     if (b.surface) {
