@@ -68,13 +68,15 @@ TEST(Report, ErrorVsTimeRanksSolversAgainstTheConvergedStep) {
       "material": {"model": "stable_neo_hookean", "E": 2e5, "nu": 0.3, "rho": 1000},
       "pins": [{"region": {"min": [0, 0, 0], "max": [0, 0.1, 0.1]}}]}]})";
   const fs::path out = dir / "out";
-  ASSERT_EQ(
-      report({"report", "error-vs-time", scene.string(), "--out", out.string(), "--levels", "8/all",
-              "--cycles", "1", "--pcg-caps", "2,500", "--threads", "1", "--compare-threads", "2"}),
-      gf::cli::kExitFlagged)
+  ASSERT_EQ(report({"report", "error-vs-time", scene.string(), "--out", out.string(), "--levels",
+                    "8/all", "--cycles", "1", "--pcg-caps", "2,500", "--tolerances", "1e-6,1e-2",
+                    "--threads", "1", "--compare-threads", "2"}),
+            gf::cli::kExitFlagged)
       << "pcg 2 cannot converge, so the run must say a frame was flagged";
   const std::vector<Row> rows = readRows(out / "error_vs_time.csv");
-  ASSERT_EQ(rows.size(), 6u);  // reference, direct, pcg 2, pcg 500, 8/all x1, 8/all cg
+  // reference, direct, pcg 2, pcg 500, 8/all x1, 8/all cg (1e-6), 8/all cg 0.01, 8/all cg
+  // smoothed (1e-6)
+  ASSERT_EQ(rows.size(), 8u);
   const Row& ref = find(rows, "reference");
   const Row& direct = find(rows, "direct");
   EXPECT_EQ(num(ref, "rel_displacement_error"), 0);
@@ -85,6 +87,12 @@ TEST(Report, ErrorVsTimeRanksSolversAgainstTheConvergedStep) {
   // Converged linear solvers reproduce the direct solver; a starved PCG does not.
   EXPECT_LT(num(find(rows, "pcg 500"), "rel_error_vs_direct"), 1e-4);
   EXPECT_LT(num(find(rows, "8/all cg"), "rel_error_vs_direct"), 1e-4);
+  EXPECT_LT(num(find(rows, "8/all cg smoothed"), "rel_error_vs_direct"), 1e-4);
+  // A looser tolerance buys fewer iterations with a larger error.
+  const Row& loose = find(rows, "8/all cg 0.01");
+  EXPECT_GT(num(loose, "rel_error_vs_direct"), num(find(rows, "8/all cg"), "rel_error_vs_direct"));
+  EXPECT_LT(num(loose, "linear_iterations_per_frame"),
+            num(find(rows, "8/all cg"), "linear_iterations_per_frame"));
   EXPECT_GT(num(find(rows, "pcg 2"), "rel_error_vs_direct"), 1e-3);
   EXPECT_EQ(num(find(rows, "pcg 2"), "ok"), 1);
   EXPECT_GT(num(find(rows, "pcg 2"), "flagged_frames"), 0);
@@ -118,5 +126,8 @@ TEST(Report, BadArgumentsAreUsageErrors) {
   EXPECT_EQ(report({"report", "error-vs-time", "x.json", "--levels", "1000/50/all"}),
             gf::cli::kExitUsage);
   EXPECT_EQ(report({"report", "error-vs-time", "x.json", "--cycles", "0"}), gf::cli::kExitUsage);
+  EXPECT_EQ(report({"report", "error-vs-time", "x.json", "--tolerances", "1e-6,0"}),
+            gf::cli::kExitUsage);
+  EXPECT_EQ(report({"report", "error-vs-time", "x.json", "--smoothed", "2"}), gf::cli::kExitUsage);
   EXPECT_EQ(report({"report", "error-vs-time", "/nonexistent/x.json"}), gf::cli::kExitScene);
 }

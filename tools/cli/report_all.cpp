@@ -1318,7 +1318,7 @@ int reportAll(int argc, char** argv) {
       evtArgs.insert(evtArgs.end(),
                      {"--frames", "2", "--levels", "50/all", "--cycles", "2", "--pcg-caps", "30"});
     else
-      evtArgs.insert(evtArgs.end(), {"--levels", "50/all,256/all"});
+      evtArgs.insert(evtArgs.end(), {"--levels", "50/all,256/all,auto"});
     if (opt.reuse) {
       if (!reuse(evt, commandLine(evtArgs), {evtDir / "error_vs_time.csv"})) return kExitOutput;
     } else {

@@ -8,6 +8,7 @@
 // result is a CSV and an SVG plot.
 #include <time.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -34,15 +35,18 @@ constexpr const char* kReportUsage =
     "       graphfrac report lab [--quick] [--only TEST] [--out DIR]   (see report lab --help)\n"
     "       graphfrac report error-vs-time SCENE [--frames N] [--out DIR] [--threads T]\n"
     "                    [--compare-threads T2] [--levels L1,L2,...] [--cycles C1,C2,...]\n"
-    "                    [--pcg-caps K1,K2,...]\n"
+    "                    [--pcg-caps K1,K2,...] [--tolerances R1,R2,...] [--smoothed 0|1]\n"
     "\n"
     "Runs SCENE once per solver setting, in one process, and writes DIR/error_vs_time.csv and\n"
     "DIR/error_vs_time.svg (default DIR = out/<scene name>/report):\n"
     "  reference  sparse Cholesky, full Newton to 1e-10 (the converged implicit step)\n"
     "  direct     sparse Cholesky with the scene's Newton iterations\n"
     "  pcg        block-Jacobi PCG capped at each of --pcg-caps (default 10,30,100,300)\n"
-    "  mg         multigrid setups --levels (default: the scene's and 50/all), as --cycles\n"
-    "             V-cycles alone (default 1,2,4) and as the preconditioner of CG (tol 1e-6)\n"
+    "  mg         multigrid setups --levels (default: the scene's, 50/all and auto, the\n"
+    "             size-chosen default), as --cycles V-cycles alone (default 1,2,4) and as the\n"
+    "             preconditioner of CG to each relative residual of --tolerances (default\n"
+    "             1e-6,1e-4,1e-3); with --smoothed 1 (the default) also with the smoothed\n"
+    "             prolongation, as CG's preconditioner to 1e-6\n"
     "Columns: ms per frame (wall clock of World::step) and CPU ms per frame (process CPU time,\n"
     "robust to other load; the plot's x axis), relative displacement error\n"
     "|x - x_ref| / |x_ref - X| after N frames (and the same against the direct run: the linear\n"
@@ -56,6 +60,8 @@ struct Options {
   std::optional<int> frames, threads, compareThreads;
   std::vector<std::vector<int32_t>> levels;
   std::vector<int> cycles{1, 2, 4}, pcgCaps{10, 30, 100, 300};
+  std::vector<double> tolerances{1e-6, 1e-4, 1e-3};
+  bool smoothed = true;
 };
 
 struct SolverConfig {
@@ -99,6 +105,24 @@ bool parseIntList(const char* text, std::vector<int>& out) {
     const long v = std::strtol(part.c_str(), &end, 10);
     if (part.empty() || *end != '\0' || v < 1 || v > 100000) return false;
     out.push_back(static_cast<int>(v));
+    if (comma == std::string::npos) break;
+    pos = comma + 1;
+  }
+  return !out.empty();
+}
+
+// "1e-6,1e-3" -> {1e-6, 1e-3}: relative residuals in (0, 1).
+bool parseToleranceList(const char* text, std::vector<double>& out) {
+  out.clear();
+  std::string s(text);
+  size_t pos = 0;
+  while (pos <= s.size()) {
+    const size_t comma = s.find(',', pos);
+    const std::string part = s.substr(pos, comma == std::string::npos ? comma : comma - pos);
+    char* end = nullptr;
+    const double v = std::strtod(part.c_str(), &end);
+    if (part.empty() || *end != '\0' || !(v > 0 && v < 1)) return false;
+    out.push_back(v);
     if (comma == std::string::npos) break;
     pos = comma + 1;
   }
@@ -167,6 +191,15 @@ std::optional<std::string> parseOptions(int argc, char** argv, Options& opt) {
       const char* v = value();
       if (!v || !parseIntList(v, opt.pcgCaps))
         return std::string("--pcg-caps: expected positive integers like 10,30,100");
+    } else if (a == "--tolerances") {
+      const char* v = value();
+      if (!v || !parseToleranceList(v, opt.tolerances))
+        return std::string("--tolerances: expected relative residuals in (0, 1) like 1e-6,1e-3");
+    } else if (a == "--smoothed") {
+      const char* v = value();
+      if (!v || (std::strcmp(v, "0") != 0 && std::strcmp(v, "1") != 0))
+        return std::string("--smoothed: expected 0 or 1");
+      opt.smoothed = v[0] == '1';
     } else if (!a.empty() && a[0] == '-') {
       return "unknown option " + a;
     } else if (opt.scene.empty()) {
@@ -292,10 +325,8 @@ std::vector<SolverConfig> buildConfigs(const scene::Scene& sc, const Options& op
     for (const scene::SceneBody& b : sc.bodies)
       if (b.def.solver.linearSolver == LinearSolverKind::Multigrid)
         setups.push_back(b.def.solver.multigrid.levels);
-    const std::vector<int32_t> fifty{50};
-    bool have = false;
-    for (const auto& s : setups) have = have || s == fifty;
-    if (!have) setups.push_back(fifty);
+    for (const std::vector<int32_t>& more : {std::vector<int32_t>{50}, std::vector<int32_t>{}})
+      if (std::find(setups.begin(), setups.end(), more) == setups.end()) setups.push_back(more);
   }
   for (const auto& levels : setups) {
     for (int cycles : opt.cycles) {
@@ -310,17 +341,26 @@ std::vector<SolverConfig> buildConfigs(const scene::Scene& sc, const Options& op
       m.multigrid = s;
       c.push_back(m);
     }
-    SolverConfig m;
-    m.family = "mg-cg";
-    m.label = levelsText(levels) + " cg";
-    m.kind = LinearSolverKind::Multigrid;
-    MultigridSettings s;
-    s.levels = levels;
-    s.preconditionCG = true;
-    m.multigrid = s;
-    m.maxLinear = 100;
-    m.linearTolerance = 1e-6;
-    c.push_back(m);
+    // The tolerance 1e-6 keeps the plain label; the smoothed prolongation solves to 1e-6.
+    auto mgcg = [&](double tolerance, bool smoothed) {
+      SolverConfig m;
+      m.family = "mg-cg";
+      char tol[32];
+      std::snprintf(tol, sizeof tol, " %g", tolerance);
+      m.label = levelsText(levels) + " cg" + (smoothed ? " smoothed" : "") +
+                (tolerance == 1e-6 ? "" : tol);
+      m.kind = LinearSolverKind::Multigrid;
+      MultigridSettings s;
+      s.levels = levels;
+      s.preconditionCG = true;
+      s.smoothedProlongation = smoothed;
+      m.multigrid = s;
+      m.maxLinear = 100;
+      m.linearTolerance = tolerance;
+      c.push_back(m);
+    };
+    for (double tolerance : opt.tolerances) mgcg(tolerance, false);
+    if (opt.smoothed) mgcg(1e-6, true);
   }
   return c;
 }
