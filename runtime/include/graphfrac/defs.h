@@ -117,7 +117,7 @@ struct MultigridSettings {
   /// bit. 0 (the default): 10 with preconditionCG, every solve in "cycles" mode. On the
   /// benchmark bodies a frame takes 0.7-0.94x its time with 1 (docs/validation.md, issue 14).
   int coarseRefreshInterval = 0;
-  /// With preconditionCG and coarseRefreshInterval > 1: refresh early, at the next solve, once
+  /// With preconditionCG and a refresh interval above 1: refresh early, at the next solve, once
   /// a solve took more MG-CG iterations than the first solve after the last refresh plus this
   /// many (the matrix has drifted from the one the coarse operators were built from). >= 0.
   int coarseRefreshSlack = 2;

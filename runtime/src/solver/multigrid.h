@@ -63,7 +63,8 @@ class MultigridSolver {
                      const uint8_t* fixedNode, const BlockSparseMatrix& A);
   /// Crack re-binding after edges broke (edgeNodes: 2 per edge; broken: 1/0 per edge, the
   /// full current state). No-op when settings.crackRebinding is false. With
-  /// coarseRefreshInterval > 1 it is applied at the next refresh (the arrays are copied).
+  /// a refresh interval above 1 (the default with MG-CG) it is applied at the next refresh (the
+  /// arrays are copied).
   void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount,
               JobSystem& jobs = serialJobs());
   /// The state between solves (see MultigridState).
