@@ -94,39 +94,40 @@ std::string levelsText(const std::vector<int32_t>& levels) {
   return s + "all";
 }
 
-bool parseIntList(const char* text, std::vector<int>& out) {
+// Comma-separated values, each accepted by parseOne(part, value); false on an empty list.
+template <class T, class ParseOne>
+bool parseList(const char* text, std::vector<T>& out, const ParseOne& parseOne) {
   out.clear();
-  std::string s(text);
+  const std::string s(text);
   size_t pos = 0;
   while (pos <= s.size()) {
     const size_t comma = s.find(',', pos);
     const std::string part = s.substr(pos, comma == std::string::npos ? comma : comma - pos);
-    char* end = nullptr;
-    const long v = std::strtol(part.c_str(), &end, 10);
-    if (part.empty() || *end != '\0' || v < 1 || v > 100000) return false;
-    out.push_back(static_cast<int>(v));
+    T v{};
+    if (part.empty() || !parseOne(part, v)) return false;
+    out.push_back(v);
     if (comma == std::string::npos) break;
     pos = comma + 1;
   }
   return !out.empty();
 }
 
+bool parseIntList(const char* text, std::vector<int>& out) {
+  return parseList(text, out, [](const std::string& part, int& v) {
+    char* end = nullptr;
+    const long n = std::strtol(part.c_str(), &end, 10);
+    v = static_cast<int>(n);
+    return *end == '\0' && n >= 1 && n <= 100000;
+  });
+}
+
 // "1e-6,1e-3" -> {1e-6, 1e-3}: relative residuals in (0, 1).
 bool parseToleranceList(const char* text, std::vector<double>& out) {
-  out.clear();
-  std::string s(text);
-  size_t pos = 0;
-  while (pos <= s.size()) {
-    const size_t comma = s.find(',', pos);
-    const std::string part = s.substr(pos, comma == std::string::npos ? comma : comma - pos);
+  return parseList(text, out, [](const std::string& part, double& v) {
     char* end = nullptr;
-    const double v = std::strtod(part.c_str(), &end);
-    if (part.empty() || *end != '\0' || !(v > 0 && v < 1)) return false;
-    out.push_back(v);
-    if (comma == std::string::npos) break;
-    pos = comma + 1;
-  }
-  return !out.empty();
+    v = std::strtod(part.c_str(), &end);
+    return *end == '\0' && v > 0 && v < 1;
+  });
 }
 
 // "50/all,50/1000/all" -> {{50}, {50, 1000}}.
