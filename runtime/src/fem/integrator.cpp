@@ -143,9 +143,7 @@ Result<void> Integrator::restoreSolver(const FemModel& model, const FemState& st
   m_piecesKey = kNoPieces;
   m_facesKey = kNoPieces;
   if (!m_multigrid) return {};
-  const std::vector<int32_t>& applied = m_multigrid->appliedRebinds();
-  if (applied.size() > solver.rebinds.size() ||
-      !std::equal(applied.begin(), applied.end(), solver.rebinds.begin()))
+  if (!m_multigrid->canRestore(solver))
     if (Result<void> r = setupSolver(model, state); !r.ok()) return r;
   const EdgeGraph* g = m_fracture ? &m_fracture->graph() : nullptr;
   const std::vector<int32_t> none;

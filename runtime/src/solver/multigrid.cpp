@@ -572,8 +572,10 @@ MultigridState MultigridSolver::state() const {
   return st;
 }
 
-const std::vector<int32_t>& MultigridSolver::appliedRebinds() const {
-  return m_impl->appliedRebinds;
+bool MultigridSolver::canRestore(const MultigridState& st) const {
+  const std::vector<int32_t>& applied = m_impl->appliedRebinds;
+  return applied.size() <= st.rebinds.size() &&
+         std::equal(applied.begin(), applied.end(), st.rebinds.begin());
 }
 
 Result<void> MultigridSolver::restore(const MultigridState& st, const BlockSparseMatrix& A,
@@ -582,10 +584,8 @@ Result<void> MultigridSolver::restore(const MultigridState& st, const BlockSpars
                                       JobSystem& jobs) {
   Impl& s = *m_impl;
   if (!ready(A)) return fail("multigrid state: the solver is not set up for this matrix");
+  if (!canRestore(st)) return fail("multigrid state: re-bindings differ from the solver's");
   const size_t applied = s.appliedRebinds.size();
-  if (applied > st.rebinds.size() ||
-      !std::equal(s.appliedRebinds.begin(), s.appliedRebinds.end(), st.rebinds.begin()))
-    return fail("multigrid state: re-bindings differ from the solver's");
   for (int32_t k : st.rebinds)
     if (k < 0 || k > breakCount) return fail("multigrid state: more broken edges than broke");
   if (st.pendingRebind > breakCount) return fail("multigrid state: more broken edges than broke");

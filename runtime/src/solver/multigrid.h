@@ -69,12 +69,12 @@ class MultigridSolver {
               JobSystem& jobs = serialJobs());
   /// The state between solves (see MultigridState).
   MultigridState state() const;
-  /// The broken-edge counts of the re-bindings applied since setup.
-  const std::vector<int32_t>& appliedRebinds() const;
-  /// Puts back state() of a solver set up with the same settings and A's pattern. This one must
-  /// have applied a prefix of its re-bindings (setup() leaves none). breakOrder: the edges in
-  /// the order they broke (the first k are the broken ones after k breaks); edgeNodes: 2 per
-  /// edge. Fails when the state does not fit this solver.
+  /// Whether restore() can take `state`: this solver applied a prefix of its re-bindings.
+  bool canRestore(const MultigridState& state) const;
+  /// Puts back state() of a solver set up with the same settings and A's pattern, when
+  /// canRestore() (always right after setup()). breakOrder: the edges in the order they broke
+  /// (the first k are the broken ones after k breaks); edgeNodes: 2 per edge. Fails when the
+  /// state does not fit this solver.
   Result<void> restore(const MultigridState& state, const BlockSparseMatrix& A,
                        const int32_t* edgeNodes, int32_t edgeCount, const int32_t* breakOrder,
                        int32_t breakCount, JobSystem& jobs = serialJobs());
