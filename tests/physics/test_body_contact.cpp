@@ -1472,20 +1472,35 @@ Drop dropOnSlab(double E, int rate, int cells, bool damped) {
   return out;
 }
 
-// Fails (docs/validation.md, "A shortened Newton step between bodies"): it must never rise above
-// where it was dropped from (no energy gained) and must come to rest, over stiffness, time step
-// and the slab's cells. At 120 Hz it does; at 60 Hz 11 of the 18 cases gain energy, all on
-// slabs of 5 or 2.5 cm cells (the block rises up to 15 m and is thrown at up to 27 m/s): the
-// exchange hands a cluster on a collider a mismatch the floor has already answered.
-TEST(BodyContact, DISABLED_BlockDroppedOnASlabBodyGainsNoEnergy) {
+// It never rises above where it was dropped from (no energy gained), over stiffness, time step
+// (30, 60, 120 Hz) and the slab's cells, and at 60 and 120 Hz it comes to rest. Before the
+// approach was shared by the groups' masses, 11 of the 18 cases at 60 Hz gained energy, all on
+// slabs of 5 or 2.5 cm cells (the block rose up to 15 m, at up to 27 m/s): the slab's vertices
+// were pushed a quarter of the block's approach into the floor, and the exchange handed the
+// slab's 4.4 N s back to both as a bounce. At 30 Hz the block, put 2 mm above the slab, fell 11
+// mm in its first step, found no pair (its prediction, at rest, leaves gravity out) and went
+// through the slab before pairs were kept from |g . n| dt^2 in front of a face.
+TEST(BodyContact, BlockDroppedOnASlabBodyGainsNoEnergy) {
   for (const double E : {1e6, 1e7, 1e8})
-    for (const int rate : {60, 120})
+    for (const int rate : {30, 60, 120})
       for (const int cells : {6, 12, 24})
         for (const bool damped : {false, true}) {
           const Drop d = dropOnSlab(E, rate, cells, damped);
           EXPECT_LT(d.rise, 0.5e-3);
-          EXPECT_LT(d.speed, 0.05);
+          if (rate >= 60) {
+            EXPECT_LT(d.speed, 0.05);
+          }
         }
+}
+
+// Fails: at 30 Hz it also comes to rest, except on the slab of 2.5 cm cells (the block's own)
+// damped and with friction, at E 1e7 and 1e8, where block and slab chatter at 0.057 and 0.065
+// m/s after 0.5 s, bouncing by about 1 mm a step without gaining energy.
+TEST(BodyContact, DISABLED_BlockDroppedOnASlabBodyRestsAt30Hz) {
+  for (const double E : {1e6, 1e7, 1e8})
+    for (const int cells : {6, 12, 24})
+      for (const bool damped : {false, true})
+        EXPECT_LT(dropOnSlab(E, 30, cells, damped).speed, 0.05);
 }
 
 // Fails, the same cause: a block set sliding at 1 and 1.5 m/s off the coarse slab's end, mu 0.1,

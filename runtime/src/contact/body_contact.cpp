@@ -142,8 +142,9 @@ void ContactSurface::update(const FemModel& model, const int32_t* nodeFragment,
 }
 
 int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyView> bodies,
-                          double dt, double stiffness, double slipEps) {
+                          double dt, Vec3 gravity, double stiffness, double slipEps) {
   const size_t slots = bodies.size();
+  const double fall = dt * dt * norm(gravity);  // the boxes' reach beyond the predictions
   m_bodies.resize(slots);
   for (Slot& s : m_bodies) {
     s.active = false;
@@ -208,8 +209,9 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     segmentedReduce<MinOp>(exec, seg, out.path.data(), V, 3, m_partials.data(), m_lower.data());
     segmentedReduce<MaxOp>(exec, seg, out.path.data() + 3 * int64_t(V), V, 3, m_partials.data(),
                            m_upper.data());
-    exec.run(seg.count, 256,
-             ContactGroupBoxStage{t, m_lower.data(), m_upper.data(), seg.count, m_box.data()});
+    exec.run(
+        seg.count, 256,
+        ContactGroupBoxStage{t, m_lower.data(), m_upper.data(), seg.count, fall, m_box.data()});
   }
   // Which groups' boxes meet, as each group's list of the others.
   m_nearStart.resize(size_t(groups) + 1);
@@ -229,7 +231,7 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
   m_faceExtent.resize(size_t(faces));
   exec.run(faces, 1024,
            ContactFaceStage{m_table.data(), m_faceBase.data(), int32_t(slots), m_nearStart.data(),
-                            dt, m_faceSlot.data(), m_faceNear.data(), m_faceNearCount.data(),
+                            dt, fall, m_faceSlot.data(), m_faceNear.data(), m_faceNearCount.data(),
                             m_faceBox.data(), m_faceExtent.data()});
   const double nearFaces = exec.sum(m_faceNearCount.data(), faces);
   if (!(nearFaces > 0)) return 0;
@@ -255,6 +257,7 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
   scene.groupMass = m_groupMass.data();
   scene.grid = grid;
   scene.dt = dt;
+  scene.fall = (dt * dt) * gravity;
   scene.stiffness = stiffness;
   // Every slot's vertex normals first: a pair's stiffness reads the areas of the other side's
   // face nodes.

@@ -24,7 +24,9 @@
 // - Narrow phase, per (vertex, face): the point of the face nearest the vertex's predicted
 //   position x~ = x_n + dt v_n, with the face also at its predicted position. The pair is kept
 //   when the vertex lies over the face (its offset from the nearest point is along the normal,
-//   within a tenth of the face), x~ comes within the thickness of it, the vertex was not more
+//   within a tenth of the face), x~ comes within the thickness of it (between bodies, plus
+//   |dt^2 g . n|, how far gravity alone moves a free side against a supported one, which the
+//   predictions leave out), the vertex was not more
 //   than two thicknesses behind its plane at x_n (it came in through another face, or this is
 //   the far side of the other body), and the vertex's own surface faces the face (a rim resting
 //   on another body's top face is not pushed out through its side). A self pair (both sides in
@@ -52,19 +54,23 @@
 //   fall behind the vertex's prediction, and pushed every step. The same for edge-edge pairs.
 //   (Between bodies that broke resting stacks; not understood yet, docs/validation.md.) When both
 //   are predicted to overlap by D, the plane is moved back to where they would meet in an inelastic
-//   impact of the vertex's node mass m_v with the face's m_t = sum w_i m_i, D m_v / (m_v + m_t) (at
-//   most one thickness): each vertex of either side gets its own plane, so two bodies meeting stop
-//   at one common plane instead of each at the other's predicted face. The penalty is a collider's
-//   (k d^2 / 2, PSD Hessian k n n^T on the node's diagonal block) with IPC friction on the sliding
-//   relative to the face, so bodies still step apart and in parallel and the sparse pattern is
-//   unchanged. A plane at the other side's predicted face lies ahead of x_n when both move
-//   together, and Newton starts near x_n: where it acts the penalty is linear, so that first step
-//   solved it as a two-sided spring that pulled the node back onto the plane. A step that ends with
-//   a node in front of a self pair's half-space it was behind at the linearisation goes on to
-//   convergence (Integrator::releasedBodyContact); in free fall beside another piece that costs
-//   Newton iterations (up to 13 where 1 did). Between bodies it is not done:
-//   TwoBlocksComeToRestStacked's steps then reported not ok. k is a collider's 100 / dt^2 per unit
-//   mass times the contact area times the denser material and the coarser cell: per unit area
+//   impact (at most one thickness): each vertex of either side gets its own plane, so two bodies
+//   meeting stop at one common plane instead of each at the other's predicted face. The overlap
+//   at x_n, D_0, is shared by node masses, D_0 m_v / (m_v + m_t) with m_t = sum w_i m_i (both
+//   sides of a resting stack then carry the same load); between bodies what the step's motion
+//   adds, D - D_0, by the masses of the two groups, as in an impact of the bodies (a block
+//   dropped onto a slab on the floor: by node masses the slab's vertices were pushed a quarter
+//   of the block's approach into the floor, and the exchange turned that into a bounce). The
+//   penalty is a collider's (k d^2 / 2, PSD Hessian k n n^T on the node's diagonal block) with IPC
+//   friction on the sliding relative to the face, so bodies still step apart and in parallel and
+//   the sparse pattern is unchanged. A plane at the other side's predicted face lies ahead of x_n
+//   when both move together, and Newton starts near x_n: where it acts the penalty is linear, so
+//   that first step solved it as a two-sided spring that pulled the node back onto the plane. A
+//   step that ends with a node in front of a self pair's half-space it was behind at the
+//   linearisation goes on to convergence (Integrator::releasedBodyContact); in free fall beside
+//   another piece that costs Newton iterations (up to 13 where 1 did). Between bodies it is not
+//   done: TwoBlocksComeToRestStacked's steps then reported not ok. k is a collider's 100 / dt^2 per
+//   unit mass times the contact area times the denser material and the coarser cell: per unit area
 //   and equal on both sides of a pair, so that at rest both sides carry the same load. The
 //   area is the vertex's, or where smaller the other surface's at the point it meets (the face
 //   nodes' areas, weighted): a coarse vertex under a finer surface presses only on that.
@@ -219,10 +225,11 @@ struct ContactBodyView {
 class BodyContact {
  public:
   /// Finds the contact pairs of the substep dt among `bodies` (one entry per slot; a null
-  /// model: the slot takes no part) and fills each body's half-spaces; `stiffness` per unit
-  /// mass [1/s^2] as a collider's, slipEps friction's smoothing length. Returns the pair count.
+  /// model: the slot takes no part) and fills each body's half-spaces; `gravity` the world's
+  /// [m/s^2], `stiffness` per unit mass [1/s^2] as a collider's, slipEps friction's smoothing
+  /// length. Returns the pair count.
   int64_t find(const CpuExecutor& exec, std::span<const ContactBodyView> bodies, double dt,
-               double stiffness, double slipEps);
+               Vec3 gravity, double stiffness, double slipEps);
   /// The half-spaces of slot si for StepContext::bodyContacts (start null: none).
   HalfSpaceContacts halfSpaces(size_t si) const;
   /// Buffer for slot si's half-space impulses (Integrator::bodyContactImpulses), 3 each.

@@ -210,12 +210,14 @@ struct ContactPathBoxStage {
   }
 };
 
-/// The box of fragment f's group from its per-axis minima and maxima, grown by the thickness.
+/// The box of fragment f's group from its per-axis minima and maxima, grown by the thickness
+/// and by how far gravity alone moves a node in the step.
 struct ContactGroupBoxStage {
   ContactBody body;
   const double* lower = nullptr;  ///< 3 arrays of fragments
   const double* upper = nullptr;
   int32_t fragments = 0;
+  double fall = 0;        ///< |g| dt^2 (ContactScene::fall)
   double* box = nullptr;  ///< 6 per group
 
   GF_HD void operator()(int32_t f) const {
@@ -224,7 +226,7 @@ struct ContactGroupBoxStage {
       b[k] = lower[int64_t(k) * fragments + f];
       b[3 + k] = upper[int64_t(k) * fragments + f];
     }
-    boxPad(b, body.thickness());
+    boxPad(b, body.thickness() + fall);
   }
 };
 
@@ -251,7 +253,7 @@ struct ContactNearStage {
 };
 
 /// Global face gf (the faces of every slot one after another): its slot, whether its group
-/// meets another, its box over both positions grown by the thickness and (near faces only)
+/// meets another, its box over both positions grown by the thickness and the fall (near faces only)
 /// its largest extent, the hash's cell size's measure.
 struct ContactFaceStage {
   const ContactBody* bodies = nullptr;
@@ -259,6 +261,7 @@ struct ContactFaceStage {
   int32_t slots = 0;
   const int32_t* nearStart = nullptr;  ///< groups + 1
   double dt = 0;
+  double fall = 0;  ///< |g| dt^2 (ContactScene::fall)
   int32_t* faceSlot = nullptr;
   uint8_t* near = nullptr;
   double* nearCount = nullptr;  ///< 1 or 0, summed
@@ -281,7 +284,7 @@ struct ContactFaceStage {
       boxGrow(bx, p);
       boxGrow(bx, p + dt * contactLoad3(b.v, face[k]));
     }
-    boxPad(bx, b.thickness());
+    boxPad(bx, b.thickness() + fall);
     double e = 0;
     for (int k = 0; k < 3; ++k) e = bx[3 + k] - bx[k] > e ? bx[3 + k] - bx[k] : e;
     extent[gf] = isNear ? e : 0.0;
@@ -402,6 +405,11 @@ struct ContactScene {
   const double* groupMass = nullptr;
   ContactGrid grid;
   double dt = 0, stiffness = 0;
+  /// dt^2 g: how far gravity alone moves a free node against a supported one in the step. The
+  /// predictions x_n + dt v_n leave it out (a block put at rest 2 mm above a slab falls 11 mm in
+  /// a step at 30 Hz, and was inside the slab before any pair was found), so a pair between
+  /// bodies is also kept from |fall . n| in front of its face.
+  Vec3 fall;
 
   GF_HD const int32_t* face(int32_t gf, const ContactBody*& owner) const {
     owner = &bodies[faceSlot[gf]];
@@ -459,7 +467,8 @@ struct ContactVertexPairStage {
       boxGrow(vbox, pv);
       // A body of several fragments also looks for self pairs, from further away.
       const double selfReach = kContactSelfReach * b.cellSize;
-      const double reach = b.fragment && selfReach > th ? selfReach : th;
+      const double fallReach = th + norm(scene.fall);
+      const double reach = b.fragment && selfReach > fallReach ? selfReach : fallReach;
       boxPad(vbox, reach);
       auto visit = [&](int32_t cf) {
         if (!boxOverlap(vbox, scene.grid.faceBox + 6 * int64_t(cf))) return;
@@ -492,7 +501,7 @@ struct ContactVertexPairStage {
         const double s = dot(r, nq);
         const Vec3 cp = w.x * p[0] + w.y * p[1] + w.z * p[2];
         const double s0 = dot(xv - cp, np);
-        const double keep = o == &b ? reach : th;
+        const double keep = o == &b ? reach : th + fabs(dot(scene.fall, nq));
         if (s > keep || norm(r - s * nq) > kContactLateral * L) return;
         if (s0 < -kContactBehind * th) return;
         // Surfaces in contact face each other: a vertex on the rim of a face's side (a corner
@@ -549,10 +558,24 @@ struct ContactVertexPairStage {
         }
         const double mv = b.nodeMass[n];
         const double share = kinematic || !(mv + mt > 0) ? 0.0 : mv / (mv + mt);
+        const double depth = si < 0 ? -si : 0.0;
+        // Between bodies, what the two sides' motion adds over the step to the overlap they
+        // start with is shared as in an impact of their groups (the bodies' masses): a light
+        // block falling onto a slab on the floor stops at the slab's surface, where shared by
+        // node masses the slab's vertices were pushed a quarter of the block's approach into
+        // the floor, pressing it with 33 times the block's own impulse, which the exchange then
+        // handed back to both as a bounce. The overlap at x_n (a resting one) keeps the node
+        // masses' share, so both sides of a resting stack carry the same load.
+        double give = depth * share;
+        if (o != &b) {
+          const double start0 = s0 < 0 ? (-s0 < depth ? -s0 : depth) : 0.0;
+          const double gv = scene.groupMass[g], gt = scene.groupMass[og];
+          const double groupShare = kinematic || !(gv + gt > 0) ? 0.0 : gv / (gv + gt);
+          give = start0 * share + (depth - start0) * groupShare;
+        }
         // Not deeper than the thickness: the face gives way only through its own body's step,
         // and a vertex left deeper behind it would be dropped next step (kContactBehind).
-        const double depth = si < 0 ? -si : 0.0;
-        const double giveWay = depth * share < o->thickness() ? depth * share : o->thickness();
+        const double giveWay = give < o->thickness() ? give : o->thickness();
         // The face where it will be when it comes on towards the vertex (so it pushes in
         // time), where it is when it moves away (a lagged plane that ran ahead of a receding
         // face would let the two sides take turns pushing, step by step).

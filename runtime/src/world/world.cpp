@@ -209,8 +209,8 @@ int64_t World::Impl::findContacts(const detail::CpuExecutor& exec, double h) {
     view.surface = b->contactSurface.get();
     contactStates[si] = &b->state;
   }
-  return bodyContact.find(exec, contactViews, h, detail::kAutoContactStiffnessDt2 / (h * h),
-                          kFrictionSlipSpeed * h);
+  return bodyContact.find(exec, contactViews, h, {def.gravity.x, def.gravity.y, def.gravity.z},
+                          detail::kAutoContactStiffnessDt2 / (h * h), kFrictionSlipSpeed * h);
 }
 
 void World::Impl::stepBodies(const detail::StepContext& ctx) {
@@ -284,8 +284,8 @@ int World::Impl::contactSweeps(const detail::CpuExecutor& exec, const detail::St
       view.iterate = sweepIterate[si].data();
     }
     const auto tc = detail::Clock::now();
-    bodyContact.find(exec, contactViews, h, detail::kAutoContactStiffnessDt2 / (h * h),
-                     kFrictionSlipSpeed * h);
+    bodyContact.find(exec, contactViews, h, {def.gravity.x, def.gravity.y, def.gravity.z},
+                     detail::kAutoContactStiffnessDt2 / (h * h), kFrictionSlipSpeed * h);
     timings.contactMs += detail::msSince(tc);
     // Only the bodies whose half-spaces may have changed step again; the others' steps would
     // repeat the bits they have.
