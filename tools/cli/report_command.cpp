@@ -46,7 +46,7 @@ constexpr const char* kReportUsage =
     "             size-chosen default), as --cycles V-cycles alone (default 1,2,4) and as the\n"
     "             preconditioner of CG to each relative residual of --tolerances (default\n"
     "             1e-6,1e-4,1e-3); with --smoothed 1 (the default) also with the smoothed\n"
-    "             prolongation, as CG's preconditioner to 1e-6\n"
+    "             prolongation, as CG's preconditioner to the default tolerance (1e-4)\n"
     "Columns: ms per frame (wall clock of World::step) and CPU ms per frame (process CPU time,\n"
     "robust to other load; the plot's x axis), relative displacement error\n"
     "|x - x_ref| / |x_ref - X| after N frames (and the same against the direct run: the linear\n"
@@ -342,14 +342,15 @@ std::vector<SolverConfig> buildConfigs(const scene::Scene& sc, const Options& op
       m.multigrid = s;
       c.push_back(m);
     }
-    // The tolerance 1e-6 keeps the plain label; the smoothed prolongation solves to 1e-6.
+    // The solver's default tolerance keeps the plain label, and the smoothed prolongation
+    // solves to it.
     auto mgcg = [&](double tolerance, bool smoothed) {
       SolverConfig m;
       m.family = "mg-cg";
       char tol[32];
       std::snprintf(tol, sizeof tol, " %g", tolerance);
       m.label = levelsText(levels) + " cg" + (smoothed ? " smoothed" : "") +
-                (tolerance == 1e-6 ? "" : tol);
+                (tolerance == SolverSettings{}.linearTolerance ? "" : tol);
       m.kind = LinearSolverKind::Multigrid;
       MultigridSettings s;
       s.levels = levels;
@@ -361,7 +362,7 @@ std::vector<SolverConfig> buildConfigs(const scene::Scene& sc, const Options& op
       c.push_back(m);
     };
     for (double tolerance : opt.tolerances) mgcg(tolerance, false);
-    if (opt.smoothed) mgcg(1e-6, true);
+    if (opt.smoothed) mgcg(SolverSettings{}.linearTolerance, true);
   }
   return c;
 }
