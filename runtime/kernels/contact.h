@@ -521,10 +521,15 @@ struct HalfSpaceContacts {
   /// face nodes' motion from there, an action and reaction inside the body (slide()).
   const double* Xn = nullptr;
   double selfSkin = 0;  ///< [m] a self vertex-face pair's plane lies this far in front of its face
-  /// A copy whose moving faces are read at positions x.
+  /// Per half-space, its own skin in place of selfSkin (null: selfSkin for all).
+  const double* skin = nullptr;
+  /// Coupled contact (WorldDef::coupledContact): node indices (owner, faceNode, reaction) are
+  /// the joint ones of all coupled bodies, X and Xn their joint positions, which at() keeps.
+  bool joint = false;
+  /// A copy whose moving faces are read at positions x (unless joint).
   GF_HD HalfSpaceContacts at(const double* x) const {
     HalfSpaceContacts h = *this;
-    h.X = x;
+    if (!joint) h.X = x;
     return h;
   }
   GF_HD bool moving(int32_t k) const { return faceNode && faceNode[3 * int64_t(k)] >= 0; }
@@ -579,7 +584,7 @@ struct HalfSpaceContacts {
         const double b1 = dot(cross(r, e2), a) / a2, b2 = dot(cross(e1, r), a) / a2;
         n = (1.0 / sqrt(a2)) * a;
         w = Vec3{1 - b1 - b2, b1, b2};
-        return dot(x1 - x, n) + selfSkin;
+        return dot(x1 - x, n) + (skin ? skin[k] : selfSkin);
       }
     }
     w = weight[k];

@@ -229,6 +229,7 @@ struct StackCase {
   double friction = -1;  // every box's BodyDef::friction; negative: the default
   double perturb = 0;    // the top box's start moved sideways by this fraction of its offset
   int sweeps = 1;        // WorldDef::contactSweeps
+  bool coupled = false;  // WorldDef::coupledContact
   // Every box with fracture and plasticity on, neither ever reached: its steps must take the
   // sweeps a plain box's take (before, such a body kept one sweep).
   bool fractureAndPlasticity = false;
@@ -248,6 +249,7 @@ struct StackResult {
 StackResult runStack(const StackCase& c) {
   WorldDef wd = groundWorld();
   wd.contactSweeps = c.sweeps;
+  wd.coupledContact = c.coupled;
   World world(wd);
   std::vector<BodyDef> defs(c.boxes.size());
   std::vector<BodyId> ids;
@@ -475,6 +477,30 @@ INSTANTIATE_TEST_SUITE_P(Swept, BodyContactStack, ::testing::ValuesIn(sweptStack
 INSTANTIATE_TEST_SUITE_P(DISABLED_SweptFailing, BodyContactStack,
                          ::testing::ValuesIn(sweptFailingStackCases()), stackName);
 
+// Every stack above with the touching boxes stepped as one system (WorldDef::coupledContact):
+// each pair acts on both sides, so nothing is evened out after the step.
+std::vector<StackCase> coupledStackCases() {
+  std::vector<StackCase> out;
+  static std::deque<std::string> names;  // StackCase holds a plain pointer into it
+  const std::pair<const char*, std::vector<StackCase>> families[] = {
+      {"", stackCases()},
+      {"", failingStackCases()},
+      {"friction_", perturbedStackCases(-1)},
+      {"frictionless_", perturbedStackCases(0.0)}};
+  for (const auto& [prefix, family] : families)
+    for (StackCase c : family) {
+      // The 120 Hz ones take 10-25 s each: with GF_FULL_VALIDATION=1 only.
+      if (c.dt < 1.0 / 100 && !std::getenv("GF_FULL_VALIDATION")) continue;
+      names.push_back(std::string(prefix) + c.name);
+      c.name = names.back().c_str();
+      c.coupled = true;
+      out.push_back(c);
+    }
+  return out;
+}
+INSTANTIATE_TEST_SUITE_P(Coupled, BodyContactStack, ::testing::ValuesIn(coupledStackCases()),
+                         stackName);
+
 // Without friction, a block set sliding over a slab that rests on a frictionless floor keeps its
 // velocity and the slab stays still: only vertical half-spaces act. Slab top nodes under the
 // block's bottom face must not also be pushed out through its leading face (their surface
@@ -641,13 +667,15 @@ struct HeadOn {
   World world;
   BodyId a, b;
 
-  static WorldDef def(int sweeps) {
+  static WorldDef def(int sweeps, bool coupled) {
     WorldDef wd{glm::vec3(0, 0, 0), Backend::Cpu, nullptr, 1, {}};
     wd.contactSweeps = sweeps;
+    wd.coupledContact = coupled;
     return wd;
   }
-  HeadOn(int sweeps, double speed, int cells, const FractureSettings& fracture)
-      : world(def(sweeps)) {
+  HeadOn(int sweeps, double speed, int cells, const FractureSettings& fracture,
+         bool coupled = false)
+      : world(def(sweeps, coupled)) {
     left.mesh = movedBox(0.2, 0.2, 0.2, 4, 4, 4, {0, 0, 0});
     right.mesh = movedBox(0.3, 0.3, 0.3, cells, cells, cells, {0.22, -0.04, -0.05});
     left.initialVelocity = glm::vec3(float(speed), 0, 0);
@@ -677,8 +705,8 @@ struct HeadOn {
 // The head-on collision: the total linear momentum stays what it was to 1e-6 of its scale, the
 // mechanical energy never rises, the bodies part again in the right order, and momentum
 // changed hands.
-void headOnCollision(int sweeps) {
-  HeadOn h(sweeps, 2, 5, FractureSettings{});
+void headOnCollision(int sweeps, bool coupled = false) {
+  HeadOn h(sweeps, 2, 5, FractureSettings{}, coupled);
   const glm::dvec3 p0 = h.momentum();
   const double scale = h.momentumScale(), e0 = h.energy();
   double worstMomentum = 0, maxEnergy = e0;
@@ -692,9 +720,10 @@ void headOnCollision(int sweeps) {
   const double va = h.world.stats(h.a).linearMomentum.x / h.world.stats(h.a).mass;
   const double vb = h.world.stats(h.b).linearMomentum.x / h.world.stats(h.b).mass;
   std::printf(
-      "head-on, %d sweeps: %lld pairs; momentum error %.3g of |p1| + |p2|; energy %.4f J -> max "
-      "%.4f J, end %.4f J; velocities 2, -1 -> %.3f, %.3f m/s\n",
-      sweeps, (long long)pairs, worstMomentum, e0, maxEnergy, h.energy(), va, vb);
+      "head-on, %d sweeps%s: %lld pairs; momentum error %.3g of |p1| + |p2|; energy %.4f J -> "
+      "max %.4f J, end %.4f J; velocities 2, -1 -> %.3f, %.3f m/s\n",
+      sweeps, coupled ? ", coupled" : "", (long long)pairs, worstMomentum, e0, maxEnergy,
+      h.energy(), va, vb);
   EXPECT_GT(pairs, 0);
   EXPECT_LT(worstMomentum, 1e-6);
   EXPECT_LE(maxEnergy, e0 * (1 + 1e-9));
@@ -706,6 +735,10 @@ TEST(BodyContact, HeadOnCollisionConservesMomentumAndLosesEnergy) { headOnCollis
 // With sweeps the last sweep's half-spaces are against the others' previous iterate, not an
 // exact action-reaction pair either: the exchange must still make the momentum exact.
 TEST(BodyContact, HeadOnCollisionConservesMomentumAndLosesEnergyWithSweeps) { headOnCollision(4); }
+// Coupled, the pairs are exact action and reaction; what momentum is lost is Newton's residual.
+TEST(BodyContact, CoupledHeadOnCollisionConservesMomentumAndLosesEnergy) {
+  headOnCollision(1, true);
+}
 
 // A body that breaks while it touches another: the step relabels its fragments after the pairs
 // were found, and the momentum exchange must still sum and share out over the groups the pairs
@@ -1646,9 +1679,10 @@ TEST(BodyContact, SameBitsForAnyThreadCountWithSweeps) {
 // lists and the exchange's clusters (three of them) all run with several slots and groups.
 // `plastic`: the lower block of the first stack yields where the upper one lands on it.
 std::vector<double> manyGroupsState(JobSystem* jobs, int64_t* pairsOut, int32_t* fragmentsOut,
-                                    int sweeps = 1, bool plastic = false) {
+                                    int sweeps = 1, bool plastic = false, bool coupled = false) {
   WorldDef wd{glm::vec3(0, -9.81f, 0), Backend::Cpu, jobs, 1, {}};
   wd.contactSweeps = sweeps;
+  wd.coupledContact = coupled;
   Collider ground;
   ground.friction = 0.5;
   wd.colliders.push_back(ground);
@@ -1710,16 +1744,17 @@ std::vector<double> manyGroupsState(JobSystem* jobs, int64_t* pairsOut, int32_t*
 }
 
 // The many-groups scene on 1, 2 and 4 threads gives the same pairs and bits; returns the state.
-std::vector<double> expectSameBitsForAnyThreadCount(int sweeps, bool plastic) {
+std::vector<double> expectSameBitsForAnyThreadCount(int sweeps, bool plastic,
+                                                    bool coupled = false) {
   ThreadPoolJobSystem pool2(2), pool4(4);
   int64_t pairs[3] = {};
   int32_t fragments[3] = {};
   const std::vector<double> serial =
-      manyGroupsState(nullptr, &pairs[0], &fragments[0], sweeps, plastic);
+      manyGroupsState(nullptr, &pairs[0], &fragments[0], sweeps, plastic, coupled);
   const std::vector<double> two =
-      manyGroupsState(&pool2, &pairs[1], &fragments[1], sweeps, plastic);
+      manyGroupsState(&pool2, &pairs[1], &fragments[1], sweeps, plastic, coupled);
   const std::vector<double> four =
-      manyGroupsState(&pool4, &pairs[2], &fragments[2], sweeps, plastic);
+      manyGroupsState(&pool4, &pairs[2], &fragments[2], sweeps, plastic, coupled);
   std::printf("many groups, %d sweep(s): %lld pairs, %d fragments of the cut body\n", sweeps,
               (long long)pairs[0], fragments[0]);
   EXPECT_GT(pairs[0], 0);
@@ -1737,6 +1772,13 @@ std::vector<double> expectSameBitsForAnyThreadCount(int sweeps, bool plastic) {
 
 TEST(BodyContact, SameBitsForAnyThreadCountWithManyBodiesAndFragments) {
   expectSameBitsForAnyThreadCount(1, false);
+}
+
+// Coupled contact over the same scene (two clusters of stacked blocks, one of them plastic, and
+// the cut body's pieces): the joint numbering, the clusters' solves and their sums are in slot
+// order, so any thread count gives the same bits.
+TEST(BodyContact, SameBitsForAnyThreadCountWithCoupledContact) {
+  expectSameBitsForAnyThreadCount(1, true, true);
 }
 
 // The same with four sweeps and a block that yields: the cut body and the plastic block are

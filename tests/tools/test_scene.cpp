@@ -72,6 +72,7 @@ TEST(Scene, FullSceneLoadsEveryValue) {
   EXPECT_EQ(s.world.gravity, glm::vec3(0, -3.5f, 1));
   EXPECT_EQ(s.world.backend, Backend::Cpu);
   EXPECT_EQ(s.world.contactSweeps, 4);
+  EXPECT_TRUE(s.world.coupledContact);
   EXPECT_EQ(s.world.jobs, nullptr);
 
   // Colliders: the plane normal is normalised; the others keep their values.
@@ -1027,6 +1028,7 @@ const std::map<std::string, std::vector<std::string>> kBadScenes = {
     {"wrong_type_threads.json", {": threads: expected an integer in [0, 1024], got 1.5"}},
     {"wrong_type_gravity.json", {": gravity: expected an array of 3 numbers, got [0,-9.81]"}},
     {"bad_contact_sweeps.json", {": contact_sweeps: must be in [1, 64], got 0"}},
+    {"bad_coupled_contact.json", {": coupled_contact: expected true or false, got 1"}},
     {"wrong_type_bodies.json", {": bodies: expected an array of bodies, got an object"}},
     {"unknown_key_top.json", {": frmaes: unknown key (did you mean \"frames\"?)"}},
     {"unknown_key_material.json", {": bodies[0].material.youngs: unknown key", "E, damping"}},

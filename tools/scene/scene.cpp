@@ -109,7 +109,8 @@ constexpr FieldName kBodyNames[] = {
 constexpr FieldName kWorldNames[] = {{"WorldDef.substeps", "substeps"},
                                      {"WorldDef.gravity", "gravity"},
                                      {"WorldDef.backend", "backend"},
-                                     {"WorldDef.contactSweeps", "contact_sweeps"}};
+                                     {"WorldDef.contactSweeps", "contact_sweeps"},
+                                     {"WorldDef.coupledContact", "coupled_contact"}};
 
 // ---- scene pieces -------------------------------------------------------------------------
 
@@ -1531,7 +1532,8 @@ Collider readCollider(const json& v, const std::string& path) {
 Scene readScene(const json& root, const std::string& source, const std::string& baseDir) {
   ObjReader o(root, "");
   o.keys({"name", "description", "dt", "frames", "substeps", "threads", "gravity", "backend",
-          "contact_sweeps", "colliders", "bodies", "cuts", "strokes", "rigid_bodies", "camera"});
+          "contact_sweeps", "coupled_contact", "colliders", "bodies", "cuts", "strokes",
+          "rigid_bodies", "camera"});
   Scene scene;
   scene.source = source;
   scene.name = std::filesystem::path(source).stem().string();
@@ -1554,6 +1556,8 @@ Scene readScene(const json& root, const std::string& source, const std::string& 
   }
   if (const json* v = o.find("contact_sweeps"))
     scene.world.contactSweeps = readInteger(*v, o.at("contact_sweeps"));
+  if (const json* v = o.find("coupled_contact"))
+    scene.world.coupledContact = readBool(*v, o.at("coupled_contact"));
   if (const json* v = o.find("colliders")) {
     readArray(*v, o.at("colliders"), 0, "colliders");
     for (size_t i = 0; i < v->size(); ++i) {

@@ -487,6 +487,12 @@ struct WorldDef {
   /// A body's fracture is judged in the first sweep only and its plastic flow taken after the
   /// last. docs/design.md, Contact.
   int contactSweeps = 1;
+  /// Body contact: each cluster of bodies that touch is stepped as one system, Newton on the
+  /// sum of their potentials with every pair between them acting on both sides (exact action
+  /// and reaction, re-linearised at each iterate, as the pieces of one body are), instead of
+  /// each body against the others' lagged planes with their momenta evened out after. Such a
+  /// step iterates to convergence. contactSweeps is not used then. docs/design.md, Contact.
+  bool coupledContact = false;
   /// Empty when valid; otherwise names the field ("WorldDef.colliders[2].stiffness: ...") and
   /// the reason.
   Result<void> check() const;

@@ -142,8 +142,11 @@ void ContactSurface::update(const FemModel& model, const int32_t* nodeFragment,
 }
 
 int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyView> bodies,
-                          double dt, Vec3 gravity, double stiffness, double slipEps) {
+                          double dt, Vec3 gravity, double stiffness, double slipEps, bool coupled) {
   const size_t slots = bodies.size();
+  m_coupled = coupled;
+  m_clusters.clear();
+  m_jointBase.assign(slots, -1);
   const double fall = dt * dt * norm(gravity);  // the boxes' reach beyond the predictions
   m_bodies.resize(slots);
   for (Slot& s : m_bodies) {
@@ -156,7 +159,7 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
   // global faces: every slot's contact faces one after another.
   m_table.assign(slots, {});
   m_faceBase.assign(slots, 0);
-  int32_t groups = 0, faces = 0;
+  int32_t groups = 0, faces = 0, jointNodes = 0;
   for (size_t si = 0; si < slots; ++si) {
     m_faceBase[si] = faces;
     const ContactBodyView& b = bodies[si];
@@ -185,6 +188,10 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     t.faceCount = int32_t(b.surface->faces().size() / 3);
     t.vertexCount = int32_t(b.surface->vertices().size());
     t.nodeCount = b.model->nodeCount;
+    if (coupled) {
+      t.jointBase = jointNodes;
+      jointNodes += t.nodeCount;
+    }
     groups += b.fragmentCount;
     slot.groupEnd = groups;
     faces += t.faceCount;
@@ -338,6 +345,10 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     out.weight.resize(size_t(total));
     nl.faceNode = out.faceNode.data();
     nl.weight = out.weight.data();
+    if (coupled) {
+      out.skin.resize(size_t(total));
+      nl.skin = out.skin.data();
+    }
     const std::vector<double>& load = b.state->contactLoad;
     nl.load = load.size() == size_t(N) ? load.data() : nullptr;
     exec.run(N, 1024, nl);
@@ -352,10 +363,12 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
         out.owner[size_t(k)] = n;
         if (out.faceNode[3 * size_t(k)] < 0) continue;
         out.moving = true;
-        for (int c = 0; c < 3; ++c)
-          ++out.reactionStart[size_t(out.faceNode[3 * size_t(k) + c]) + 1];
+        // Coupled: the face nodes are joint ones, listed over all bodies (joinSlots).
+        if (!coupled)
+          for (int c = 0; c < 3; ++c)
+            ++out.reactionStart[size_t(out.faceNode[3 * size_t(k) + c]) + 1];
       }
-    if (out.moving) {
+    if (out.moving && !coupled) {
       for (int32_t n = 0; n < N; ++n)
         out.reactionStart[size_t(n) + 1] += out.reactionStart[size_t(n)];
       out.reaction.resize(size_t(out.reactionStart[size_t(N)]));
@@ -368,10 +381,167 @@ int64_t BodyContact::find(const CpuExecutor& exec, std::span<const ContactBodyVi
     }
     m_pairCount += total;
   }
+  if (coupled && m_pairCount > 0) joinSlots();
   return m_pairCount;
 }
 
+void BodyContact::joinSlots() {
+  const size_t slots = m_table.size();
+  // The slot of a node in find()'s joint numbering (the slots' nodes one after another).
+  std::vector<int32_t> firstNode, slotOfFirst;
+  for (size_t si = 0; si < slots; ++si)
+    if (m_table[si].jointBase >= 0) {
+      firstNode.push_back(m_table[si].jointBase);
+      slotOfFirst.push_back(int32_t(si));
+    }
+  auto slotOf = [&](int32_t node) {
+    const auto it = std::upper_bound(firstNode.begin(), firstNode.end(), node);
+    return size_t(slotOfFirst[size_t(it - firstNode.begin()) - 1]);
+  };
+  // Slots joined by a pair, by union-find over the pairs (serial, O(pairs), in slot order).
+  std::vector<size_t> parent(slots);
+  for (size_t si = 0; si < slots; ++si) parent[si] = si;
+  auto root = [&](size_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  std::vector<uint8_t> touched(slots, 0);
+  for (size_t si = 0; si < slots; ++si) {
+    const Slot& s = m_bodies[si];
+    if (!s.active) continue;
+    touched[si] = 1;
+    for (size_t k = 0; k < s.owner.size(); ++k)
+      if (s.faceNode[3 * k] >= 0) {
+        const size_t sj = slotOf(s.faceNode[3 * k]);
+        touched[sj] = 1;
+        const size_t a = root(si), b = root(sj);
+        parent[std::max(a, b)] = std::min(a, b);
+      }
+  }
+  // Clusters in the order of their least slot, each a run of joint nodes.
+  std::vector<int32_t> clusterOf(slots, -1);
+  int32_t nodes = 0;
+  for (size_t si = 0; si < slots; ++si) {
+    if (!touched[si]) continue;
+    const size_t r = root(si);
+    if (clusterOf[r] < 0) {
+      clusterOf[r] = int32_t(m_clusters.size());
+      m_clusters.emplace_back();
+    }
+    m_clusters[size_t(clusterOf[r])].slots.push_back(uint32_t(si));
+  }
+  for (Cluster& c : m_clusters) {
+    c.nodeBegin = nodes;
+    for (uint32_t si : c.slots) {
+      m_jointBase[si] = nodes;
+      nodes += m_table[si].nodeCount;
+    }
+    c.nodeEnd = nodes;
+  }
+  auto joint = [&](int32_t node) {
+    const size_t sj = slotOf(node);
+    return m_jointBase[sj] + (node - m_table[sj].jointBase);
+  };
+  // Each node's half-spaces in the new numbering: a cluster's bodies' lists one after another.
+  m_jointStart.assign(size_t(nodes) + 1, 0);
+  int32_t pairs = 0;
+  for (Cluster& c : m_clusters) {
+    c.pairBegin = pairs;
+    for (uint32_t si : c.slots) {
+      const Slot& s = m_bodies[si];
+      for (int32_t n = 0; n < m_table[si].nodeCount; ++n) {
+        m_jointStart[size_t(m_jointBase[si] + n)] = pairs;
+        if (s.active) pairs += s.start[size_t(n) + 1] - s.start[size_t(n)];
+      }
+    }
+    c.pairEnd = pairs;
+  }
+  m_jointStart[size_t(nodes)] = pairs;
+  const size_t K = size_t(pairs);
+  m_jointPoint.resize(K);
+  m_jointNormal.resize(K);
+  m_jointFaceMotion.resize(K);
+  m_jointWeight.resize(K);
+  m_jointPartner.resize(K);
+  m_jointMuLambda.resize(K);
+  m_jointStiffness.resize(K);
+  m_jointSkin.resize(K);
+  m_jointOwner.resize(K);
+  m_jointFaceNode.resize(3 * K);
+  for (const Cluster& c : m_clusters)
+    for (uint32_t si : c.slots) {
+      const Slot& s = m_bodies[si];
+      if (!s.active) continue;
+      const size_t base = size_t(m_jointStart[size_t(m_jointBase[si])]);
+      for (size_t k = 0; k < s.owner.size(); ++k) {
+        const size_t j = base + k;
+        m_jointPoint[j] = s.point[k];
+        m_jointNormal[j] = s.normal[k];
+        m_jointFaceMotion[j] = s.faceMotion[k];
+        m_jointWeight[j] = s.weight[k];
+        m_jointPartner[j] = s.partner[k];
+        m_jointMuLambda[j] = s.muLambda[k];
+        m_jointStiffness[j] = s.stiffness[k];
+        m_jointSkin[j] = s.skin[k];
+        m_jointOwner[j] = m_jointBase[si] + s.owner[k];
+        for (size_t c3 = 0; c3 < 3; ++c3) {
+          const int32_t f = s.faceNode[3 * k + c3];
+          m_jointFaceNode[3 * j + c3] = f >= 0 ? joint(f) : -1;
+        }
+      }
+    }
+  // Per joint node, the half-spaces whose face (or other edge) it carries, in half-space order.
+  m_jointReactionStart.assign(size_t(nodes) + 1, 0);
+  for (size_t k = 0; k < K; ++k)
+    if (m_jointFaceNode[3 * k] >= 0)
+      for (size_t c3 = 0; c3 < 3; ++c3)
+        ++m_jointReactionStart[size_t(m_jointFaceNode[3 * k + c3]) + 1];
+  for (int32_t n = 0; n < nodes; ++n)
+    m_jointReactionStart[size_t(n) + 1] += m_jointReactionStart[size_t(n)];
+  m_jointReaction.resize(size_t(m_jointReactionStart[size_t(nodes)]));
+  std::vector<int32_t> fill(m_jointReactionStart.begin(), m_jointReactionStart.end() - 1);
+  for (size_t k = 0; k < K; ++k)
+    if (m_jointFaceNode[3 * k] >= 0)
+      for (size_t c3 = 0; c3 < 3; ++c3)
+        m_jointReaction[size_t(fill[size_t(m_jointFaceNode[3 * k + c3])]++)] = int32_t(3 * k + c3);
+  m_jointX.resize(3 * size_t(nodes));
+  m_jointXn.resize(3 * size_t(nodes));
+}
+
+HalfSpaceContacts BodyContact::jointView() const {
+  HalfSpaceContacts h;
+  if (m_clusters.empty()) return h;
+  h.start = m_jointStart.data();
+  h.point = m_jointPoint.data();
+  h.normal = m_jointNormal.data();
+  h.stiffness = m_jointStiffness.data();
+  h.muLambda = m_jointMuLambda.data();
+  h.faceMotion = m_jointFaceMotion.data();
+  h.slipEps = m_slipEps;
+  h.partner = m_jointPartner.data();
+  h.faceNode = m_jointFaceNode.data();
+  h.weight = m_jointWeight.data();
+  h.owner = m_jointOwner.data();
+  h.reactionStart = m_jointReactionStart.data();
+  h.reaction = m_jointReaction.data();
+  h.skin = m_jointSkin.data();
+  h.X = m_jointX.data();
+  h.Xn = m_jointXn.data();
+  h.joint = true;
+  return h;
+}
+
 HalfSpaceContacts BodyContact::halfSpaces(size_t si) const {
+  if (m_coupled) {
+    const int32_t base = jointBase(si);
+    if (base < 0) return {};
+    HalfSpaceContacts h = jointView();
+    h.start += base;
+    h.reactionStart += base;
+    h.ownFirst = m_table[si].groupBase;
+    h.ownEnd = m_bodies[si].groupEnd;
+    return h;
+  }
   if (si >= m_bodies.size() || !m_bodies[si].active) return {};
   const Slot& s = m_bodies[si];
   HalfSpaceContacts h;
@@ -397,6 +567,27 @@ HalfSpaceContacts BodyContact::halfSpaces(size_t si) const {
 }
 
 void BodyContact::recordLoads(const CpuExecutor& exec, std::span<FemState* const> states) {
+  if (m_coupled) {
+    // The joint view reads the other bodies' faces: every coupled body's end positions first.
+    for (size_t si = 0; si < states.size(); ++si)
+      if (states[si] && jointBase(si) >= 0)
+        std::copy(states[si]->x.begin(), states[si]->x.end(),
+                  m_jointX.begin() + 3 * std::ptrdiff_t(jointBase(si)));
+    m_jointLoad.resize(m_jointX.size() / 3);
+    for (const Cluster& c : m_clusters)
+      exec.run(c.nodeEnd - c.nodeBegin, 1024,
+               OffsetStage<ContactLoadStage>{{jointView(), m_jointLoad.data()}, c.nodeBegin});
+    for (size_t si = 0; si < states.size(); ++si) {
+      if (!states[si]) continue;
+      if (jointBase(si) < 0) {
+        states[si]->contactLoad.clear();
+        continue;
+      }
+      const auto first = m_jointLoad.begin() + jointBase(si);
+      states[si]->contactLoad.assign(first, first + m_table[si].nodeCount);
+    }
+    return;
+  }
   for (size_t si = 0; si < states.size(); ++si) {
     FemState* state = states[si];
     if (!state) continue;
@@ -412,7 +603,8 @@ void BodyContact::recordLoads(const CpuExecutor& exec, std::span<FemState* const
 }
 
 void BodyContact::exchange(const CpuExecutor& exec, std::span<FemState* const> states) {
-  if (m_pairCount == 0) return;
+  // Coupled pairs are exact action and reaction: nothing to even out.
+  if (m_pairCount == 0 || m_coupled) return;
   const int32_t groups = m_groups;
   const size_t slots = m_table.size();
   // Clusters: groups joined by a half-space, in either direction; each group's label becomes

@@ -138,6 +138,12 @@
 //   are taken at the iterates, and the world steps the touching bodies again against them. A
 //   body that broke in the first sweep is still seen with the labels and surface its pairs were
 //   first found with (the world passes a copy), so the groups and the exchange stay those.
+// - Coupled (WorldDef::coupledContact). Every pair between two bodies is solved with its face,
+//   as a self pair is (no skin, kept from a cell in front), its face nodes numbered jointly over
+//   all touching bodies: joinSlots renumbers the bodies cluster after cluster (the bodies that
+//   pairs join, directly or through others) and lists the joint half-spaces and reactions, which
+//   each body's view (halfSpaces) and the cluster's joint solve (Integrator::coupledStep) read
+//   at the joint positions jointX and jointXn. Action and reaction are then exact: no exchange.
 #pragma once
 
 #include <array>
@@ -228,10 +234,32 @@ class BodyContact {
   /// model: the slot takes no part) and fills each body's half-spaces; `gravity` the world's
   /// [m/s^2], `stiffness` per unit mass [1/s^2] as a collider's, slipEps friction's smoothing
   /// length. Returns the pair count.
+  /// coupled: every pair between two bodies is solved with both sides, as a self pair is, in
+  /// the joint numbering of the coupled bodies (WorldDef::coupledContact; clusters() below).
   int64_t find(const CpuExecutor& exec, std::span<const ContactBodyView> bodies, double dt,
-               Vec3 gravity, double stiffness, double slipEps);
-  /// The half-spaces of slot si for StepContext::bodyContacts (start null: none).
+               Vec3 gravity, double stiffness, double slipEps, bool coupled = false);
+  /// The half-spaces of slot si for StepContext::bodyContacts (start null: none). Coupled: a
+  /// view into the joint arrays, its node indices joint ones, its positions jointX / jointXn.
   HalfSpaceContacts halfSpaces(size_t si) const;
+
+  /// Coupled contact: the bodies that pairs join (directly or through others), each cluster a
+  /// run of joint nodes [nodeBegin, nodeEnd) and of half-spaces [pairBegin, pairEnd), its slots
+  /// ascending. A body that touches nothing is in none.
+  struct Cluster {
+    std::vector<uint32_t> slots;
+    int32_t nodeBegin = 0, nodeEnd = 0, pairBegin = 0, pairEnd = 0;
+  };
+  const std::vector<Cluster>& clusters() const { return m_clusters; }
+  /// Slot si's first joint node (-1: in no cluster).
+  int32_t jointBase(size_t si) const { return si < m_jointBase.size() ? m_jointBase[si] : -1; }
+  /// All coupled half-spaces at once (the clusters' solves read their own ranges).
+  HalfSpaceContacts jointView() const;
+  /// The joint positions the views read (3 per joint node): the iterate and x_n, which the
+  /// clusters' solves keep up to date.
+  double* jointX() { return m_jointX.data(); }
+  int32_t jointNodes() const { return int32_t(m_jointX.size() / 3); }
+  int32_t jointPairs() const { return m_jointStart.empty() ? 0 : m_jointStart.back(); }
+  double* jointXn() { return m_jointXn.data(); }
   /// Buffer for slot si's half-space impulses (Integrator::bodyContactImpulses), 3 each.
   double* impulseBuffer(size_t si) { return m_bodies[si].impulse.data(); }
   /// What slot si's momentum did beyond its half-space impulses and the external impulses, and
@@ -261,7 +289,8 @@ class BodyContact {
     // nodes, weights and vertex node, and per node the entries it carries.
     std::vector<int32_t> faceNode, owner, reactionStart, reaction, reactionFill;
     std::vector<Vec3> weight;
-    bool moving = false;  // any self pair
+    std::vector<double> skin;  // coupled contact's, per half-space
+    bool moving = false;       // any self pair
     bool active = false;
     BodyContactBalance balance;
     // Scratch of the stages.
@@ -293,6 +322,17 @@ class BodyContact {
   std::vector<ContactSlotBalance> m_slotBalance;
   std::vector<Vec3> m_clusterVelocity;
   std::vector<uint8_t> m_clusterMoves;
+  // Coupled contact (find(..., coupled)): the half-spaces of the clusters' bodies in one
+  // numbering, cluster after cluster.
+  void joinSlots();
+  bool m_coupled = false;
+  std::vector<Cluster> m_clusters;
+  std::vector<int32_t> m_jointBase;  // per slot
+  std::vector<int32_t> m_jointStart, m_jointPartner, m_jointFaceNode, m_jointOwner;
+  std::vector<int32_t> m_jointReactionStart, m_jointReaction;
+  std::vector<Vec3> m_jointPoint, m_jointNormal, m_jointFaceMotion, m_jointWeight;
+  std::vector<double> m_jointMuLambda, m_jointStiffness, m_jointSkin;
+  std::vector<double> m_jointX, m_jointXn, m_jointLoad;
   double m_slipEps = 0;
   int64_t m_pairCount = 0;
 };

@@ -10,6 +10,7 @@
 
 #include "contact/body_contact.h"
 #include "fem/element_lanes.h"
+#include "fem/newton.h"
 #include "fem/piece_merge.h"
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
@@ -27,9 +28,6 @@ namespace {
 constexpr uint32_t kElementGrain = 128;
 constexpr uint32_t kNodeGrain = 512;
 constexpr uint32_t kPieceGrain = 64;
-// Armijo constant and the smallest step the backtracking line search tries.
-constexpr double kArmijo = 1e-4;
-constexpr double kMinLineSearchStep = 1.0 / 1024;
 // Projection damage, one-step mode: a Newton step whose decrease of the incremental potential
 // falls short of this fraction of its quadratic model's prediction is continued by another
 // Newton iteration, at most kMaxModelIterations times per step (Integrator::solve). On the
@@ -47,20 +45,12 @@ constexpr int kMaxContactIterations = 2;
 // the node met the face with the whole step's motion still to absorb, and the penalty takes
 // a fraction of its depth per iteration.
 constexpr int kMaxSweptIterations = 12;
-// The same for a body whose self pairs are solved with their faces (contact/body_contact.h): a
-// thrown cut piece's landing step took 17 iterations, the next one 22 (the pairs' lagged friction,
-// whose Hessian stand-in makes Newton contract by a fixed ratio while a vertex slides).
-constexpr int kMaxSelfIterations = 30;
-constexpr double kSweptTolerance = 1e-3;
 // A face's entry into a collider (FaceEntryNodeStage) clamps the nodes that cross its plane
 // within this many times the face's size of the entry point: the face's own nodes and the ring
 // around them.
 constexpr double kFaceEntrySpread = 3;
 // Pushed contacts are stiffened (DeepContactTerm) at most this many times per step.
 constexpr int kMaxContactStiffenings = 8;
-// Newton step, relative to the body's size, below which round-off dominates: converged
-// whatever the tolerance (a step that starts at equilibrium has nothing left to solve).
-constexpr double kNewtonRoundOff = 1e-12;
 // Round-off of the incremental potential relative to the summed size of its terms.
 constexpr double kEnergyRoundOff = 1e-11;
 // Round-off of an element energy's own cancellation relative to (mu + lambda) V: a few ulps
@@ -246,7 +236,7 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
   nodes.colliderCount = ctx.colliderCount;
   nodes.swept = m_swept;
   nodes.bodies = ctx.bodyContacts.at(x);
-  nodes.bodies.Xn = xn;
+  if (!nodes.bodies.joint) nodes.bodies.Xn = xn;
   nodes.friction = m_friction;
   nodes.dt = dt;
   nodes.massDamping = r1;
@@ -627,7 +617,7 @@ ExternalImpulse Integrator::externalImpulse(const FemState& state, const StepCon
   e.colliderCount = ctx.colliderCount;
   e.swept = m_swept;
   e.bodies = ctx.bodyContacts;
-  e.bodies.Xn = m_xStart.data();
+  if (!e.bodies.joint) e.bodies.Xn = m_xStart.data();
   e.friction = m_friction;
   if (m_faceOn && m_faceAny) e.faceImpulse = m_faceNodeGrad.data();
   return e;
@@ -861,36 +851,75 @@ bool Integrator::selfPairsAct(const FemModel& model, const StepContext& ctx, dou
 SolveReport Integrator::coupledSolve(const FemModel& model, const FemState& state,
                                      const StepContext& ctx, double tolerance,
                                      double toleranceScale, JobSystem& jobs) {
-  // Flexible preconditioned CG on the whole Newton matrix, m_A plus the moving self pairs' cross
-  // terms (SelfPairCouplingStage), preconditioned by the body's own solver on m_A, which holds
-  // the pairs' diagonal blocks: the direct factor once, or a multigrid or block-Jacobi solve
-  // per iteration (flexible: an inexact inner solve is not a fixed linear operator).
+  const int32_t n3 = int32_t(m_x.size());
+  const PairCoupledSystem system{ctx.bodyContacts,
+                                 state.fixedNode.data(),
+                                 m_pairActive.data(),
+                                 m_pairNormal.data(),
+                                 m_pairWeight.data(),
+                                 m_pairFriction.data(),
+                                 m_pairProjection.data(),
+                                 m_pairSlide.data(),
+                                 0,
+                                 model.nodeCount,
+                                 0,
+                                 ctx.bodyContacts.start[model.nodeCount]};
+  const PairCoupledPart part{this, &model, 0};
+  m_cgWork.resize(5 * size_t(n3));
+  SolveReport sr = solvePairCoupled({&part, 1}, system, m_rhs.data(), m_dx.data(), m_cgWork.data(),
+                                    model.solver.maxLinearIterations, tolerance, jobs);
+  sr.relativeResidual /= toleranceScale;
+  return sr;
+}
+
+SolveReport Integrator::solvePairCoupled(std::span<const PairCoupledPart> parts,
+                                         const PairCoupledSystem& sys, const double* rhs,
+                                         double* dx, double* cgWork, int maxIterations,
+                                         double tolerance, JobSystem& jobs) {
+  // Flexible preconditioned CG on the whole Newton matrix: each part's pattern matrix m_A plus
+  // the moving pairs' cross terms (SelfPairCouplingStage), preconditioned by each part's own
+  // solver on its m_A, which holds the pairs' diagonal blocks: the direct factor once, or a
+  // multigrid or block-Jacobi solve per iteration (flexible: an inexact inner solve is not a
+  // fixed linear operator). The vectors are the system's run of joint vectors indexed from its
+  // first node (v - at is then the joint vector the pair stages index by node).
   const CpuExecutor exec(jobs);
-  const HalfSpaceContacts h = ctx.bodyContacts;
-  const int32_t n3 = int32_t(m_x.size()), pairs = h.start[model.nodeCount];
-  const uint8_t* fixed = state.fixedNode.data();
-  auto product = [&](const double* p, double* y) {
-    m_A.multiply(p, y, jobs);
-    exec.run(pairs, kNodeGrain,
-             SelfPairProjectStage{h, fixed, m_pairActive.data(), m_pairNormal.data(),
-                                  m_pairWeight.data(), m_pairFriction.data(), p,
-                                  m_pairProjection.data(), m_pairSlide.data()});
-    exec.run(model.nodeCount, kNodeGrain,
-             SelfPairCouplingStage{h, fixed, m_pairActive.data(), m_pairNormal.data(),
-                                   m_pairWeight.data(), m_pairFriction.data(),
-                                   m_pairProjection.data(), m_pairSlide.data(), p, y});
+  const int32_t n3 = 3 * sys.nodes;
+  const int64_t at = 3 * int64_t(sys.nodeBegin);
+  auto product = [&](const double* v, double* y) {
+    for (const PairCoupledPart& p : parts)
+      p.integrator->m_A.multiply(v + (p.offset - at), y + (p.offset - at), jobs);
+    exec.run(sys.pairs, kNodeGrain,
+             OffsetStage<SelfPairProjectStage>{
+                 {sys.contacts, sys.fixed, sys.active, sys.normal, sys.weight, sys.friction, v - at,
+                  sys.projection, sys.slide},
+                 sys.pairBegin});
+    exec.run(sys.nodes, kNodeGrain,
+             OffsetStage<SelfPairCouplingStage>{
+                 {sys.contacts, sys.fixed, sys.active, sys.normal, sys.weight, sys.friction,
+                  sys.projection, sys.slide, v - at, y - at},
+                 sys.nodeBegin});
   };
-  const bool factored = m_cholesky && !m_inert && m_cholesky->factorize(m_A);
+  std::vector<uint8_t> factored(parts.size(), 0);
+  for (size_t i = 0; i < parts.size(); ++i) {
+    Integrator& in = *parts[i].integrator;
+    factored[i] = in.m_cholesky && !in.m_inert && in.m_cholesky->factorize(in.m_A);
+  }
   int innerIterations = 0;
   auto precondition = [&](const double* r, double* z) {
     exec.run(n3, kNodeGrain, FillStage{0.0, z});
-    if (factored) {
-      m_cholesky->solveFactored(r, z);
-    } else if (m_cholesky && !m_inert) {
-      innerIterations +=
-          m_pcg.solve(m_A, r, z, model.solver.maxLinearIterations, tolerance, jobs).iterations;
-    } else {
-      innerIterations += patternSolve(model, r, z, tolerance, 1.0, jobs).iterations;
+    for (size_t i = 0; i < parts.size(); ++i) {
+      Integrator& in = *parts[i].integrator;
+      const FemModel& model = *parts[i].model;
+      const double* rp = r + (parts[i].offset - at);
+      double* zp = z + (parts[i].offset - at);
+      if (factored[i])
+        in.m_cholesky->solveFactored(rp, zp);
+      else if (in.m_cholesky && !in.m_inert)
+        innerIterations +=
+            in.m_pcg.solve(in.m_A, rp, zp, model.solver.maxLinearIterations, tolerance, jobs)
+                .iterations;
+      else
+        innerIterations += in.patternSolve(model, rp, zp, tolerance, 1.0, jobs).iterations;
     }
     return exec.dot(r, z, n3);
   };
@@ -903,27 +932,22 @@ SolveReport Integrator::coupledSolve(const FemModel& model, const FemState& stat
     void (*prepare)();
     decltype(precondition)& apply;
   };
-  m_cgWork.resize(5 * size_t(n3));
-  double* w = m_cgWork.data();
-  SolveReport sr = conjugateGradients(
-      exec, Operator{model.nodeCount, product}, m_rhs.data(), m_dx.data(),
-      CgBuffers{w, w + n3, w + 2 * n3, w + 3 * n3, w + 4 * n3},
-      Preconditioner{true, [] {}, precondition}, model.solver.maxLinearIterations, tolerance);
+  double* w = cgWork;
+  SolveReport sr =
+      conjugateGradients(exec, Operator{sys.nodes, product}, rhs, dx,
+                         CgBuffers{w, w + n3, w + 2 * n3, w + 3 * n3, w + 4 * n3},
+                         Preconditioner{true, [] {}, precondition}, maxIterations, tolerance);
   sr.iterations += innerIterations;
-  sr.relativeResidual /= toleranceScale;
   return sr;
 }
 
-double Integrator::solve(const FemModel& model, FemState& state, const StepContext& ctx,
-                         double fullDt, bool judgeFracture, JobSystem& jobs, BodyStepReport& rep) {
-  const double dt = ctx.dt, dt2 = dt * dt;
-  const double r1 = state.material.massDamping, r2 = state.material.stiffnessDamping;
-  const int maxNewton = model.solver.newtonIterations < 1 ? 1 : model.solver.newtonIterations;
-  const size_t n3 = state.x.size();
+void Integrator::startNewton(const FemModel& model, const FemState& state, const StepContext& ctx,
+                             double fullDt, JobSystem& jobs) {
+  const double dt = ctx.dt;
   // Start at x_n with the prescribed nodes already moved; they stay put from here on. Free
   // pieces start at their rigid motion over the step, and their inertia target y follows it.
   const CpuExecutor exec(jobs);
-  const int32_t n3i = int32_t(n3);
+  const int32_t n3i = int32_t(state.x.size());
   // Inert: breaks only make more tets rigid or split, so it holds for the whole step.
   findInert(model, state, jobs);
   // gripVelocity is zero on free nodes, so one pass moves exactly the prescribed ones.
@@ -941,6 +965,113 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
              FreeDifferenceStage{m_y.data(), m_x.data(), state.fixedNode.data(), m_tmp.data()});
     exec.run(n3i, kNodeGrain, AxpyStage{m_x.data(), m_tmp.data(), 1.0, m_x.data()});
   }
+}
+
+double Integrator::linearise(const FemModel& model, const FemState& state, const StepContext& ctx,
+                             int it, bool judgeFracture, JobSystem& jobs, BodyStepReport& rep,
+                             double& toleranceScale) {
+  const double dt = ctx.dt, dt2 = dt * dt;
+  const double r1 = state.material.massDamping, r2 = state.material.stiffnessDamping;
+  const int32_t n3i = int32_t(state.x.size());
+  const CpuExecutor exec(jobs);
+  const double* start = m_xStart.data();  // x_n
+  auto t0 = Clock::now();
+  if (it == 0) m_dampKValid = false;
+  // Fracture is judged on the first pass's stresses when that pass sees x_n (no grip has
+  // moved the start point); if edges broke, the damaged elements change and the pass is
+  // repeated once.
+  const bool fusedFracture = it == 0 && judgeFracture && m_fracture && !state.movingGrips;
+  if (fusedFracture) m_stressOut = m_fracture->stressBuffer();
+  double E = incrementalPotential(model, state, start, m_x.data(), ctx, true, true, jobs);
+  m_stressOut = nullptr;
+  rep.elementsMs += msSince(t0);
+  if (fusedFracture) {
+    t0 = Clock::now();
+    const int32_t broke =
+        m_fracture->detect(model, state, m_x.data(), jobs, true, m_svdCache.data());
+    rep.fractureMs += msSince(t0);
+    if (broke > 0) {
+      t0 = Clock::now();
+      E = incrementalPotential(model, state, start, m_x.data(), ctx, true, true, jobs);
+      rep.elementsMs += msSince(t0);
+    }
+  }
+
+  // A = M (1 + dt r1) + dt r2 K(x_n) + dt^2 (K + K_contact)
+  t0 = Clock::now();
+  // One pass over the element matrices writes A and, where this step's damping needs it,
+  // K(x_n); the damping term's axpy joins the last gather into A. Each would stream the
+  // matrix again; the bits are those of the separate passes.
+  const bool faces = m_faceOn && m_faceAny;
+  GatherFusion elements, faceContacts;
+  elements.accumulate = false;
+  if (it == 0 && r2 > 0 && !m_inert) {
+    if (m_dampK.n == 0) m_dampK = m_A;
+    elements.sum = &m_dampK;
+    m_dampKValid = true;
+  }
+  if (m_dampKValid) {
+    GatherFusion& last = faces ? faceContacts : elements;
+    last.addAfter = &m_dampK;
+    last.addScale = dt * r2;
+  }
+  if (m_inert)
+    m_A.setZero(jobs);
+  else
+    gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs, elements);
+  if (faces) gatherElementBlocks(m_faceGather, m_faceHess.data(), dt2, m_A, jobs, faceContacts);
+  if (elements.sum) E += dampingTerm(state, m_dampRef.data(), m_x.data(), dt, true, jobs);
+  exec.run(model.nodeCount, kNodeGrain,
+           NodeBlockStage{m_A.values.data(), m_diagonalBlock.data(), state.nodeMass.data(),
+                          m_contactHess.data(), 1 + dt * r1, dt2,
+                          state.drag.empty() ? nullptr : state.drag.data(), tetherOf(state)});
+  applyDirichlet(m_A, state.fixedNode.data(), jobs);
+  exec.run(n3i, kNodeGrain,
+           FreeDifferenceStage{nullptr, m_grad.data(), state.fixedNode.data(), m_rhs.data()});
+  rep.assemblyMs += msSince(t0);
+
+  t0 = Clock::now();
+  // Iterative solvers start the first Newton step from the constant-velocity guess dt v_n
+  // (the prescribed nodes have already moved): a fixed number of V-cycles then solves for the
+  // change of motion rather than the whole motion, which keeps the stresses, and so the
+  // cracks, of the direct solver (tests/physics/test_multigrid_fracture.cpp).
+  if (it == 0 && !m_cholesky)
+    exec.run(n3i, kNodeGrain,
+             FreeDifferenceStage{m_y.data(), m_x.data(), state.fixedNode.data(), m_dx.data()});
+  else
+    exec.run(n3i, kNodeGrain, FillStage{0.0, m_dx.data()});
+  // The iterative solvers stop at a residual relative to the right-hand side. Started on the
+  // turned body, that is only the deformation's share, far below what the same motion gives
+  // the plain step (its rhs holds the spin's momentum), and the same relative tolerance would
+  // buy a solve many times more accurate. So the first Newton step measures its residual
+  // against the larger of the two.
+  toleranceScale = 1;
+  if (it == 0 && !m_cholesky && m_rigidPieces) {
+    const double spin2 = exec.reduce<SumOp>(
+        model.nodeCount, SpinShareTerm{m_xStart.data(), state.nodeMass.data(), m_pieces.data(),
+                                       m_pieceOfNode.data(), dt});
+    const double rhs2 = exec.dot(m_rhs.data(), m_rhs.data(), n3i);
+    if (spin2 > rhs2 && rhs2 > 0) toleranceScale = std::sqrt(spin2 / rhs2);
+  }
+  // Cracks change the binding only when edges broke since the last solve (SPEC §5).
+  if (m_multigrid && !m_inert && !m_cholesky && m_fracture &&
+      m_fracture->brokenCount() != m_boundBrokenCount) {
+    const EdgeGraph& g = m_fracture->graph();
+    m_multigrid->rebind(g.edgeNodes.data(), m_fracture->broken().data(), g.edgeCount, jobs);
+    m_boundBrokenCount = m_fracture->brokenCount();
+  }
+  rep.solveMs += msSince(t0);
+  return E;
+}
+
+double Integrator::solve(const FemModel& model, FemState& state, const StepContext& ctx,
+                         double fullDt, bool judgeFracture, JobSystem& jobs, BodyStepReport& rep) {
+  const double dt2 = ctx.dt * ctx.dt;
+  const int maxNewton = model.solver.newtonIterations < 1 ? 1 : model.solver.newtonIterations;
+  const size_t n3 = state.x.size();
+  const CpuExecutor exec(jobs);
+  const int32_t n3i = int32_t(n3);
+  startNewton(model, state, ctx, fullDt, jobs);
 
   const double* start = m_xStart.data();  // x_n
   const bool fullNewton = maxNewton > 1;
@@ -978,92 +1109,10 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
   // trial), or the final step was too small to matter (below the potential's round-off).
   bool finalPsiKnown = false, finalStepNegligible = false;
   for (int it = 0; it < iterationCap; ++it) {
-    auto t0 = Clock::now();
-    if (it == 0) m_dampKValid = false;
-    // Fracture is judged on the first pass's stresses when that pass sees x_n (no grip has
-    // moved the start point); if edges broke, the damaged elements change and the pass is
-    // repeated once.
-    const bool fusedFracture = it == 0 && judgeFracture && m_fracture && !state.movingGrips;
-    if (fusedFracture) m_stressOut = m_fracture->stressBuffer();
-    double E = incrementalPotential(model, state, start, m_x.data(), ctx, true, true, jobs);
-    m_stressOut = nullptr;
-    rep.elementsMs += msSince(t0);
-    if (fusedFracture) {
-      t0 = Clock::now();
-      const int32_t broke =
-          m_fracture->detect(model, state, m_x.data(), jobs, true, m_svdCache.data());
-      rep.fractureMs += msSince(t0);
-      if (broke > 0) {
-        t0 = Clock::now();
-        E = incrementalPotential(model, state, start, m_x.data(), ctx, true, true, jobs);
-        rep.elementsMs += msSince(t0);
-      }
-    }
-
-    // A = M (1 + dt r1) + dt r2 K(x_n) + dt^2 (K + K_contact)
-    t0 = Clock::now();
-    // One pass over the element matrices writes A and, where this step's damping needs it,
-    // K(x_n); the damping term's axpy joins the last gather into A. Each would stream the
-    // matrix again; the bits are those of the separate passes.
-    const bool faces = m_faceOn && m_faceAny;
-    GatherFusion elements, faceContacts;
-    elements.accumulate = false;
-    if (it == 0 && r2 > 0 && !m_inert) {
-      if (m_dampK.n == 0) m_dampK = m_A;
-      elements.sum = &m_dampK;
-      m_dampKValid = true;
-    }
-    if (m_dampKValid) {
-      GatherFusion& last = faces ? faceContacts : elements;
-      last.addAfter = &m_dampK;
-      last.addScale = dt * r2;
-    }
-    if (m_inert)
-      m_A.setZero(jobs);
-    else
-      gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs, elements);
-    if (faces) gatherElementBlocks(m_faceGather, m_faceHess.data(), dt2, m_A, jobs, faceContacts);
-    if (elements.sum) E += dampingTerm(state, m_dampRef.data(), m_x.data(), dt, true, jobs);
-    exec.run(model.nodeCount, kNodeGrain,
-             NodeBlockStage{m_A.values.data(), m_diagonalBlock.data(), state.nodeMass.data(),
-                            m_contactHess.data(), 1 + dt * r1, dt2,
-                            state.drag.empty() ? nullptr : state.drag.data(), tetherOf(state)});
-    applyDirichlet(m_A, state.fixedNode.data(), jobs);
-    exec.run(n3i, kNodeGrain,
-             FreeDifferenceStage{nullptr, m_grad.data(), state.fixedNode.data(), m_rhs.data()});
-    rep.assemblyMs += msSince(t0);
-
-    t0 = Clock::now();
-    // Iterative solvers start the first Newton step from the constant-velocity guess dt v_n
-    // (the prescribed nodes have already moved): a fixed number of V-cycles then solves for the
-    // change of motion rather than the whole motion, which keeps the stresses, and so the
-    // cracks, of the direct solver (tests/physics/test_multigrid_fracture.cpp).
-    if (it == 0 && !m_cholesky)
-      exec.run(n3i, kNodeGrain,
-               FreeDifferenceStage{m_y.data(), m_x.data(), state.fixedNode.data(), m_dx.data()});
-    else
-      exec.run(n3i, kNodeGrain, FillStage{0.0, m_dx.data()});
-    // The iterative solvers stop at a residual relative to the right-hand side. Started on the
-    // turned body, that is only the deformation's share, far below what the same motion gives
-    // the plain step (its rhs holds the spin's momentum), and the same relative tolerance would
-    // buy a solve many times more accurate. So the first Newton step measures its residual
-    // against the larger of the two.
     double toleranceScale = 1;
-    if (it == 0 && !m_cholesky && m_rigidPieces) {
-      const double spin2 = exec.reduce<SumOp>(
-          model.nodeCount, SpinShareTerm{m_xStart.data(), state.nodeMass.data(), m_pieces.data(),
-                                         m_pieceOfNode.data(), dt});
-      const double rhs2 = exec.dot(m_rhs.data(), m_rhs.data(), n3i);
-      if (spin2 > rhs2 && rhs2 > 0) toleranceScale = std::sqrt(spin2 / rhs2);
-    }
+    double E = linearise(model, state, ctx, it, judgeFracture, jobs, rep, toleranceScale);
+    auto t0 = Clock::now();
     const double tolerance = model.solver.linearTolerance * toleranceScale;
-    // Cracks change the binding only when edges broke since the last solve (SPEC §5).
-    if (m_multigrid && !m_inert && !m_cholesky && m_fracture &&
-        m_fracture->brokenCount() != m_boundBrokenCount) {
-      const EdgeGraph& g = m_fracture->graph();
-      m_multigrid->rebind(g.edgeNodes.data(), m_fracture->broken().data(), g.edgeCount, jobs);
-      m_boundBrokenCount = m_fracture->brokenCount();
-    }
     const SolveReport sr =
         selfPairsAct(model, ctx, dt2, jobs)
             ? coupledSolve(model, state, ctx, tolerance, toleranceScale, jobs)
@@ -1277,83 +1326,50 @@ bool Integrator::nearCollider(const FemModel& model, const FemState& state, cons
   return exec.reduce<MaxOp>(model.nodeCount, inside) > 0;
 }
 
-BodyStepReport Integrator::step(const FemModel& model, FemState& state, const StepContext& ctx,
-                                JobSystem& jobs) {
-  BodyStepReport rep;
-  const size_t n3 = state.x.size();
-  const CpuExecutor exec(jobs);
+void Integrator::beginStep(const FemModel& model, FemState& state, const StepContext& ctx,
+                           JobSystem& jobs, BodyStepReport& rep) {
   m_xStart = state.x;
   m_vStart = state.v;
-  // theta = 1: backward Euler. Below it the solve covers theta dt (the one-leg theta method)
-  // and thetaEndState extrapolates to dt. Penalty contact is one-sided: extrapolating a step
-  // in which a node met a collider can put it deep inside, and the penalty energy stored there
-  // comes back as an explosion (the 100 m/s impact of test_stiff.cpp blew up), so a body that
-  // touches a collider, or would within the step, is stepped with backward Euler.
   sweepColliders(model, state, ctx, jobs, rep);
   prepareFaces(model, ctx, (rep.flags & kStepContactSwept) != 0);
   sweepFaces(model, state, ctx, jobs, rep);
-  double theta = 0.5 + 0.5 * model.solver.numericalDamping;
-  // As for a node at a collider: the penalty is not extrapolated.
-  if (theta < 1 && m_faceOn && findFaceContacts(model, state, state.x.data(), ctx, jobs)) theta = 1;
-  // A pull's tether is a stiff spring whose weight is set for backward Euler over the whole
-  // step; extrapolating it would overshoot the target as extrapolating penalty contact does.
-  if (!state.tether.empty()) theta = 1;
-  if (theta < 1 && ctx.colliderCount > 0 &&
-      nearCollider(model, state, state.x.data(), state.v.data(), ctx.dt, ctx, jobs))
-    theta = 1;
-  // Body contact likewise, and its momentum exchange reads the backward-Euler impulses.
-  if (ctx.bodyContacts.start) theta = 1;
+}
 
-  // Moving grips shift the start point away from x_n, so fracture is judged on x_n first. After
-  // a backward-Euler step that was not rolled back, x_n is where that step's last element pass
-  // looked, so its tets take their SVDs from the cache; anywhere else they miss and are computed.
-  if (m_fracture && state.movingGrips && ctx.judgeFracture) {
-    const auto tf = Clock::now();
-    m_fracture->detect(model, state, state.x.data(), jobs, /*stressesReady=*/false,
-                       m_svdCache.data());
-    rep.fractureMs += msSince(tf);
+void Integrator::faceImpulses(const FemModel& model, const StepContext& inner, JobSystem& jobs) {
+  const CpuExecutor exec(jobs);
+  if (m_faceOn && m_faceAny) {
+    // The face contacts' impulses, per node for the pieces' momentum (ExternalImpulse) and
+    // per face for the colliders' (ColliderImpulseStage).
+    exec.run(m_faceCount, kElementGrain,
+             FaceImpulseStage{m_x.data(), m_xLin.data(), m_xStart.data(), inner.colliders,
+                              faceContacts(), inner.dt, m_faceGrad.data(), m_faceTotal.data()});
+    exec.run(model.nodeCount, kNodeGrain,
+             GatherStage{m_faceRefStart.data(), m_faceRef.data(), m_faceGrad.data(),
+                         m_faceNodeGrad.data()});
   }
-  StepContext inner = ctx;
-  double psi = 0;
-  for (bool judgeFracture = ctx.judgeFracture;; judgeFracture = false) {
-    inner.dt = theta * ctx.dt;
-    const uint32_t flagsBefore = rep.flags;
-    psi = solve(model, state, inner, ctx.dt, judgeFracture, jobs, rep);
-    if (m_faceOn && m_faceAny) {
-      // The face contacts' impulses, per node for the pieces' momentum (ExternalImpulse) and
-      // per face for the colliders' (ColliderImpulseStage).
-      exec.run(m_faceCount, kElementGrain,
-               FaceImpulseStage{m_x.data(), m_xLin.data(), m_xStart.data(), ctx.colliders,
-                                faceContacts(), inner.dt, m_faceGrad.data(), m_faceTotal.data()});
-      exec.run(model.nodeCount, kNodeGrain,
-               GatherStage{m_faceRefStart.data(), m_faceRef.data(), m_faceGrad.data(),
-                           m_faceNodeGrad.data()});
-    }
-    if (theta == 1) {
-      exec.run(int32_t(n3), kNodeGrain,
-               EndOfStepStage{m_x.data(), m_xStart.data(), state.gripVelocity.data(),
-                              state.fixedNode.data(), inner.dt, state.x.data(), state.v.data()});
-      // The end spin is the moment of the contact impulses as the last Newton step linearised
-      // them. Against another body's lagged planes, a step the line search shortened did not
-      // move the body as that model says (the planes can lie centimetres deep), and their
-      // moment spun a block resting on a damped slab at 16 rad/s, then threw it at 18 m/s
-      // (BodyContact.BlockRestsOnASlabBody): such a step keeps backward Euler's velocities.
-      if (!(m_shortStep && ctx.bodyContacts.start)) rigidEndVelocities(model, state, inner, jobs);
-      break;
-    }
-    thetaEndState(model, state, inner, ctx.dt, theta, jobs);
-    if (ctx.colliderCount == 0 ||
-        !nearCollider(model, state, state.x.data(), nullptr, 0, ctx, jobs))
-      break;
-    // The extrapolation reached into a collider: the step again, as backward Euler from the
-    // same start (fracture was judged there already).
-    state.x = m_xStart;
-    state.v = m_vStart;
-    rep.flags = flagsBefore;
-    theta = 1;
-  }
+}
+
+void Integrator::endOfStep(const FemModel& model, FemState& state, const StepContext& ctx,
+                           const StepContext& inner, JobSystem& jobs) {
+  const CpuExecutor exec(jobs);
+  const size_t n3 = state.x.size();
+  exec.run(int32_t(n3), kNodeGrain,
+           EndOfStepStage{m_x.data(), m_xStart.data(), state.gripVelocity.data(),
+                          state.fixedNode.data(), inner.dt, state.x.data(), state.v.data()});
+  // The end spin is the moment of the contact impulses as the last Newton step linearised
+  // them. Against another body's lagged planes, a step the line search shortened did not
+  // move the body as that model says (the planes can lie centimetres deep), and their
+  // moment spun a block resting on a damped slab at 16 rad/s, then threw it at 18 m/s
+  // (BodyContact.BlockRestsOnASlabBody): such a step keeps backward Euler's velocities.
+  if (!(m_shortStep && ctx.bodyContacts.start)) rigidEndVelocities(model, state, inner, jobs);
+}
+
+void Integrator::finishStep(const FemModel& model, FemState& state, const StepContext& ctx,
+                            double theta, double dt, double psi, JobSystem& jobs,
+                            BodyStepReport& rep) {
+  const CpuExecutor exec(jobs);
+  const size_t n3 = state.x.size();
   m_theta = theta;
-  const double dt = inner.dt;
   const double blowUp = kBlowUpEnergyDensity *
                         std::max(state.material.youngsModulus, state.material.fibreStiffness) *
                         m_restVolume;
@@ -1405,6 +1421,67 @@ BodyStepReport Integrator::step(const FemModel& model, FemState& state, const St
         ctx.colliderImpulse[k] += exec.sum(m_impulses.data() + size_t(k) * size_t(nn), nn);
     }
   }
+}
+
+void Integrator::judgeMovingGripFracture(const FemModel& model, const FemState& state,
+                                         const StepContext& ctx, JobSystem& jobs,
+                                         BodyStepReport& rep) {
+  // Moving grips shift the start point away from x_n, so fracture is judged on x_n first. After
+  // a backward-Euler step that was not rolled back, x_n is where that step's last element pass
+  // looked, so its tets take their SVDs from the cache; anywhere else they miss and are computed.
+  if (m_fracture && state.movingGrips && ctx.judgeFracture) {
+    const auto tf = Clock::now();
+    m_fracture->detect(model, state, state.x.data(), jobs, /*stressesReady=*/false,
+                       m_svdCache.data());
+    rep.fractureMs += msSince(tf);
+  }
+}
+
+BodyStepReport Integrator::step(const FemModel& model, FemState& state, const StepContext& ctx,
+                                JobSystem& jobs) {
+  BodyStepReport rep;
+  beginStep(model, state, ctx, jobs, rep);
+  // theta = 1: backward Euler. Below it the solve covers theta dt (the one-leg theta method)
+  // and thetaEndState extrapolates to dt. Penalty contact is one-sided: extrapolating a step
+  // in which a node met a collider can put it deep inside, and the penalty energy stored there
+  // comes back as an explosion (the 100 m/s impact of test_stiff.cpp blew up), so a body that
+  // touches a collider, or would within the step, is stepped with backward Euler.
+  double theta = 0.5 + 0.5 * model.solver.numericalDamping;
+  // As for a node at a collider: the penalty is not extrapolated.
+  if (theta < 1 && m_faceOn && findFaceContacts(model, state, state.x.data(), ctx, jobs)) theta = 1;
+  // A pull's tether is a stiff spring whose weight is set for backward Euler over the whole
+  // step; extrapolating it would overshoot the target as extrapolating penalty contact does.
+  if (!state.tether.empty()) theta = 1;
+  if (theta < 1 && ctx.colliderCount > 0 &&
+      nearCollider(model, state, state.x.data(), state.v.data(), ctx.dt, ctx, jobs))
+    theta = 1;
+  // Body contact likewise, and its momentum exchange reads the backward-Euler impulses.
+  if (ctx.bodyContacts.start) theta = 1;
+
+  judgeMovingGripFracture(model, state, ctx, jobs, rep);
+  StepContext inner = ctx;
+  double psi = 0;
+  for (bool judgeFracture = ctx.judgeFracture;; judgeFracture = false) {
+    inner.dt = theta * ctx.dt;
+    const uint32_t flagsBefore = rep.flags;
+    psi = solve(model, state, inner, ctx.dt, judgeFracture, jobs, rep);
+    faceImpulses(model, inner, jobs);
+    if (theta == 1) {
+      endOfStep(model, state, ctx, inner, jobs);
+      break;
+    }
+    thetaEndState(model, state, inner, ctx.dt, theta, jobs);
+    if (ctx.colliderCount == 0 ||
+        !nearCollider(model, state, state.x.data(), nullptr, 0, ctx, jobs))
+      break;
+    // The extrapolation reached into a collider: the step again, as backward Euler from the
+    // same start (fracture was judged there already).
+    state.x = m_xStart;
+    state.v = m_vStart;
+    rep.flags = flagsBefore;
+    theta = 1;
+  }
+  finishStep(model, state, ctx, theta, inner.dt, psi, jobs, rep);
   return rep;
 }
 

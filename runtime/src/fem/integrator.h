@@ -20,6 +20,7 @@
 #pragma once
 
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -81,8 +82,63 @@ struct EnergyBreakdown {
   double elastic = 0, contact = 0;
 };
 
+class Integrator;
+
+/// One body of a coupled contact cluster (Integrator::coupledStep).
+struct CoupledBody {
+  const FemModel* model = nullptr;
+  FemState* state = nullptr;
+  Integrator* integrator = nullptr;
+  StepContext ctx;  ///< the body's own: its half-spaces (joint), its collider impulse sums
+  BodyStepReport* report = nullptr;
+  int32_t jointBase = 0;  ///< its first node in the joint numbering
+};
+
+/// The coupled half-spaces (BodyContact::jointView) and one cluster's runs of them.
+struct CoupledCluster {
+  HalfSpaceContacts contacts;
+  double* X = nullptr;                     ///< joint positions the contacts read (3 per joint node)
+  double* Xn = nullptr;                    ///< x_n, the same way
+  int32_t jointNodes = 0, jointPairs = 0;  ///< of all clusters
+  int32_t nodeBegin = 0, nodeEnd = 0, pairBegin = 0, pairEnd = 0;
+};
+
+/// The Newton system of bodies joined by moving pairs (Integrator::solvePairCoupled): the pairs
+/// and their linearisation (SelfPairActiveStage's arrays), and the runs of nodes and pairs it
+/// covers, all indexed as the pairs' node indices are.
+struct PairCoupledSystem {
+  HalfSpaceContacts contacts;
+  const uint8_t* fixed = nullptr;  ///< per node
+  const double* active = nullptr;
+  const Vec3* normal = nullptr;
+  const Vec3* weight = nullptr;
+  const double* friction = nullptr;
+  double* projection = nullptr;  ///< scratch, per pair
+  Vec3* slide = nullptr;
+  int32_t nodeBegin = 0, nodes = 0, pairBegin = 0, pairs = 0;
+};
+/// One body of it: its matrix and solver, its first unknown in the joint vectors.
+struct PairCoupledPart {
+  Integrator* integrator = nullptr;
+  const FemModel* model = nullptr;
+  int64_t offset = 0;
+};
+
+/// Scratch of Integrator::coupledStep, kept between steps.
+struct CoupledWork {
+  std::vector<double> vectors;
+  std::vector<uint8_t> fixed;
+  std::vector<double> active, friction, projection;
+  std::vector<Vec3> normal, weight, slide;
+};
+
 class Integrator {
  public:
+  /// One step of a cluster of bodies that coupled contact joins (WorldDef::coupledContact):
+  /// Newton on the sum of their incremental potentials, the pairs between them acting on both
+  /// sides (fem/coupled_step.cpp). In place of step() for each body; each report as step()'s.
+  static void coupledStep(std::span<CoupledBody> bodies, const CoupledCluster& cluster,
+                          CoupledWork& work, JobSystem& jobs);
   explicit Integrator(const FemModel& model);
   ~Integrator();
   /// Builds what the chosen linear solver needs beyond the pattern (the multigrid hierarchy);
@@ -184,12 +240,44 @@ class Integrator {
   // m_x; fracture is judged in its first pass when asked. Returns the elastic energy at m_x.
   double solve(const FemModel& model, FemState& state, const StepContext& ctx, double fullDt,
                bool judgeFracture, JobSystem& jobs, BodyStepReport& rep);
+  // With moving grips, fracture judged at x_n before the step (step()).
+  void judgeMovingGripFracture(const FemModel& model, const FemState& state, const StepContext& ctx,
+                               JobSystem& jobs, BodyStepReport& rep);
+  // step()'s start: x_n and v_n kept, the swept colliders and the face contacts' set-up.
+  void beginStep(const FemModel& model, FemState& state, const StepContext& ctx, JobSystem& jobs,
+                 BodyStepReport& rep);
+  // The face contacts' impulses of the solved step (inner: its part of the step).
+  void faceImpulses(const FemModel& model, const StepContext& inner, JobSystem& jobs);
+  // A backward-Euler step's end: x and v from m_x, the free pieces' end velocities.
+  void endOfStep(const FemModel& model, FemState& state, const StepContext& ctx,
+                 const StepContext& inner, JobSystem& jobs);
+  // step()'s end: the divergence checks (a rolled-back state) and the collider impulses, dt the
+  // solved part of the step and psi the elastic energy there.
+  void finishStep(const FemModel& model, FemState& state, const StepContext& ctx, double theta,
+                  double dt, double psi, JobSystem& jobs, BodyStepReport& rep);
+  // solve()'s start: the inert test, the prescribed nodes moved, the step's friction, the
+  // free pieces' rigid motion and the face entries' free flight, into m_x and m_y.
+  void startNewton(const FemModel& model, const FemState& state, const StepContext& ctx,
+                   double fullDt, JobSystem& jobs);
+  // Newton iteration `it` linearised at m_x: returns the potential E and fills m_grad, m_A,
+  // m_rhs and m_dx (the linear solve's start); fracture is judged in the first iteration's
+  // pass when asked; toleranceScale is what the linear tolerance is measured against.
+  double linearise(const FemModel& model, const FemState& state, const StepContext& ctx, int it,
+                   bool judgeFracture, JobSystem& jobs, BodyStepReport& rep,
+                   double& toleranceScale);
   // The Newton system with the pattern matrix m_A alone (b into x, x the start), by the body's
   // solver; the residual is reported against toleranceScale.
   SolveReport patternSolve(const FemModel& model, const double* b, double* x, double tolerance,
                            double toleranceScale, JobSystem& jobs);
   // Whether a moving self pair acts at m_x (SelfPairActiveStage, into m_pairActive).
   bool selfPairsAct(const FemModel& model, const StepContext& ctx, double dt2, JobSystem& jobs);
+  // Flexible CG on the parts' matrices plus the moving pairs' cross blocks, preconditioned by
+  // each part's own solver (rhs and dx: the system's run of the joint vectors; cgWork: 5 of
+  // them). One body's self pairs (coupledSolve) and a coupled cluster (coupledStep) alike.
+  static SolveReport solvePairCoupled(std::span<const PairCoupledPart> parts,
+                                      const PairCoupledSystem& system, const double* rhs,
+                                      double* dx, double* cgWork, int maxIterations,
+                                      double tolerance, JobSystem& jobs);
   // The Newton system with the moving self pairs' cross terms (m_rhs into m_dx).
   SolveReport coupledSolve(const FemModel& model, const FemState& state, const StepContext& ctx,
                            double tolerance, double toleranceScale, JobSystem& jobs);

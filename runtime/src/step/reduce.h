@@ -29,6 +29,15 @@ struct MinOp {
 /// Number of chunks of a reduction over `count` items.
 GF_HD int32_t sumChunks(int32_t count) { return (count + kSumChunk - 1) / kSumChunk; }
 
+/// Items first, first + 1, ... of a stage or a term, run as items 0, 1, ...: a part of an index
+/// range (a cluster's nodes among all coupled bodies').
+template <class Stage>
+struct OffsetStage {
+  Stage stage;
+  int32_t first = 0;
+  GF_HD auto operator()(int32_t i) const { return stage(first + i); }
+};
+
 /// The items of a reduction over an array.
 struct ArrayTerm {
   const double* values = nullptr;

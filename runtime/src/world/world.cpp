@@ -210,7 +210,47 @@ int64_t World::Impl::findContacts(const detail::CpuExecutor& exec, double h) {
     contactStates[si] = &b->state;
   }
   return bodyContact.find(exec, contactViews, h, {def.gravity.x, def.gravity.y, def.gravity.z},
-                          detail::kAutoContactStiffnessDt2 / (h * h), kFrictionSlipSpeed * h);
+                          detail::kAutoContactStiffnessDt2 / (h * h), kFrictionSlipSpeed * h,
+                          def.coupledContact);
+}
+
+void World::Impl::keepClustersApart() {
+  auto clustered = [&](uint32_t si) { return bodyContact.jointBase(si) >= 0; };
+  std::erase_if(single, clustered);
+  std::erase_if(batched, clustered);
+}
+
+void World::Impl::stepClusters(const detail::StepContext& ctx) {
+  for (const detail::BodyContact::Cluster& c : bodyContact.clusters()) {
+    std::vector<detail::CoupledBody> members;
+    for (uint32_t si : c.slots) {
+      BodyRecord* b = slots[si].body.get();
+      detail::CoupledBody m;
+      m.model = &b->model;
+      m.state = &b->state;
+      m.integrator = b->integrator.get();
+      m.ctx = ctx;
+      m.ctx.colliderImpulse = colliders.empty() ? nullptr : &bodyImpulse[6 * colliders.size() * si];
+      if (m.ctx.colliderImpulse) std::fill_n(m.ctx.colliderImpulse, 6 * colliders.size(), 0.0);
+      m.ctx.bodyContacts = bodyContact.halfSpaces(si);
+      reports[si] = {};
+      m.report = &reports[si];
+      m.jointBase = bodyContact.jointBase(si);
+      members.push_back(m);
+    }
+    detail::CoupledCluster cl;
+    cl.contacts = bodyContact.jointView();
+    cl.X = bodyContact.jointX();
+    cl.Xn = bodyContact.jointXn();
+    cl.jointNodes = bodyContact.jointNodes();
+    cl.jointPairs = bodyContact.jointPairs();
+    cl.nodeBegin = c.nodeBegin;
+    cl.nodeEnd = c.nodeEnd;
+    cl.pairBegin = c.pairBegin;
+    cl.pairEnd = c.pairEnd;
+    detail::Integrator::coupledStep(members, cl, coupledWork, *jobs);
+    for (uint32_t si : c.slots) plasticFlow(si, ctx.dt, *jobs);
+  }
 }
 
 void World::Impl::stepBodies(const detail::StepContext& ctx) {
@@ -470,10 +510,12 @@ StepStatus World::step(double dt) {
     auto tc = detail::Clock::now();
     const int64_t pairs = w.findContacts(exec, h);
     w.timings.contactPairs += pairs;
-    w.sweeping = pairs > 0 && w.def.contactSweeps > 1;
+    w.sweeping = pairs > 0 && w.def.contactSweeps > 1 && !w.def.coupledContact;
     if (w.sweeping) w.saveSweepStart();
+    if (w.def.coupledContact) w.keepClustersApart();
     w.timings.contactMs += detail::msSince(tc);
     w.stepBodies(ctx);
+    if (w.def.coupledContact) w.stepClusters(ctx);
     if (w.sweeping) {
       w.contactSweeps(exec, ctx, h);
       w.flowBodies(h);

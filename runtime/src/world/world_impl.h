@@ -261,6 +261,11 @@ struct World::Impl {
   void saveSweepStart();
   // Steps the bodies in `batched` and `single` once (one substep of ctx.dt).
   void stepBodies(const detail::StepContext& ctx);
+  // WorldDef::coupledContact: takes the bodies of the substep's contact clusters out of
+  // `batched` and `single`, and after stepBodies steps each cluster as one system.
+  void keepClustersApart();
+  void stepClusters(const detail::StepContext& ctx);
+  detail::CoupledWork coupledWork;
   // The plastic flow of the bodies in `batched` and `single` after the last sweep.
   void flowBodies(double h);
   // Block Jacobi over the bodies that touch (docs/design.md, Contact): the pairs found again
