@@ -13,6 +13,10 @@ install(TARGETS graphfrac_runtime EXPORT graphfracTargets
 install(DIRECTORY runtime/include/graphfrac DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(EXPORT graphfracTargets NAMESPACE graphfrac:: FILE graphfracTargets.cmake
         DESTINATION ${GF_INSTALL_CMAKEDIR})
+# A runtime built with the CUDA backend links the static CUDA runtime (gpu/CMakeLists.txt).
+if(NOT GF_RUNTIME_NEEDS_CUDA)
+  set(GF_RUNTIME_NEEDS_CUDA OFF)
+endif()
 configure_package_config_file(cmake/graphfracConfig.cmake.in
   ${CMAKE_CURRENT_BINARY_DIR}/graphfracConfig.cmake
   INSTALL_DESTINATION ${GF_INSTALL_CMAKEDIR})

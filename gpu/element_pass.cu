@@ -33,6 +33,50 @@ bool DeviceElementPass::upload(const detail::ElementStage& h, const detail::Gath
   return true;
 }
 
+bool DeviceElementPass::prepare(const detail::ElementStage& h, const detail::GatherStage& gather,
+                                int32_t tetCount, int32_t nodeCount, bool stateChanged) {
+  const size_t nt = size_t(tetCount), nn = size_t(nodeCount);
+  const detail::ElementStage& was = m_modelFrom;
+  const bool model =
+      tetCount != m_tetCount || nodeCount != m_nodeCount || h.tets != was.tets ||
+      h.restVolume != was.restVolume || h.fibreDir != was.fibreDir ||
+      h.edgeMatrix != was.edgeMatrix || h.edgeMatrixInverse != was.edgeMatrixInverse ||
+      gather.nodeRefStart != m_gatherFrom.nodeRefStart || gather.nodeRef != m_gatherFrom.nodeRef;
+  const bool state = model || stateChanged || h.restInverse != was.restInverse ||
+                     h.tetMask != was.tetMask || h.chi != was.chi || h.rigidTet != was.rigidTet ||
+                     h.tetLame != was.tetLame;
+  m_tetCount = tetCount;
+  m_nodeCount = nodeCount;
+  m_host = h;
+  if (model) {
+    m_modelFrom = {};  // a failed copy is retried at the next call
+    if (!m_tets.upload(h.tets, 4 * nt) || !m_restVolume.upload(h.restVolume, nt) ||
+        !m_fibreDir.upload(h.fibreDir, nt) || !m_edgeMatrix.upload(h.edgeMatrix, nt) ||
+        !m_edgeMatrixInverse.upload(h.edgeMatrixInverse, nt) ||
+        !m_nodeRefStart.upload(gather.nodeRefStart, nn + 1) ||
+        !m_nodeRef.upload(gather.nodeRef, 4 * nt) || !m_energy.resize(nt) ||
+        !m_grad.resize(12 * nt) || !m_nodeGrad.resize(3 * nn) ||
+        !m_partials.resize(size_t(detail::sumChunks(tetCount))) || !m_sum.resize(1))
+      return fail("uploading the body");
+    m_modelFrom = h;
+    m_gatherFrom = gather;
+  }
+  if (state) {
+    m_modelFrom.restInverse = nullptr;  // retried at the next call if a copy fails
+    const bool damaged = h.tetMask != nullptr;
+    if (!m_restInverse.upload(h.restInverse, nt) || !m_tetMask.upload(h.tetMask, nt) ||
+        !m_chi.upload(damaged ? h.chi : nullptr, nt) || !m_rigidTet.upload(h.rigidTet, nt) ||
+        !m_tetLame.upload(h.tetLame, 2 * nt))
+      return fail("uploading the body's state");
+    m_modelFrom.restInverse = h.restInverse;
+    m_modelFrom.tetMask = h.tetMask;
+    m_modelFrom.chi = h.chi;
+    m_modelFrom.rigidTet = h.rigidTet;
+    m_modelFrom.tetLame = h.tetLame;
+  }
+  return uploadPositions(h.x);
+}
+
 bool DeviceElementPass::uploadPositions(const double* x) {
   return m_x.upload(x, 3 * size_t(m_nodeCount)) || fail("uploading positions");
 }

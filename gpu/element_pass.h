@@ -19,6 +19,13 @@ class DeviceElementPass {
   /// runs out (error()).
   bool upload(const detail::ElementStage& elements, const detail::GatherStage& gather,
               int32_t tetCount, int32_t nodeCount);
+  /// For a body stepped on the device (detail::BodyDevice): what upload() copies, but the
+  /// model's arrays (topology, rest volumes and edge matrices, fibres, the gather) only when
+  /// their host addresses or the sizes changed since the last call, the state's (rest
+  /// inverses, damage, rigid tets, wet Lamé values) only then or with `stateChanged`, and the
+  /// stage's options and x every call.
+  bool prepare(const detail::ElementStage& elements, const detail::GatherStage& gather,
+               int32_t tetCount, int32_t nodeCount, bool stateChanged);
   /// Positions only (3 per node), for another pass on the uploaded body.
   bool uploadPositions(const double* x);
   /// Runs the element stage (with Hessians and criterion stresses when asked), the energy sum
@@ -36,6 +43,9 @@ class DeviceElementPass {
 
   int32_t m_tetCount = 0, m_nodeCount = 0;
   detail::ElementStage m_host;  // options and coefficients of the uploaded body
+  // The host arrays prepare() copied the model's arrays from.
+  detail::ElementStage m_modelFrom;
+  detail::GatherStage m_gatherFrom;
   DeviceBuffer<int32_t> m_tets, m_nodeRefStart, m_nodeRef;
   DeviceBuffer<double> m_x, m_restVolume, m_chi, m_energy, m_grad, m_hess, m_stress, m_nodeGrad,
       m_partials, m_sum, m_tetLame;

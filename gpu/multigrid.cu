@@ -7,6 +7,27 @@
 namespace gf::gpu {
 inline namespace GF_GPU_ABI {
 
+namespace {
+
+// A V-cycle that is a zero correction while its levels could not be uploaded (multigridSolve
+// runs level 0's cycle alone).
+template <class VCycle>
+struct GuardedCycle {
+  const VCycle& v;
+  const bool& ok;
+  const Executor& exec;
+  int32_t n3;
+  template <int B>
+  void cycle(int l, const double* r, double* z) const {
+    if (ok)
+      v.template cycle<B>(l, r, z);
+    else
+      exec.run(n3, 2048, detail::FillStage{0.0, z});
+  }
+};
+
+}  // namespace
+
 bool DeviceMultigrid::fail(const char* what) {
   m_error = std::string(what) + ": " + lastError();
   return false;
@@ -39,6 +60,29 @@ bool DeviceMultigrid::scratch(size_t n, double*& out) {
 }
 
 bool DeviceMultigrid::upload(const detail::BlockSparseMatrix& A, const HostMultigrid& host) {
+  m_fineReady = false;
+  m_n = A.n;
+  m_fineBlocks = A.col.size();
+  return uploadLevels(host);
+}
+
+bool DeviceMultigrid::uploadMatrix(const detail::BlockSparseMatrix& A,
+                                   const detail::CycleSettings& settings) {
+  m_n = A.n;
+  m_fineBlocks = A.col.size();
+  m_host.settings = settings;
+  const size_t n3 = 3 * size_t(A.n);
+  m_fineReady = m_fineRowStart.upload(A.rowStart.data(), A.rowStart.size()) &&
+                m_fineCol.upload(A.col.data(), A.col.size()) &&
+                m_fineValues.upload(A.values.data(), A.values.size()) && m_b.resize(n3) &&
+                m_x.resize(n3) && m_r.resize(n3) && m_z.resize(n3) && m_p.resize(n3) &&
+                m_ap.resize(n3) && m_rOld.resize(n3);
+  if (!m_fineReady) return fail("uploading the matrix");
+  m_A = {A.n, m_fineRowStart.data(), m_fineCol.data(), m_fineValues.data()};
+  return true;
+}
+
+bool DeviceMultigrid::uploadLevels(const HostMultigrid& host) {
   const std::vector<detail::CycleLevel>& levels = host.levels;
   m_ints.clear();
   m_floats.clear();
@@ -47,9 +91,7 @@ bool DeviceMultigrid::upload(const detail::BlockSparseMatrix& A, const HostMulti
   m_galerkin.assign(host.galerkin.size(), detail::GalerkinLevelView{});
   m_colourStart.assign(levels.size(), {});
   m_host = host;
-  m_n = A.n;
-  m_fineBlocks = A.col.size();
-  const size_t n3 = 3 * size_t(A.n);
+  const size_t n3 = 3 * size_t(m_n);
   if (!m_b.resize(n3) || !m_x.resize(n3) || !m_r.resize(n3) || !m_z.resize(n3) || !m_p.resize(n3) ||
       !m_ap.resize(n3) || !m_rOld.resize(n3))
     return fail("allocating the solve's vectors");
@@ -64,14 +106,22 @@ bool DeviceMultigrid::upload(const detail::BlockSparseMatrix& A, const HostMulti
     d.colourStart = m_colourStart[l].data();
     d.colours = h.colours;
     const size_t gsBlocks = gs ? size_t(h.gsRowStart[h.n]) : 0;
-    bool ok = mirror(h.rowStart, n + 1, d.rowStart) && mirror(h.col, nnz, d.col) &&
-              mirror(h.values, nnz * B * B, d.values) && mirror(h.diagIndex, n, d.diagIndex) &&
-              mirror(h.invDiag, n * B * B, d.invDiag) && mirror(h.colourRows, n, d.colourRows) &&
-              mirror(gs ? h.gsRowStart : nullptr, n + 1, d.gsRowStart) &&
-              mirror(h.gsCol, gsBlocks, d.gsCol) && mirror(h.gsBlock, gsBlocks, d.gsBlock) &&
-              mirror(h.gsValues, gsBlocks * B * B, d.gsValues) &&
-              mirror(h.gsValuesSingle, gsBlocks * B * B, d.gsValuesSingle) && scratch(B * n, d.b) &&
-              scratch(B * n, d.x) && scratch(B * n, d.r) && scratch(B * n, d.t);
+    bool ok = true;
+    if (l == 0 && m_fineReady) {
+      d.rowStart = m_fineRowStart.data();
+      d.col = m_fineCol.data();
+      d.values = m_fineValues.data();
+    } else {
+      ok = mirror(h.rowStart, n + 1, d.rowStart) && mirror(h.col, nnz, d.col) &&
+           mirror(h.values, nnz * B * B, d.values);
+    }
+    ok = ok && mirror(h.diagIndex, n, d.diagIndex) && mirror(h.invDiag, n * B * B, d.invDiag) &&
+         mirror(h.colourRows, n, d.colourRows) &&
+         mirror(gs ? h.gsRowStart : nullptr, n + 1, d.gsRowStart) &&
+         mirror(h.gsCol, gsBlocks, d.gsCol) && mirror(h.gsBlock, gsBlocks, d.gsBlock) &&
+         mirror(h.gsValues, gsBlocks * B * B, d.gsValues) &&
+         mirror(h.gsValuesSingle, gsBlocks * B * B, d.gsValuesSingle) && scratch(B * n, d.b) &&
+         scratch(B * n, d.x) && scratch(B * n, d.r) && scratch(B * n, d.t);
     if (ok && l + 1 < levels.size()) {
       const detail::ProlongationView& hp = h.P;
       detail::ProlongationView& dp = d.P;
@@ -114,7 +164,7 @@ bool DeviceMultigrid::upload(const detail::BlockSparseMatrix& A, const HostMulti
       return fail("uploading the coarse operators' patterns");
   }
   // Level 0's matrix is A.
-  m_A = {A.n, m_levels[0].rowStart, m_levels[0].col, m_levels[0].values};
+  m_A = {m_n, m_levels[0].rowStart, m_levels[0].col, m_levels[0].values};
   const size_t coarseLength = levels.size() > 1 ? 12 * size_t(levels.back().n) : 0;
   m_coarseB.resize(coarseLength);
   m_coarseX.resize(coarseLength);
@@ -180,7 +230,21 @@ bool DeviceMultigrid::refresh(const double* values) {
 
 bool DeviceMultigrid::solve(const double* b, double* x, int maxIterations, double relativeTolerance,
                             detail::MultigridRun& run, detail::SolveReport& report) {
+  return solve(b, x, maxIterations, relativeTolerance, run, report, {});
+}
+
+bool DeviceMultigrid::solve(const double* b, double* x, int maxIterations, double relativeTolerance,
+                            detail::MultigridRun& run, detail::SolveReport& report,
+                            const std::function<const HostMultigrid*()>& prepare) {
   const size_t n3 = 3 * size_t(m_n);
+  // Levels that could not be prepared leave every cycle a zero correction, and the solve
+  // failed: the caller keeps its x.
+  bool levelsOk = true;
+  auto prepareLevels = [&] {
+    if (!prepare) return;
+    const HostMultigrid* host = prepare();
+    levelsOk = host && uploadLevels(*host);
+  };
   if (!m_b.upload(b, n3) || !m_x.upload(x, n3)) return fail("uploading the right-hand side");
   m_coarseFailed = false;
   // The coarsest level is solved on the device, or goes to the host and back; a failed copy
@@ -202,12 +266,13 @@ bool DeviceMultigrid::solve(const double* b, double* x, int maxIterations, doubl
     if (!copyToDevice(cx, m_coarseX.data(), len * sizeof(double))) m_coarseFailed = true;
   };
   detail::CycleTimes times;
-  const detail::VCycle<Executor, decltype(coarse)> cycle(m_exec, m_levels, m_host.settings, coarse,
-                                                         times);
+  const detail::VCycle<Executor, decltype(coarse)> vCycle(m_exec, m_levels, m_host.settings, coarse,
+                                                          times);
+  const GuardedCycle<decltype(vCycle)> cycle{vCycle, levelsOk, m_exec, int32_t(n3)};
   const detail::CgBuffers work{m_r.data(), m_z.data(), m_p.data(), m_ap.data(), m_rOld.data()};
-  report = detail::multigridSolve(
-      m_exec, m_A, m_b.data(), m_x.data(), work, cycle, [] {}, maxIterations, relativeTolerance,
-      run);
+  report = detail::multigridSolve(m_exec, m_A, m_b.data(), m_x.data(), work, cycle, prepareLevels,
+                                  maxIterations, relativeTolerance, run);
+  if (!levelsOk) return fail("uploading the multigrid levels");
   if (m_exec.takeFailure() || m_coarseFailed || !synchronize()) return fail("solving");
   return m_x.download(x, n3) || fail("reading the solution");
 }

@@ -22,18 +22,8 @@
 namespace gf::gpu {
 inline namespace GF_GPU_ABI {
 
-/// What DeviceMultigrid mirrors: a prepared MultigridSolver's host views and its coarsest
-/// level's factorisation and solve.
-struct HostMultigrid {
-  std::vector<detail::CycleLevel> levels;           ///< cycleLevels(A); level 0 is A
-  std::vector<detail::GalerkinLevelView> galerkin;  ///< galerkinLevels()
-  detail::CycleSettings settings;
-  std::function<void(const double* values)> factorCoarsest;  ///< from its blocks' values
-  std::function<void(const double* b, double* x)> solveCoarsest;
-  /// Factorise and solve the coarsest level on the device when it is small enough (then the
-  /// two functions above are not called). Off by default until it has run on a device.
-  bool denseCoarsestOnDevice = false;
-};
+/// What DeviceMultigrid mirrors (detail::MultigridMirror).
+using HostMultigrid = detail::MultigridMirror;
 
 class DeviceMultigrid {
  public:
@@ -50,12 +40,21 @@ class DeviceMultigrid {
   /// unchanged.
   bool solve(const double* b, double* x, int maxIterations, double relativeTolerance,
              detail::MultigridRun& run, detail::SolveReport& report);
+  /// For a solve that prepares its levels only where it reaches its first cycle, as
+  /// MultigridSolver::solve does (the body step's, detail::BodyDevice): A and the cycle's
+  /// settings, then solve() with `prepare`, which gives the levels upload() copies (null fails
+  /// the solve). A's copy is level 0's matrix there.
+  bool uploadMatrix(const detail::BlockSparseMatrix& A, const detail::CycleSettings& settings);
+  bool solve(const double* b, double* x, int maxIterations, double relativeTolerance,
+             detail::MultigridRun& run, detail::SolveReport& report,
+             const std::function<const HostMultigrid*()>& prepare);
   const std::string& error() const { return m_error; }
   /// Whether the uploaded coarsest level is factorised and solved on the device (asked for and
   /// small enough), rather than on the host.
   bool coarsestOnDevice() const { return m_denseCoarse; }
 
  private:
+  bool uploadLevels(const HostMultigrid& host);
   bool factorCoarsestOnDevice();
   bool fail(const char* what);
   // A device copy of n items of host (null stays null); false when it cannot be made.
@@ -76,6 +75,10 @@ class DeviceMultigrid {
   std::deque<DeviceBuffer<float>> m_floats;  // level 0's Gauss-Seidel copy
   std::deque<DeviceBuffer<double>> m_doubles;
   DeviceBuffer<double> m_b, m_x, m_r, m_z, m_p, m_ap, m_rOld;
+  // uploadMatrix's copy of A, level 0's matrix while fineReady.
+  DeviceBuffer<int32_t> m_fineRowStart, m_fineCol;
+  DeviceBuffer<double> m_fineValues;
+  bool m_fineReady = false;
   DeviceBuffer<double> m_coarseDense;  // the coarsest level's dense factor (12 handles)^2
   bool m_denseCoarse = false, m_denseOk = false;
   Executor m_exec;

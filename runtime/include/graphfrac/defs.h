@@ -464,12 +464,12 @@ struct Collider {
 
 /// Which backend runs the bodies.
 enum class Backend : uint8_t {
-  /// The best one available: in this version always the CPU (World::backendDescription says
-  /// whether a CUDA device was found).
+  /// The CPU in this version, also where a CUDA device is found (World::backendDescription
+  /// says so): Cuda's device step is partial and not yet measured faster than the CPU.
   Auto,
   Cpu,  ///< The CPU, threaded through WorldDef::jobs.
-  /// A CUDA device. The whole step does not run on the device in this version, so a world
-  /// asking for it refuses to run, with the reason (no driver, no device, or that).
+  /// A CUDA device: each body's element pass and PCG or multigrid solves, the rest on the CPU.
+  /// Without a driver or device the world refuses to run, saying why (docs/design.md).
   Cuda,
 };
 

@@ -179,12 +179,30 @@ double Integrator::elementPass(const FemModel& model, const FemState& state, con
   ElementStage stage =
       elementStage(model, state, x, m_elemEnergy.data(), withGradient ? m_elemGrad.data() : nullptr,
                    withGradient && withHessian ? m_elemHess.data() : nullptr, m_stressOut);
-  stage.svdCache = m_svdCache.data();
   stage.closedCrackHessian = m_closedCrackHessian;
+  if (m_device) {
+    // Its state arrays change with a step (plasticity, commands, a restored snapshot) and with
+    // breaks; the SVD cache is the host's scratch.
+    const int32_t broken = m_fracture ? m_fracture->brokenCount() : 0;
+    double psi = 0;
+    if (m_device->elementPass(stage, gatherStage(nullptr, nullptr), model.tetCount, model.nodeCount,
+                              m_deviceStale || broken != m_deviceBroken, psi)) {
+      m_deviceStale = false;
+      m_deviceBroken = broken;
+      return psi;
+    }
+    dropDevice();
+  }
+  stage.svdCache = m_svdCache.data();
   const CpuExecutor exec(jobs);
   exec.runRanges(model.tetCount, kElementGrain,
                  [&stage](int32_t b, int32_t e) { evaluateElementRange(stage, b, e); });
   return exec.sum(m_elemEnergy.data(), model.tetCount);
+}
+
+void Integrator::dropDevice() {
+  m_deviceFailure = m_device->error();
+  m_device.reset();
 }
 
 void Integrator::gatherGradient(const FemModel& model, JobSystem& jobs) {
@@ -817,12 +835,29 @@ SolveReport Integrator::patternSolve(const FemModel& model, const double* b, dou
   } else if (m_cholesky) {
     sr = m_cholesky->solve(m_A, b, x);
   } else if (m_multigrid) {
-    sr = m_multigrid->solve(m_A, b, x, model.solver.maxLinearIterations, tolerance, jobs);
+    bool solved = false;
+    if (m_device) {
+      // A failed device solve leaves x as it was; the host solves again from there.
+      sr = m_multigrid->solveWith(
+          m_A, x, jobs,
+          [&](const CycleSettings& settings, const std::function<const MultigridMirror*()>& prepare,
+              MultigridRun& run, SolveReport& report) {
+            return m_device->multigridSolve(m_A, settings, prepare, b, x,
+                                            model.solver.maxLinearIterations, tolerance, run,
+                                            report);
+          },
+          solved);
+      if (!solved) dropDevice();
+    }
+    if (!solved)
+      sr = m_multigrid->solve(m_A, b, x, model.solver.maxLinearIterations, tolerance, jobs);
     // A fixed number of V-cycles is a chosen cost, not a convergence target: only a
     // non-finite result is a failure there.
     if (!model.solver.multigrid.preconditionCG && std::isfinite(sr.relativeResidual))
       sr.converged = true;
-  } else {
+  } else if (!m_device ||
+             !m_device->pcgSolve(m_A, b, x, model.solver.maxLinearIterations, tolerance, sr)) {
+    if (m_device) dropDevice();
     sr = m_pcg.solve(m_A, b, x, model.solver.maxLinearIterations, tolerance, jobs);
   }
   sr.relativeResidual /= toleranceScale;  // against the scale the tolerance was set on
@@ -1328,6 +1363,7 @@ bool Integrator::nearCollider(const FemModel& model, const FemState& state, cons
 
 void Integrator::beginStep(const FemModel& model, FemState& state, const StepContext& ctx,
                            JobSystem& jobs, BodyStepReport& rep) {
+  m_deviceStale = true;
   m_xStart = state.x;
   m_vStart = state.v;
   sweepColliders(model, state, ctx, jobs, rep);

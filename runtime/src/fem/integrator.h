@@ -22,8 +22,10 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "fem/body_device.h"
 #include "fem/element_stage.h"
 #include "fem/face_stage.h"
 #include "fem/fem_body.h"
@@ -148,6 +150,13 @@ class Integrator {
   /// fixed nodes, so its hierarchy is built again and re-bound to the current cracks at the
   /// next solve. If it cannot be built (e.g. no free node is left) PCG solves the body.
   void refreshFixedNodes(const FemModel& model, const FemState& state);
+  /// Runs the element pass and the PCG and multigrid solves on `device` (the CUDA backend);
+  /// the rest of the step, and the direct solver, stay on the host. A device call that fails
+  /// hands the body back to the CPU for good (takeDeviceFailure()).
+  void useDevice(std::unique_ptr<BodyDevice> device) { m_device = std::move(device); }
+  bool onDevice() const { return m_device != nullptr; }
+  /// Why the device was dropped since the last call (empty: it was not); clears it.
+  std::string takeDeviceFailure() { return std::exchange(m_deviceFailure, {}); }
   /// The multigrid solver, or null when the body uses another linear solver.
   const MultigridSolver* multigrid() const { return m_multigrid.get(); }
   /// Damage state the element pass reads (null: no fracture); it outlives the integrator's use.
@@ -406,6 +415,14 @@ class Integrator {
   // went to rigid physics): the potential is per node, so its Hessian is block diagonal.
   bool m_inert = false;
   PcgSolver m_pcg;
+  // The CUDA backend's device (useDevice), and whether its copy of the body's state arrays is
+  // older than this step or than the last breaks (m_deviceBroken).
+  std::unique_ptr<BodyDevice> m_device;
+  bool m_deviceStale = true;
+  int32_t m_deviceBroken = 0;
+  std::string m_deviceFailure;
+  // Hands the body back to the CPU after a failed device call.
+  void dropDevice();
   std::unique_ptr<CholeskySolver> m_cholesky;
   std::unique_ptr<MultigridSolver> m_multigrid;
   int32_t m_boundBrokenCount = 0;  // broken edges the multigrid binding has seen

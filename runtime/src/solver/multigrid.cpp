@@ -318,6 +318,11 @@ struct MultigridSolver::Impl {
     if (!deferFactor) finishFactor();
   }
 
+  // A solve's start (the last solve's statistics cleared) and end (the refresh schedule's
+  // iteration counts), for solve() and solveWith() alike.
+  void startSolve();
+  void endSolve(const MultigridRun& run, const SolveReport& report);
+
   void finishFactor() {
     if (!factorPending) return;
     const auto t0 = Clock::now();
@@ -647,22 +652,64 @@ void MultigridSolver::solveCoarsest(const double* b, double* x, JobSystem& jobs)
   m_impl->solveCoarsest(b, x, jobs);
 }
 
+void MultigridSolver::Impl::startSolve() {
+  stats.refreshMs = stats.galerkinMs = stats.factorMs = stats.smoothMs = stats.coarseSolveMs =
+      stats.transferMs = 0;
+  stats.iterations = stats.cycles = 0;
+  stats.refreshed = false;
+  cycleResiduals.clear();
+}
+
+void MultigridSolver::Impl::endSolve(const MultigridRun& run, const SolveReport& report) {
+  finishFactor();  // no V-cycle ran after the refresh
+  stats.cycles = run.vCycles;
+  stats.iterations = settings.preconditionCG ? report.iterations : 0;
+  if (stats.refreshed) refreshIterations = stats.iterations;
+  lastIterations = stats.iterations;
+}
+
+// What a solve for a matrix the solver is not set up for returns: x zeroed, an infinite residual.
+static SolveReport notSetUp(int32_t n, double* x, JobSystem& jobs) {
+  CpuExecutor(jobs).run(3 * std::max(n, 0), kEntryGrain, FillStage{0.0, x});
+  SolveReport report;
+  report.relativeResidual = std::numeric_limits<double>::infinity();
+  return report;
+}
+
+SolveReport MultigridSolver::solveWith(const BlockSparseMatrix& A, double* x, JobSystem& jobs,
+                                       const ExternalSolve& external, bool& ok) {
+  Impl& s = *m_impl;
+  const auto tStart = Clock::now();
+  s.startSolve();
+  ok = true;
+  if (!ready(A)) return notSetUp(A.n, x, jobs);
+  MultigridMirror mirror;
+  auto prepareLevels = [&]() -> const MultigridMirror* {
+    s.prepare(A, jobs, false);
+    mirror = {s.cycleLevels(A), galerkinLevels(), s.cycleSettings(),
+              [&s](const double* values) { s.factorCoarsest(values); },
+              [&s, &jobs](const double* b, double* xc) { s.solveCoarsest(b, xc, jobs); }};
+    return &mirror;
+  };
+  MultigridRun run;
+  run.preconditionCG = s.settings.preconditionCG;
+  run.cycles = s.settings.cycles;
+  run.cycleResiduals = &s.cycleResiduals;
+  SolveReport report;
+  ok = external(s.cycleSettings(), prepareLevels, run, report);
+  s.endSolve(run, report);
+  s.stats.totalMs = msSince(tStart);
+  return report;
+}
+
 SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, double* x,
                                    int maxIterations, double relativeTolerance, JobSystem& jobs) {
   Impl& s = *m_impl;
   const auto tStart = Clock::now();
   MultigridStats& st = s.stats;
-  st.refreshMs = st.galerkinMs = st.factorMs = st.smoothMs = st.coarseSolveMs = st.transferMs = 0;
-  st.iterations = st.cycles = 0;
-  st.refreshed = false;
-  s.cycleResiduals.clear();
+  s.startSolve();
   const size_t n3 = 3 * static_cast<size_t>(std::max(A.n, 0));
-  if (!ready(A)) {
-    CpuExecutor(jobs).run(int32_t(n3), kEntryGrain, FillStage{0.0, x});  // not set up for A
-    SolveReport report;
-    report.relativeResidual = std::numeric_limits<double>::infinity();
-    return report;
-  }
+  if (!ready(A)) return notSetUp(A.n, x, jobs);
   if (s.r.size() < n3) {
     s.r.resize(n3);
     s.z.resize(n3);
@@ -689,11 +736,7 @@ SolveReport MultigridSolver::solve(const BlockSparseMatrix& A, const double* b, 
   const SolveReport report = multigridSolve(
       exec, A.view(), b, x, {s.r.data(), s.z.data(), s.p.data(), s.ap.data(), s.rOld.data()}, cycle,
       prepareLevels, maxIterations, relativeTolerance, run);
-  s.finishFactor();  // no V-cycle ran after the refresh
-  st.cycles = run.vCycles;
-  st.iterations = s.settings.preconditionCG ? report.iterations : 0;
-  if (st.refreshed) s.refreshIterations = st.iterations;
-  s.lastIterations = st.iterations;
+  s.endSolve(run, report);
   st.smoothMs = times.smoothMs;
   st.transferMs = times.transferMs;
   st.coarseSolveMs = times.coarseSolveMs;

@@ -86,6 +86,18 @@ class MultigridSolver {
   SolveReport solve(const BlockSparseMatrix& A, const double* b, double* x, int maxIterations,
                     double relativeTolerance, JobSystem& jobs);
 
+  /// What solveWith() runs in place of the host's solve: A x = b by the cycle of `settings`,
+  /// calling `prepare` where it reaches its first cycle (the levels to cycle on; null when they
+  /// cannot be had), its report into `report`, `run` as multigridSolve's; false on a failure.
+  using ExternalSolve = std::function<bool(const CycleSettings& settings,
+                                           const std::function<const MultigridMirror*()>& prepare,
+                                           MultigridRun& run, SolveReport& report)>;
+  /// solve() run by `external` (a device's, detail::BodyDevice::multigridSolve) with the same
+  /// schedule of refreshes and re-bindings and the same statistics; ok false when it failed
+  /// (x is then as external left it).
+  SolveReport solveWith(const BlockSparseMatrix& A, double* x, JobSystem& jobs,
+                        const ExternalSolve& external, bool& ok);
+
   /// For a solve on another executor (gpu::DeviceMultigrid): whether the solver is set up for
   /// A's pattern; prepare() sets up what a V-cycle needs of A's values (what solve() does
   /// before its first cycle); cycleLevels() and galerkinLevels() (coarse level 1 first) are

@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -255,6 +256,20 @@ struct MultigridRun {
   int vCycles = 0;             ///< out: V-cycles run
   /// out, cycling alone: relative true residual before the first and after every V-cycle.
   std::vector<double>* cycleResiduals = nullptr;
+};
+
+/// A prepared MultigridSolver's host views, for a solve on another executor (gpu::
+/// DeviceMultigrid): its levels and coarse operators' inputs, and its coarsest level's
+/// factorisation and solve on host arrays.
+struct MultigridMirror {
+  std::vector<CycleLevel> levels;           ///< MultigridSolver::cycleLevels(A); level 0 is A
+  std::vector<GalerkinLevelView> galerkin;  ///< galerkinLevels()
+  CycleSettings settings;
+  std::function<void(const double* values)> factorCoarsest;  ///< from its blocks' values
+  std::function<void(const double* b, double* x)> solveCoarsest;
+  /// Factorise and solve the coarsest level on the device when it is small enough (then the
+  /// two functions above are not called). Off by default until it has run on a device.
+  bool denseCoarsestOnDevice = false;
 };
 
 /// Solves A x = b (x: the initial guess) with the cycle on level 0 of `cycle`. `prepare()` runs

@@ -1,7 +1,11 @@
 #include "world/backend.h"
 
+#include <atomic>
+
 #if defined(GF_HAVE_CUDA)
 #include <dlfcn.h>
+
+#include "gpu/body_device.h"
 #endif
 
 namespace gf::detail {
@@ -52,7 +56,15 @@ const DeviceProbe& device() {
   return probe;
 }
 
+std::atomic<BodyDeviceFactory> g_testDevice{nullptr};
+std::atomic<const char*> g_testDeviceName{""};
+
 }  // namespace
+
+void setTestDevice(BodyDeviceFactory factory, const char* name) {
+  g_testDeviceName.store(name ? name : "");
+  g_testDevice.store(factory);
+}
 
 BackendChoice chooseBackend(Backend requested) {
   BackendChoice c;
@@ -60,18 +72,34 @@ BackendChoice chooseBackend(Backend requested) {
     c.description = "cpu: requested";
     return c;
   }
-  const DeviceProbe& d = device();
-  // The device runs the element and gather stages (gpu/) but not yet a whole step, so no
-  // world steps on it; Auto says what it found.
-  const std::string why = d.present ? "CUDA device " + d.text +
-                                          " found, but the whole step does not run on the "
-                                          "device in this version"
-                                    : d.text;
+  BodyDeviceFactory factory = g_testDevice.load();
+  std::string name = g_testDeviceName.load();
+  if (!factory) {
+    const DeviceProbe& d = device();
+    name = d.text;
+#if defined(GF_HAVE_CUDA)
+    if (d.present) factory = &gpu::makeBodyDevice;
+#endif
+  }
   if (requested == Backend::Cuda) {
-    c.error = "WorldDef.backend: Cuda cannot run: " + why + "; use Backend::Auto or Backend::Cpu";
+    if (!factory) {
+      c.error =
+          "WorldDef.backend: Cuda cannot run: " + name + "; use Backend::Auto or Backend::Cpu";
+      return c;
+    }
+    c.backend = Backend::Cuda;
+    c.device = factory;
+    c.description = "cuda: " + name +
+                    ": the element pass and the PCG and multigrid solves on the device, the rest "
+                    "of the step on the CPU";
     return c;
   }
-  c.description = "cpu: " + why;
+  // The device runs part of the step, with copies each Newton iteration, which has not been
+  // measured faster than the CPU: Auto keeps the CPU until it has.
+  c.description = factory ? "cpu: CUDA device " + name +
+                                " found; Auto keeps the CPU until the whole step runs on the "
+                                "device (Backend::Cuda runs part of it there)"
+                          : "cpu: " + name;
   return c;
 }
 

@@ -408,6 +408,11 @@ Result<BodyId> World::createBody(BodyDef def) {
     const glm::vec3 g = w.def.gravity;
     Result<std::unique_ptr<BodyRecord>> built = buildBody(std::move(def), *w.jobs, {g.x, g.y, g.z});
     if (!built) return built.error();
+    if (w.backend.device) {
+      std::unique_ptr<detail::BodyDevice> device = w.backend.device();
+      if (!device) return fail("createBody: the CUDA device cannot be had for the body any more");
+      built.value()->integrator->useDevice(std::move(device));
+    }
     built.value()->renderBinding = std::move(binding);
     size_t slot = 0;
     while (slot < w.slots.size() && w.slots[slot].body) ++slot;
@@ -539,6 +544,12 @@ StepStatus World::step(double dt) {
       st.flags |= r.flags;
       if ((r.flags & kStepNanContained) && st.message.empty())
         st.message = "body " + std::to_string(si + 1) + ": " + r.message;
+      if (std::string why = b->integrator->takeDeviceFailure(); !why.empty()) {
+        const std::string text = "body " + std::to_string(si + 1) +
+                                 " runs on the CPU from now on: the device failed (" + why + ")";
+        w.backend.description += "; " + text;
+        if (st.message.empty()) st.message = text;
+      }
       st.newtonIterations += r.newtonIterations;
       st.linearIterations += r.linearIterations;
       st.residual = std::max(st.residual, r.residual);

@@ -1,0 +1,360 @@
+// Worlds on the CUDA backend (WorldDef::backend = Cuda: each body's element pass and PCG and
+// multigrid solves on its device, gpu/body_device.h) against the same worlds on the CPU, 100
+// steps of tearing, shattering, cutting and plastic scenes, with every material and both damage
+// models: the same broken edges and fragments, positions within a stated tolerance. Built
+// twice: here the device is the host build of the device sources (detail::setTestDevice), so
+// CI runs it; in gf_gpu_tests it is the CUDA device, and the cases are skipped, and reported
+// so, where there is none.
+#include <graphfrac/world.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "common/sim_helpers.h"
+#include "gpu/body_device.h"
+#include "world/backend.h"
+
+namespace gf {
+namespace {
+
+// What the comparison reads of a run.
+struct Outcome {
+  std::vector<double> x, v;
+  std::vector<uint8_t> broken;
+  int32_t fragments = 0, brokenCount = 0;
+  double size = 0;  // the body's extent at the start, the positions' scale
+  std::string description;
+  std::vector<std::string> messages;
+};
+
+// A scene: the world def, the body, and what happens at each step before it (cuts, grips).
+struct Scene {
+  std::string name;
+  std::function<void(WorldDef&, BodyDef&)> build;
+  std::function<void(World&, BodyId, int step)> act;
+  double dt = 1.0 / 60;
+};
+
+#if defined(GF_GPU_CUDA)
+// The CUDA build's cases are skipped where no device runs them, saying why.
+#define GF_SKIP_WITHOUT_DEVICE()                                                      \
+  do {                                                                                \
+    const World probe(WorldDef{glm::vec3(0), Backend::Cuda, nullptr, 1, {}});         \
+    if (probe.backend() != Backend::Cuda) GTEST_SKIP() << probe.backendDescription(); \
+  } while (false)
+#else
+#define GF_SKIP_WITHOUT_DEVICE() \
+  do {                           \
+  } while (false)
+// The host build of the device sources as the device of Backend::Cuda, for one test.
+struct HostDevice {
+  HostDevice() { detail::setTestDevice(&gpu::makeBodyDevice, "host emulation"); }
+  ~HostDevice() { detail::setTestDevice(nullptr, nullptr); }
+};
+#endif
+
+// Runs `scene` for `steps` steps on `backend`; an empty outcome when the backend cannot run.
+Outcome run(const Scene& scene, Backend backend, int steps) {
+  WorldDef wd;
+  BodyDef def;
+  scene.build(wd, def);
+  wd.backend = backend;
+  Outcome o;
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  for (size_t i = 0; i < def.mesh.positions.size(); ++i) {
+    lo[i % 3] = std::min(lo[i % 3], def.mesh.positions[i]);
+    hi[i % 3] = std::max(hi[i % 3], def.mesh.positions[i]);
+  }
+  o.size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+  World world(wd);
+  const Result<BodyId> id = world.createBody(def);
+  o.description = world.backendDescription();
+  if (!id.ok()) {
+    o.description = id.error().message;
+    return o;
+  }
+  for (int s = 0; s < steps; ++s) {
+    if (scene.act) scene.act(world, id.value(), s);
+    const StepStatus st = world.step(scene.dt);
+    EXPECT_FALSE(st.has(kStepNanContained)) << scene.name << " step " << s << ": " << st.message;
+    if (!st.message.empty()) o.messages.push_back(st.message);
+  }
+  const auto x = world.positions(id.value());
+  const auto v = world.velocities(id.value());
+  o.x.assign(x.begin(), x.end());
+  o.v.assign(v.begin(), v.end());
+  const auto b = world.brokenEdges(id.value());
+  o.broken.assign(b.begin(), b.end());
+  const FractureStats fs = world.fractureStats(id.value());
+  o.fragments = fs.fragments;
+  o.brokenCount = fs.brokenEdges;
+  o.description = world.backendDescription();
+  return o;
+}
+
+double maxDifference(const std::vector<double>& a, const std::vector<double>& b) {
+  double d = 0;
+  for (size_t i = 0; i < a.size(); ++i) d = std::max(d, std::fabs(a[i] - b[i]));
+  return d;
+}
+
+// Positions within this fraction of the body's size of the CPU's after 100 steps. The host
+// build runs the CPU's sources on the same host: the same bits, but for NeoHookean, whose log
+// the CPU's element pass takes in SIMD batches, rounded otherwise (docs/validation.md, "The
+// element pass"). A device sums in another order, with fused multiply-adds.
+#if defined(GF_GPU_CUDA)
+constexpr double kExact = 1e-6, kNeoHookean = 1e-6;
+#else
+constexpr double kExact = 0, kNeoHookean = 1e-8;
+#endif
+
+// Returns the CPU's outcome, for what a test checks of the scene itself.
+Outcome compare(const Scene& scene, double tolerance, int steps = 100) {
+#if !defined(GF_GPU_CUDA)
+  const HostDevice device;
+#endif
+  const Outcome cpu = run(scene, Backend::Cpu, steps);
+  const Outcome dev = run(scene, Backend::Cuda, steps);
+  if (dev.x.empty()) {
+    ADD_FAILURE_AT(__FILE__, __LINE__) << "no device world: " << dev.description;
+    return cpu;
+  }
+  EXPECT_EQ(dev.x.size(), cpu.x.size());
+  if (dev.x.size() != cpu.x.size()) return cpu;
+  EXPECT_EQ(dev.description.rfind("cuda: ", 0), 0u) << dev.description;
+  for (const std::string& m : dev.messages)
+    EXPECT_EQ(m.find("runs on the CPU from now on"), std::string::npos) << m;
+  const double dx = maxDifference(dev.x, cpu.x) / cpu.size;
+  const double dv = maxDifference(dev.v, cpu.v);
+  std::printf(
+      "  %s on %s: %d broken edges, %d fragments (CPU %d, %d); positions within %.1e of "
+      "the size, velocities within %.1e m/s\n",
+      scene.name.c_str(), dev.description.c_str(), dev.brokenCount, dev.fragments, cpu.brokenCount,
+      cpu.fragments, dx, dv);
+  EXPECT_EQ(dev.broken, cpu.broken);
+  EXPECT_EQ(dev.fragments, cpu.fragments);
+  EXPECT_LE(dx, tolerance);
+  return cpu;
+}
+
+const char* const kMaterialName[] = {"Corotated", "StVK", "NeoHookean", "StableNeoHookean"};
+
+// A bar whose ends grips pull apart until it tears.
+Scene tearing(MaterialModel model, DamageModel damage, LinearSolverKind solver) {
+  Scene s{std::string("tear ") + kMaterialName[int(model)] +
+              (damage == DamageModel::Projection ? " projection" : " degradation") +
+              (solver == LinearSolverKind::PCG ? " pcg" : " multigrid"),
+          nullptr, nullptr, 1.0 / 120};
+  s.build = [=](WorldDef& wd, BodyDef& def) {
+    wd.gravity = glm::vec3(0);
+    def.mesh = gen::box(0.4, 0.1, 0.1, 12, 3, 3);
+    def.material.model = model;
+    def.material.youngsModulus = 1e6;
+    def.material.poissonRatio = 0.3;
+    def.material.density = 1000;
+    def.fracture.enabled = true;
+    def.fracture.strength = 1.2e5;
+    def.fracture.model = damage;
+    def.solver.linearSolver = solver;
+    def.solver.multigrid.directBelowNodes = 0;  // the multigrid, not its direct fallback
+    def.solver.linearTolerance = 1e-10;
+    Grip left, right;
+    left.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
+    right.nodes =
+        test::selectNodes(def.mesh, [](double x, double, double) { return x > 0.4 - 1e-9; });
+    left.velocity = {-0.2f, 0, 0};
+    right.velocity = {0.2f, 0, 0};
+    def.grips = {left, right};
+  };
+  return s;
+}
+
+class WorldBackendTear
+    : public testing::TestWithParam<std::tuple<MaterialModel, DamageModel, LinearSolverKind>> {};
+
+TEST_P(WorldBackendTear, SameCracksAndPositionsAsTheCpu) {
+  GF_SKIP_WITHOUT_DEVICE();
+  const auto [model, damage, solver] = GetParam();
+  const Outcome cpu = compare(tearing(model, damage, solver),
+                              model == MaterialModel::NeoHookean ? kNeoHookean : kExact);
+  EXPECT_GE(cpu.fragments, 2) << "the bar tears";
+}
+
+const auto kTearCases =
+    testing::Combine(testing::Values(MaterialModel::Corotated, MaterialModel::StVK,
+                                     MaterialModel::NeoHookean, MaterialModel::StableNeoHookean),
+                     testing::Values(DamageModel::Projection, DamageModel::Degradation),
+                     testing::Values(LinearSolverKind::Multigrid, LinearSolverKind::PCG));
+#if defined(GF_GPU_CUDA)
+INSTANTIATE_TEST_SUITE_P(Device, WorldBackendTear, kTearCases);
+#define GF_SCENE_TEST(name) TEST(DeviceWorldBackend, name)
+#else
+INSTANTIATE_TEST_SUITE_P(HostBuild, WorldBackendTear, kTearCases);
+#define GF_SCENE_TEST(name) TEST(WorldBackend, name)
+#endif
+
+// A weak brittle block dropped onto the ground at 6 m/s: it shatters on impact.
+GF_SCENE_TEST(ShatteringBlockSameAsTheCpu) {
+  GF_SKIP_WITHOUT_DEVICE();
+  Scene s{"shatter", nullptr, nullptr};
+  s.build = [](WorldDef& wd, BodyDef& def) {
+    wd.colliders.push_back(Collider{Collider::Kind::Plane, glm::vec3(0)});
+    def.mesh = gen::box(0.2, 0.2, 0.2, 5, 5, 5);
+    for (size_t n = 0; n < def.mesh.nodeCount(); ++n) def.mesh.positions[3 * n + 1] += 0.01;
+    def.material = Material::stvk(2e6, 0.3, 1000);
+    def.initialVelocity = glm::vec3(0, -6, 0);
+    def.fracture.enabled = true;
+    def.fracture.strength = 3e3;
+    def.fracture.brittle = true;
+    def.fracture.regions = 4;
+  };
+  const Outcome cpu = compare(s, kExact);
+  EXPECT_GE(cpu.fragments, 3) << "the block shatters";
+}
+
+// A bar cut through by a blade at its first step, whose two halves fall onto the ground.
+GF_SCENE_TEST(CutBarSameAsTheCpu) {
+  GF_SKIP_WITHOUT_DEVICE();
+  Scene s{"cut", nullptr, nullptr};
+  s.build = [](WorldDef& wd, BodyDef& def) {
+    wd.colliders.push_back(Collider{Collider::Kind::Plane, glm::vec3(0)});
+    def.mesh = gen::box(0.4, 0.1, 0.1, 12, 3, 3);
+    for (size_t n = 0; n < def.mesh.nodeCount(); ++n) def.mesh.positions[3 * n + 1] += 0.05;
+    def.material = Material::stableNeoHookean(5e5, 0.3, 1000);
+    def.fracture.enabled = true;
+    def.fracture.strength = 1e12;  // only the blade breaks edges
+  };
+  s.act = [](World& world, BodyId id, int step) {
+    if (step != 0) return;
+    Blade blade;
+    blade.vertices = {{0.21f, -1, -1}, {0.21f, 1, -1}, {0.21f, 1, 1}, {0.21f, -1, 1}};
+    blade.triangles = {0, 1, 2, 0, 2, 3};
+    ASSERT_TRUE(world.cut(id, blade).ok());
+  };
+  const Outcome cpu = compare(s, kExact);
+  EXPECT_EQ(cpu.fragments, 2) << "the blade cuts the bar in two";
+}
+
+// A plastic cantilever whose tip a grip lifts for half a second and then holds.
+GF_SCENE_TEST(PlasticCantileverSameAsTheCpu) {
+  GF_SKIP_WITHOUT_DEVICE();
+  Scene s{"plastic", nullptr, nullptr};
+  s.build = [](WorldDef&, BodyDef& def) {
+    def.mesh = gen::box(0.5, 0.05, 0.05, 20, 2, 2);
+    def.material = Material::stableNeoHookean(2e6, 0.3, 1000);
+    def.plasticity.enabled = true;
+    def.plasticity.yieldStress = 2e4;
+    def.plasticity.flowRate = 0.5;
+    Grip clamp, tip;
+    clamp.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
+    tip.nodes =
+        test::selectNodes(def.mesh, [](double x, double, double) { return x > 0.5 - 1e-9; });
+    tip.velocity = {0, 0.5f, 0};
+    def.grips = {clamp, tip};
+  };
+  s.act = [](World& world, BodyId id, int step) {
+    if (step == 30) {
+      ASSERT_TRUE(world.setGripVelocity(id, 1, glm::vec3(0)).ok());
+    }
+  };
+  const Outcome cpu = compare(s, kExact);
+  // The bar flowed: without plasticity it ends elsewhere.
+  Scene elastic = s;
+  elastic.build = [&s](WorldDef& wd, BodyDef& def) {
+    s.build(wd, def);
+    def.plasticity.enabled = false;
+  };
+  EXPECT_GT(maxDifference(run(elastic, Backend::Cpu, 100).x, cpu.x), 1e-3 * cpu.size);
+}
+
+#if !defined(GF_GPU_CUDA)
+// The host build's device whose calls fail from the `failAt`-th call of one kind on, as a
+// device that runs out of memory or loses its context would.
+enum class FailingCall { kElementPass, kPcg, kMultigrid };
+struct Failing {
+  static inline FailingCall call = FailingCall::kElementPass;
+  static inline int failAt = 0;
+};
+class FailingDevice final : public detail::BodyDevice {
+ public:
+  bool elementPass(const detail::ElementStage& stage, const detail::GatherStage& gather,
+                   int32_t tets, int32_t nodes, bool stateChanged, double& psi) override {
+    if (fails(FailingCall::kElementPass)) return false;
+    return m_device->elementPass(stage, gather, tets, nodes, stateChanged, psi);
+  }
+  bool pcgSolve(const detail::BlockSparseMatrix& A, const double* b, double* x, int maxIterations,
+                double tolerance, detail::SolveReport& report) override {
+    if (fails(FailingCall::kPcg)) return false;
+    return m_device->pcgSolve(A, b, x, maxIterations, tolerance, report);
+  }
+  bool multigridSolve(const detail::BlockSparseMatrix& A, const detail::CycleSettings& settings,
+                      const std::function<const detail::MultigridMirror*()>& prepare,
+                      const double* b, double* x, int maxIterations, double tolerance,
+                      detail::MultigridRun& run, detail::SolveReport& report) override {
+    // Fails after the levels were prepared and x half written, the worst place.
+    if (fails(FailingCall::kMultigrid)) {
+      (void)prepare();
+      x[0] = std::nan("");
+      return false;
+    }
+    return m_device->multigridSolve(A, settings, prepare, b, x, maxIterations, tolerance, run,
+                                    report);
+  }
+  const std::string& error() const override { return m_error; }
+
+ private:
+  bool fails(FailingCall c) { return c == Failing::call && m_calls[int(c)]++ >= Failing::failAt; }
+  std::unique_ptr<detail::BodyDevice> m_device = gpu::makeBodyDevice();
+  int m_calls[3] = {};
+  std::string m_error = "injected failure";
+};
+std::unique_ptr<detail::BodyDevice> makeFailingDevice() {
+  return std::make_unique<FailingDevice>();
+}
+
+// A device call that fails hands the body back to the CPU for good: the step says so once, the
+// world's backend description keeps it, and the body goes on as the CPU steps it, with no NaN
+// from the failed call. Failing at the first call of the step, nothing ran on the device: the
+// CPU's bits.
+TEST(WorldBackend, AFailedDeviceCallHandsTheBodyToTheCpu) {
+  struct Case {
+    FailingCall call;
+    int failAt;
+    LinearSolverKind solver;
+  };
+  for (const Case c : {Case{FailingCall::kElementPass, 0, LinearSolverKind::Multigrid},
+                       Case{FailingCall::kElementPass, 7, LinearSolverKind::Multigrid},
+                       Case{FailingCall::kPcg, 3, LinearSolverKind::PCG},
+                       Case{FailingCall::kMultigrid, 0, LinearSolverKind::Multigrid},
+                       Case{FailingCall::kMultigrid, 5, LinearSolverKind::Multigrid}}) {
+    Failing::call = c.call;
+    Failing::failAt = c.failAt;
+    const Scene scene = tearing(MaterialModel::StableNeoHookean, DamageModel::Projection, c.solver);
+    const Outcome cpu = run(scene, Backend::Cpu, 100);
+    detail::setTestDevice(&makeFailingDevice, "a failing device");
+    const Outcome dev = run(scene, Backend::Cuda, 100);
+    detail::setTestDevice(nullptr, nullptr);
+    SCOPED_TRACE(std::to_string(int(c.call)) + " at call " + std::to_string(c.failAt));
+    ASSERT_EQ(dev.messages.size(), 1u);
+    EXPECT_NE(dev.messages[0].find("body 1 runs on the CPU from now on: the device failed "
+                                   "(injected failure)"),
+              std::string::npos)
+        << dev.messages[0];
+    EXPECT_NE(dev.description.find("runs on the CPU from now on"), std::string::npos);
+    for (double x : dev.x) ASSERT_TRUE(std::isfinite(x));
+    EXPECT_GE(dev.fragments, 2);
+    if (c.failAt == 0 && c.call == FailingCall::kElementPass) {
+      EXPECT_EQ(dev.x, cpu.x);
+      EXPECT_EQ(dev.broken, cpu.broken);
+    }
+  }
+}
+#endif
+
+}  // namespace
+}  // namespace gf
