@@ -14,23 +14,8 @@ bool DeviceElementPass::fail(const char* what) {
 
 bool DeviceElementPass::upload(const detail::ElementStage& h, const detail::GatherStage& gather,
                                int32_t tetCount, int32_t nodeCount) {
-  const size_t nt = size_t(tetCount), nn = size_t(nodeCount);
-  m_tetCount = tetCount;
-  m_nodeCount = nodeCount;
-  m_host = h;
-  const bool damaged = h.tetMask != nullptr;
-  if (!m_tets.upload(h.tets, 4 * nt) || !m_x.upload(h.x, 3 * nn) ||
-      !m_restInverse.upload(h.restInverse, nt) || !m_restVolume.upload(h.restVolume, nt) ||
-      !m_fibreDir.upload(h.fibreDir, nt) || !m_tetMask.upload(h.tetMask, nt) ||
-      !m_chi.upload(damaged ? h.chi : nullptr, nt) || !m_rigidTet.upload(h.rigidTet, nt) ||
-      !m_tetLame.upload(h.tetLame, 2 * nt) || !m_edgeMatrix.upload(h.edgeMatrix, nt) ||
-      !m_edgeMatrixInverse.upload(h.edgeMatrixInverse, nt) ||
-      !m_nodeRefStart.upload(gather.nodeRefStart, nn + 1) ||
-      !m_nodeRef.upload(gather.nodeRef, 4 * nt) || !m_energy.resize(nt) ||
-      !m_grad.resize(12 * nt) || !m_nodeGrad.resize(3 * nn) ||
-      !m_partials.resize(size_t(detail::sumChunks(tetCount))) || !m_sum.resize(1))
-    return fail("uploading the body");
-  return true;
+  m_tetCount = -1;  // copies everything
+  return prepare(h, gather, tetCount, nodeCount, true);
 }
 
 bool DeviceElementPass::prepare(const detail::ElementStage& h, const detail::GatherStage& gather,

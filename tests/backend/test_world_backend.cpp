@@ -17,6 +17,7 @@
 
 #include "common/sim_helpers.h"
 #include "gpu/body_device.h"
+#include "graphfrac/jobs.h"
 #include "world/backend.h"
 
 namespace gf {
@@ -32,12 +33,14 @@ struct Outcome {
   std::vector<std::string> messages;
 };
 
-// A scene: the world def, the body, and what happens at each step before it (cuts, grips).
+// A scene: the world def, the body, and what happens at each step before it (cuts, grips);
+// `second`, when set, adds a second body, and the outcome holds both bodies' arrays.
 struct Scene {
   std::string name;
   std::function<void(WorldDef&, BodyDef&)> build;
   std::function<void(World&, BodyId, int step)> act;
   double dt = 1.0 / 60;
+  std::function<void(BodyDef&)> second;
 };
 
 #if defined(GF_GPU_CUDA)
@@ -58,12 +61,14 @@ struct HostDevice {
 };
 #endif
 
-// Runs `scene` for `steps` steps on `backend`; an empty outcome when the backend cannot run.
-Outcome run(const Scene& scene, Backend backend, int steps) {
+// Runs `scene` for `steps` steps on `backend` (with `jobs`, null: serial); an empty outcome
+// when the backend cannot run.
+Outcome run(const Scene& scene, Backend backend, int steps, JobSystem* jobs = nullptr) {
   WorldDef wd;
   BodyDef def;
   scene.build(wd, def);
   wd.backend = backend;
+  wd.jobs = jobs;
   Outcome o;
   double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
   for (size_t i = 0; i < def.mesh.positions.size(); ++i) {
@@ -72,27 +77,34 @@ Outcome run(const Scene& scene, Backend backend, int steps) {
   }
   o.size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
   World world(wd);
-  const Result<BodyId> id = world.createBody(def);
-  o.description = world.backendDescription();
-  if (!id.ok()) {
-    o.description = id.error().message;
-    return o;
+  std::vector<BodyDef> defs{def};
+  if (scene.second) scene.second(defs.emplace_back());
+  std::vector<BodyId> ids;
+  for (BodyDef& d : defs) {
+    const Result<BodyId> id = world.createBody(d);
+    if (!id.ok()) {
+      o.description = id.error().message;
+      return o;
+    }
+    ids.push_back(id.value());
   }
   for (int s = 0; s < steps; ++s) {
-    if (scene.act) scene.act(world, id.value(), s);
+    if (scene.act) scene.act(world, ids[0], s);
     const StepStatus st = world.step(scene.dt);
     EXPECT_FALSE(st.has(kStepNanContained)) << scene.name << " step " << s << ": " << st.message;
     if (!st.message.empty()) o.messages.push_back(st.message);
   }
-  const auto x = world.positions(id.value());
-  const auto v = world.velocities(id.value());
-  o.x.assign(x.begin(), x.end());
-  o.v.assign(v.begin(), v.end());
-  const auto b = world.brokenEdges(id.value());
-  o.broken.assign(b.begin(), b.end());
-  const FractureStats fs = world.fractureStats(id.value());
-  o.fragments = fs.fragments;
-  o.brokenCount = fs.brokenEdges;
+  for (BodyId id : ids) {
+    const auto x = world.positions(id);
+    const auto v = world.velocities(id);
+    o.x.insert(o.x.end(), x.begin(), x.end());
+    o.v.insert(o.v.end(), v.begin(), v.end());
+    const auto b = world.brokenEdges(id);
+    o.broken.insert(o.broken.end(), b.begin(), b.end());
+    const FractureStats fs = world.fractureStats(id);
+    o.fragments += fs.fragments;
+    o.brokenCount += fs.brokenEdges;
+  }
   o.description = world.backendDescription();
   return o;
 }
@@ -113,13 +125,15 @@ constexpr double kExact = 1e-6, kNeoHookean = 1e-6;
 constexpr double kExact = 0, kNeoHookean = 1e-8;
 #endif
 
-// Returns the CPU's outcome, for what a test checks of the scene itself.
-Outcome compare(const Scene& scene, double tolerance, int steps = 100) {
+// Returns the CPU's outcome, for what a test checks of the scene itself. The CPU runs
+// serially, the device world with `jobs` (the host's part of its step on those threads).
+Outcome compare(const Scene& scene, double tolerance, JobSystem* jobs = nullptr) {
 #if !defined(GF_GPU_CUDA)
   const HostDevice device;
 #endif
+  const int steps = 100;
   const Outcome cpu = run(scene, Backend::Cpu, steps);
-  const Outcome dev = run(scene, Backend::Cuda, steps);
+  const Outcome dev = run(scene, Backend::Cuda, steps, jobs);
   if (dev.x.empty()) {
     ADD_FAILURE_AT(__FILE__, __LINE__) << "no device world: " << dev.description;
     return cpu;
@@ -146,10 +160,11 @@ const char* const kMaterialName[] = {"Corotated", "StVK", "NeoHookean", "StableN
 
 // A bar whose ends grips pull apart until it tears.
 Scene tearing(MaterialModel model, DamageModel damage, LinearSolverKind solver) {
-  Scene s{std::string("tear ") + kMaterialName[int(model)] +
-              (damage == DamageModel::Projection ? " projection" : " degradation") +
-              (solver == LinearSolverKind::PCG ? " pcg" : " multigrid"),
-          nullptr, nullptr, 1.0 / 120};
+  Scene s;
+  s.name = std::string("tear ") + kMaterialName[int(model)] +
+           (damage == DamageModel::Projection ? " projection" : " degradation") +
+           (solver == LinearSolverKind::PCG ? " pcg" : " multigrid");
+  s.dt = 1.0 / 120;
   s.build = [=](WorldDef& wd, BodyDef& def) {
     wd.gravity = glm::vec3(0);
     def.mesh = gen::box(0.4, 0.1, 0.1, 12, 3, 3);
@@ -198,10 +213,20 @@ INSTANTIATE_TEST_SUITE_P(HostBuild, WorldBackendTear, kTearCases);
 #define GF_SCENE_TEST(name) TEST(WorldBackend, name)
 #endif
 
+// The host's part of a device world's step on two threads: the CPU's bits still.
+GF_SCENE_TEST(TearOnTwoThreadsSameAsTheCpu) {
+  GF_SKIP_WITHOUT_DEVICE();
+  ThreadPoolJobSystem two(2);
+  compare(tearing(MaterialModel::StableNeoHookean, DamageModel::Degradation,
+                  LinearSolverKind::Multigrid),
+          kExact, &two);
+}
+
 // A weak brittle block dropped onto the ground at 6 m/s: it shatters on impact.
 GF_SCENE_TEST(ShatteringBlockSameAsTheCpu) {
   GF_SKIP_WITHOUT_DEVICE();
-  Scene s{"shatter", nullptr, nullptr};
+  Scene s;
+  s.name = "shatter";
   s.build = [](WorldDef& wd, BodyDef& def) {
     wd.colliders.push_back(Collider{Collider::Kind::Plane, glm::vec3(0)});
     def.mesh = gen::box(0.2, 0.2, 0.2, 5, 5, 5);
@@ -220,7 +245,8 @@ GF_SCENE_TEST(ShatteringBlockSameAsTheCpu) {
 // A bar cut through by a blade at its first step, whose two halves fall onto the ground.
 GF_SCENE_TEST(CutBarSameAsTheCpu) {
   GF_SKIP_WITHOUT_DEVICE();
-  Scene s{"cut", nullptr, nullptr};
+  Scene s;
+  s.name = "cut";
   s.build = [](WorldDef& wd, BodyDef& def) {
     wd.colliders.push_back(Collider{Collider::Kind::Plane, glm::vec3(0)});
     def.mesh = gen::box(0.4, 0.1, 0.1, 12, 3, 3);
@@ -243,7 +269,8 @@ GF_SCENE_TEST(CutBarSameAsTheCpu) {
 // A plastic cantilever whose tip a grip lifts for half a second and then holds.
 GF_SCENE_TEST(PlasticCantileverSameAsTheCpu) {
   GF_SKIP_WITHOUT_DEVICE();
-  Scene s{"plastic", nullptr, nullptr};
+  Scene s;
+  s.name = "plastic";
   s.build = [](WorldDef&, BodyDef& def) {
     def.mesh = gen::box(0.5, 0.05, 0.05, 20, 2, 2);
     def.material = Material::stableNeoHookean(2e6, 0.3, 1000);
@@ -270,6 +297,40 @@ GF_SCENE_TEST(PlasticCantileverSameAsTheCpu) {
     def.plasticity.enabled = false;
   };
   EXPECT_GT(maxDifference(run(elastic, Backend::Cpu, 100).x, cpu.x), 1e-3 * cpu.size);
+}
+
+// A block dropped onto another that lies on the ground, with body contact, lagged and coupled
+// (WorldDef::coupledContact: the bodies' Newton systems solved jointly, each body's own solver
+// as the preconditioner, on its device).
+GF_SCENE_TEST(StackedBlocksSameAsTheCpu) {
+  GF_SKIP_WITHOUT_DEVICE();
+  for (const bool coupled : {false, true}) {
+    Scene s;
+    s.name = coupled ? "stack coupled" : "stack lagged";
+    auto block = [](BodyDef& def, double y) {
+      def.mesh = gen::box(0.2, 0.1, 0.2, 4, 2, 4);
+      for (size_t n = 0; n < def.mesh.nodeCount(); ++n) def.mesh.positions[3 * n + 1] += y;
+      def.material = Material::stableNeoHookean(2e5, 0.3, 1000);
+      def.contact = true;
+      def.friction = 0.4;
+      def.solver.multigrid.directBelowNodes = 0;
+    };
+    s.build = [&](WorldDef& wd, BodyDef& def) {
+      wd.colliders.push_back(Collider{Collider::Kind::Plane, glm::vec3(0)});
+      wd.coupledContact = coupled;
+      block(def, 0);
+    };
+    s.second = [&](BodyDef& def) {
+      block(def, 0.12);
+      def.initialVelocity = glm::vec3(0, -1, 0);
+    };
+    const Outcome cpu = compare(s, kExact);
+    // The upper block rests on the lower one: its lowest node a little above y = 0.1.
+    double lowest = 1e300;
+    for (size_t i = cpu.x.size() / 2 + 1; i < cpu.x.size(); i += 3)
+      lowest = std::min(lowest, cpu.x[i]);
+    EXPECT_NEAR(lowest, 0.1, 0.01) << s.name;
+  }
 }
 
 #if !defined(GF_GPU_CUDA)
