@@ -154,7 +154,6 @@ class Integrator {
   /// the rest of the step, and the direct solver, stay on the host. A device call that fails
   /// hands the body back to the CPU for good (takeDeviceFailure()).
   void useDevice(std::unique_ptr<BodyDevice> device) { m_device = std::move(device); }
-  bool onDevice() const { return m_device != nullptr; }
   /// Why the device was dropped since the last call (empty: it was not); clears it.
   std::string takeDeviceFailure() { return std::exchange(m_deviceFailure, {}); }
   /// The multigrid solver, or null when the body uses another linear solver.
