@@ -16,7 +16,8 @@ class DeviceBody final : public detail::BodyDevice {
   bool elementPass(const detail::ElementStage& stage, const detail::GatherStage& gather,
                    int32_t tetCount, int32_t nodeCount, bool stateChanged, double& psi) override {
     if (!m_elements.prepare(stage, gather, tetCount, nodeCount, stateChanged) ||
-        !m_elements.run(stage.hess != nullptr, stage.stress != nullptr) ||
+        !m_elements.run(stage.hess != nullptr, stage.stress != nullptr, stage.grad != nullptr,
+                        false) ||
         !m_elements.download(stage.energy, stage.grad, stage.hess, stage.stress, nullptr))
       return fail(m_elements.error());
     psi = m_elements.energy();

@@ -66,7 +66,8 @@ bool DeviceElementPass::uploadPositions(const double* x) {
   return m_x.upload(x, 3 * size_t(m_nodeCount)) || fail("uploading positions");
 }
 
-bool DeviceElementPass::run(bool withHessian, bool withStress) {
+bool DeviceElementPass::run(bool withHessian, bool withStress, bool withGradient,
+                            bool withNodeGradient) {
   const size_t nt = size_t(m_tetCount);
   if ((withHessian && !m_hess.resize(kElementMatrixSize * nt)) ||
       (withStress && !m_stress.resize(6 * nt)))
@@ -84,8 +85,8 @@ bool DeviceElementPass::run(bool withHessian, bool withStress) {
   s.rigidTet = m_rigidTet.data();
   s.tetLame = m_tetLame.data();
   s.energy = m_energy.data();
-  s.grad = m_grad.data();
-  s.hess = withHessian ? m_hess.data() : nullptr;
+  s.grad = withGradient ? m_grad.data() : nullptr;
+  s.hess = withGradient && withHessian ? m_hess.data() : nullptr;
   s.stress = withStress ? m_stress.data() : nullptr;
   s.svdCache = nullptr;  // m_host's would be a host pointer; the device pass keeps no cache
   launch(s, m_tetCount, nullptr);
@@ -94,9 +95,10 @@ bool DeviceElementPass::run(bool withHessian, bool withStress) {
   launch(detail::ChunkTotalStage<detail::SumOp>{m_partials.data(), detail::sumChunks(m_tetCount),
                                                 m_sum.data()},
          1, nullptr);
-  launch(detail::GatherStage{m_nodeRefStart.data(), m_nodeRef.data(), m_grad.data(),
-                             m_nodeGrad.data()},
-         m_nodeCount, nullptr);
+  if (withGradient && withNodeGradient)
+    launch(detail::GatherStage{m_nodeRefStart.data(), m_nodeRef.data(), m_grad.data(),
+                               m_nodeGrad.data()},
+           m_nodeCount, nullptr);
   if (!synchronize()) return fail("running the element stages");
   return m_sum.download(&m_psi, 1) || fail("reading the energy");
 }

@@ -29,8 +29,11 @@ class DeviceElementPass {
   /// Positions only (3 per node), for another pass on the uploaded body.
   bool uploadPositions(const double* x);
   /// Runs the element stage (with Hessians and criterion stresses when asked), the energy sum
-  /// and the gather; waits for them. False on a device error (error()).
-  bool run(bool withHessian, bool withStress);
+  /// and the gather; waits for them. False on a device error (error()). Without gradients the
+  /// pass evaluates energies alone (a line search's) and gathers nothing; withNodeGradient
+  /// false skips the gather for a caller that gathers the element gradients itself.
+  bool run(bool withHessian, bool withStress, bool withGradient = true,
+           bool withNodeGradient = true);
   /// The elastic energy of the last run.
   double energy() const { return m_psi; }
   /// Copies the last run's outputs to the host (null: skip; sizes as in ElementStage, nodeGrad
