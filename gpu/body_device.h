@@ -1,6 +1,7 @@
 // A body's device on the CUDA backend (runtime/src/fem/body_device.h): the device element pass
-// (gpu/element_pass.h) and linear solves (gpu/pcg.h, gpu/multigrid.h) behind the interface the
-// integrator calls. Built twice from one source like them.
+// (gpu/element_pass.h), assembly (gpu/assembly.h) and linear solves (gpu/pcg.h,
+// gpu/multigrid.h) behind the interface the integrator calls. Built twice from one source like
+// them.
 #pragma once
 
 #include <memory>

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 
 #if defined(__CUDACC__) || defined(GF_GPU_CUDA)
@@ -27,6 +28,11 @@ bool copyToDevice(void* dst, const void* src, size_t bytes);
 bool copyToHost(void* dst, const void* src, size_t bytes);
 /// Waits for the device's work; false when a launch failed.
 bool synchronize();
+/// Bytes the copies above moved each way since the process started (all threads).
+struct CopyTotals {
+  uint64_t toDevice = 0, toHost = 0;
+};
+CopyTotals copyTotals();
 /// The last error of the calls above, as text.
 std::string lastError();
 /// The device the calls above use ("host emulation" in the host build).

@@ -1,6 +1,8 @@
 // gpu/device.h on the CUDA runtime.
 #include <cuda_runtime.h>
 
+#include <atomic>
+
 #include "gpu/device.h"
 
 namespace gf::gpu {
@@ -8,6 +10,7 @@ inline namespace GF_GPU_ABI {
 
 namespace {
 cudaError_t g_lastError = cudaSuccess;
+std::atomic<uint64_t> g_toDevice{0}, g_toHost{0};
 
 bool check(cudaError_t e) {
   if (e != cudaSuccess) g_lastError = e;
@@ -36,12 +39,16 @@ void deviceFree(void* p) {
 }
 
 bool copyToDevice(void* dst, const void* src, size_t bytes) {
+  g_toDevice.fetch_add(bytes, std::memory_order_relaxed);
   return check(cudaMemcpy(dst, src, bytes, cudaMemcpyHostToDevice));
 }
 
 bool copyToHost(void* dst, const void* src, size_t bytes) {
+  g_toHost.fetch_add(bytes, std::memory_order_relaxed);
   return check(cudaMemcpy(dst, src, bytes, cudaMemcpyDeviceToHost));
 }
+
+CopyTotals copyTotals() { return {g_toDevice.load(), g_toHost.load()}; }
 
 bool synchronize() { return check(cudaGetLastError()) && check(cudaDeviceSynchronize()); }
 

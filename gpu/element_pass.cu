@@ -1,5 +1,7 @@
 // gpu/element_pass.h: the host code is buffer management; the stages and the reduction are
 // the CPU executor's (fem/element_stage.h, step/reduce.h), launched through gpu/launch.h.
+#include <cstring>
+
 #include "gpu/element_pass.h"
 #include "gpu/launch.h"
 #include "step/reduce.h"
@@ -10,6 +12,23 @@ inline namespace GF_GPU_ABI {
 bool DeviceElementPass::fail(const char* what) {
   m_error = std::string(what) + ": " + lastError();
   return false;
+}
+
+// Most steps change none of a body's state arrays (only plastic flow, breaks and commands
+// do), and a copy of each costs a link transfer of its size: compared on the host first.
+template <class T>
+bool DeviceElementPass::mirror(DeviceBuffer<T>& device, std::vector<T>& copy, const T* host,
+                               size_t n) {
+  if (!host || n == 0) {
+    copy.clear();
+    return device.upload(nullptr, 0);
+  }
+  if (device.size() == n && copy.size() == n && std::memcmp(copy.data(), host, n * sizeof(T)) == 0)
+    return true;
+  copy.clear();  // a failed copy is retried at the next call
+  if (!device.upload(host, n)) return false;
+  copy.assign(host, host + n);
+  return true;
 }
 
 bool DeviceElementPass::upload(const detail::ElementStage& h, const detail::GatherStage& gather,
@@ -49,9 +68,11 @@ bool DeviceElementPass::prepare(const detail::ElementStage& h, const detail::Gat
   if (state) {
     m_modelFrom.restInverse = nullptr;  // retried at the next call if a copy fails
     const bool damaged = h.tetMask != nullptr;
-    if (!m_restInverse.upload(h.restInverse, nt) || !m_tetMask.upload(h.tetMask, nt) ||
-        !m_chi.upload(damaged ? h.chi : nullptr, nt) || !m_rigidTet.upload(h.rigidTet, nt) ||
-        !m_tetLame.upload(h.tetLame, 2 * nt))
+    if (!mirror(m_restInverse, m_restInverseCopy, h.restInverse, nt) ||
+        !mirror(m_tetMask, m_tetMaskCopy, h.tetMask, nt) ||
+        !mirror(m_chi, m_chiCopy, damaged ? h.chi : nullptr, nt) ||
+        !mirror(m_rigidTet, m_rigidTetCopy, h.rigidTet, nt) ||
+        !mirror(m_tetLame, m_tetLameCopy, h.tetLame, 2 * nt))
       return fail("uploading the body's state");
     m_modelFrom.restInverse = h.restInverse;
     m_modelFrom.tetMask = h.tetMask;

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "fem/element_stage.h"
 #include "gpu/device.h"
@@ -22,8 +23,8 @@ class DeviceElementPass {
   /// For a body stepped on the device (detail::BodyDevice): what upload() copies, but the
   /// model's arrays (topology, rest volumes and edge matrices, fibres, the gather) only when
   /// their host addresses or the sizes changed since the last call, the state's (rest
-  /// inverses, damage, rigid tets, wet Lamé values) only then or with `stateChanged`, and the
-  /// stage's options and x every call.
+  /// inverses, damage, rigid tets, wet Lamé values) only then or with `stateChanged`, each
+  /// where its contents changed, and the stage's options and x every call.
   bool prepare(const detail::ElementStage& elements, const detail::GatherStage& gather,
                int32_t tetCount, int32_t nodeCount, bool stateChanged);
   /// Positions only (3 per node), for another pass on the uploaded body.
@@ -34,6 +35,8 @@ class DeviceElementPass {
   /// false skips the gather for a caller that gathers the element gradients itself.
   bool run(bool withHessian, bool withStress, bool withGradient = true,
            bool withNodeGradient = true);
+  /// The last run's element Hessians, in device memory (null before a run with them).
+  const double* hessians() const { return m_hess.data(); }
   /// The elastic energy of the last run.
   double energy() const { return m_psi; }
   /// Copies the last run's outputs to the host (null: skip; sizes as in ElementStage, nodeGrad
@@ -43,6 +46,10 @@ class DeviceElementPass {
 
  private:
   bool fail(const char* what);
+  // `device` holds host's n items after it: copied where they differ from `copy` (what the
+  // last call copied).
+  template <class T>
+  bool mirror(DeviceBuffer<T>& device, std::vector<T>& copy, const T* host, size_t n);
 
   int32_t m_tetCount = 0, m_nodeCount = 0;
   detail::ElementStage m_host;  // options and coefficients of the uploaded body
@@ -56,6 +63,10 @@ class DeviceElementPass {
   DeviceBuffer<Vec3> m_fibreDir;
   DeviceBuffer<uint8_t> m_tetMask, m_rigidTet;
   DeviceBuffer<Mat<6, 6>> m_edgeMatrix, m_edgeMatrixInverse;
+  // Host copies of the state arrays as last copied to the device (mirror()).
+  std::vector<Mat3> m_restInverseCopy;
+  std::vector<uint8_t> m_tetMaskCopy, m_rigidTetCopy;
+  std::vector<double> m_chiCopy, m_tetLameCopy;
   double m_psi = 0;
   std::string m_error;
 };

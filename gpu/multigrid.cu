@@ -66,20 +66,31 @@ bool DeviceMultigrid::upload(const detail::BlockSparseMatrix& A, const HostMulti
   return uploadLevels(host);
 }
 
+bool DeviceMultigrid::allocateVectors() {
+  const size_t n3 = 3 * size_t(m_n);
+  return (m_b.resize(n3) && m_x.resize(n3) && m_r.resize(n3) && m_z.resize(n3) && m_p.resize(n3) &&
+          m_ap.resize(n3) && m_rOld.resize(n3)) ||
+         fail("allocating the solve's vectors");
+}
+
 bool DeviceMultigrid::uploadMatrix(const detail::BlockSparseMatrix& A,
                                    const detail::CycleSettings& settings) {
-  m_n = A.n;
-  m_fineBlocks = A.col.size();
-  m_host.settings = settings;
-  const size_t n3 = 3 * size_t(A.n);
   m_fineReady = m_fineRowStart.upload(A.rowStart.data(), A.rowStart.size()) &&
                 m_fineCol.upload(A.col.data(), A.col.size()) &&
-                m_fineValues.upload(A.values.data(), A.values.size()) && m_b.resize(n3) &&
-                m_x.resize(n3) && m_r.resize(n3) && m_z.resize(n3) && m_p.resize(n3) &&
-                m_ap.resize(n3) && m_rOld.resize(n3);
+                m_fineValues.upload(A.values.data(), A.values.size());
   if (!m_fineReady) return fail("uploading the matrix");
-  m_A = {A.n, m_fineRowStart.data(), m_fineCol.data(), m_fineValues.data()};
-  return true;
+  m_fineBlocks = A.col.size();
+  return useMatrix({A.n, m_fineRowStart.data(), m_fineCol.data(), m_fineValues.data()}, settings);
+}
+
+bool DeviceMultigrid::useMatrix(const detail::BlockMatrixView& A,
+                                const detail::CycleSettings& settings) {
+  m_n = A.n;
+  m_host.settings = settings;
+  m_fine = A;
+  m_A = A;
+  m_fineReady = allocateVectors();
+  return m_fineReady;
 }
 
 bool DeviceMultigrid::uploadLevels(const HostMultigrid& host) {
@@ -91,10 +102,7 @@ bool DeviceMultigrid::uploadLevels(const HostMultigrid& host) {
   m_galerkin.assign(host.galerkin.size(), detail::GalerkinLevelView{});
   m_colourStart.assign(levels.size(), {});
   m_host = host;
-  const size_t n3 = 3 * size_t(m_n);
-  if (!m_b.resize(n3) || !m_x.resize(n3) || !m_r.resize(n3) || !m_z.resize(n3) || !m_p.resize(n3) ||
-      !m_ap.resize(n3) || !m_rOld.resize(n3))
-    return fail("allocating the solve's vectors");
+  if (!allocateVectors()) return false;
   const bool gs = host.settings.smoother == detail::CycleSmoother::kGaussSeidel;
   for (size_t l = 0; l < levels.size(); ++l) {
     const detail::CycleLevel& h = levels[l];
@@ -108,9 +116,9 @@ bool DeviceMultigrid::uploadLevels(const HostMultigrid& host) {
     const size_t gsBlocks = gs ? size_t(h.gsRowStart[h.n]) : 0;
     bool ok = true;
     if (l == 0 && m_fineReady) {
-      d.rowStart = m_fineRowStart.data();
-      d.col = m_fineCol.data();
-      d.values = m_fineValues.data();
+      d.rowStart = m_fine.rowStart;
+      d.col = m_fine.col;
+      d.values = m_fine.values;
     } else {
       ok = mirror(h.rowStart, n + 1, d.rowStart) && mirror(h.col, nnz, d.col) &&
            mirror(h.values, nnz * B * B, d.values);
@@ -193,13 +201,22 @@ bool DeviceMultigrid::factorCoarsestOnDevice() {
 
 bool DeviceMultigrid::refresh(const double* values) {
   // The levels' matrices are this object's own buffers; only the cycle treats them as const.
-  auto writable = [](const double* p) { return const_cast<double*>(p); };
-  if (!copyToDevice(writable(m_A.values), values, 9 * m_fineBlocks * sizeof(double)))
+  if (!copyToDevice(const_cast<double*>(m_A.values), values, 9 * m_fineBlocks * sizeof(double)))
     return fail("uploading the matrix");
+  return prepareValues(true);
+}
+
+bool DeviceMultigrid::prepareValues(bool refreshCoarse) {
+  auto writable = [](const double* p) { return const_cast<double*>(p); };
   const detail::CycleSettings& s = m_host.settings;
   const bool gs = s.smoother == detail::CycleSmoother::kGaussSeidel;
   const size_t L = m_levels.size() - 1;
   detail::setUpDiagonals<3>(m_exec, m_levels[0], gs);
+  if (!refreshCoarse && !gs)
+    m_levels[0].lambdaMax =
+        detail::estimateLambda<3>(m_exec, m_levels[0], s.powerIterations, s.lambdaMargin);
+  if (!refreshCoarse)
+    return (!m_exec.takeFailure() && synchronize()) || fail("preparing the levels");
   for (size_t l = 1; l <= L; ++l) {
     if (l == 1)
       detail::galerkinProduct<3>(m_exec, m_galerkin[0], m_levels[0].values,
@@ -228,6 +245,19 @@ bool DeviceMultigrid::refresh(const double* values) {
   return true;
 }
 
+bool DeviceMultigrid::downloadLevel(uint64_t version, int level, double* values, size_t count) {
+  if (version != m_version || level < 1 || size_t(level) >= m_levels.size()) {
+    m_error = "reading a coarse level: the levels were not mirrored";
+    return false;
+  }
+  const detail::CycleLevel& c = m_levels[size_t(level)];
+  if (count != 144 * size_t(m_host.levels[size_t(level)].rowStart[c.n])) {
+    m_error = "reading a coarse level: another size";
+    return false;
+  }
+  return copyToHost(values, c.values, count * sizeof(double)) || fail("reading a coarse level");
+}
+
 bool DeviceMultigrid::solve(const double* b, double* x, int maxIterations, double relativeTolerance,
                             detail::MultigridRun& run, detail::SolveReport& report) {
   return solve(b, x, maxIterations, relativeTolerance, run, report, {});
@@ -243,7 +273,26 @@ bool DeviceMultigrid::solve(const double* b, double* x, int maxIterations, doubl
   auto prepareLevels = [&] {
     if (!prepare) return;
     const HostMultigrid* host = prepare();
-    levelsOk = host && uploadLevels(*host);
+    if (!host) {
+      levelsOk = false;
+      return;
+    }
+    // The host's values are copied where it prepared them or where they are new to this
+    // mirror (a re-binding, a restore); otherwise the structure mirrored before serves.
+    if (host->valuesOnHost || host->version != m_version || m_levels.empty()) {
+      m_version = ~host->version;  // until the copy succeeds
+      levelsOk = uploadLevels(*host);
+      if (levelsOk) m_version = host->version;
+    }
+    m_host.settings = host->settings;
+    // Level 0 is the matrix of this solve, which may live in another buffer than the last's.
+    if (levelsOk && m_fineReady) {
+      m_levels[0].rowStart = m_fine.rowStart;
+      m_levels[0].col = m_fine.col;
+      m_levels[0].values = m_fine.values;
+      m_A = m_fine;
+    }
+    if (levelsOk && !host->valuesOnHost) levelsOk = prepareValues(host->refresh);
   };
   if (!m_b.upload(b, n3) || !m_x.upload(x, n3)) return fail("uploading the right-hand side");
   m_coarseFailed = false;

@@ -42,12 +42,19 @@ class DeviceMultigrid {
              detail::MultigridRun& run, detail::SolveReport& report);
   /// For a solve that prepares its levels only where it reaches its first cycle, as
   /// MultigridSolver::solve does (the body step's, detail::BodyDevice): A and the cycle's
-  /// settings, then solve() with `prepare`, which gives the levels upload() copies (null fails
-  /// the solve). A's copy is level 0's matrix there.
+  /// settings, then solve() with `prepare`, which gives the levels (null fails the solve):
+  /// mirrored when their values are the host's or their version is new, their values
+  /// otherwise prepared here (HostMultigrid::valuesOnHost). A is level 0's matrix there.
   bool uploadMatrix(const detail::BlockSparseMatrix& A, const detail::CycleSettings& settings);
+  /// As uploadMatrix() with a matrix already in device memory (gpu/assembly.h's), which must
+  /// stay there until the next upload.
+  bool useMatrix(const detail::BlockMatrixView& A, const detail::CycleSettings& settings);
   bool solve(const double* b, double* x, int maxIterations, double relativeTolerance,
              detail::MultigridRun& run, detail::SolveReport& report,
              const std::function<const HostMultigrid*()>& prepare);
+  /// Coarse level `level`'s operator (count doubles) to the host, where the mirrored levels
+  /// are of HostMultigrid::version `version` and the level has that size.
+  bool downloadLevel(uint64_t version, int level, double* values, size_t count);
   const std::string& error() const { return m_error; }
   /// Whether the uploaded coarsest level is factorised and solved on the device (asked for and
   /// small enough), rather than on the host.
@@ -55,6 +62,11 @@ class DeviceMultigrid {
 
  private:
   bool uploadLevels(const HostMultigrid& host);
+  bool allocateVectors();
+  // What MultigridSolver::prepare computes from A's values, on the device: the fine diagonal
+  // (and its spectral bound when not refreshing) and, refreshing, the coarse operators, their
+  // diagonals and bounds and the coarsest factor.
+  bool prepareValues(bool refreshCoarse);
   bool factorCoarsestOnDevice();
   bool fail(const char* what);
   // A device copy of n items of host (null stays null); false when it cannot be made.
@@ -69,15 +81,17 @@ class DeviceMultigrid {
   std::vector<detail::GalerkinLevelView> m_galerkin;
   std::vector<std::vector<int32_t>> m_colourStart;
   HostMultigrid m_host;
+  uint64_t m_version = ~uint64_t(0);         // HostMultigrid::version of the mirrored levels
   std::vector<double> m_coarsestValues;      // host copy for the factorisation
   std::vector<double> m_coarseB, m_coarseX;  // host staging of the coarsest solve
   std::deque<DeviceBuffer<int32_t>> m_ints;
   std::deque<DeviceBuffer<float>> m_floats;  // level 0's Gauss-Seidel copy
   std::deque<DeviceBuffer<double>> m_doubles;
   DeviceBuffer<double> m_b, m_x, m_r, m_z, m_p, m_ap, m_rOld;
-  // uploadMatrix's copy of A, level 0's matrix while fineReady.
+  // uploadMatrix's copy of A, or useMatrix's A: level 0's matrix while fineReady.
   DeviceBuffer<int32_t> m_fineRowStart, m_fineCol;
   DeviceBuffer<double> m_fineValues;
+  detail::BlockMatrixView m_fine;
   bool m_fineReady = false;
   DeviceBuffer<double> m_coarseDense;  // the coarsest level's dense factor (12 handles)^2
   bool m_denseCoarse = false, m_denseOk = false;

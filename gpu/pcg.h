@@ -16,6 +16,9 @@ class DevicePcg {
  public:
   /// Copies the matrix (pattern and values); false when device memory runs out (error()).
   bool upload(const detail::BlockSparseMatrix& A);
+  /// Solves with a matrix already in device memory (gpu/assembly.h's) instead; it must stay
+  /// there until the next upload() or use().
+  bool use(const detail::BlockMatrixView& A);
   /// Solves the uploaded A x = b as detail::PcgSolver::solve does (same arguments, same
   /// report); b and x are host arrays of 3 n, x the initial guess on entry. False on a device
   /// error (error()), x then unchanged.
@@ -25,8 +28,9 @@ class DevicePcg {
 
  private:
   bool fail(const char* what);
+  bool allocate(int32_t n);
 
-  int32_t m_n = 0;
+  detail::BlockMatrixView m_A;
   DeviceBuffer<int32_t> m_rowStart, m_col;
   DeviceBuffer<double> m_values, m_b, m_x, m_r, m_z, m_p, m_ap, m_invDiag;
   Executor m_exec;

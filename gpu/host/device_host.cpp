@@ -1,5 +1,6 @@
 // gpu/device.h in host memory: the host build of the device sources (gpu/host/), which CI
 // runs against the CPU backend where there is no GPU.
+#include <atomic>
 #include <cstdlib>
 #include <cstring>
 
@@ -8,20 +9,27 @@
 namespace gf::gpu {
 inline namespace GF_GPU_ABI {
 
+namespace {
+std::atomic<uint64_t> g_toDevice{0}, g_toHost{0};
+}  // namespace
+
 bool deviceAvailable(std::string&) { return true; }
 void* deviceAlloc(size_t bytes) { return std::malloc(bytes); }
 void deviceFree(void* p) { std::free(p); }
 
 bool copyToDevice(void* dst, const void* src, size_t bytes) {
+  g_toDevice.fetch_add(bytes, std::memory_order_relaxed);
   std::memcpy(dst, src, bytes);
   return true;
 }
 
 bool copyToHost(void* dst, const void* src, size_t bytes) {
+  g_toHost.fetch_add(bytes, std::memory_order_relaxed);
   std::memcpy(dst, src, bytes);
   return true;
 }
 
+CopyTotals copyTotals() { return {g_toDevice.load(), g_toHost.load()}; }
 bool synchronize() { return true; }
 std::string lastError() { return "no error"; }
 std::string deviceName() { return "host emulation"; }

@@ -16,8 +16,12 @@
 #include <vector>
 
 #include "common/sim_helpers.h"
+#include "fem/element_stage.h"
 #include "gpu/body_device.h"
+#include "gpu/device.h"
 #include "graphfrac/jobs.h"
+#include "kernels/math.h"
+#include "solver/block_sparse.h"
 #include "world/backend.h"
 
 namespace gf {
@@ -222,6 +226,150 @@ GF_SCENE_TEST(TearOnTwoThreadsSameAsTheCpu) {
           kExact, &two);
 }
 
+// The tear with Rayleigh damping and full Newton: the device keeps the step's K(x_n) from its
+// first assembly and adds it to every later one.
+GF_SCENE_TEST(DampedTearSameAsTheCpu) {
+  GF_SKIP_WITHOUT_DEVICE();
+  Scene s = tearing(MaterialModel::StableNeoHookean, DamageModel::Projection,
+                    LinearSolverKind::Multigrid);
+  const Scene undamped = s;
+  s.name = "damped tear";
+  s.build = [&undamped](WorldDef& wd, BodyDef& def) {
+    undamped.build(wd, def);
+    def.material.massDamping = 0.5;
+    def.material.stiffnessDamping = 2e-3;
+    def.solver.newtonIterations = 3;
+  };
+  const Outcome cpu = compare(s, kExact);
+  EXPECT_GE(cpu.fragments, 2) << "the bar tears";
+  // The damping acts: the same bar without it ends elsewhere.
+  EXPECT_GT(maxDifference(run(undamped, Backend::Cpu, 100).x, cpu.x), 1e-3 * cpu.size);
+}
+
+// The element Hessians and the Newton matrix stay on the device: what a Newton iteration copies
+// each way is per node (positions, gradients, the node blocks' inputs), not per tet or per
+// matrix block. Counted by the device's own copy totals over 10 steps of a stretched bar.
+GF_SCENE_TEST(TheHessiansAndTheMatrixStayOnTheDevice) {
+  GF_SKIP_WITHOUT_DEVICE();
+#if !defined(GF_GPU_CUDA)
+  const HostDevice device;
+#endif
+  for (const LinearSolverKind solver : {LinearSolverKind::PCG, LinearSolverKind::Multigrid}) {
+    WorldDef wd;
+    wd.gravity = glm::vec3(0);
+    wd.backend = Backend::Cuda;
+    BodyDef def;
+    def.mesh = gen::box(0.4, 0.1, 0.1, 24, 6, 6);
+    def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
+    def.solver.linearSolver = solver;
+    def.solver.multigrid.directBelowNodes = 0;
+    Grip left, right;
+    left.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
+    right.nodes =
+        test::selectNodes(def.mesh, [](double x, double, double) { return x > 0.4 - 1e-9; });
+    right.velocity = {0.05f, 0, 0};
+    def.grips = {left, right};
+    World world(wd);
+    ASSERT_TRUE(world.createBody(def).ok());
+    for (int s = 0; s < 3; ++s) ASSERT_TRUE(world.step(1.0 / 60).ok());  // the model's copies
+    const gpu::CopyTotals before = gpu::copyTotals();
+    int iterations = 0;
+    for (int s = 0; s < 10; ++s) {
+      const StepStatus st = world.step(1.0 / 60);
+      ASSERT_FALSE(st.has(kStepNanContained)) << st.message;
+      iterations += st.newtonIterations;
+    }
+    const gpu::CopyTotals after = gpu::copyTotals();
+    const double toHost = double(after.toHost - before.toHost) / iterations;
+    const double toDevice = double(after.toDevice - before.toDevice) / iterations;
+    const size_t tets = def.mesh.tetCount(), nodes = def.mesh.nodeCount();
+    const double hessians = double(tets) * kElementMatrixSize * sizeof(double);
+    const double matrix =
+        double(detail::BlockSparseMatrix::fromTets(def.mesh.tets.data(), tets, nodes).col.size()) *
+        9 * sizeof(double);
+    std::printf(
+        "  %s, %zu tets, %zu nodes: %.0f bytes to the host and %.0f to the device per "
+        "Newton iteration (%d); the element Hessians are %.0f, the matrix %.0f\n",
+        solver == LinearSolverKind::PCG ? "PCG" : "multigrid", tets, nodes, toHost, toDevice,
+        iterations, hessians, matrix);
+    EXPECT_LT(toHost, 0.1 * hessians);
+    EXPECT_LT(toDevice, 0.1 * hessians);
+    if (solver == LinearSolverKind::PCG) {
+      EXPECT_LT(toHost, 0.5 * matrix);
+      EXPECT_LT(toDevice, 0.5 * matrix);
+    }
+  }
+}
+
+// A smoothed prolongator, which only the host prepares: the device's matrix goes to the host
+// for it, and the levels come back.
+GF_SCENE_TEST(SmoothedProlongationTearSameAsTheCpu) {
+  GF_SKIP_WITHOUT_DEVICE();
+  Scene s =
+      tearing(MaterialModel::Corotated, DamageModel::Degradation, LinearSolverKind::Multigrid);
+  const auto build = s.build;
+  s.name = "tear, smoothed prolongation";
+  s.build = [build](WorldDef& wd, BodyDef& def) {
+    build(wd, def);
+    def.solver.multigrid.smoothedProlongation = true;
+  };
+  const Outcome cpu = compare(s, kExact);
+  EXPECT_GE(cpu.fragments, 2) << "the bar tears";
+}
+
+// A fragment handed to rigid physics mid-run: its nodes become fixed and the multigrid is set
+// up again, so the device mirrors the new levels.
+GF_SCENE_TEST(DetachedFragmentSameAsTheCpu) {
+  GF_SKIP_WITHOUT_DEVICE();
+  Scene s = tearing(MaterialModel::Corotated, DamageModel::Projection, LinearSolverKind::Multigrid);
+  s.name = "tear, a fragment detached";
+  s.act = [](World& world, BodyId id, int step) {
+    if (step != 60) return;
+    bool detached = false;
+    for (int32_t f = 0; f < world.fractureStats(id).fragments && !detached; ++f)
+      detached = world.detachFragment(id, f).ok();
+    EXPECT_TRUE(detached) << "a free fragment at step 60";
+  };
+  compare(s, kExact);
+}
+
+// A snapshot of a device world restores its steps bit for bit (World::restore): the coarse
+// operators the device prepared come back to the host for the snapshot. Restored once between
+// two refreshes and after 40 steps, the run ends where the CPU's uninterrupted one does.
+GF_SCENE_TEST(ARestoredWorldRepeatsItsSteps) {
+  GF_SKIP_WITHOUT_DEVICE();
+#if !defined(GF_GPU_CUDA)
+  const HostDevice device;
+#endif
+  const Scene s = tearing(MaterialModel::StableNeoHookean, DamageModel::Projection,
+                          LinearSolverKind::Multigrid);
+  const Outcome cpu = run(s, Backend::Cpu, 80);
+  WorldDef wd;
+  BodyDef def;
+  s.build(wd, def);
+  wd.backend = Backend::Cuda;
+  World world(wd);
+  const Result<BodyId> id = world.createBody(def);
+  ASSERT_TRUE(id.ok()) << id.error().message;
+  auto steps = [&](int n) {
+    for (int k = 0; k < n; ++k) ASSERT_FALSE(world.step(s.dt).has(kStepNanContained));
+  };
+  steps(35);
+  const WorldSnapshot at35 = world.snapshot();
+  steps(10);
+  const std::vector<double> first(world.positions(id.value()).begin(),
+                                  world.positions(id.value()).end());
+  ASSERT_TRUE(world.restore(at35).ok());
+  steps(10);
+  const std::vector<double> again(world.positions(id.value()).begin(),
+                                  world.positions(id.value()).end());
+  EXPECT_EQ(first, again);
+  steps(35);
+  const auto end = world.positions(id.value());
+  EXPECT_LE(maxDifference(std::vector<double>(end.begin(), end.end()), cpu.x) / cpu.size, kExact);
+  EXPECT_EQ(world.fractureStats(id.value()).fragments, cpu.fragments);
+}
+
 // A weak brittle block dropped onto the ground at 6 m/s: it shatters on impact.
 GF_SCENE_TEST(ShatteringBlockSameAsTheCpu) {
   GF_SKIP_WITHOUT_DEVICE();
@@ -336,7 +484,15 @@ GF_SCENE_TEST(StackedBlocksSameAsTheCpu) {
 #if !defined(GF_GPU_CUDA)
 // The host build's device whose calls fail from the `failAt`-th call of one kind on, as a
 // device that runs out of memory or loses its context would.
-enum class FailingCall { kElementPass, kPcg, kMultigrid };
+enum class FailingCall {
+  kElementPass,
+  kLineSearchPass,  // an energy-only pass, after the iteration's matrix was assembled
+  kAssemble,
+  kMatrixRead,
+  kMultiply,
+  kPcg,
+  kMultigrid
+};
 struct Failing {
   static inline FailingCall call = FailingCall::kElementPass;
   static inline int failAt = 0;
@@ -344,16 +500,34 @@ struct Failing {
 class FailingDevice final : public detail::BodyDevice {
  public:
   bool elementPass(const detail::ElementStage& stage, const detail::GatherStage& gather,
-                   int32_t tets, int32_t nodes, bool stateChanged, double& psi) override {
-    if (fails(FailingCall::kElementPass)) return false;
-    return m_device->elementPass(stage, gather, tets, nodes, stateChanged, psi);
+                   int32_t tets, int32_t nodes, bool stateChanged, double& psi,
+                   double* nodeGrad) override {
+    if (fails(stage.grad ? FailingCall::kElementPass : FailingCall::kLineSearchPass)) return false;
+    return m_device->elementPass(stage, gather, tets, nodes, stateChanged, psi, nodeGrad);
   }
-  bool pcgSolve(const detail::BlockSparseMatrix& A, const double* b, double* x, int maxIterations,
-                double tolerance, detail::SolveReport& report) override {
+  bool downloadHessians(double* hess) override { return m_device->downloadHessians(hess); }
+  bool assemble(const detail::DeviceAssembly& assembly) override {
+    if (fails(FailingCall::kAssemble)) return false;
+    return m_device->assemble(assembly);
+  }
+  bool downloadMatrix(double* values) override {
+    if (fails(FailingCall::kMatrixRead)) return false;
+    return m_device->downloadMatrix(values);
+  }
+  bool readLevel(uint64_t version, int level, double* values, size_t count) override {
+    return m_device->readLevel(version, level, values, count);
+  }
+  bool multiply(const double* x, double* y) override {
+    if (fails(FailingCall::kMultiply)) return false;
+    return m_device->multiply(x, y);
+  }
+  bool pcgSolve(const detail::BlockSparseMatrix& A, bool assembled, const double* b, double* x,
+                int maxIterations, double tolerance, detail::SolveReport& report) override {
     if (fails(FailingCall::kPcg)) return false;
-    return m_device->pcgSolve(A, b, x, maxIterations, tolerance, report);
+    return m_device->pcgSolve(A, assembled, b, x, maxIterations, tolerance, report);
   }
-  bool multigridSolve(const detail::BlockSparseMatrix& A, const detail::CycleSettings& settings,
+  bool multigridSolve(const detail::BlockSparseMatrix& A, bool assembled,
+                      const detail::CycleSettings& settings,
                       const std::function<const detail::MultigridMirror*()>& prepare,
                       const double* b, double* x, int maxIterations, double tolerance,
                       detail::MultigridRun& run, detail::SolveReport& report) override {
@@ -363,15 +537,15 @@ class FailingDevice final : public detail::BodyDevice {
       x[0] = std::nan("");
       return false;
     }
-    return m_device->multigridSolve(A, settings, prepare, b, x, maxIterations, tolerance, run,
-                                    report);
+    return m_device->multigridSolve(A, assembled, settings, prepare, b, x, maxIterations, tolerance,
+                                    run, report);
   }
   const std::string& error() const override { return m_error; }
 
  private:
   bool fails(FailingCall c) { return c == Failing::call && m_calls[int(c)]++ >= Failing::failAt; }
   std::unique_ptr<detail::BodyDevice> m_device = gpu::makeBodyDevice();
-  int m_calls[3] = {};
+  int m_calls[7] = {};
   std::string m_error = "injected failure";
 };
 std::unique_ptr<detail::BodyDevice> makeFailingDevice() {
@@ -387,15 +561,29 @@ TEST(WorldBackend, AFailedDeviceCallHandsTheBodyToTheCpu) {
     FailingCall call;
     int failAt;
     LinearSolverKind solver;
+    bool smoothed = false;  // a smoothed prolongator, which the host prepares
   };
   for (const Case c : {Case{FailingCall::kElementPass, 0, LinearSolverKind::Multigrid},
                        Case{FailingCall::kElementPass, 7, LinearSolverKind::Multigrid},
+                       Case{FailingCall::kLineSearchPass, 60, LinearSolverKind::PCG},
+                       Case{FailingCall::kLineSearchPass, 60, LinearSolverKind::Multigrid},
+                       Case{FailingCall::kAssemble, 0, LinearSolverKind::PCG},
+                       Case{FailingCall::kAssemble, 6, LinearSolverKind::Multigrid},
+                       Case{FailingCall::kMatrixRead, 4, LinearSolverKind::Multigrid, true},
+                       Case{FailingCall::kMultiply, 2, LinearSolverKind::PCG},
                        Case{FailingCall::kPcg, 3, LinearSolverKind::PCG},
                        Case{FailingCall::kMultigrid, 0, LinearSolverKind::Multigrid},
                        Case{FailingCall::kMultigrid, 5, LinearSolverKind::Multigrid}}) {
     Failing::call = c.call;
     Failing::failAt = c.failAt;
-    const Scene scene = tearing(MaterialModel::StableNeoHookean, DamageModel::Projection, c.solver);
+    Scene scene = tearing(MaterialModel::StableNeoHookean, DamageModel::Projection, c.solver);
+    if (c.smoothed) {
+      const auto build = scene.build;
+      scene.build = [build](WorldDef& wd, BodyDef& def) {
+        build(wd, def);
+        def.solver.multigrid.smoothedProlongation = true;
+      };
+    }
     const Outcome cpu = run(scene, Backend::Cpu, 100);
     detail::setTestDevice(&makeFailingDevice, "a failing device");
     const Outcome dev = run(scene, Backend::Cuda, 100);

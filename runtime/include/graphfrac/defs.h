@@ -468,8 +468,8 @@ enum class Backend : uint8_t {
   /// says so): Cuda's device step is partial and not yet measured faster than the CPU.
   Auto,
   Cpu,  ///< The CPU, threaded through WorldDef::jobs.
-  /// A CUDA device: each body's element pass and PCG or multigrid solves, the rest on the CPU.
-  /// Without a driver or device the world refuses to run, saying why (docs/design.md).
+  /// A CUDA device: each body's element pass, Newton matrix and linear solves (the rest on the
+  /// CPU). Without a driver or device the world refuses to run, saying why (docs/design.md).
   Cuda,
 };
 

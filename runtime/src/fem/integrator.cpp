@@ -124,7 +124,14 @@ void Integrator::refreshFixedNodes(const FemModel& model, const FemState& state)
 }
 
 detail::MultigridState Integrator::solverState() const {
-  return m_multigrid ? m_multigrid->state() : detail::MultigridState{};
+  if (!m_multigrid) return {};
+  // A device's coarse operators come back to the host solver, which holds the snapshot's copy
+  // (a cache of the same values: the integrator's state does not change).
+  if (m_device)
+    m_multigrid->takeValues([this](uint64_t version, int level, double* values, size_t count) {
+      return m_device->readLevel(version, level, values, count);
+    });
+  return m_multigrid->state();
 }
 
 Result<void> Integrator::restoreSolver(const FemModel& model, const FemState& state,
@@ -172,45 +179,46 @@ void Integrator::findInert(const FemModel& model, const FemState& state, JobSyst
 
 double Integrator::elementPass(const FemModel& model, const FemState& state, const double* x,
                                bool withGradient, bool withHessian, JobSystem& jobs) {
+  const CpuExecutor exec(jobs);
   if (m_inert) {
-    if (m_stressOut) CpuExecutor(jobs).run(6 * model.tetCount, 4096, FillStage{0.0, m_stressOut});
+    if (m_stressOut) exec.run(6 * model.tetCount, 4096, FillStage{0.0, m_stressOut});
+    if (withGradient)
+      exec.run(3 * model.nodeCount, kNodeGrain, FillStage{0.0, m_elasticGrad.data()});
     return 0.0;
   }
+  const bool withHess = withGradient && withHessian;
   ElementStage stage =
       elementStage(model, state, x, m_elemEnergy.data(), withGradient ? m_elemGrad.data() : nullptr,
-                   withGradient && withHessian ? m_elemHess.data() : nullptr, m_stressOut);
+                   withHess ? m_elemHess.data() : nullptr, m_stressOut);
   stage.closedCrackHessian = m_closedCrackHessian;
   if (m_device) {
     // Its state arrays change with a step (plasticity, commands, a restored snapshot) and with
-    // breaks; the SVD cache is the host's scratch.
+    // breaks; the SVD cache is the host's scratch. The device gathers the node gradient and
+    // keeps the Hessians for its assembly.
     const int32_t broken = m_fracture ? m_fracture->brokenCount() : 0;
     double psi = 0;
     if (m_device->elementPass(stage, gatherStage(nullptr, nullptr), model.tetCount, model.nodeCount,
-                              m_deviceStale || broken != m_deviceBroken, psi)) {
+                              m_deviceStale || broken != m_deviceBroken, psi,
+                              m_elasticGrad.data())) {
       m_deviceStale = false;
       m_deviceBroken = broken;
+      if (withHess) m_hessOnDevice = true;
       return psi;
     }
     dropDevice();
   }
   stage.svdCache = m_svdCache.data();
-  const CpuExecutor exec(jobs);
   exec.runRanges(model.tetCount, kElementGrain,
                  [&stage](int32_t b, int32_t e) { evaluateElementRange(stage, b, e); });
+  if (withHess) m_hessOnDevice = false;
+  if (withGradient)
+    exec.run(model.nodeCount, kNodeGrain, gatherStage(m_elemGrad.data(), m_elasticGrad.data()));
   return exec.sum(m_elemEnergy.data(), model.tetCount);
 }
 
 void Integrator::dropDevice() {
   m_deviceFailure = m_device->error();
   m_device.reset();
-}
-
-void Integrator::gatherGradient(const FemModel& model, JobSystem& jobs) {
-  const CpuExecutor exec(jobs);
-  if (m_inert)
-    exec.run(3 * model.nodeCount, kNodeGrain, FillStage{0.0, m_elasticGrad.data()});
-  else
-    exec.run(model.nodeCount, kNodeGrain, gatherStage(m_elemGrad.data(), m_elasticGrad.data()));
 }
 
 double Integrator::incrementalPotential(const FemModel& model, const FemState& state,
@@ -220,7 +228,6 @@ double Integrator::incrementalPotential(const FemModel& model, const FemState& s
   const double r1 = state.material.massDamping, r2 = state.material.stiffnessDamping;
   const double psi = elementPass(model, state, x, withGradient, withHessian, jobs);
   m_lastPsi = psi;
-  if (withGradient) gatherGradient(model, jobs);
   const CpuExecutor exec(jobs);
   // Face contacts: their half-spaces are placed at each linearisation and held through its
   // line search, so the potential the search compares is one smooth function.
@@ -826,8 +833,17 @@ void Integrator::prescribedNodeForces(const FemModel& model, const FemState& sta
 }
 
 SolveReport Integrator::patternSolve(const FemModel& model, const double* b, double* x,
-                                     double tolerance, double toleranceScale, JobSystem& jobs) {
+                                     double tolerance, double toleranceScale, JobSystem& jobs,
+                                     const std::function<void()>& hostMatrixLost) {
   SolveReport sr;
+  // A failed device solve leaves x as it was; the host solves again from there, with the
+  // matrix the device held rebuilt where it cannot be read back.
+  auto onHost = [&] {
+    const bool stale = m_hostMatrixStale;
+    dropDevice();
+    m_matrixOnDevice = m_hostMatrixStale = false;
+    if (stale) hostMatrixLost();
+  };
   if (m_inert) {
     // Block diagonal: block-Jacobi PCG is exact in one iteration, where a factorisation or a
     // V-cycle of the whole pattern would cost as much as for the intact body.
@@ -837,17 +853,16 @@ SolveReport Integrator::patternSolve(const FemModel& model, const double* b, dou
   } else if (m_multigrid) {
     bool solved = false;
     if (m_device) {
-      // A failed device solve leaves x as it was; the host solves again from there.
       sr = m_multigrid->solveWith(
           m_A, x, jobs,
           [&](const CycleSettings& settings, const std::function<const MultigridMirror*()>& prepare,
               MultigridRun& run, SolveReport& report) {
-            return m_device->multigridSolve(m_A, settings, prepare, b, x,
+            return m_device->multigridSolve(m_A, m_matrixOnDevice, settings, prepare, b, x,
                                             model.solver.maxLinearIterations, tolerance, run,
                                             report);
           },
-          solved);
-      if (!solved) dropDevice();
+          solved, [this] { return hostMatrix(); });
+      if (!solved) onHost();
     }
     if (!solved)
       sr = m_multigrid->solve(m_A, b, x, model.solver.maxLinearIterations, tolerance, jobs);
@@ -855,9 +870,9 @@ SolveReport Integrator::patternSolve(const FemModel& model, const double* b, dou
     // non-finite result is a failure there.
     if (!model.solver.multigrid.preconditionCG && std::isfinite(sr.relativeResidual))
       sr.converged = true;
-  } else if (!m_device ||
-             !m_device->pcgSolve(m_A, b, x, model.solver.maxLinearIterations, tolerance, sr)) {
-    if (m_device) dropDevice();
+  } else if (!m_device || !m_device->pcgSolve(m_A, m_matrixOnDevice, b, x,
+                                              model.solver.maxLinearIterations, tolerance, sr)) {
+    if (m_device) onHost();
     sr = m_pcg.solve(m_A, b, x, model.solver.maxLinearIterations, tolerance, jobs);
   }
   sr.relativeResidual /= toleranceScale;  // against the scale the tolerance was set on
@@ -1002,11 +1017,95 @@ void Integrator::startNewton(const FemModel& model, const FemState& state, const
   }
 }
 
+bool Integrator::assemble(const FemModel& model, const FemState& state, const StepContext& ctx,
+                          int it, JobSystem& jobs) {
+  const double dt = ctx.dt, dt2 = dt * dt;
+  const double r1 = state.material.massDamping, r2 = state.material.stiffnessDamping;
+  const bool faces = m_faceOn && m_faceAny;
+  const bool writeDamping = it == 0 && r2 > 0 && !m_inert;
+  if (it == 0) m_dampKOnDevice = false;
+  if (writeDamping) {
+    if (m_dampK.n == 0) m_dampK = m_A;
+    m_dampKValid = true;
+  }
+  const NodeBlockStage nodes{nullptr,
+                             m_diagonalBlock.data(),
+                             state.nodeMass.data(),
+                             m_contactHess.data(),
+                             1 + dt * r1,
+                             dt2,
+                             state.drag.empty() ? nullptr : state.drag.data(),
+                             tetherOf(state)};
+  m_matrixOnDevice = m_hostMatrixStale = false;
+  // The device assembles from the Hessians it holds where nothing else adds element blocks:
+  // face contacts gather blocks of their own, and body contact's joint solve and the direct
+  // solver read the matrix on the host.
+  if (m_hessOnDevice && m_device && !m_inert && !faces && !ctx.bodyContacts.start && !m_cholesky) {
+    DeviceAssembly a;
+    a.pattern = &m_A;
+    a.gather = &m_gather;
+    a.diagonalBlock = m_diagonalBlock.data();
+    a.scale = dt2;
+    if (writeDamping) a.sum = m_dampK.values.data();
+    if (m_dampKValid) a.addScale = dt * r2;
+    if (m_dampKValid && !writeDamping && !m_dampKOnDevice) a.addSum = m_dampK.values.data();
+    a.nodes = nodes;
+    // Per node and iteration the largest copy; zero with no collider (body contact is not here).
+    if (ctx.colliderCount == 0) a.nodes.contactHess = nullptr;
+    a.fixedNode = state.fixedNode.data();
+    if (m_device->assemble(a)) {
+      m_matrixOnDevice = m_hostMatrixStale = true;
+      m_dampKOnDevice = m_dampKOnDevice || writeDamping || a.addSum != nullptr;
+      return writeDamping;
+    }
+    dropDevice();
+  }
+  if (m_hessOnDevice && !(m_device && m_device->downloadHessians(m_elemHess.data()))) {
+    // Lost with the device: the pass again on the host, at the linearisation point.
+    if (m_device) dropDevice();
+    (void)elementPass(model, state, m_x.data(), true, true, jobs);
+  }
+  m_hessOnDevice = false;
+  // One pass over the element matrices writes A and, where this step's damping needs it,
+  // K(x_n); the damping term's axpy joins the last gather into A. Each would stream the
+  // matrix again; the bits are those of the separate passes.
+  GatherFusion elements, faceContacts;
+  elements.accumulate = false;
+  if (writeDamping) elements.sum = &m_dampK;
+  if (m_dampKValid) {
+    GatherFusion& last = faces ? faceContacts : elements;
+    last.addAfter = &m_dampK;
+    last.addScale = dt * r2;
+  }
+  if (m_inert)
+    m_A.setZero(jobs);
+  else
+    gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs, elements);
+  if (faces) gatherElementBlocks(m_faceGather, m_faceHess.data(), dt2, m_A, jobs, faceContacts);
+  NodeBlockStage hostNodes = nodes;
+  hostNodes.values = m_A.values.data();
+  CpuExecutor(jobs).run(model.nodeCount, kNodeGrain, hostNodes);
+  applyDirichlet(m_A, state.fixedNode.data(), jobs);
+  return writeDamping;
+}
+
+bool Integrator::hostMatrix() {
+  if (!m_hostMatrixStale) return true;
+  if (!m_device || !m_device->downloadMatrix(m_A.values.data())) return false;
+  m_hostMatrixStale = false;
+  return true;
+}
+
+void Integrator::relineariseOnHost(const FemModel& model, const FemState& state,
+                                   const StepContext& ctx, int it, JobSystem& jobs) {
+  if (m_device) dropDevice();
+  (void)elementPass(model, state, m_x.data(), true, true, jobs);
+  (void)assemble(model, state, ctx, it, jobs);
+}
+
 double Integrator::linearise(const FemModel& model, const FemState& state, const StepContext& ctx,
                              int it, bool judgeFracture, JobSystem& jobs, BodyStepReport& rep,
                              double& toleranceScale) {
-  const double dt = ctx.dt, dt2 = dt * dt;
-  const double r1 = state.material.massDamping, r2 = state.material.stiffnessDamping;
   const int32_t n3i = int32_t(state.x.size());
   const CpuExecutor exec(jobs);
   const double* start = m_xStart.data();  // x_n
@@ -1034,33 +1133,8 @@ double Integrator::linearise(const FemModel& model, const FemState& state, const
 
   // A = M (1 + dt r1) + dt r2 K(x_n) + dt^2 (K + K_contact)
   t0 = Clock::now();
-  // One pass over the element matrices writes A and, where this step's damping needs it,
-  // K(x_n); the damping term's axpy joins the last gather into A. Each would stream the
-  // matrix again; the bits are those of the separate passes.
-  const bool faces = m_faceOn && m_faceAny;
-  GatherFusion elements, faceContacts;
-  elements.accumulate = false;
-  if (it == 0 && r2 > 0 && !m_inert) {
-    if (m_dampK.n == 0) m_dampK = m_A;
-    elements.sum = &m_dampK;
-    m_dampKValid = true;
-  }
-  if (m_dampKValid) {
-    GatherFusion& last = faces ? faceContacts : elements;
-    last.addAfter = &m_dampK;
-    last.addScale = dt * r2;
-  }
-  if (m_inert)
-    m_A.setZero(jobs);
-  else
-    gatherElementBlocks(m_gather, m_elemHess.data(), dt2, m_A, jobs, elements);
-  if (faces) gatherElementBlocks(m_faceGather, m_faceHess.data(), dt2, m_A, jobs, faceContacts);
-  if (elements.sum) E += dampingTerm(state, m_dampRef.data(), m_x.data(), dt, true, jobs);
-  exec.run(model.nodeCount, kNodeGrain,
-           NodeBlockStage{m_A.values.data(), m_diagonalBlock.data(), state.nodeMass.data(),
-                          m_contactHess.data(), 1 + dt * r1, dt2,
-                          state.drag.empty() ? nullptr : state.drag.data(), tetherOf(state)});
-  applyDirichlet(m_A, state.fixedNode.data(), jobs);
+  if (assemble(model, state, ctx, it, jobs))
+    E += dampingTerm(state, m_dampRef.data(), m_x.data(), ctx.dt, true, jobs);
   exec.run(n3i, kNodeGrain,
            FreeDifferenceStage{nullptr, m_grad.data(), state.fixedNode.data(), m_rhs.data()});
   rep.assemblyMs += msSince(t0);
@@ -1084,7 +1158,7 @@ double Integrator::linearise(const FemModel& model, const FemState& state, const
   if (it == 0 && !m_cholesky && m_rigidPieces) {
     const double spin2 = exec.reduce<SumOp>(
         model.nodeCount, SpinShareTerm{m_xStart.data(), state.nodeMass.data(), m_pieces.data(),
-                                       m_pieceOfNode.data(), dt});
+                                       m_pieceOfNode.data(), ctx.dt});
     const double rhs2 = exec.dot(m_rhs.data(), m_rhs.data(), n3i);
     if (spin2 > rhs2 && rhs2 > 0) toleranceScale = std::sqrt(spin2 / rhs2);
   }
@@ -1148,10 +1222,11 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
     double E = linearise(model, state, ctx, it, judgeFracture, jobs, rep, toleranceScale);
     auto t0 = Clock::now();
     const double tolerance = model.solver.linearTolerance * toleranceScale;
-    const SolveReport sr =
-        selfPairsAct(model, ctx, dt2, jobs)
-            ? coupledSolve(model, state, ctx, tolerance, toleranceScale, jobs)
-            : patternSolve(model, m_rhs.data(), m_dx.data(), tolerance, toleranceScale, jobs);
+    auto relinearise = [&] { relineariseOnHost(model, state, ctx, it, jobs); };
+    const SolveReport sr = selfPairsAct(model, ctx, dt2, jobs)
+                               ? coupledSolve(model, state, ctx, tolerance, toleranceScale, jobs)
+                               : patternSolve(model, m_rhs.data(), m_dx.data(), tolerance,
+                                              toleranceScale, jobs, relinearise);
     rep.solveMs += msSince(t0);
     rep.linearIterations += sr.iterations;
     rep.residual = std::max(rep.residual, sr.relativeResidual);
@@ -1209,7 +1284,9 @@ double Integrator::solve(const FemModel& model, FemState& state, const StepConte
         // the model's q(alpha) = -(alpha g.dx + alpha^2/2 dx.A dx); the step then goes on from
         // the accepted point, whose Hessian sees the closed crack. (Taken alone, a beam cracked
         // at its root gained up to 3.9 J in one such step: tests/stability, ProjectionBeams.)
-        m_A.multiply(m_dx.data(), m_adx.data(), jobs);
+        if (m_hostMatrixStale && !(m_device && m_device->multiply(m_dx.data(), m_adx.data())))
+          relinearise();  // the device's matrix is lost with it
+        if (!m_hostMatrixStale) m_A.multiply(m_dx.data(), m_adx.data(), jobs);
         const double curvature = exec.dot(m_dx.data(), m_adx.data(), n3i);
         const double predicted = -(alpha * slope + 0.5 * alpha * alpha * curvature);
         modelOvershot = E - Et < kModelAgreement * predicted;

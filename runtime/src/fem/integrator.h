@@ -19,6 +19,7 @@
 // The sparse pattern, the gather plan and all work arrays are built once per body.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -150,9 +151,10 @@ class Integrator {
   /// fixed nodes, so its hierarchy is built again and re-bound to the current cracks at the
   /// next solve. If it cannot be built (e.g. no free node is left) PCG solves the body.
   void refreshFixedNodes(const FemModel& model, const FemState& state);
-  /// Runs the element pass and the PCG and multigrid solves on `device` (the CUDA backend);
-  /// the rest of the step, and the direct solver, stay on the host. A device call that fails
-  /// hands the body back to the CPU for good (takeDeviceFailure()).
+  /// Runs the element pass, the Newton matrix's assembly and the PCG and multigrid solves on
+  /// `device` (the CUDA backend); the rest of the step, and the direct solver, stay on the host
+  /// (with face or body contact, or the direct solver, the host assembles too). A device call
+  /// that fails hands the body back to the CPU for good (takeDeviceFailure()).
   void useDevice(std::unique_ptr<BodyDevice> device) { m_device = std::move(device); }
   /// Why the device was dropped since the last call (empty: it was not); clears it.
   std::string takeDeviceFailure() { return std::exchange(m_deviceFailure, {}); }
@@ -209,13 +211,12 @@ class Integrator {
  private:
   // Sets m_inert: no tet of the body can store elastic energy now (LiveTetTerm).
   void findInert(const FemModel& model, const FemState& state, JobSystem& jobs);
-  // Per-element pass: energies and, when asked, gradients and PSD Hessians into the buffers
-  // (an energy-only pass leaves m_elemGrad as it was). Reads and fills m_svdCache. An inert
-  // body has nothing to evaluate: 0, stresses zero, the buffers left as they were.
+  // Per-element pass: the elastic energy and, when asked, its node gradient (m_elasticGrad,
+  // gathered from the element gradients in a fixed order) and the PSD element Hessians (on the
+  // device where it ran the pass: m_hessOnDevice). Reads and fills m_svdCache. An inert body
+  // has nothing to evaluate: 0, stresses and gradient zero.
   double elementPass(const FemModel& model, const FemState& state, const double* x,
                      bool withGradient, bool withHessian, JobSystem& jobs);
-  // Node gradient of the elastic energy from the element gradients (deterministic gather).
-  void gatherGradient(const FemModel& model, JobSystem& jobs);
   // Incremental potential at x (scaled by 1, see header comment); fills m_grad when asked.
   double incrementalPotential(const FemModel& model, const FemState& state, const double* xn,
                               const double* x, const StepContext& ctx, bool withGradient,
@@ -275,8 +276,21 @@ class Integrator {
                    double& toleranceScale);
   // The Newton system with the pattern matrix m_A alone (b into x, x the start), by the body's
   // solver; the residual is reported against toleranceScale.
+  // hostMatrixLost: rebuilds m_A on the host where a failed device held its only copy (never
+  // called where the host assembled it).
   SolveReport patternSolve(const FemModel& model, const double* b, double* x, double tolerance,
-                           double toleranceScale, JobSystem& jobs);
+                           double toleranceScale, JobSystem& jobs,
+                           const std::function<void()>& hostMatrixLost = {});
+  // linearise()'s Newton matrix into m_A (on the device where it can: m_matrixOnDevice) from
+  // the last element pass's Hessians; true when it wrote this step's damping matrix K(x_n).
+  bool assemble(const FemModel& model, const FemState& state, const StepContext& ctx, int it,
+                JobSystem& jobs);
+  // m_A's values on the host, read back from the device where it assembled them; false when
+  // that failed.
+  bool hostMatrix();
+  // Iteration `it`'s element pass and matrix again on the host (the device dropped), at m_x.
+  void relineariseOnHost(const FemModel& model, const FemState& state, const StepContext& ctx,
+                         int it, JobSystem& jobs);
   // Whether a moving self pair acts at m_x (SelfPairActiveStage, into m_pairActive).
   bool selfPairsAct(const FemModel& model, const StepContext& ctx, double dt2, JobSystem& jobs);
   // Flexible CG on the parts' matrices plus the moving pairs' cross blocks, preconditioned by
@@ -419,6 +433,11 @@ class Integrator {
   std::unique_ptr<BodyDevice> m_device;
   bool m_deviceStale = true;
   int32_t m_deviceBroken = 0;
+  // The latest element Hessians are on the device only; the device assembled this iteration's
+  // m_A (its values there); m_A.values on the host are not this iteration's; the device holds
+  // this step's K(x_n).
+  bool m_hessOnDevice = false, m_matrixOnDevice = false, m_hostMatrixStale = false;
+  bool m_dampKOnDevice = false;
   std::string m_deviceFailure;
   // Hands the body back to the CPU after a failed device call.
   void dropDevice();

@@ -143,7 +143,8 @@ struct FreeDifferenceStage {
 
 /// The per-node blocks of the step's matrix, A_nn += m (1 + dt r1 + w + w_t) I + dt^2 H_contact
 /// (eq 2.7, 3.13 with Rayleigh r1, a deform brush's drag w and a pull's tether w_t): `values` are
-/// the block-sparse values (9 per block) and diagonalBlock the block of each node's diagonal.
+/// the block-sparse values (9 per block) and diagonalBlock the block of each node's diagonal;
+/// contactHess null where no node can touch anything.
 struct NodeBlockStage {
   double* values = nullptr;
   const int32_t* diagonalBlock = nullptr;
@@ -158,7 +159,7 @@ struct NodeBlockStage {
     const double md = nodeMass[n] * (massScale + (drag ? drag[n] : 0.0) + tether.weight(n));
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j)
-        blk[3 * i + j] += (i == j ? md : 0.0) + dt2 * contactHess[n](i, j);
+        blk[3 * i + j] += (i == j ? md : 0.0) + (contactHess ? dt2 * contactHess[n](i, j) : 0.0);
   }
 };
 

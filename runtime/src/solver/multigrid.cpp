@@ -159,6 +159,7 @@ struct MultigridSolver::Impl {
   // fineKept: a crack re-binding, which leaves the fine pattern, its colouring and its
   // Gauss-Seidel copy as they were (rebuilding them was a serial pass over every fine block).
   void buildLevels(const BlockSparseMatrix& A, bool fineKept = false) {
+    levelsVersion = nextLevelsVersion();
     const int first = fineKept && !levels.empty() && levels[0].n == A.n ? 1 : 0;
     levels.resize(static_cast<size_t>(coarseCount()) + 1);
     for (int l = first; l <= coarseCount(); ++l) {
@@ -481,28 +482,50 @@ struct MultigridSolver::Impl {
     return needRefresh || drifted || solvesSinceRefresh >= refreshInterval();
   }
 
-  // What a cycle needs of A's values: coarse operators on refresh, the fine diagonal every
-  // solve.
-  void prepare(const BlockSparseMatrix& A, JobSystem& jobs, bool deferFactor) {
-    const auto t0 = Clock::now();
-    const bool due = refreshDue();
+  // A solve's preparation: the refresh schedule and the re-bindings it applies (structure),
+  // whose value work (the fine diagonal every solve, the coarse operators on a refresh) is then
+  // done on the host (prepare, onHost) or by a device (solveWith). Returns whether it refreshes.
+  bool plan(const BlockSparseMatrix& A, JobSystem& jobs, bool onHost) {
+    // Values a device computed are not the host's: a host solve refreshes them first.
+    const bool due = refreshDue() || (onHost && valuesElsewhere);
+    valuesElsewhere = !onHost;
+    if (due) operatorsHeld = onHost;
     if (due && rebindPending) applyRebind(jobs);
     if (patternsChanged) buildLevels(A, true);
+    if (due) {
+      needRefresh = false;
+      solvesSinceRefresh = 0;
+      stats.refreshed = true;
+    }
+    ++solvesSinceRefresh;
+    return due;
+  }
+
+  void prepare(const BlockSparseMatrix& A, JobSystem& jobs, bool deferFactor) {
+    const auto t0 = Clock::now();
+    const bool due = plan(A, jobs, true);
     invertDiagonals<3>(0, A, jobs);
     // Jacobi and Chebyshev are tuned to lambda_max of the fine D^-1 A; with a stale estimate
     // below the current one (a longer step, fracture) they amplify the top modes and the
     // V-cycle is no longer SPD, so CG breaks down. The coarse levels' estimates stay
     // consistent with their (stale) operators.
     if (!due && settings.smoother != Smoother::GaussSeidel) estimateLambda<3>(0, A, jobs);
-    if (due) {
-      refresh(A, jobs, deferFactor);
-      needRefresh = false;
-      solvesSinceRefresh = 0;
-      stats.refreshed = true;
-    }
-    ++solvesSinceRefresh;
+    if (due) refresh(A, jobs, deferFactor);
     stats.refreshMs = msSince(t0);
   }
+
+  // The levels' structure changes (buildLevels, restore): a device's mirror of them is stale.
+  // Unique in the process, so that a solver set up again (a body's fixed nodes changed) never
+  // repeats one.
+  uint64_t levelsVersion = 0;
+  static uint64_t nextLevelsVersion() {
+    static std::atomic<uint64_t> next{1};
+    return next.fetch_add(1, std::memory_order_relaxed);
+  }
+  // A device prepared the levels' values since the host last did: the host's are stale, but
+  // for the coarse operators where takeValues() read them back (operatorsHeld).
+  bool valuesElsewhere = false;
+  bool operatorsHeld = true;
 };
 
 MultigridSolver::MultigridSolver() : m_impl(std::make_unique<Impl>()) {}
@@ -539,6 +562,8 @@ Result<void> MultigridSolver::setup(const MultigridSettings& settings, const dou
   s.fineBlocks = A.blockCount();
   s.buildLevels(A);
   s.needRefresh = true;
+  s.valuesElsewhere = false;
+  s.operatorsHeld = true;
   s.rebindPending = false;
   s.appliedRebinds.clear();
   s.solvesSinceRefresh = 0;
@@ -559,6 +584,19 @@ void MultigridSolver::rebind(const int32_t* edgeNodes, const uint8_t* broken, in
   if (s.refreshInterval() <= 1) s.applyRebind(jobs);
 }
 
+void MultigridSolver::takeValues(
+    const std::function<bool(uint64_t version, int level, double* values, size_t count)>& read) {
+  Impl& s = *m_impl;
+  if (!s.valuesElsewhere || s.operatorsHeld) return;
+  std::vector<CoarseLevelValues> values(static_cast<size_t>(s.coarseCount()));
+  for (int l = 1; l <= s.coarseCount(); ++l) {
+    std::vector<double>& A = values[static_cast<size_t>(l - 1)].A;
+    A.resize(s.hierarchy.level(l).A.values.size());
+    if (!read(s.levelsVersion, l, A.data(), A.size())) return;
+  }
+  s.operatorsHeld = s.hierarchy.setValues(values);
+}
+
 MultigridState MultigridSolver::state() const {
   const Impl& s = *m_impl;
   MultigridState st;
@@ -566,13 +604,16 @@ MultigridState MultigridSolver::state() const {
   if (s.rebindPending)
     st.pendingRebind = static_cast<int32_t>(
         std::count(s.pendingBroken.begin(), s.pendingBroken.end(), uint8_t{1}));
-  st.needRefresh = s.needRefresh;
+  // Operators a device computed and takeValues() did not read back are not held here: the
+  // restored solver refreshes them.
+  const bool lost = s.valuesElsewhere && !s.operatorsHeld;
+  st.needRefresh = s.needRefresh || lost;
   st.solvesSinceRefresh = s.solvesSinceRefresh;
   st.refreshIterations = s.refreshIterations;
   st.lastIterations = s.lastIterations;
   if (s.fineBlocks < 0) return st;
   // A due refresh recomputes the operators, not a smoothed prolongator still fresh.
-  const bool keepOperators = !s.refreshDue();
+  const bool keepOperators = !s.refreshDue() && !lost;
   if (keepOperators || s.hierarchy.smoothed()) st.levels = s.hierarchy.values(keepOperators);
   return st;
 }
@@ -606,6 +647,9 @@ Result<void> MultigridSolver::restore(const MultigridState& st, const BlockSpars
   s.rebindPending = st.pendingRebind >= 0;
   if (s.rebindPending) brokenAfter(st.pendingRebind);
   if (s.patternsChanged) s.buildLevels(A, true);
+  s.levelsVersion = Impl::nextLevelsVersion();  // the restored values, for a device's mirror
+  s.valuesElsewhere = false;
+  s.operatorsHeld = true;
   if (!st.levels.empty() && !s.hierarchy.setValues(st.levels))
     return fail("multigrid state: coarse levels differ from the solver's");
   s.needRefresh = st.needRefresh;
@@ -677,7 +721,8 @@ static SolveReport notSetUp(int32_t n, double* x, JobSystem& jobs) {
 }
 
 SolveReport MultigridSolver::solveWith(const BlockSparseMatrix& A, double* x, JobSystem& jobs,
-                                       const ExternalSolve& external, bool& ok) {
+                                       const ExternalSolve& external, bool& ok,
+                                       const std::function<bool()>& hostValues) {
   Impl& s = *m_impl;
   const auto tStart = Clock::now();
   s.startSolve();
@@ -685,10 +730,21 @@ SolveReport MultigridSolver::solveWith(const BlockSparseMatrix& A, double* x, Jo
   if (!ready(A)) return notSetUp(A.n, x, jobs);
   MultigridMirror mirror;
   auto prepareLevels = [&]() -> const MultigridMirror* {
-    s.prepare(A, jobs, false);
+    // Smoothing the prolongator is host code: with it the host prepares every value.
+    const bool onHost = s.hierarchy.smoothed();
+    bool refresh = false;
+    if (onHost) {
+      if (hostValues && !hostValues()) return nullptr;
+      s.prepare(A, jobs, false);
+    } else {
+      refresh = s.plan(A, jobs, false);
+    }
     mirror = {s.cycleLevels(A), galerkinLevels(), s.cycleSettings(),
               [&s](const double* values) { s.factorCoarsest(values); },
               [&s, &jobs](const double* b, double* xc) { s.solveCoarsest(b, xc, jobs); }};
+    mirror.valuesOnHost = onHost;
+    mirror.refresh = refresh;
+    mirror.version = s.levelsVersion;
     return &mirror;
   };
   MultigridRun run;

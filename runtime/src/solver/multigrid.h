@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -67,6 +68,12 @@ class MultigridSolver {
   /// arrays are copied).
   void rebind(const int32_t* edgeNodes, const uint8_t* broken, int32_t edgeCount,
               JobSystem& jobs = serialJobs());
+  /// Where solveWith's device prepared the levels, `read` copies each coarse level's operator
+  /// (levels 1.., `count` doubles into `values`, of the levels of `version`) to the host, so
+  /// that state() holds it; where it cannot (false), a solver restored from state() refreshes
+  /// the operators at its first solve.
+  void takeValues(
+      const std::function<bool(uint64_t version, int level, double* values, size_t count)>& read);
   /// The state between solves (see MultigridState).
   MultigridState state() const;
   /// Whether restore() can take `state`: this solver applied a prefix of its re-bindings.
@@ -94,9 +101,13 @@ class MultigridSolver {
                                            MultigridRun& run, SolveReport& report)>;
   /// solve() run by `external` (a device's, detail::BodyDevice::multigridSolve) with the same
   /// schedule of refreshes and re-bindings and the same statistics; ok false when it failed
-  /// (x is then as external left it).
+  /// (x is then as external left it). The levels' values are external's to prepare
+  /// (MultigridMirror::valuesOnHost), but where only the host can: then `hostValues` is
+  /// called first, to make A's values readable on the host (false fails the solve). A host
+  /// solve after external ones refreshes the levels first.
   SolveReport solveWith(const BlockSparseMatrix& A, double* x, JobSystem& jobs,
-                        const ExternalSolve& external, bool& ok);
+                        const ExternalSolve& external, bool& ok,
+                        const std::function<bool()>& hostValues = {});
 
   /// For a solve on another executor (gpu::DeviceMultigrid): whether the solver is set up for
   /// A's pattern; prepare() sets up what a V-cycle needs of A's values (what solve() does

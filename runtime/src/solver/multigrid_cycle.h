@@ -270,6 +270,14 @@ struct MultigridMirror {
   /// Factorise and solve the coarsest level on the device when it is small enough (then the
   /// two functions above are not called). Off by default until it has run on a device.
   bool denseCoarsestOnDevice = false;
+  /// The levels' values are prepared (the host's, to copy). Otherwise the solve's executor
+  /// prepares them from A as MultigridSolver::prepare does: the fine diagonal (and, cycling
+  /// with Jacobi or Chebyshev, its spectral bound) every solve and, with `refresh`, the coarse
+  /// operators, their diagonals and bounds and the coarsest factor; the values here are then
+  /// only those of levels whose `version` it has not seen.
+  bool valuesOnHost = true;
+  bool refresh = false;
+  uint64_t version = 0;  ///< changes with the levels' structure (a re-binding) or a restore
 };
 
 /// Solves A x = b (x: the initial guess) with the cycle on level 0 of `cycle`. `prepare()` runs

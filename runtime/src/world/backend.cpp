@@ -90,8 +90,8 @@ BackendChoice chooseBackend(Backend requested) {
     c.backend = Backend::Cuda;
     c.device = factory;
     c.description = "cuda: " + name +
-                    ": the element pass and the PCG and multigrid solves on the device, the rest "
-                    "of the step on the CPU";
+                    ": the element pass, the Newton matrix and the PCG and multigrid solves on "
+                    "the device, the rest of the step on the CPU";
     return c;
   }
   // The device runs part of the step, with copies each Newton iteration, which has not been
