@@ -2,6 +2,7 @@
 #include "fem/element_stage.h"
 #include "gpu/assembly.h"
 #include "gpu/body_device.h"
+#include "gpu/criterion.h"
 #include "gpu/element_pass.h"
 #include "gpu/multigrid.h"
 #include "gpu/pcg.h"
@@ -21,11 +22,30 @@ class DeviceBody final : public detail::BodyDevice {
     if (!m_elements.prepare(stage, gather, tetCount, nodeCount, stateChanged) ||
         !m_elements.run(stage.hess != nullptr, stage.stress != nullptr, withGradient,
                         withGradient) ||
-        !m_elements.download(nullptr, nullptr, nullptr, stage.stress,
-                             withGradient ? nodeGrad : nullptr))
+        !m_elements.download(nullptr, nullptr, nullptr, nullptr, withGradient ? nodeGrad : nullptr))
       return fail(m_elements.error());
     psi = m_elements.energy();
     return true;
+  }
+
+  bool criterionStresses(const detail::ElementStage& body, const detail::GatherStage& gather,
+                         int32_t tetCount, int32_t nodeCount, bool stateChanged,
+                         const detail::CriterionStressStage& criterion) override {
+    if (!m_elements.prepare(body, gather, tetCount, nodeCount, stateChanged) ||
+        !m_elements.criterionStresses(criterion))
+      return fail(m_elements.error());
+    return true;
+  }
+
+  int32_t criterionCandidates(const detail::CriterionView& host, double weakest) override {
+    const int32_t count = m_criterion.find(host, m_elements.stresses(), weakest);
+    if (count < 0) fail(m_criterion.error());
+    return count;
+  }
+
+  bool readCriterionStresses(double* stress) override {
+    return m_elements.download(nullptr, nullptr, nullptr, stress, nullptr) ||
+           fail("reading the stresses");
   }
 
   bool downloadHessians(double* hess) override {
@@ -79,6 +99,7 @@ class DeviceBody final : public detail::BodyDevice {
   }
 
   DeviceElementPass m_elements;
+  DeviceCriterion m_criterion;
   DeviceAssembly m_assembly;
   DevicePcg m_pcg;
   DeviceMultigrid m_multigrid;

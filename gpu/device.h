@@ -7,7 +7,9 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <string>
+#include <vector>
 
 #if defined(__CUDACC__) || defined(GF_GPU_CUDA)
 #define GF_GPU_ABI cuda
@@ -78,6 +80,23 @@ class DeviceBuffer {
   T* m_data = nullptr;
   size_t m_size = 0, m_capacity = 0;
 };
+
+/// `device` holds host's n items after it: copied only where they differ from `copy`, the host
+/// copy of what the last call copied (null or empty: `device` empty). For state arrays that
+/// most steps leave as they were: comparing costs far less than a copy over the link.
+template <class T>
+bool mirrorChanged(DeviceBuffer<T>& device, std::vector<T>& copy, const T* host, size_t n) {
+  if (!host || n == 0) {
+    copy.clear();
+    return device.upload(nullptr, 0);
+  }
+  if (device.size() == n && copy.size() == n && std::memcmp(copy.data(), host, n * sizeof(T)) == 0)
+    return true;
+  copy.clear();  // a failed copy is retried at the next call
+  if (!device.upload(host, n)) return false;
+  copy.assign(host, host + n);
+  return true;
+}
 
 }  // namespace GF_GPU_ABI
 }  // namespace gf::gpu

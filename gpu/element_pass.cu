@@ -1,7 +1,5 @@
 // gpu/element_pass.h: the host code is buffer management; the stages and the reduction are
 // the CPU executor's (fem/element_stage.h, step/reduce.h), launched through gpu/launch.h.
-#include <cstring>
-
 #include "gpu/element_pass.h"
 #include "gpu/launch.h"
 #include "step/reduce.h"
@@ -12,23 +10,6 @@ inline namespace GF_GPU_ABI {
 bool DeviceElementPass::fail(const char* what) {
   m_error = std::string(what) + ": " + lastError();
   return false;
-}
-
-// Most steps change none of a body's state arrays (only plastic flow, breaks and commands
-// do), and a copy of each costs a link transfer of its size: compared on the host first.
-template <class T>
-bool DeviceElementPass::mirror(DeviceBuffer<T>& device, std::vector<T>& copy, const T* host,
-                               size_t n) {
-  if (!host || n == 0) {
-    copy.clear();
-    return device.upload(nullptr, 0);
-  }
-  if (device.size() == n && copy.size() == n && std::memcmp(copy.data(), host, n * sizeof(T)) == 0)
-    return true;
-  copy.clear();  // a failed copy is retried at the next call
-  if (!device.upload(host, n)) return false;
-  copy.assign(host, host + n);
-  return true;
 }
 
 bool DeviceElementPass::upload(const detail::ElementStage& h, const detail::GatherStage& gather,
@@ -68,11 +49,11 @@ bool DeviceElementPass::prepare(const detail::ElementStage& h, const detail::Gat
   if (state) {
     m_modelFrom.restInverse = nullptr;  // retried at the next call if a copy fails
     const bool damaged = h.tetMask != nullptr;
-    if (!mirror(m_restInverse, m_restInverseCopy, h.restInverse, nt) ||
-        !mirror(m_tetMask, m_tetMaskCopy, h.tetMask, nt) ||
-        !mirror(m_chi, m_chiCopy, damaged ? h.chi : nullptr, nt) ||
-        !mirror(m_rigidTet, m_rigidTetCopy, h.rigidTet, nt) ||
-        !mirror(m_tetLame, m_tetLameCopy, h.tetLame, 2 * nt))
+    if (!mirrorChanged(m_restInverse, m_restInverseCopy, h.restInverse, nt) ||
+        !mirrorChanged(m_tetMask, m_tetMaskCopy, h.tetMask, nt) ||
+        !mirrorChanged(m_chi, m_chiCopy, damaged ? h.chi : nullptr, nt) ||
+        !mirrorChanged(m_rigidTet, m_rigidTetCopy, h.rigidTet, nt) ||
+        !mirrorChanged(m_tetLame, m_tetLameCopy, h.tetLame, 2 * nt))
       return fail("uploading the body's state");
     m_modelFrom.restInverse = h.restInverse;
     m_modelFrom.tetMask = h.tetMask;
@@ -122,6 +103,24 @@ bool DeviceElementPass::run(bool withHessian, bool withStress, bool withGradient
            m_nodeCount, nullptr);
   if (!synchronize()) return fail("running the element stages");
   return m_sum.download(&m_psi, 1) || fail("reading the energy");
+}
+
+bool DeviceElementPass::criterionStresses(const detail::CriterionStressStage& stage) {
+  const size_t nt = size_t(m_tetCount);
+  if (!m_stress.resize(6 * nt)) return fail("allocating the stresses");
+  detail::CriterionStressStage s = stage;
+  s.tets = m_tets.data();
+  s.x = m_x.data();
+  s.restInverse = m_restInverse.data();
+  s.fibreDir = m_fibreDir.data();
+  s.tetLame = m_tetLame.data();
+  s.tetMask = m_tetMask.data();
+  s.chi = m_chi.data();
+  s.rigidTet = m_rigidTet.data();
+  s.stress = m_stress.data();
+  s.svdCache = nullptr;
+  launch(s, m_tetCount, nullptr);
+  return synchronize() || fail("running the stress stage");
 }
 
 bool DeviceElementPass::download(double* energy, double* grad, double* hess, double* stress,

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "fem/element_stage.h"
+#include "fracture/fracture_stages.h"
 #include "gpu/device.h"
 
 namespace gf::gpu {
@@ -35,6 +36,11 @@ class DeviceElementPass {
   /// false skips the gather for a caller that gathers the element gradients itself.
   bool run(bool withHessian, bool withStress, bool withGradient = true,
            bool withNodeGradient = true);
+  /// The fracture criterion's stress stage on the uploaded body (its arrays the element
+  /// stage's copies, its flags `stage`'s), into stresses(). False on a device error (error()).
+  bool criterionStresses(const detail::CriterionStressStage& stage);
+  /// The stresses of the last run or criterionStresses(), in device memory, 6 per tet.
+  const double* stresses() const { return m_stress.data(); }
   /// The last run's element Hessians, in device memory (null before a run with them).
   const double* hessians() const { return m_hess.data(); }
   /// The elastic energy of the last run.
@@ -46,10 +52,6 @@ class DeviceElementPass {
 
  private:
   bool fail(const char* what);
-  // `device` holds host's n items after it: copied where they differ from `copy` (what the
-  // last call copied).
-  template <class T>
-  bool mirror(DeviceBuffer<T>& device, std::vector<T>& copy, const T* host, size_t n);
 
   int32_t m_tetCount = 0, m_nodeCount = 0;
   detail::ElementStage m_host;  // options and coefficients of the uploaded body
@@ -63,7 +65,7 @@ class DeviceElementPass {
   DeviceBuffer<Vec3> m_fibreDir;
   DeviceBuffer<uint8_t> m_tetMask, m_rigidTet;
   DeviceBuffer<Mat<6, 6>> m_edgeMatrix, m_edgeMatrixInverse;
-  // Host copies of the state arrays as last copied to the device (mirror()).
+  // Host copies of the state arrays as last copied to the device (mirrorChanged()).
   std::vector<Mat3> m_restInverseCopy;
   std::vector<uint8_t> m_tetMaskCopy, m_rigidTetCopy;
   std::vector<double> m_chiCopy, m_tetLameCopy;

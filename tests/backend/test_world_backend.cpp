@@ -246,9 +246,10 @@ GF_SCENE_TEST(DampedTearSameAsTheCpu) {
   EXPECT_GT(maxDifference(run(undamped, Backend::Cpu, 100).x, cpu.x), 1e-3 * cpu.size);
 }
 
-// The element Hessians and the Newton matrix stay on the device: what a Newton iteration copies
-// each way is per node (positions, gradients, the node blocks' inputs), not per tet or per
-// matrix block. Counted by the device's own copy totals over 10 steps of a stretched bar.
+// The element Hessians, the Newton matrix and the fracture criterion's stresses stay on the
+// device: what a Newton iteration copies each way is per node (positions, gradients, the node
+// blocks' inputs), not per tet or per matrix block. Counted by the device's own copy totals
+// over 10 steps of a bar stretched by a grip, its fracture judged each step (nothing breaks).
 GF_SCENE_TEST(TheHessiansAndTheMatrixStayOnTheDevice) {
   GF_SKIP_WITHOUT_DEVICE();
 #if !defined(GF_GPU_CUDA)
@@ -263,6 +264,8 @@ GF_SCENE_TEST(TheHessiansAndTheMatrixStayOnTheDevice) {
     def.material = Material::stableNeoHookean(1e6, 0.3, 1000);
     def.solver.linearSolver = solver;
     def.solver.multigrid.directBelowNodes = 0;
+    def.fracture.enabled = true;
+    def.fracture.strength = 1e9;
     Grip left, right;
     left.nodes = test::selectNodes(def.mesh, [](double x, double, double) { return x < 1e-9; });
     right.nodes =
@@ -287,11 +290,14 @@ GF_SCENE_TEST(TheHessiansAndTheMatrixStayOnTheDevice) {
     const double matrix =
         double(detail::BlockSparseMatrix::fromTets(def.mesh.tets.data(), tets, nodes).col.size()) *
         9 * sizeof(double);
+    const double stresses = double(tets) * 6 * sizeof(double);
     std::printf(
         "  %s, %zu tets, %zu nodes: %.0f bytes to the host and %.0f to the device per "
-        "Newton iteration (%d); the element Hessians are %.0f, the matrix %.0f\n",
+        "Newton iteration (%d); the element Hessians are %.0f, the matrix %.0f, the stresses "
+        "%.0f\n",
         solver == LinearSolverKind::PCG ? "PCG" : "multigrid", tets, nodes, toHost, toDevice,
-        iterations, hessians, matrix);
+        iterations, hessians, matrix, stresses);
+    EXPECT_LT(toHost, 0.5 * stresses);
     EXPECT_LT(toHost, 0.1 * hessians);
     EXPECT_LT(toDevice, 0.1 * hessians);
     if (solver == LinearSolverKind::PCG) {
@@ -331,6 +337,28 @@ GF_SCENE_TEST(DetachedFragmentSameAsTheCpu) {
     EXPECT_TRUE(detached) << "a free fragment at step 60";
   };
   compare(s, kExact);
+}
+
+// The criterion on the device (stresses and candidates there, only the candidates back),
+// non-local and brittle: a brittle body's first break reads the stresses back for its planes.
+GF_SCENE_TEST(NonlocalAndBrittleTearSameAsTheCpu) {
+  GF_SKIP_WITHOUT_DEVICE();
+  for (const bool brittle : {false, true}) {
+    Scene s = tearing(MaterialModel::StVK, DamageModel::Projection, LinearSolverKind::Multigrid);
+    const auto build = s.build;
+    s.name = brittle ? "tear, brittle" : "tear, non-local";
+    s.build = [build, brittle](WorldDef& wd, BodyDef& def) {
+      build(wd, def);
+      if (brittle) {
+        def.fracture.brittle = true;
+        def.fracture.regions = 2;
+      } else {
+        def.fracture.nonlocalLength = 0.03;
+      }
+    };
+    const Outcome cpu = compare(s, kExact);
+    EXPECT_GE(cpu.fragments, 2) << s.name << ": the bar breaks";
+  }
 }
 
 // A snapshot of a device world restores its steps bit for bit (World::restore): the coarse
@@ -487,6 +515,8 @@ GF_SCENE_TEST(StackedBlocksSameAsTheCpu) {
 enum class FailingCall {
   kElementPass,
   kLineSearchPass,  // an energy-only pass, after the iteration's matrix was assembled
+  kCriterion,
+  kCandidates,
   kAssemble,
   kMatrixRead,
   kMultiply,
@@ -504,6 +534,19 @@ class FailingDevice final : public detail::BodyDevice {
                    double* nodeGrad) override {
     if (fails(stage.grad ? FailingCall::kElementPass : FailingCall::kLineSearchPass)) return false;
     return m_device->elementPass(stage, gather, tets, nodes, stateChanged, psi, nodeGrad);
+  }
+  bool criterionStresses(const detail::ElementStage& body, const detail::GatherStage& gather,
+                         int32_t tets, int32_t nodes, bool stateChanged,
+                         const detail::CriterionStressStage& criterion) override {
+    if (fails(FailingCall::kCriterion)) return false;
+    return m_device->criterionStresses(body, gather, tets, nodes, stateChanged, criterion);
+  }
+  int32_t criterionCandidates(const detail::CriterionView& host, double weakest) override {
+    if (fails(FailingCall::kCandidates)) return -1;
+    return m_device->criterionCandidates(host, weakest);
+  }
+  bool readCriterionStresses(double* stress) override {
+    return m_device->readCriterionStresses(stress);
   }
   bool downloadHessians(double* hess) override { return m_device->downloadHessians(hess); }
   bool assemble(const detail::DeviceAssembly& assembly) override {
@@ -545,7 +588,7 @@ class FailingDevice final : public detail::BodyDevice {
  private:
   bool fails(FailingCall c) { return c == Failing::call && m_calls[int(c)]++ >= Failing::failAt; }
   std::unique_ptr<detail::BodyDevice> m_device = gpu::makeBodyDevice();
-  int m_calls[7] = {};
+  int m_calls[9] = {};
   std::string m_error = "injected failure";
 };
 std::unique_ptr<detail::BodyDevice> makeFailingDevice() {
@@ -567,6 +610,9 @@ TEST(WorldBackend, AFailedDeviceCallHandsTheBodyToTheCpu) {
                        Case{FailingCall::kElementPass, 7, LinearSolverKind::Multigrid},
                        Case{FailingCall::kLineSearchPass, 60, LinearSolverKind::PCG},
                        Case{FailingCall::kLineSearchPass, 60, LinearSolverKind::Multigrid},
+                       Case{FailingCall::kCriterion, 0, LinearSolverKind::Multigrid},
+                       Case{FailingCall::kCriterion, 30, LinearSolverKind::PCG},
+                       Case{FailingCall::kCandidates, 40, LinearSolverKind::Multigrid},
                        Case{FailingCall::kAssemble, 0, LinearSolverKind::PCG},
                        Case{FailingCall::kAssemble, 6, LinearSolverKind::Multigrid},
                        Case{FailingCall::kMatrixRead, 4, LinearSolverKind::Multigrid, true},
@@ -597,7 +643,8 @@ TEST(WorldBackend, AFailedDeviceCallHandsTheBodyToTheCpu) {
     EXPECT_NE(dev.description.find("runs on the CPU from now on"), std::string::npos);
     for (double x : dev.x) ASSERT_TRUE(std::isfinite(x));
     EXPECT_GE(dev.fragments, 2);
-    if (c.failAt == 0 && c.call == FailingCall::kElementPass) {
+    if (c.failAt == 0 &&
+        (c.call == FailingCall::kElementPass || c.call == FailingCall::kCriterion)) {
       EXPECT_EQ(dev.x, cpu.x);
       EXPECT_EQ(dev.broken, cpu.broken);
     }

@@ -20,6 +20,8 @@ namespace gf::detail {
 
 struct ElementStage;
 struct GatherStage;
+struct CriterionStressStage;
+struct CriterionView;
 struct BlockSparseMatrix;
 struct ElementGather;
 struct SolveReport;
@@ -49,14 +51,25 @@ class BodyDevice {
  public:
   virtual ~BodyDevice() = default;
   /// The element stage over every tet and its energies' sum into psi (the CPU's order,
-  /// step/reduce.h): the stage's non-null outputs say what is computed. Criterion stresses
-  /// are copied to stage.stress; gradients are gathered per node (GatherStage, `gather`'s
-  /// lists) into nodeGrad, 3 per node; Hessians stay on the device (downloadHessians,
-  /// assemble). The body's model arrays (topology, rest data, the gather) are copied when
-  /// their host addresses change; its state arrays (rest inverses, damage, rigid tets, wet
-  /// Lamé values) when `stateChanged`; x every call.
+  /// step/reduce.h): the stage's non-null outputs say what is computed. Gradients are gathered
+  /// per node (GatherStage, `gather`'s lists) into nodeGrad, 3 per node; Hessians and criterion
+  /// stresses stay on the device (downloadHessians, assemble; criterionStresses). The body's model
+  /// arrays (topology, rest data, the gather) are copied when their host addresses change; its
+  /// state arrays (rest inverses, damage, rigid tets, wet Lamé values) when `stateChanged`; x every
+  /// call.
   virtual bool elementPass(const ElementStage& stage, const GatherStage& gather, int32_t tetCount,
                            int32_t nodeCount, bool stateChanged, double& psi, double* nodeGrad) = 0;
+  /// The fracture criterion's stresses (`criterion`'s flags, the body's arrays as `body`
+  /// names them and copies them as elementPass() does, at body.x), kept on the device; those
+  /// of undamaged tets only with criterion.undamagedToo (else the last pass's serve).
+  virtual bool criterionStresses(const ElementStage& body, const GatherStage& gather,
+                                 int32_t tetCount, int32_t nodeCount, bool stateChanged,
+                                 const CriterionStressStage& criterion) = 0;
+  /// findCandidateEdges on those stresses, against `host`'s arrays (copied as
+  /// gpu::DeviceCriterion::find says), the candidates into host's; -1 when it failed.
+  virtual int32_t criterionCandidates(const CriterionView& host, double weakest) = 0;
+  /// Those stresses to the host, 6 per tet.
+  virtual bool readCriterionStresses(double* stress) = 0;
   /// The last pass's element Hessians to the host (kElementMatrixSize per tet).
   virtual bool downloadHessians(double* hess) = 0;
   /// The Newton matrix from the last pass's Hessians, on the device (see DeviceAssembly).

@@ -221,6 +221,41 @@ void Integrator::dropDevice() {
   m_device.reset();
 }
 
+// The fracture criterion on the body's device (FractureBody::detect): the stresses at x and the
+// candidate edges there; a failure hands the body to the CPU and detect() goes on on the host.
+class Integrator::CriterionOnDevice final : public CriterionDevice {
+ public:
+  CriterionOnDevice(Integrator& in, const FemModel& model, const FemState& state, const double* x)
+      : m_in(in), m_model(model), m_state(state), m_x(x) {}
+  bool stresses(const CriterionStressStage& stage) override {
+    // Cuts and pre-cuts may have broken edges before the criterion runs: state compared.
+    return m_in.m_device &&
+           (m_in.m_device->criterionStresses(
+                m_in.elementStage(m_model, m_state, m_x, nullptr, nullptr, nullptr, nullptr),
+                m_in.gatherStage(nullptr, nullptr), m_model.tetCount, m_model.nodeCount, true,
+                stage) ||
+            drop());
+  }
+  int32_t candidates(const CriterionView& host, double weakest) override {
+    const int32_t count = m_in.m_device ? m_in.m_device->criterionCandidates(host, weakest) : -1;
+    if (count < 0 && m_in.m_device) drop();
+    return count;
+  }
+  bool readStresses(double* stress) override {
+    return m_in.m_device && (m_in.m_device->readCriterionStresses(stress) || drop());
+  }
+
+ private:
+  bool drop() {
+    m_in.dropDevice();
+    return false;
+  }
+  Integrator& m_in;
+  const FemModel& m_model;
+  const FemState& m_state;
+  const double* m_x;
+};
+
 double Integrator::incrementalPotential(const FemModel& model, const FemState& state,
                                         const double* xn, const double* x, const StepContext& ctx,
                                         bool withGradient, bool withHessian, JobSystem& jobs) {
@@ -1121,8 +1156,11 @@ double Integrator::linearise(const FemModel& model, const FemState& state, const
   rep.elementsMs += msSince(t0);
   if (fusedFracture) {
     t0 = Clock::now();
+    // A device pass kept its stresses there, where the criterion then runs.
+    CriterionOnDevice onDevice(*this, model, state, m_x.data());
     const int32_t broke =
-        m_fracture->detect(model, state, m_x.data(), jobs, true, m_svdCache.data());
+        m_fracture->detect(model, state, m_x.data(), jobs, true, m_svdCache.data(),
+                           m_device && !m_inert ? &onDevice : nullptr);
     rep.fractureMs += msSince(t0);
     if (broke > 0) {
       t0 = Clock::now();
@@ -1542,10 +1580,12 @@ void Integrator::judgeMovingGripFracture(const FemModel& model, const FemState& 
   // Moving grips shift the start point away from x_n, so fracture is judged on x_n first. After
   // a backward-Euler step that was not rolled back, x_n is where that step's last element pass
   // looked, so its tets take their SVDs from the cache; anywhere else they miss and are computed.
+  // On a device the criterion runs there, where the step's element passes ran.
   if (m_fracture && state.movingGrips && ctx.judgeFracture) {
     const auto tf = Clock::now();
+    CriterionOnDevice onDevice(*this, model, state, state.x.data());
     m_fracture->detect(model, state, state.x.data(), jobs, /*stressesReady=*/false,
-                       m_svdCache.data());
+                       m_svdCache.data(), m_device ? &onDevice : nullptr);
     rep.fractureMs += msSince(tf);
   }
 }

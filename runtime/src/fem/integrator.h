@@ -441,6 +441,7 @@ class Integrator {
   std::string m_deviceFailure;
   // Hands the body back to the CPU after a failed device call.
   void dropDevice();
+  class CriterionOnDevice;
   std::unique_ptr<CholeskySolver> m_cholesky;
   std::unique_ptr<MultigridSolver> m_multigrid;
   int32_t m_boundBrokenCount = 0;  // broken edges the multigrid binding has seen

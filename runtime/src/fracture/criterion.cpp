@@ -34,6 +34,59 @@ void averageStress(const FractureModel& model, const double* tetStress, double* 
   CpuExecutor(jobs).run(model.tetCount, kTetGrain, AverageStage{averageOf(model), tetStress, out});
 }
 
+CriterionView criterionView(const FractureModel& model, const EdgeGraph& graph,
+                            const double* strength, const uint8_t* broken, CriterionWorkspace& ws) {
+  const size_t T = size_t(model.tetCount), E = size_t(model.edgeCount);
+  ws.candidates.resize(T);
+  ws.edgeFlag.resize(E);
+  ws.edgeStress.resize(E);
+  ws.edgeTet.resize(E);
+  ws.candidateEdges.resize(E);
+  const int32_t chunks = (model.edgeCount + kCompactChunk - 1) / kCompactChunk;
+  ws.chunkCount.resize(size_t(chunks));
+  ws.chunkOffset.resize(size_t(chunks) + 1);
+  CriterionView v;
+  v.edges = edgesOf(model, graph, strength, broken);
+  v.nonLocal = model.nonLocal();
+  if (v.nonLocal) {
+    v.grid = gridOf(model.grid);
+    v.cells = int32_t(model.grid.start.size() - 1);
+    v.average = averageOf(model);
+    ws.bound.resize(T);
+    ws.cellMax.resize(size_t(v.cells));
+    ws.averaged.resize(6 * T);
+  }
+  v.tetCount = model.tetCount;
+  v.edgeCount = model.edgeCount;
+  v.edgeTetStart = graph.edgeTetStart.data();
+  v.edgeTets = graph.edgeTets.data();
+  v.averaged = ws.averaged.data();
+  v.candidates = ws.candidates.data();
+  v.bound = ws.bound.data();
+  v.cellMax = ws.cellMax.data();
+  v.edgeFlag = ws.edgeFlag.data();
+  v.edgeStress = ws.edgeStress.data();
+  v.edgeTet = ws.edgeTet.data();
+  v.chunkCount = ws.chunkCount.data();
+  v.chunkOffset = ws.chunkOffset.data();
+  v.candidateEdges = ws.candidateEdges.data();
+  return v;
+}
+
+int32_t breakCandidates(const EdgeGraph& graph, const CriterionWorkspace& ws, int32_t count,
+                        std::vector<uint8_t>& broken, std::vector<EdgeBreak>& events,
+                        JobSystem& jobs, const double* positions) {
+  // The decision in edge-id order (eq 4.12): every candidate breaks, its events follow the
+  // list's order. Damage is only ever set, never cleared.
+  const size_t first = events.size();
+  events.resize(first + size_t(count));
+  CpuExecutor(jobs).run(
+      count, 256,
+      BreakEventStage{ws.candidateEdges.data(), ws.edgeStress.data(), ws.edgeTet.data(),
+                      graph.edgeNodes.data(), positions, broken.data(), events.data() + first});
+  return count;
+}
+
 int32_t evaluateCriterion(const FractureModel& model, const EdgeGraph& graph,
                           const double* strength, const double* tetStress,
                           std::vector<uint8_t>& broken, std::vector<EdgeBreak>& events,
@@ -41,66 +94,11 @@ int32_t evaluateCriterion(const FractureModel& model, const EdgeGraph& graph,
   GF_ASSERT(broken.size() == size_t(model.edgeCount) && graph.edgeCount == model.edgeCount,
             "evaluateCriterion: broken flags, graph and model disagree on the edge count");
   if (broken.size() != size_t(model.edgeCount) || graph.edgeCount != model.edgeCount) return 0;
-  const size_t T = size_t(model.tetCount);
-  const uint8_t* flags = broken.data();
-  ws.candidates.resize(T);
-
   const CpuExecutor exec(jobs);
-  const CriterionEdges edges = edgesOf(model, graph, strength, flags);
-  const double weakest = exec.min(strength, model.edgeCount);
-  if (!model.nonLocal()) {
-    exec.run(model.tetCount, 512,
-             LocalCandidateStage{edges, tetStress, weakest, ws.candidates.data()});
-  } else {
-    // Bound first: per tet, per cell, and against the weakest edge of the body.
-    const CentroidGrid& grid = model.grid;
-    const int32_t cells = int32_t(grid.start.size() - 1);
-    ws.bound.resize(T);
-    ws.cellMax.resize(size_t(cells));
-    ws.averaged.resize(6 * T);
-    exec.run(model.tetCount, 1024, StressBoundStage{tetStress, ws.bound.data()});
-    exec.run(cells, 1024, CellMaxStage{gridOf(grid), ws.bound.data(), ws.cellMax.data()});
-    if (!(exec.max(ws.cellMax.data(), cells) >= weakest)) {
-      std::fill(ws.candidates.begin(), ws.candidates.end(), uint8_t(0));
-      return 0;
-    }
-    exec.run(model.tetCount, kTetGrain,
-             NonlocalCandidateStage{edges, gridOf(grid), averageOf(model), tetStress,
-                                    ws.cellMax.data(), ws.averaged.data(), ws.candidates.data()});
-  }
-
-  ws.candidateEdges.clear();
-  if (!(exec.reduce<MaxOp>(model.tetCount, AnyCandidateTerm{ws.candidates.data()}) > 0)) return 0;
-  const int32_t E = model.edgeCount;
-  ws.edgeFlag.resize(size_t(E));
-  ws.edgeStress.resize(size_t(E));
-  ws.edgeTet.resize(size_t(E));
-  exec.run(E, 1024,
-           EdgeCandidateStage{
-               graph.edgeTetStart.data(), graph.edgeTets.data(), ws.candidates.data(), tetStress,
-               model.nonLocal() ? ws.averaged.data() : nullptr, model.edgeDirections.data(),
-               ws.edgeFlag.data(), ws.edgeStress.data(), ws.edgeTet.data()});
-  // The candidates in edge-id order: counts per chunk, their offsets, then each chunk's edges.
-  const int32_t chunks = (E + kCompactChunk - 1) / kCompactChunk;
-  ws.chunkCount.resize(size_t(chunks));
-  ws.chunkOffset.resize(size_t(chunks) + 1);
-  exec.run(chunks, 4, CompactCountStage{ws.edgeFlag.data(), E, ws.chunkCount.data()});
-  exec.run(1, 1, CompactOffsetStage{ws.chunkCount.data(), chunks, ws.chunkOffset.data()});
-  const int32_t count = ws.chunkOffset[size_t(chunks)];
-  ws.candidateEdges.resize(size_t(count));
-  exec.run(
-      chunks, 4,
-      CompactScatterStage{ws.edgeFlag.data(), E, ws.chunkOffset.data(), ws.candidateEdges.data()});
-
-  // The decision in edge-id order (eq 4.12): every candidate breaks, its events follow the
-  // list's order. Damage is only ever set, never cleared.
-  const size_t first = events.size();
-  events.resize(first + size_t(count));
-  exec.run(
-      count, 256,
-      BreakEventStage{ws.candidateEdges.data(), ws.edgeStress.data(), ws.edgeTet.data(),
-                      graph.edgeNodes.data(), positions, broken.data(), events.data() + first});
-  return count;
+  const CriterionView v = criterionView(model, graph, strength, broken.data(), ws);
+  const int32_t count = findCandidateEdges(exec, v, tetStress, exec.min(strength, model.edgeCount),
+                                           [](const int32_t* p) { return *p; });
+  return breakCandidates(graph, ws, count, broken, events, jobs, positions);
 }
 
 void brokenEdgeMasks(const EdgeGraph& graph, const uint8_t* broken, uint8_t* masks,

@@ -34,9 +34,10 @@ struct CriterionWorkspace {
   std::vector<double> averaged;
   /// Per tet: bit k set when local edge k reached strength; bit 7 when `averaged` holds it.
   std::vector<uint8_t> candidates;
-  std::vector<double> bound;            ///< Per tet: Gershgorin bound of max principal stress.
-  std::vector<double> cellMax;          ///< Per grid cell: largest bound of its tets.
-  std::vector<int32_t> candidateEdges;  ///< Unique candidate edges of the last call, sorted.
+  std::vector<double> bound;    ///< Per tet: Gershgorin bound of max principal stress.
+  std::vector<double> cellMax;  ///< Per grid cell: largest bound of its tets.
+  /// Room for every edge; the last call's candidates first, sorted (its count of them).
+  std::vector<int32_t> candidateEdges;
   // Per edge: candidate flag, and the reporting tet's stress and id (EdgeCandidateStage).
   std::vector<uint8_t> edgeFlag;
   std::vector<double> edgeStress;
@@ -49,6 +50,17 @@ struct CriterionWorkspace {
 /// The brittle seed choice wants it for every tet; the criterion computes it only where needed.
 void averageStress(const FractureModel& model, const double* tetStress, double* out,
                    JobSystem& jobs);
+
+/// The host's view of the model's arrays, `strength`, `broken` and `ws` (sized here).
+CriterionView criterionView(const FractureModel& model, const EdgeGraph& graph,
+                            const double* strength, const uint8_t* broken, CriterionWorkspace& ws);
+
+/// Breaks the `count` candidates findCandidateEdges left in `ws` (eq 4.12, in edge-id order):
+/// sets their flags in `broken` and appends their events (split points at `positions`, when
+/// given). Returns count.
+int32_t breakCandidates(const EdgeGraph& graph, const CriterionWorkspace& ws, int32_t count,
+                        std::vector<uint8_t>& broken, std::vector<EdgeBreak>& events,
+                        JobSystem& jobs, const double* positions);
 
 /// Runs the criterion (eq 4.11-4.12) on per-tet material-frame stresses (6 per tet, Voigt)
 /// against the per-edge strengths `strength` (the body's current ones, FractureData).

@@ -317,7 +317,8 @@ void FractureBody::releaseSevered(size_t first, const double* x, bool keepSlices
 }
 
 int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const double* x,
-                             JobSystem& jobs, bool stressesReady, double* svdCache) {
+                             JobSystem& jobs, bool stressesReady, double* svdCache,
+                             CriterionDevice* device) {
   m_data.breaks.clear();
   m_data.breakCause.clear();
   m_data.splits.clear();
@@ -349,10 +350,28 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     finishBatch(first, fem, data, x, jobs);
   }
 
-  computeStresses(fem, data, x, !stressesReady, svdCache, jobs);
   size_t first = m_data.breaks.size();
-  const int32_t n = evaluateCriterion(m_model, m_graph, m_data.strength.data(), m_stress.data(),
-                                      m_data.broken, m_data.breaks, m_ws, jobs, x);
+  // On a device, the stresses stay there (with stressesReady its element pass wrote those of
+  // the undamaged tets) and only the candidates come back; m_stress is then read back only
+  // where brittle planes need it.
+  int32_t n = -1;
+  bool stressesHere = true;
+  if (device && device->stresses(stressStage(fem, data, x, !stressesReady))) {
+    const CriterionView view =
+        criterionView(m_model, m_graph, m_data.strength.data(), m_data.broken.data(), m_ws);
+    const int32_t count =
+        device->candidates(view, CpuExecutor(jobs).min(m_data.strength.data(), m_model.edgeCount));
+    if (count >= 0) {
+      n = breakCandidates(m_graph, m_ws, count, m_data.broken, m_data.breaks, jobs, x);
+      stressesHere = false;
+    }
+  }
+  if (n < 0) {
+    // Stresses ready on a device that failed are not here.
+    computeStresses(fem, data, x, !stressesReady || device, svdCache, jobs);
+    n = evaluateCriterion(m_model, m_graph, m_data.strength.data(), m_stress.data(), m_data.broken,
+                          m_data.breaks, m_ws, jobs, x);
+  }
   m_data.breakCause.resize(m_data.breaks.size(), cause(FractureEvent::Cause::Stress));
   releaseSevered(first, x, false);
   const size_t brittleFirst = m_data.breaks.size();
@@ -360,6 +379,8 @@ int32_t FractureBody::detect(const FemModel& fem, const FemState& data, const do
     // Brittle mode: the first time the criterion fires, the most stressed regions start
     // crack planes through the whole body (sec 4.5.1.2).
     m_data.brittleFired = true;
+    if (!stressesHere && !device->readStresses(m_stress.data()))
+      computeStresses(fem, data, x, true, svdCache, jobs);
     const RestMeshView rest{fem.restPositions.data(), fem.tets.data(), fem.nodeCount, fem.tetCount};
     const double* seedStress = m_stress.data();
     std::vector<double> averaged;  // once per body: no need to keep it

@@ -63,6 +63,20 @@ class FractureBody;
 ElementStage bodyElementStage(const FemModel& fem, const FemState& data,
                               const FractureBody* fracture, const double* x);
 
+/// Where the criterion runs elsewhere (the body's device on the CUDA backend), for
+/// FractureBody::detect: the stresses and the candidate edges there, only those back.
+class CriterionDevice {
+ public:
+  virtual ~CriterionDevice() = default;
+  /// The stresses of `stage` (its flags; the body's arrays it names, at its x), kept there.
+  virtual bool stresses(const CriterionStressStage& stage) = 0;
+  /// findCandidateEdges on them against `host`'s arrays, the candidates into host's (as
+  /// gpu::DeviceCriterion::find); -1 when it failed.
+  virtual int32_t candidates(const CriterionView& host, double weakest) = 0;
+  /// The kept stresses into `stress` on the host, 6 per tet.
+  virtual bool readStresses(double* stress) = 0;
+};
+
 class FractureBody {
  public:
   /// Builds the graph, the fracture model and the per-tet edge matrices. Errors name the
@@ -76,9 +90,12 @@ class FractureBody {
   /// it); damaged tets are evaluated here. Fills breaks() and splits(); returns the number of edges
   /// broken. With stressesReady false, the stresses of undamaged tets are computed here too.
   /// svdCache (kSvdCacheStride per tet, or null): the integrator's SVD cache, read for the tets
-  /// whose F the last element pass saw and written for the others (svd3.h).
+  /// whose F the last element pass saw and written for the others (svd3.h). `device`: the
+  /// stresses (with stressesReady, the element pass left those of the undamaged tets there,
+  /// not in stressBuffer()) and the candidates computed there; where it fails, here.
   int32_t detect(const FemModel& fem, const FemState& data, const double* x, JobSystem& jobs,
-                 bool stressesReady = true, double* svdCache = nullptr);
+                 bool stressesReady = true, double* svdCache = nullptr,
+                 CriterionDevice* device = nullptr);
   /// 6 per tet (Voigt), written by the element pass.
   double* stressBuffer() { return m_stress.data(); }
 

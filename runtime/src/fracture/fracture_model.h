@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "fracture/edge_break.h"
 #include "graphfrac/defs.h"
 #include "graphfrac/jobs.h"
 #include "graphfrac/mesh.h"
@@ -35,19 +36,6 @@ struct RestMeshView {
 inline RestMeshView restView(const TetMesh& m) {
   return {m.positions.data(), m.tets.data(), int32_t(m.nodeCount()), int32_t(m.tetCount())};
 }
-
-/// One edge broken by the criterion, a brittle crack plane or a cut.
-struct EdgeBreak {
-  int32_t edge = -1;  ///< Edge id in the EdgeGraph.
-  int32_t tet = -1;   ///< Tet that reported it (criterion, brittle seed); -1 for a cut.
-  double stress = 0;  ///< Normal stress that broke it [Pa]; brittle: seed's principal; cut: 0.
-  /// Where the edge splits, as the parameter from edgeNodes[2e] (0) to edgeNodes[2e+1] (1):
-  /// 0.5 for the criterion, the plane or blade crossing for brittle planes and cuts.
-  double split = 0.5;
-  /// The split point in the positions the call was given: current positions when passed;
-  /// otherwise rest positions (brittle) or (0, 0, 0) (criterion, which sees no mesh).
-  Vec3 position;
-};
 
 /// Fibre directions that make the edge strength anisotropic (FractureSettings::
 /// fibreStrengthRatio): one unit vector per tet, or `constant` for the whole body when perTet

@@ -8,11 +8,12 @@
 #include <cstdint>
 
 #include "fem/element_stage.h"
-#include "fracture/fracture_model.h"
+#include "fracture/edge_break.h"
 #include "kernels/damage.h"
 #include "kernels/edge_stress.h"
 #include "kernels/element.h"
 #include "kernels/split_point.h"
+#include "step/reduce.h"
 #include "step/scan.h"
 
 namespace gf::detail {
@@ -355,5 +356,76 @@ struct EdgeMaskStage {
     masks[t] = mask;
   }
 };
+
+/// The per-edge stress and reporting tet of candidate i, compacted (what a device sends back of
+/// EdgeCandidateStage's arrays).
+struct CandidateGatherStage {
+  const int32_t* edges = nullptr;  ///< the candidate edges
+  const double* edgeStress = nullptr;
+  const int32_t* edgeTet = nullptr;
+  double* stress = nullptr;
+  int32_t* tet = nullptr;
+
+  GF_HD void operator()(int32_t i) const {
+    stress[i] = edgeStress[edges[i]];
+    tet[i] = edgeTet[edges[i]];
+  }
+};
+
+/// The criterion's arrays as its stages read them: the host's (criterion.h's criterionView) or
+/// a device's copies (gpu/criterion.h). Scratch as CriterionWorkspace's; candidateEdges has room
+/// for every edge.
+struct CriterionView {
+  CriterionEdges edges;
+  bool nonLocal = false;
+  GridView grid;  ///< non-local only, as `average` and `cells`
+  int32_t cells = 0;
+  NonlocalAverage average;
+  int32_t tetCount = 0, edgeCount = 0;
+  const int32_t* edgeTetStart = nullptr;
+  const int32_t* edgeTets = nullptr;
+  double* averaged = nullptr;
+  uint8_t* candidates = nullptr;
+  double* bound = nullptr;
+  double* cellMax = nullptr;
+  uint8_t* edgeFlag = nullptr;
+  double* edgeStress = nullptr;
+  int32_t* edgeTet = nullptr;
+  int32_t* chunkCount = nullptr;
+  int32_t* chunkOffset = nullptr;
+  int32_t* candidateEdges = nullptr;
+};
+
+/// The unbroken edges whose normal stress under tetStress reaches their strength (eq 4.11-4.12),
+/// none weaker than `weakest`: their count, their ids in increasing order in candidateEdges,
+/// and per candidate edge its stress and reporting tet (edgeStress, edgeTet). readInt(p) reads
+/// an int32_t the stages wrote (a device's: a copy back). fracture/criterion.h's design note.
+template <class Exec, class ReadInt>
+int32_t findCandidateEdges(const Exec& exec, const CriterionView& v, const double* tetStress,
+                           double weakest, const ReadInt& readInt) {
+  if (!v.nonLocal) {
+    exec.run(v.tetCount, 512, LocalCandidateStage{v.edges, tetStress, weakest, v.candidates});
+  } else {
+    // Bound first: per tet, per cell, and against the weakest edge of the body.
+    exec.run(v.tetCount, 1024, StressBoundStage{tetStress, v.bound});
+    exec.run(v.cells, 1024, CellMaxStage{v.grid, v.bound, v.cellMax});
+    if (!(exec.template reduce<MaxOp>(v.cells, ArrayTerm{v.cellMax}) >= weakest)) return 0;
+    exec.run(v.tetCount, 256,
+             NonlocalCandidateStage{v.edges, v.grid, v.average, tetStress, v.cellMax, v.averaged,
+                                    v.candidates});
+  }
+  if (!(exec.template reduce<MaxOp>(v.tetCount, AnyCandidateTerm{v.candidates}) > 0)) return 0;
+  const int32_t E = v.edgeCount;
+  exec.run(E, 1024,
+           EdgeCandidateStage{v.edgeTetStart, v.edgeTets, v.candidates, tetStress,
+                              v.nonLocal ? v.averaged : nullptr, v.edges.edgeDirections, v.edgeFlag,
+                              v.edgeStress, v.edgeTet});
+  // The candidates in edge-id order: counts per chunk, their offsets, then each chunk's edges.
+  const int32_t chunks = (E + kCompactChunk - 1) / kCompactChunk;
+  exec.run(chunks, 4, CompactCountStage{v.edgeFlag, E, v.chunkCount});
+  exec.run(1, 1, CompactOffsetStage{v.chunkCount, chunks, v.chunkOffset});
+  exec.run(chunks, 4, CompactScatterStage{v.edgeFlag, E, v.chunkOffset, v.candidateEdges});
+  return readInt(v.chunkOffset + chunks);
+}
 
 }  // namespace gf::detail
