@@ -24,7 +24,8 @@ inline namespace GF_GPU_ABI {
 bool deviceAvailable(std::string& why);
 /// Device memory of `bytes`, or null when it cannot be had (lastError() says why).
 void* deviceAlloc(size_t bytes);
-void deviceFree(void* p);
+/// Frees what deviceAlloc(bytes) gave.
+void deviceFree(void* p, size_t bytes);
 /// Copies between host and device memory; false on an error (lastError()).
 bool copyToDevice(void* dst, const void* src, size_t bytes);
 bool copyToHost(void* dst, const void* src, size_t bytes);
@@ -35,6 +36,11 @@ struct CopyTotals {
   uint64_t toDevice = 0, toHost = 0;
 };
 CopyTotals copyTotals();
+/// Device memory held through deviceAlloc now, and at most since the process started.
+struct MemoryTotals {
+  uint64_t current = 0, peak = 0;
+};
+MemoryTotals memoryTotals();
 /// The last error of the calls above, as text.
 std::string lastError();
 /// The device the calls above use ("host emulation" in the host build).
@@ -45,7 +51,7 @@ template <class T>
 class DeviceBuffer {
  public:
   DeviceBuffer() = default;
-  ~DeviceBuffer() { deviceFree(m_data); }
+  ~DeviceBuffer() { deviceFree(m_data, m_capacity * sizeof(T)); }
   DeviceBuffer(const DeviceBuffer&) = delete;
   DeviceBuffer& operator=(const DeviceBuffer&) = delete;
 
@@ -55,7 +61,7 @@ class DeviceBuffer {
       m_size = n;
       return true;
     }
-    deviceFree(m_data);
+    deviceFree(m_data, m_capacity * sizeof(T));
     m_data = static_cast<T*>(deviceAlloc(n * sizeof(T)));
     m_capacity = m_data ? n : 0;
     m_size = m_capacity;

@@ -10,7 +10,7 @@ inline namespace GF_GPU_ABI {
 
 namespace {
 cudaError_t g_lastError = cudaSuccess;
-std::atomic<uint64_t> g_toDevice{0}, g_toHost{0};
+std::atomic<uint64_t> g_toDevice{0}, g_toHost{0}, g_held{0}, g_peak{0};
 
 bool check(cudaError_t e) {
   if (e != cudaSuccess) g_lastError = e;
@@ -31,11 +31,17 @@ bool deviceAvailable(std::string& why) {
 
 void* deviceAlloc(size_t bytes) {
   void* p = nullptr;
-  return check(cudaMalloc(&p, bytes)) ? p : nullptr;
+  if (!check(cudaMalloc(&p, bytes))) return nullptr;
+  const uint64_t held = g_held.fetch_add(bytes) + bytes;
+  for (uint64_t peak = g_peak.load(); held > peak && !g_peak.compare_exchange_weak(peak, held);) {
+  }
+  return p;
 }
 
-void deviceFree(void* p) {
-  if (p) cudaFree(p);
+void deviceFree(void* p, size_t bytes) {
+  if (!p) return;
+  g_held.fetch_sub(bytes);
+  cudaFree(p);
 }
 
 bool copyToDevice(void* dst, const void* src, size_t bytes) {
@@ -49,6 +55,7 @@ bool copyToHost(void* dst, const void* src, size_t bytes) {
 }
 
 CopyTotals copyTotals() { return {g_toDevice.load(), g_toHost.load()}; }
+MemoryTotals memoryTotals() { return {g_held.load(), g_peak.load()}; }
 
 bool synchronize() { return check(cudaGetLastError()) && check(cudaDeviceSynchronize()); }
 

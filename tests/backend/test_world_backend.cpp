@@ -272,6 +272,7 @@ GF_SCENE_TEST(TheHessiansAndTheMatrixStayOnTheDevice) {
         test::selectNodes(def.mesh, [](double x, double, double) { return x > 0.4 - 1e-9; });
     right.velocity = {0.05f, 0, 0};
     def.grips = {left, right};
+    const uint64_t heldBefore = gpu::memoryTotals().current;
     World world(wd);
     ASSERT_TRUE(world.createBody(def).ok());
     for (int s = 0; s < 3; ++s) ASSERT_TRUE(world.step(1.0 / 60).ok());  // the model's copies
@@ -297,6 +298,9 @@ GF_SCENE_TEST(TheHessiansAndTheMatrixStayOnTheDevice) {
         "%.0f\n",
         solver == LinearSolverKind::PCG ? "PCG" : "multigrid", tets, nodes, toHost, toDevice,
         iterations, hessians, matrix, stresses);
+    const double held = double(gpu::memoryTotals().current - heldBefore);
+    std::printf("  device memory of the body: %.2f MB, %.0f bytes a tet\n", held / 1e6,
+                held / double(tets));
     EXPECT_LT(toHost, 0.5 * stresses);
     EXPECT_LT(toHost, 0.1 * hessians);
     EXPECT_LT(toDevice, 0.1 * hessians);

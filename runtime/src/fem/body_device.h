@@ -1,9 +1,10 @@
 // What a device runs of a body's step on the CUDA backend (WorldDef::backend): the element pass,
-// the Newton matrix's assembly and the linear solves, by the stages and solve templates the CPU
-// runs (fem/element_stage.h, fem/node_stage.h, solver/sparse_stages.h, solver/pcg_stages.h,
-// solver/multigrid_cycle.h), on device copies of the body's buffers. The element Hessians and the
-// assembled matrix stay on the device; the host asks for them only where it needs them. The
-// integrator keeps the rest of the step, and its order, on the host. Implemented by the device
+// the Newton matrix's assembly, the fracture criterion and the linear solves, by the stages and
+// solve templates the CPU runs (fem/element_stage.h, fem/node_stage.h, solver/sparse_stages.h,
+// fracture/fracture_stages.h, solver/pcg_stages.h, solver/multigrid_cycle.h), on device copies
+// of the body's buffers. The element Hessians, the assembled matrix and the criterion's stresses
+// stay on the device; the host asks for them only where it needs them. The integrator keeps the
+// rest of the step, and its order, on the host. Implemented by the device
 // sources (gpu/body_device.cu; their host build, gpu/host/, for the `backend` tests), so the
 // runtime names no CUDA type.
 #pragma once
@@ -55,8 +56,8 @@ class BodyDevice {
   /// per node (GatherStage, `gather`'s lists) into nodeGrad, 3 per node; Hessians and criterion
   /// stresses stay on the device (downloadHessians, assemble; criterionStresses). The body's model
   /// arrays (topology, rest data, the gather) are copied when their host addresses change; its
-  /// state arrays (rest inverses, damage, rigid tets, wet Lamé values) when `stateChanged`; x every
-  /// call.
+  /// state arrays (rest inverses, damage, rigid tets, wet Lamé values) with `stateChanged`, where
+  /// their contents changed; x every call.
   virtual bool elementPass(const ElementStage& stage, const GatherStage& gather, int32_t tetCount,
                            int32_t nodeCount, bool stateChanged, double& psi, double* nodeGrad) = 0;
   /// The fracture criterion's stresses (`criterion`'s flags, the body's arrays as `body`
