@@ -1,16 +1,15 @@
 // gpu/device.h on the CUDA runtime.
 #include <cuda_runtime.h>
 
-#include <atomic>
-
 #include "gpu/device.h"
+#include "gpu/device_totals.h"
 
 namespace gf::gpu {
 inline namespace GF_GPU_ABI {
 
 namespace {
 cudaError_t g_lastError = cudaSuccess;
-std::atomic<uint64_t> g_toDevice{0}, g_toHost{0}, g_held{0}, g_peak{0};
+DeviceTotals g_totals;
 
 bool check(cudaError_t e) {
   if (e != cudaSuccess) g_lastError = e;
@@ -32,30 +31,28 @@ bool deviceAvailable(std::string& why) {
 void* deviceAlloc(size_t bytes) {
   void* p = nullptr;
   if (!check(cudaMalloc(&p, bytes))) return nullptr;
-  const uint64_t held = g_held.fetch_add(bytes) + bytes;
-  for (uint64_t peak = g_peak.load(); held > peak && !g_peak.compare_exchange_weak(peak, held);) {
-  }
+  g_totals.allocated(bytes);
   return p;
 }
 
 void deviceFree(void* p, size_t bytes) {
   if (!p) return;
-  g_held.fetch_sub(bytes);
+  g_totals.freed(bytes);
   cudaFree(p);
 }
 
 bool copyToDevice(void* dst, const void* src, size_t bytes) {
-  g_toDevice.fetch_add(bytes, std::memory_order_relaxed);
+  g_totals.copiedToDevice(bytes);
   return check(cudaMemcpy(dst, src, bytes, cudaMemcpyHostToDevice));
 }
 
 bool copyToHost(void* dst, const void* src, size_t bytes) {
-  g_toHost.fetch_add(bytes, std::memory_order_relaxed);
+  g_totals.copiedToHost(bytes);
   return check(cudaMemcpy(dst, src, bytes, cudaMemcpyDeviceToHost));
 }
 
-CopyTotals copyTotals() { return {g_toDevice.load(), g_toHost.load()}; }
-MemoryTotals memoryTotals() { return {g_held.load(), g_peak.load()}; }
+CopyTotals copyTotals() { return g_totals.copies(); }
+MemoryTotals memoryTotals() { return g_totals.memory(); }
 
 bool synchronize() { return check(cudaGetLastError()) && check(cudaDeviceSynchronize()); }
 
